@@ -1,0 +1,28 @@
+"""simlab: robot reinforcement learning for social navigation.
+
+Two halves share one agent library (:mod:`simlab.agents`):
+
+* the physics half (:mod:`simlab.physics`, :mod:`discretize`, :mod:`simlab.data`,
+  :mod:`simlab.replay`): a PyBullet TurtleBot3 Burger in a table arena, a random-walk
+  transition dataset, the empirical MDP, and closed-loop replay of learned policies;
+* the tabular half (:mod:`simlab.visitlab`): the "Visit the lab" human-robot
+  interaction simulation.
+
+Importing :mod:`simlab` registers the Gymnasium environments (``simlab/...-v0``);
+the heavy modules are imported only when an environment is made.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("simlab")
+except PackageNotFoundError:  # running from a source tree without installation
+    __version__ = "0.0.0+src"
+
+from simlab.envs import register_envs as _register_envs
+
+_register_envs()
+
+__all__ = ["__version__"]

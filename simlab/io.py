@@ -1,0 +1,68 @@
+"""Safe file output: write to a temporary name, then rename.
+
+A crash or an exception never leaves a half-written file under the final name, and
+existing outputs are not replaced unless the caller asks for it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any
+
+from simlab.errors import ConfigError
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[Any]]:
+    """Open a temporary file beside ``path``; rename it onto ``path`` on success.
+
+    The temporary file lives in the same directory (so the rename is atomic on
+    POSIX) and is removed if the block raises. The data is flushed and fsynced
+    before the rename so that a power cut cannot leave an empty file behind.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    tmp = Path(tmp_name)
+    try:
+        encoding = None if "b" in mode else "utf-8"
+        with os.fdopen(fd, mode, encoding=encoding) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    with atomic_write(path, "w") as fh:
+        fh.write(text)
+
+
+def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> None:
+    """Write ``obj`` as indented JSON to ``path`` atomically."""
+    atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+
+
+def ensure_new(path: str | os.PathLike[str], *, overwrite: bool = False, what: str = "output") -> Path:
+    """Refuse to replace an existing ``path`` unless ``overwrite`` is true.
+
+    Returns the path. Raises :class:`ConfigError` naming the file and the fix.
+    """
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise ConfigError(
+            f"{what} already exists",
+            path=path,
+            fix="choose another path or pass --overwrite",
+        )
+    return path
