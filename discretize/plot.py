@@ -1,0 +1,192 @@
+"""Figure of a discretized map, after thesis Fig. 3.5.
+
+The map (occupied black, free white, unknown grey), the Voronoi cells restricted to
+the free space (boundaries drawn where the nearest-centre label of neighbouring
+pixels changes), the eroded free space's edge (dashed), the centres with their state
+numbers, and, when visit counts are given, each cell coloured by ``log10(visits)``
+(the thesis legend; unvisited cells hatched grey).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+
+from discretize.gridmap import OccupancyMap
+from discretize.voronoi import DEFAULT_ROBOT_RADIUS, Discretizer, eroded_free_mask
+from simlab.errors import ConfigError, DataError
+from simlab.io import atomic_write, ensure_new
+
+
+def visits_from_dataset(path: str | os.PathLike[str], n_states: int) -> np.ndarray:
+    """Visits per state ``(n_states,)`` int64 from a directory of Parquet parts.
+
+    Counts the int column ``s`` (the state a transition starts from) over every
+    part, read with ``pyarrow.dataset``. Raises :class:`ConfigError` if the
+    directory is missing, :class:`DataError` if the column is missing or a state
+    is outside ``0..n_states-1`` (the dataset used another discretizer).
+    """
+    import pyarrow as pa
+    import pyarrow.dataset as ds
+
+    path = Path(path)
+    if not path.exists():
+        raise ConfigError("dataset not found", path=path, fix="give a directory of Parquet parts")
+    try:
+        dataset = ds.dataset(str(path), format="parquet")
+        if "s" not in dataset.schema.names:
+            raise DataError(f"{path}: the dataset has no column 's' (state)")
+        column = dataset.to_table(columns=["s"]).column("s")
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise DataError(f"{path}: cannot read the Parquet dataset ({exc})") from None
+    s = np.asarray(column.to_numpy(zero_copy_only=False))
+    if s.size == 0:
+        return np.zeros(n_states, dtype=np.int64)
+    if not np.issubdtype(s.dtype, np.integer):
+        raise DataError(f"{path}: column 's' must hold integers, got {s.dtype}")
+    if s.min() < 0 or s.max() >= n_states:
+        raise DataError(
+            f"{path}: states range {int(s.min())}..{int(s.max())} does not fit the "
+            f"{n_states} states of this discretizer (another discretizer?)"
+        )
+    return np.bincount(s.astype(np.int64), minlength=n_states)
+
+
+def _local_xy(grid: OccupancyMap, xy: np.ndarray) -> np.ndarray:
+    """Map-frame coordinates (the image axes, metres from the origin corner) of world points."""
+    rc = grid.world_to_pixel_float(xy)
+    x = grid.origin[0] + rc[..., 1] * grid.resolution
+    y = grid.origin[1] + (grid.height - rc[..., 0]) * grid.resolution
+    return np.stack([x, y], axis=-1)
+
+
+def draw_states(
+    ax,
+    grid: OccupancyMap,
+    disc: Discretizer,
+    visits: np.ndarray | None = None,
+    *,
+    robot_radius: float | None = DEFAULT_ROBOT_RADIUS,
+    numbers: bool = True,
+):
+    """Draw the figure into matplotlib axes ``ax``; returns the colour-mapped image (or None)."""
+    import matplotlib as mpl
+    from matplotlib.colors import Normalize
+
+    h, w = grid.shape
+    extent = (
+        grid.origin[0],
+        grid.origin[0] + w * grid.resolution,
+        grid.origin[1],
+        grid.origin[1] + h * grid.resolution,
+    )
+    base = np.full((h, w, 3), 0.78)
+    base[grid.free_mask()] = 1.0
+    base[grid.occupied_mask()] = 0.0
+    ax.imshow(base, extent=extent, interpolation="nearest", origin="upper")
+
+    free = grid.free_mask()
+    labels = disc.label_image(grid)
+    overlay = np.zeros((h, w, 4))
+    mappable = None
+    if visits is not None:
+        visits = np.asarray(visits)
+        if visits.shape != (disc.n_states,):
+            raise ValueError(f"visits: expected shape ({disc.n_states},), got {visits.shape}")
+        logv = np.log10(np.maximum(visits, 1).astype(np.float64))
+        vmax = max(1.0, float(logv.max()))
+        cmap = mpl.colormaps["viridis"]
+        norm = Normalize(vmin=0.0, vmax=vmax)
+        colours = cmap(norm(logv))
+        colours[visits == 0] = (0.85, 0.85, 0.85, 1.0)
+        colours[:, 3] = 0.75
+        overlay[free] = colours[labels[free]]
+        mappable = mpl.cm.ScalarMappable(norm=norm, cmap=cmap)
+    else:
+        palette = mpl.colormaps["tab20"](np.arange(20) % 20)
+        colours = palette[np.arange(disc.n_states) % 20].copy()
+        colours[:, 3] = 0.35
+        overlay[free] = colours[labels[free]]
+    # Cell boundaries: a pixel whose right or lower neighbour has another label.
+    edge = np.zeros((h, w), dtype=bool)
+    diff_x = (labels[:, 1:] != labels[:, :-1]) & free[:, 1:] & free[:, :-1]
+    diff_y = (labels[1:, :] != labels[:-1, :]) & free[1:, :] & free[:-1, :]
+    edge[:, 1:] |= diff_x
+    edge[1:, :] |= diff_y
+    overlay[edge] = (0.1, 0.1, 0.1, 0.9)
+    ax.imshow(overlay, extent=extent, interpolation="nearest", origin="upper")
+
+    if robot_radius is not None:
+        eroded = eroded_free_mask(grid, robot_radius).astype(float)
+        ys = grid.origin[1] + (h - np.arange(h) - 0.5) * grid.resolution
+        xs = grid.origin[0] + (np.arange(w) + 0.5) * grid.resolution
+        if 0 < eroded.sum() < eroded.size:
+            ax.contour(xs, ys, eroded, levels=[0.5], colors="tab:red", linewidths=0.8, linestyles="--")
+
+    pts = _local_xy(grid, disc.centres)
+    ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", markersize=3)
+    if numbers:
+        for k, (x, y) in enumerate(pts):
+            ax.annotate(
+                str(k),
+                (x, y),
+                xytext=(2, 2),
+                textcoords="offset points",
+                fontsize=7,
+                color="black",
+                fontweight="bold",
+            )
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    return mappable
+
+
+def render_states_png(
+    grid: OccupancyMap,
+    disc: Discretizer,
+    visits: np.ndarray | None = None,
+    *,
+    robot_radius: float | None = DEFAULT_ROBOT_RADIUS,
+    title: str | None = None,
+    dpi: int = 150,
+) -> bytes:
+    """The figure as PNG bytes (Agg backend, nothing written to disk)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 6.4 if visits is None else 7.2))
+    ax = fig.add_subplot(1, 1, 1)
+    mappable = draw_states(ax, grid, disc, visits, robot_radius=robot_radius)
+    if title is None:
+        title = f"{disc.n_states} states"
+        if visits is not None:
+            title += f", {int(np.sum(visits))} visits"
+    ax.set_title(title)
+    if mappable is not None:
+        cbar = fig.colorbar(mappable, ax=ax, orientation="horizontal", fraction=0.05, pad=0.08)
+        cbar.set_label("log10(visits)")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def plot_states(
+    path: str | os.PathLike[str],
+    grid: OccupancyMap,
+    disc: Discretizer,
+    visits: np.ndarray | None = None,
+    *,
+    robot_radius: float | None = DEFAULT_ROBOT_RADIUS,
+    title: str | None = None,
+    overwrite: bool = False,
+) -> Path:
+    """Write the figure to ``path`` (PNG) atomically; refuses to replace a file unless ``overwrite``."""
+    path = ensure_new(path, overwrite=overwrite, what="figure")
+    data = render_states_png(grid, disc, visits, robot_radius=robot_radius, title=title)
+    with atomic_write(path, "wb") as fh:
+        fh.write(data)
+    return path

@@ -1,0 +1,556 @@
+"""Voronoi discretization of a map's free space into Markov states.
+
+The thesis (3.2.2, Fig. 3.5) cut the table into N = 41 states with Voronoi cells.
+Here:
+
+1. **Eroded free space.** Free pixels (occupancy 0; unknown counts as blocked, and
+   so does everything beyond the image border) whose clearance to the nearest
+   non-free pixel is at least the robot radius (default 0.113 m, the half-diagonal
+   of the 138 x 178 mm TurtleBot3 Burger footprint). Clearance of a pixel centre =
+   Euclidean distance transform to the nearest non-free pixel centre minus half a
+   pixel (distance to that pixel's edge). By default only the largest 8-connected
+   component is kept: the robot cannot reach the others (e.g. free specks seen
+   through a gap behind a wall).
+2. **Centres.** Either ``n_states`` centres (default 41) placed by a centroidal
+   Voronoi tessellation of the eroded free pixels: farthest-point initialisation
+   from the first eroded pixel in row-major order, then Lloyd iterations (each
+   centre moves to the mean of the pixels nearest to it) until the assignment no
+   longer changes, or the cell-radius rule ``radius=r`` (thesis r_V = 0.09 m): as
+   many centres as circles of radius ``r`` fit in the eroded area,
+   ``N = max(1, round(area / (pi r^2)))``, then the same placement. Each final
+   centre is snapped to the nearest eroded free pixel centre, so every centre lies
+   in eroded free space. Everything is deterministic (no random numbers).
+   Centres can instead come from a text file of ``x y`` lines (a real robot's).
+3. **Numbering** row-major from the top-left: centres sorted by y (top first) are
+   cut into rows greedily: a row starts at the highest remaining centre and holds
+   every remaining centre at most ``row_tolerance`` below it (default half the
+   median nearest-neighbour distance between centres); rows go top to bottom,
+   centres within a row left to right. Centres loaded from a file keep the file's
+   order unless renumbering is asked for (their state numbers are what the real
+   robot's data refer to).
+4. **States.** ``state_of(xy)`` = index of the nearest centre (scipy cKDTree); every
+   point of the plane has exactly one state, including poses a little off the
+   eroded area.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from discretize.gridmap import OccupancyMap
+from simlab.errors import ConfigError, DataError
+from simlab.io import atomic_write_json, ensure_new
+
+#: Half-diagonal of the TurtleBot3 Burger footprint 138 x 178 mm, metres.
+TURTLEBOT3_BURGER_RADIUS = 0.5 * math.hypot(0.138, 0.178)
+DEFAULT_ROBOT_RADIUS = 0.113
+DEFAULT_N_STATES = 41
+FORMAT = "simlab-discretizer"
+FORMAT_VERSION = 1
+
+
+# ----------------------------------------------------------------- free space
+def eroded_free_mask(
+    grid: OccupancyMap, robot_radius: float = DEFAULT_ROBOT_RADIUS, component: str = "largest"
+) -> np.ndarray:
+    """``(H, W)`` bool: free pixels where a robot of ``robot_radius`` (m) fits.
+
+    Args:
+        grid: the map.
+        robot_radius: clearance needed, metres (>= 0).
+        component: ``"largest"`` keeps the largest 8-connected region (ties: the
+            one whose first pixel comes first in row-major order); ``"all"`` keeps
+            every region.
+    """
+    if not robot_radius >= 0:
+        raise ValueError(f"robot_radius: expected >= 0, got {robot_radius}")
+    if component not in ("largest", "all"):
+        raise ValueError(f"component: expected 'largest' or 'all', got {component!r}")
+    free = grid.free_mask()
+    padded = np.pad(free, 1, constant_values=False)
+    dist = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * grid.resolution
+    eroded = free & (dist - 0.5 * grid.resolution >= robot_radius - 1e-12)
+    if component == "largest" and eroded.any():
+        labels, n = ndimage.label(eroded, structure=np.ones((3, 3), dtype=bool))
+        if n > 1:
+            sizes = np.bincount(labels.ravel())[1:]
+            eroded = labels == (int(np.argmax(sizes)) + 1)
+    return eroded
+
+
+# ------------------------------------------------------------------ placement
+def _farthest_point_init(points: np.ndarray, n: int) -> np.ndarray:
+    """Indices of ``n`` points chosen greedily farthest from those already chosen.
+
+    Starts at ``points[0]``; ties go to the lowest index (``argmax``).
+    """
+    chosen = np.empty(n, dtype=np.int64)
+    chosen[0] = 0
+    d2 = np.sum((points - points[0]) ** 2, axis=1)
+    for k in range(1, n):
+        idx = int(np.argmax(d2))
+        chosen[k] = idx
+        d2 = np.minimum(d2, np.sum((points - points[idx]) ** 2, axis=1))
+    return chosen
+
+
+def lloyd_centres(
+    points: np.ndarray, n: int, max_iter: int = 500, progress: bool = False
+) -> tuple[np.ndarray, int]:
+    """Centroidal Voronoi centres of a point set (k-means with a deterministic start).
+
+    Args:
+        points: ``(M, 2)`` metres (pixel centres), M >= n.
+        n: number of centres.
+        max_iter: bound on Lloyd iterations.
+        progress: show a tqdm bar over iterations.
+    Returns:
+        ``(centres (n, 2), iterations)``; iterations stop when no point changes cell.
+    """
+    from tqdm import tqdm
+
+    centres = points[_farthest_point_init(points, n)].copy()
+    labels = None
+    it = 0
+    bar = tqdm(total=max_iter, desc="Lloyd iterations", unit="it", disable=not progress, leave=False)
+    try:
+        for it in range(1, max_iter + 1):  # noqa: B007 - the count is returned
+            _, new_labels = cKDTree(centres).query(points)
+            if labels is not None and np.array_equal(new_labels, labels):
+                break
+            labels = new_labels
+            counts = np.bincount(labels, minlength=n).astype(np.float64)
+            sx = np.bincount(labels, weights=points[:, 0], minlength=n)
+            sy = np.bincount(labels, weights=points[:, 1], minlength=n)
+            nonempty = counts > 0
+            centres[nonempty, 0] = sx[nonempty] / counts[nonempty]
+            centres[nonempty, 1] = sy[nonempty] / counts[nonempty]
+            bar.update(1)
+    finally:
+        bar.close()
+    return centres, it
+
+
+def row_major_order(centres: np.ndarray, row_tolerance: float | None = None) -> np.ndarray:
+    """Permutation putting ``centres`` ``(N, 2)`` in row-major order from the top-left.
+
+    Rows are built greedily from the top (see the module docstring). Returns
+    ``order`` such that ``centres[order]`` is the numbered sequence.
+    """
+    centres = np.asarray(centres, dtype=np.float64)
+    n = len(centres)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    if row_tolerance is None:
+        row_tolerance = default_row_tolerance(centres)
+    by_y = np.lexsort((centres[:, 0], -centres[:, 1]))  # y descending, then x
+    order: list[int] = []
+    start = 0
+    while start < n:
+        y_top = centres[by_y[start], 1]
+        stop = start
+        while stop < n and centres[by_y[stop], 1] >= y_top - row_tolerance:
+            stop += 1
+        row = by_y[start:stop]
+        row = row[np.lexsort((-centres[row, 1], centres[row, 0]))]  # x ascending, then top
+        order.extend(int(i) for i in row)
+        start = stop
+    return np.asarray(order, dtype=np.int64)
+
+
+def default_row_tolerance(centres: np.ndarray) -> float:
+    """Half the median nearest-neighbour distance between ``centres`` (metres)."""
+    centres = np.asarray(centres, dtype=np.float64)
+    if len(centres) < 2:
+        return 0.0
+    d, _ = cKDTree(centres).query(centres, k=2)
+    return 0.5 * float(np.median(d[:, 1]))
+
+
+# ----------------------------------------------------------------- discretizer
+def _centres_hash(centres: np.ndarray) -> str:
+    h = hashlib.sha256()
+    h.update(b"simlab-discretizer-v1\0")
+    h.update(np.ascontiguousarray(centres, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
+@dataclass(frozen=True, eq=False)
+class Discretizer:
+    """Nearest-centre (Voronoi) partition of the plane into ``n_states`` states.
+
+    Attributes:
+        centres: ``(N, 2)`` float64 world coordinates in metres; state ``i`` is the
+            cell of ``centres[i]``. Stored read-only.
+        map_hash: :meth:`OccupancyMap.content_hash` of the map the centres were
+            placed on (None if unknown).
+        method: ``"lloyd"``, ``"radius"`` or ``"file"``.
+        params: JSON-able parameters of the construction (robot radius, requested
+            count, iterations, row tolerance, ...), recorded for provenance.
+    """
+
+    centres: np.ndarray
+    map_hash: str | None = None
+    method: str = "lloyd"
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        c = np.array(self.centres, dtype=np.float64, copy=True)
+        if c.ndim != 2 or c.shape[1] != 2 or c.shape[0] < 1:
+            raise ValueError(f"centres: expected a non-empty (N, 2) array, got shape {c.shape}")
+        if not np.all(np.isfinite(c)):
+            raise ValueError("centres: coordinates must be finite")
+        if len(np.unique(c, axis=0)) != len(c):
+            raise ValueError("centres: two centres coincide")
+        c.setflags(write=False)
+        object.__setattr__(self, "centres", c)
+        object.__setattr__(self, "params", dict(self.params))
+        object.__setattr__(self, "_tree", cKDTree(c))
+
+    @property
+    def n_states(self) -> int:
+        return int(self.centres.shape[0])
+
+    def state_of(self, xy: np.ndarray) -> np.ndarray:
+        """State index of each pose: ``xy (..., 2)`` metres (extra columns such as yaw
+        are ignored) -> int64 ``(...)``. The nearest centre wins."""
+        xy = np.asarray(xy, dtype=np.float64)
+        if xy.ndim == 0 or xy.shape[-1] < 2:
+            raise ValueError(f"xy: expected shape (..., 2), got {xy.shape}")
+        pts = xy[..., :2]
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("xy: poses must be finite")
+        flat = pts.reshape(-1, 2)
+        _, idx = self._tree.query(flat)  # type: ignore[attr-defined]
+        return np.asarray(idx, dtype=np.int64).reshape(pts.shape[:-1])
+
+    def label_image(self, grid: OccupancyMap) -> np.ndarray:
+        """``(H, W)`` int64 state of every pixel centre of ``grid`` (for plots)."""
+        return self.state_of(grid.pixel_centres()).reshape(grid.shape)
+
+    def content_hash(self) -> str:
+        """SHA-256 (hex) of the partition: the centres in state order (float64 bytes).
+
+        Two discretizers with equal hashes map every pose to the same state.
+        """
+        return _centres_hash(self.centres)
+
+    # ------------------------------------------------------------------- files
+    def to_json(self) -> dict[str, Any]:
+        """The JSON document :meth:`save` writes."""
+        return {
+            "format": FORMAT,
+            "version": FORMAT_VERSION,
+            "n_states": self.n_states,
+            "centres": [[float(x), float(y)] for x, y in self.centres],
+            "map_hash": self.map_hash,
+            "method": self.method,
+            "params": dict(self.params),
+            "content_hash": self.content_hash(),
+        }
+
+    def save(self, path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+        """Write JSON atomically (``centres`` as ``[[x, y], ...]``); refuses to replace
+        an existing file unless ``overwrite``."""
+        path = ensure_new(path, overwrite=overwrite, what="states file")
+        atomic_write_json(path, self.to_json())
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Discretizer:
+        """Read a file written by :meth:`save`. Raises :class:`DataError` if it is
+        malformed or its ``content_hash`` does not match its centres."""
+        path = Path(path)
+        if not path.is_file():
+            raise ConfigError("states file not found", path=path)
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise DataError(f"{path}: not valid JSON ({exc})") from None
+        if not isinstance(doc, dict) or "centres" not in doc:
+            raise DataError(f"{path}: not a states file (no 'centres' list)")
+        raw = doc["centres"]
+        try:
+            centres = np.asarray(raw, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise DataError(f"{path}: centres: expected a list of [x, y] numbers") from None
+        if centres.ndim != 2 or centres.shape[1] != 2 or len(centres) == 0:
+            raise DataError(f"{path}: centres: expected a non-empty list of [x, y] pairs")
+        stored = doc.get("content_hash")
+        try:
+            disc = cls(
+                centres=centres,
+                map_hash=doc.get("map_hash"),
+                method=str(doc.get("method", "file")),
+                params=doc.get("params") or {},
+            )
+        except ValueError as exc:
+            raise DataError(f"{path}: {exc}") from None
+        if stored is not None and stored != disc.content_hash():
+            raise DataError(
+                f"{path}: content_hash does not match the centres (file edited?); "
+                "delete the content_hash key to accept the edited centres"
+            )
+        return disc
+
+    # ------------------------------------------------------------ construction
+    @classmethod
+    def from_map(
+        cls,
+        grid: OccupancyMap,
+        n_states: int | None = None,
+        *,
+        radius: float | None = None,
+        robot_radius: float = DEFAULT_ROBOT_RADIUS,
+        component: str = "largest",
+        max_iter: int = 500,
+        row_tolerance: float | None = None,
+        progress: bool = False,
+        source: str | os.PathLike[str] | None = None,
+    ) -> Discretizer:
+        """Place centres on ``grid``'s eroded free space (see the module docstring).
+
+        Give ``n_states`` (default 41) or ``radius`` (cell-radius rule, metres), not both.
+        ``source`` names the map file in error messages.
+        """
+        if n_states is not None and radius is not None:
+            raise ConfigError("give either a number of states or a cell radius, not both", key="states")
+        if radius is not None and not (math.isfinite(radius) and radius > 0):
+            raise ConfigError(f"expected a cell radius > 0 m, got {radius!r}", key="radius")
+        if radius is None and n_states is None:
+            n_states = DEFAULT_N_STATES
+        if n_states is not None and (isinstance(n_states, bool) or int(n_states) != n_states or n_states < 1):
+            raise ConfigError(f"expected a whole number >= 1, got {n_states!r}", key="states")
+        if not (math.isfinite(robot_radius) and robot_radius >= 0):
+            raise ConfigError(f"expected a radius >= 0 m, got {robot_radius!r}", key="robot_radius")
+        eroded = eroded_free_mask(grid, robot_radius, component)
+        n_free = int(eroded.sum())
+        if n_free == 0:
+            raise ConfigError(
+                f"no free space left after eroding by the robot radius {robot_radius} m "
+                f"({int(grid.free_mask().sum())} free pixels before erosion)",
+                path=source,
+                fix="check the map (free pixels must be white) or lower --robot-radius",
+            )
+        area = n_free * grid.resolution**2
+        if radius is not None:
+            method = "radius"
+            n = max(1, round(area / (math.pi * radius**2)))
+        else:
+            method = "lloyd"
+            n = int(n_states)  # type: ignore[arg-type]
+        if n > n_free:
+            raise ConfigError(
+                f"{n} states requested but the eroded free space has only {n_free} pixels",
+                path=source,
+                key="states",
+                fix="ask for fewer states or use a finer map",
+            )
+        points = grid.pixel_centres(eroded)
+        centroids, iterations = lloyd_centres(points, n, max_iter=max_iter, progress=progress)
+        _, snap = cKDTree(points).query(centroids)
+        centres = points[snap]
+        if len(np.unique(snap)) != n:  # pragma: no cover - only with degenerate inputs
+            raise ConfigError(
+                f"{n} states do not fit: two centres snap to the same pixel",
+                path=source,
+                key="states",
+                fix="ask for fewer states or use a finer map",
+            )
+        tol = default_row_tolerance(centres) if row_tolerance is None else float(row_tolerance)
+        centres = centres[row_major_order(centres, tol)]
+        params = {
+            "robot_radius": float(robot_radius),
+            "states_requested": None if n_states is None else int(n_states),
+            "radius": None if radius is None else float(radius),
+            "component": component,
+            "lloyd_iterations": int(iterations),
+            "max_iter": int(max_iter),
+            "numbering": "row-major-top-left",
+            "row_tolerance": tol,
+            "eroded_area_m2": area,
+            "map_resolution": grid.resolution,
+        }
+        return cls(centres=centres, map_hash=grid.content_hash(), method=method, params=params)
+
+    @classmethod
+    def from_centres(
+        cls,
+        centres: np.ndarray,
+        *,
+        grid: OccupancyMap | None = None,
+        renumber: bool = False,
+        row_tolerance: float | None = None,
+        source: str | os.PathLike[str] | None = None,
+    ) -> Discretizer:
+        """Wrap given centres ``(N, 2)`` (metres). With ``grid``, each centre must lie
+        inside the map on a pixel that is not occupied (catches wrong frames or units)."""
+        centres = np.asarray(centres, dtype=np.float64)
+        if len(np.unique(centres, axis=0)) != len(centres):
+            raise ConfigError("two centres coincide", path=source)
+        map_hash = None
+        if grid is not None:
+            rc = grid.world_to_pixel(centres)
+            inside = grid.in_bounds(rc)
+            if not inside.all():
+                k = int(np.argmin(inside))
+                raise ConfigError(
+                    f"centre {k} at ({centres[k, 0]:g}, {centres[k, 1]:g}) lies outside the map",
+                    path=source,
+                    fix="centres must be in the map frame, in metres",
+                )
+            occ = grid.occupancy[rc[:, 0], rc[:, 1]]
+            bad = occ > 0
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise ConfigError(
+                    f"centre {k} at ({centres[k, 0]:g}, {centres[k, 1]:g}) lies on an occupied pixel",
+                    path=source,
+                    fix="centres must be in the map frame, in metres",
+                )
+            map_hash = grid.content_hash()
+        params: dict[str, Any] = {"numbering": "file-order"}
+        if renumber:
+            tol = default_row_tolerance(centres) if row_tolerance is None else float(row_tolerance)
+            centres = centres[row_major_order(centres, tol)]
+            params = {"numbering": "row-major-top-left", "row_tolerance": tol}
+        if source is not None:
+            params["source"] = str(source)
+        return cls(centres=centres, map_hash=map_hash, method="file", params=params)
+
+
+def load_centres_txt(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read centres ``(N, 2)`` from a text file of ``x y`` lines (metres).
+
+    Blank lines and ``#`` comments are skipped; commas may separate the numbers.
+    Raises :class:`ConfigError` naming the file and line for anything else.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("centres file not found", path=path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError("not a text file", path=path) from None
+    rows: list[tuple[float, float]] = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        body = line.split("#", 1)[0].replace(",", " ").split()
+        if not body:
+            continue
+        if len(body) != 2:
+            raise ConfigError(
+                f"expected two numbers 'x y', got {line.strip()!r}", path=path, key=f"line {lineno}"
+            )
+        try:
+            x, y = float(body[0]), float(body[1])
+        except ValueError:
+            raise ConfigError(
+                f"expected two numbers 'x y', got {line.strip()!r}", path=path, key=f"line {lineno}"
+            ) from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ConfigError("coordinates must be finite", path=path, key=f"line {lineno}")
+        rows.append((x, y))
+    if not rows:
+        raise ConfigError("no centres in the file", path=path, fix="write one 'x y' line per centre")
+    return np.asarray(rows, dtype=np.float64)
+
+
+# ------------------------------------------------------------------- command
+@dataclass(frozen=True)
+class DiscretizeResult:
+    """What :func:`discretize_map` produced."""
+
+    discretizer: Discretizer
+    out: Path
+    png: Path | None
+    visits: np.ndarray | None
+
+
+def discretize_map(
+    map: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    states: int | None = None,
+    *,
+    radius: float | None = None,
+    robot_radius: float = DEFAULT_ROBOT_RADIUS,
+    centres: str | os.PathLike[str] | None = None,
+    renumber: bool = False,
+    component: str = "largest",
+    png: str | os.PathLike[str] | None = None,
+    dataset: str | os.PathLike[str] | None = None,
+    overwrite: bool = False,
+    progress: bool = True,
+) -> DiscretizeResult:
+    """``simlab discretize``: place states on a map and save them (and a figure).
+
+    Args:
+        map: map_server YAML (``maps/table/map.yaml``).
+        out: JSON file to write (``states/table.json``).
+        states: number of centres (default 41 unless ``radius`` or ``centres``).
+        radius: cell-radius rule instead of a count (metres).
+        robot_radius: erosion radius (metres).
+        centres: text file of ``x y`` lines to use instead of placing centres.
+        renumber: renumber file centres row-major (default: keep file order).
+        component: ``"largest"`` or ``"all"`` free regions.
+        png: also draw the Fig. 3.5-style figure there.
+        dataset: directory of Parquet parts with an int column ``s``; colours the
+            figure by visits per state (needs ``png``).
+        overwrite: replace existing outputs.
+        progress: show progress bars.
+    Every input is checked and every output path is checked (exists?) before any
+    file is written; the outputs are written atomically.
+    """
+    from discretize.mapio import read_map
+
+    out = Path(out)
+    png_path = None if png is None else Path(png)
+    ensure_new(out, overwrite=overwrite, what="states file")
+    if png_path is not None:
+        ensure_new(png_path, overwrite=overwrite, what="figure")
+        if png_path.resolve() == out.resolve():
+            raise ConfigError("the figure and the states file would be the same file", path=out)
+    if dataset is not None and png_path is None:
+        raise ConfigError("--dataset colours the figure; give --png too", key="dataset")
+    grid = read_map(map)
+    if centres is not None:
+        if states is not None or radius is not None:
+            raise ConfigError("give --centres or --states/--radius, not both", key="centres")
+        disc = Discretizer.from_centres(
+            load_centres_txt(centres), grid=grid, renumber=renumber, source=centres
+        )
+    else:
+        disc = Discretizer.from_map(
+            grid,
+            states,
+            radius=radius,
+            robot_radius=robot_radius,
+            component=component,
+            progress=progress,
+            source=map,
+        )
+    visits = None
+    figure_bytes = None
+    if png_path is not None:
+        from discretize.plot import render_states_png, visits_from_dataset
+
+        if dataset is not None:
+            visits = visits_from_dataset(dataset, disc.n_states)
+        figure_bytes = render_states_png(grid, disc, visits=visits, robot_radius=robot_radius)
+    disc.save(out, overwrite=overwrite)
+    if png_path is not None and figure_bytes is not None:
+        from simlab.io import atomic_write
+
+        with atomic_write(png_path, "wb") as fh:
+            fh.write(figure_bytes)
+    return DiscretizeResult(discretizer=disc, out=out, png=png_path, visits=visits)
