@@ -1,0 +1,306 @@
+"""The 16 motion primitives of the thesis (section 3.2): 8 map-frame directions x 2 speeds.
+
+Action index = ``speed * 8 + direction``; directions in the thesis order UP, DOWN, LEFT,
+RIGHT, UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT, with UP = +y of the map. A primitive:
+
+1. **rotates in place** to the direction's heading: an open-loop turn at ``w_max`` for the
+   bulk of the angle (no Python per physics step), then a closed-loop approach at
+   ``fine_hz`` with a square-root velocity profile until the heading error is below
+   ``heading_tolerance``;
+2. **checks for obstacles** (the thesis ROS node ``detect_obstacles``): one LIDAR scan;
+   the primitive is *blocked* if any return lies in the corridor the robot would sweep,
+   i.e. from the robot's front edge to ``drive distance + detector_margin`` ahead, as wide
+   as the robot plus ``detector_side_margin`` on each side. A blocked primitive skips the
+   translation and is logged as such;
+3. **drives straight** for ``drive_time`` at the slow or fast speed (fast = v_max), holding
+   the heading with a proportional correction at ``hold_hz``;
+4. **brakes** and steps until the robot is at rest (or ``settle_timeout``).
+
+Between primitives the robot idles for ``decision_latency`` (the thesis's robot waited on
+ROS services and the learner between actions). The idle time is accounted for by callers
+but never stepped: a robot at rest on a flat floor stays at rest.
+
+The default decision latency makes 10 simulated hours give about the thesis's 8,448
+transitions on the table arena (36,000 s / 8,448 = 4.26 s per transition, of which the
+primitive itself takes about 1.9 s on average: rotation 0.5 s, drive 1 s, braking and the
+fine heading approach the rest; re-measure with benchmarks/physics_speed.py).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from enum import IntEnum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.errors import ConfigError
+from simlab.physics.lidar import LidarScan
+from simlab.physics.robot import wrap_angle
+from simlab.physics.world import World
+
+
+class Direction(IntEnum):
+    """Map-frame directions in the thesis order (UP = +y)."""
+
+    UP = 0
+    DOWN = 1
+    LEFT = 2
+    RIGHT = 3
+    UP_LEFT = 4
+    UP_RIGHT = 5
+    DOWN_LEFT = 6
+    DOWN_RIGHT = 7
+
+
+class Speed(IntEnum):
+    SLOW = 0
+    FAST = 1
+
+
+N_DIRECTIONS = len(Direction)
+N_ACTIONS = N_DIRECTIONS * len(Speed)
+
+#: Heading (rad, counter-clockwise from +x) of each :class:`Direction`.
+HEADINGS: NDArray[np.float64] = np.array(
+    [math.pi / 2, -math.pi / 2, math.pi, 0.0, 3 * math.pi / 4, math.pi / 4,
+     -3 * math.pi / 4, -math.pi / 4]
+)
+
+
+def action_index(speed: Speed | int, direction: Direction | int) -> int:
+    """Action index of a (speed, direction) pair: ``speed * 8 + direction``."""
+    return int(speed) * N_DIRECTIONS + int(direction)
+
+
+def decode_action(action: int) -> tuple[Speed, Direction]:
+    """Inverse of :func:`action_index`; raises ValueError outside 0..15."""
+    if not 0 <= int(action) < N_ACTIONS:
+        raise ValueError(f"action must be in 0..{N_ACTIONS - 1}, got {action}")
+    return Speed(int(action) // N_DIRECTIONS), Direction(int(action) % N_DIRECTIONS)
+
+
+def action_name(action: int) -> str:
+    speed, direction = decode_action(action)
+    return f"{direction.name}_{speed.name}"
+
+
+@dataclass(frozen=True)
+class PrimitiveParams:
+    """Parameters of the motion primitives (SI units: m, s, rad, Hz).
+
+    ``heading_source`` is the heading the controller steers by: ``"truth"`` stands in for
+    the localized (SLAM/AMCL) heading the thesis robot used to execute map-frame
+    directions; ``"odometry"`` uses the wheel encoders alone and drifts over time.
+    """
+
+    slow_speed: float = 0.11
+    fast_speed: float = 0.22
+    drive_time: float = 1.0
+    heading_tolerance: float = math.radians(1.0)
+    turn_decel: float = 15.0
+    min_turn_rate: float = 0.3
+    fine_hz: float = 60.0
+    hold_hz: float = 10.0
+    hold_gain: float = 3.0
+    turn_timeout: float = 4.0
+    settle_time: float = 0.1
+    settle_timeout: float = 0.5
+    detector_margin: float = 0.05
+    detector_side_margin: float = 0.02
+    detector_cone: float = math.radians(90.0)
+    decision_latency: float = 2.35
+    heading_source: str = "truth"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "heading_source":
+                if value not in ("truth", "odometry"):
+                    raise ConfigError(f"must be 'truth' or 'odometry', got {value!r}",
+                                      key=f"PrimitiveParams.{f.name}")
+                continue
+            if not isinstance(value, int | float) or not math.isfinite(value):
+                raise ConfigError(f"must be a finite number, got {value!r}",
+                                  key=f"PrimitiveParams.{f.name}")
+            zero_ok = f.name in ("decision_latency", "detector_margin",
+                                 "detector_side_margin", "settle_time", "min_turn_rate")
+            if value < 0 or (value == 0 and not zero_ok):
+                raise ConfigError(f"must be {'>= 0' if zero_ok else '> 0'}, got {value!r}",
+                                  key=f"PrimitiveParams.{f.name}")
+
+    def speed_of(self, action: int) -> float:
+        """Forward speed (m/s) of an action."""
+        return self.fast_speed if decode_action(action)[0] == Speed.FAST else self.slow_speed
+
+    def nominal_distance(self, action: int) -> float:
+        """Distance (m) an unblocked action is meant to travel."""
+        return self.speed_of(action) * self.drive_time
+
+
+@dataclass(frozen=True)
+class PrimitiveResult:
+    """Outcome of one primitive. Poses are ``(x, y, yaw)`` (m, m, rad).
+
+    ``duration`` is the simulated time stepped (s), without the decision latency;
+    ``heading_error`` the final heading error (rad) after the rotation; ``scan`` the scan
+    the obstacle detector used.
+    """
+
+    action: int
+    blocked: bool
+    pose_before: NDArray[np.float64]
+    pose_after: NDArray[np.float64]
+    odom_before: NDArray[np.float64]
+    odom_after: NDArray[np.float64]
+    duration: float
+    heading_error: float
+    scan: LidarScan
+
+
+#: Speeds below which the robot counts as at rest (m/s, rad/s).
+REST_SPEED = 5e-3
+REST_YAW_RATE = 2e-2
+
+ScanCallback = Callable[[LidarScan, NDArray[np.float64]], None]
+
+
+def corridor_blocked(scan: LidarScan, distance: float, footprint: tuple[float, float, float, float],
+                     margin: float, side_margin: float) -> bool:
+    """Whether any LIDAR return lies in the corridor a straight drive of ``distance`` sweeps.
+
+    ``footprint`` is the robot outline ``(x_min, x_max, y_min, y_max)`` in the base frame.
+    """
+    pts = scan.points_base()
+    if pts.size == 0:
+        return False
+    _, x_max, y_min, y_max = footprint
+    inside = (
+        (pts[:, 0] > 0.0)
+        & (pts[:, 0] <= x_max + distance + margin)
+        & (pts[:, 1] >= y_min - side_margin)
+        & (pts[:, 1] <= y_max + side_margin)
+    )
+    return bool(inside.any())
+
+
+def _cone_beams(n_beams: int, half_angle: float) -> NDArray[np.int64]:
+    """Indices of the beams within +-half_angle of the forward axis."""
+    angles = np.arange(n_beams) * (2 * math.pi / n_beams)
+    return np.flatnonzero(np.abs(wrap_angle(angles)) <= half_angle + 1e-9)
+
+
+class _Stepper:
+    """Steps a world, firing the scan callback at the LIDAR rate of simulated time."""
+
+    def __init__(self, world: World, rng: np.random.Generator, on_scan: ScanCallback | None):
+        self.world = world
+        self.rng = rng
+        self.on_scan = on_scan
+        self.period = 1.0 / world.lidar_spec.rate_hz
+        self.next_scan = world.time + self.period
+
+    def advance(self, seconds: float) -> None:
+        w = self.world
+        n = max(1, round(seconds * w.physics_hz))
+        if self.on_scan is None:
+            w.step(n)
+            return
+        while n > 0:
+            due = max(1, math.ceil((self.next_scan - w.time) * w.physics_hz - 1e-9))
+            k = min(n, due)
+            w.step(k)
+            n -= k
+            if w.time >= self.next_scan - 1e-9:
+                self.on_scan(w.scan(self.rng), w.odometry())
+                self.next_scan += self.period
+
+
+def execute_primitive(
+    world: World,
+    action: int,
+    rng: np.random.Generator,
+    params: PrimitiveParams | None = None,
+    on_scan: ScanCallback | None = None,
+) -> PrimitiveResult:
+    """Run one primitive (rotate, check, drive, brake) in ``world``; see the module doc.
+
+    ``rng`` draws the LIDAR noise. ``on_scan(scan, odometry_pose)`` is called at the LIDAR
+    rate while the primitive runs, if given.
+    """
+    p = params or PrimitiveParams()
+    _speed, direction = decode_action(action)
+    target = float(HEADINGS[direction])
+    drive = world.drive
+    stepper = _Stepper(world, rng, on_scan)
+    t0 = world.time
+    pose_before = world.pose()
+    odom_before = world.odometry()
+
+    def heading() -> float:
+        return float(world.pose()[2] if p.heading_source == "truth" else world.odometry()[2])
+
+    # 1. Rotate: open loop at w_max for the bulk, then a closed-loop approach.
+    w_max = world.robot_spec.w_max
+    err = float(wrap_angle(target - heading()))
+    bulk = abs(err) - 0.25
+    if bulk > 0:
+        drive.command(0.0, math.copysign(w_max, err))
+        stepper.advance(bulk / w_max)
+        err = float(wrap_angle(target - heading()))
+    fine_dt = 1.0 / p.fine_hz
+    deadline = world.time + p.turn_timeout
+    while abs(err) > p.heading_tolerance and world.time < deadline:
+        rate = max(p.min_turn_rate, math.sqrt(2.0 * p.turn_decel * abs(err)))
+        # Never command more than the remaining angle over one control period.
+        rate = min(rate, w_max, abs(err) / fine_dt)
+        drive.command(0.0, math.copysign(rate, err))
+        stepper.advance(fine_dt)
+        err = float(wrap_angle(target - heading()))
+    drive.command(0.0, 0.0)
+    stepper.advance(p.settle_time / 2)
+    heading_error = float(wrap_angle(target - world.pose()[2]))
+
+    # 2. Obstacle check on a fresh scan of the cone ahead (beams outside +-detector_cone
+    # cannot reach the swept corridor; casting only these halves the cost of the check).
+    scan = world.scan(rng, beams=_cone_beams(world.lidar_spec.n_beams, p.detector_cone))
+    v = p.speed_of(action)
+    distance = v * p.drive_time
+    blocked = corridor_blocked(scan, distance, world.robot_spec.footprint,
+                               p.detector_margin, p.detector_side_margin)
+
+    # 3. Drive straight with a heading hold.
+    if not blocked:
+        hold_dt = 1.0 / p.hold_hz
+        remaining = p.drive_time
+        while remaining > 1e-9:
+            dt = min(hold_dt, remaining)
+            drive.command(v, p.hold_gain * float(wrap_angle(target - heading())))
+            stepper.advance(dt)
+            remaining -= dt
+
+    # 4. Brake until at rest. "At rest" allows the few mm/s of creep that PyBullet's
+    # iterative solver leaves on velocity motors held at zero with 5 iterations (it shrinks
+    # with more iterations, at 2-4x the cost per step); over a settle it moves < 1 mm.
+    drive.command(0.0, 0.0)
+    stepper.advance(p.settle_time)
+    deadline = world.time + p.settle_timeout
+    while world.time < deadline:
+        lin, ang = world.velocity()
+        if abs(lin) < REST_SPEED and abs(ang) < REST_YAW_RATE:
+            break
+        stepper.advance(0.02)
+
+    return PrimitiveResult(
+        action=int(action),
+        blocked=blocked,
+        pose_before=pose_before,
+        pose_after=world.pose(),
+        odom_before=odom_before,
+        odom_after=world.odometry(),
+        duration=world.time - t0,
+        heading_error=heading_error,
+        scan=scan,
+    )

@@ -1,0 +1,248 @@
+"""The robot: facts read from its URDF, the differential drive, and wheel odometry.
+
+One source of truth: wheel radius, wheel separation, motor torque and speed limits, the
+LIDAR mount and the footprint are read from the URDF by tag and element name (yourdfpy),
+never written here as literals. The velocity limits ``v_max`` and ``w_max`` are the
+published controller limits of the TurtleBot3 Burger (0.22 m/s, 2.84 rad/s), which the URDF
+format has no place for; they are fields of :class:`RobotSpec`.
+
+Modelling choices (see robots/turtlebot3_burger.urdf): the wheels collide as spheres of
+the wheel radius (on a flat floor they roll exactly like the tyre, with one stable contact
+point), the ball caster is a frictionless sphere, and the wheels are driven by PyBullet
+velocity motors whose maximum force is the URDF joint ``effort`` (a torque, N m).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yourdfpy
+from numpy.typing import NDArray
+
+from simlab.assets import resolve
+from simlab.errors import ConfigError
+from simlab.physics._bullet import pybullet
+
+#: Published TurtleBot3 Burger controller limits.
+BURGER_V_MAX = 0.22  # m/s
+BURGER_W_MAX = 2.84  # rad/s
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Geometry and limits of a differential-drive robot, read from its URDF.
+
+    Lengths in metres, masses in kg, torques in N m, speeds in m/s, rad/s.
+    ``footprint`` is ``(x_min, x_max, y_min, y_max)`` of the collision outline in the base
+    frame (origin on the floor under the wheel-axis midpoint, x forward, y left);
+    ``swept_radius`` is the largest distance of that outline from the origin (the circle it
+    sweeps when turning in place).
+    """
+
+    urdf_path: str
+    name: str
+    wheel_radius: float
+    wheel_width: float
+    wheel_separation: float
+    left_wheel_joint: str
+    right_wheel_joint: str
+    wheel_torque_limit: float
+    wheel_speed_limit: float
+    lidar_offset: tuple[float, float, float]
+    footprint: tuple[float, float, float, float]
+    swept_radius: float
+    total_mass: float
+    v_max: float = BURGER_V_MAX
+    w_max: float = BURGER_W_MAX
+
+
+def _joint(robot: yourdfpy.Robot, name: str, path: Path) -> yourdfpy.Joint:
+    for j in robot.joints:
+        if j.name == name:
+            return j
+    raise ConfigError(f"joint {name!r} not found", path=path, key=f"joint[@name={name!r}]")
+
+
+def _link(robot: yourdfpy.Robot, name: str, path: Path) -> yourdfpy.Link:
+    for link in robot.links:
+        if link.name == name:
+            return link
+    raise ConfigError(f"link {name!r} not found", path=path, key=f"link[@name={name!r}]")
+
+
+def load_robot_spec(
+    name_or_path: str | Path = "turtlebot3_burger",
+    *,
+    left_wheel_joint: str = "wheel_left_joint",
+    right_wheel_joint: str = "wheel_right_joint",
+    scan_joint: str = "scan_joint",
+) -> RobotSpec:
+    """Read a :class:`RobotSpec` from a built-in robot name or a ``.urdf`` path."""
+    path = resolve("robots", name_or_path, ".urdf")
+    try:
+        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
+    except Exception as exc:  # yourdfpy raises assorted lxml/ValueError types
+        raise ConfigError(f"cannot parse URDF: {exc}", path=path) from None
+    robot = urdf.robot
+
+    jl = _joint(robot, left_wheel_joint, path)
+    jr = _joint(robot, right_wheel_joint, path)
+    wheel_link = _link(robot, jl.child, path)
+    cylinders = [v.geometry.cylinder for v in wheel_link.visuals if v.geometry.cylinder]
+    if not cylinders:
+        raise ConfigError(
+            "wheel link has no <visual><geometry><cylinder> giving the tyre radius and width",
+            path=path, key=f"link[@name={wheel_link.name!r}]",
+        )
+    wheel_radius = float(cylinders[0].radius)
+    wheel_width = float(cylinders[0].length)
+    yl, yr = float(jl.origin[1, 3]), float(jr.origin[1, 3])
+    separation = abs(yl - yr)
+    if separation <= 0:
+        raise ConfigError("wheel joints coincide in y", path=path, key=left_wheel_joint)
+    for j in (jl, jr):
+        if j.limit is None or j.limit.effort is None or j.limit.velocity is None:
+            raise ConfigError("wheel joint needs <limit effort=... velocity=...>", path=path,
+                              key=f"joint[@name={j.name!r}]/limit")
+    torque = float(min(jl.limit.effort, jr.limit.effort))
+    speed = float(min(jl.limit.velocity, jr.limit.velocity))
+
+    js = _joint(robot, scan_joint, path)
+    lidar_offset = tuple(float(v) for v in js.origin[:3, 3])
+
+    # Footprint: base collision boxes (in the base frame) and the wheel tyres.
+    xs: list[float] = []
+    ys: list[float] = []
+    base = _link(robot, jl.parent, path)
+    for col in base.collisions:
+        if col.geometry.box is not None:
+            sx, sy, _ = col.geometry.box.size
+            ox, oy = col.origin[0, 3], col.origin[1, 3]
+            xs += [ox - sx / 2, ox + sx / 2]
+            ys += [oy - sy / 2, oy + sy / 2]
+    for j in (jl, jr):
+        xs += [j.origin[0, 3] - wheel_radius, j.origin[0, 3] + wheel_radius]
+        ys += [j.origin[1, 3] - wheel_width / 2, j.origin[1, 3] + wheel_width / 2]
+    footprint = (min(xs), max(xs), min(ys), max(ys))
+    # Swept radius from the actual outline pieces (the corner of the bounding box would
+    # overestimate: the wheels do not reach the rear corners).
+    corners = []
+    for col in base.collisions:
+        if col.geometry.box is not None:
+            sx, sy, _ = col.geometry.box.size
+            ox, oy = col.origin[0, 3], col.origin[1, 3]
+            corners += [(ox + a * sx / 2, oy + b * sy / 2) for a in (-1, 1) for b in (-1, 1)]
+    for j in (jl, jr):
+        jx, jy = j.origin[0, 3], j.origin[1, 3]
+        corners += [(jx + a * wheel_radius, jy + b * wheel_width / 2)
+                    for a in (-1, 1) for b in (-1, 1)]
+    swept = max(math.hypot(x, y) for x, y in corners)
+
+    mass = sum(float(link.inertial.mass) for link in robot.links if link.inertial is not None)
+    return RobotSpec(
+        urdf_path=str(path),
+        name=robot.name,
+        wheel_radius=wheel_radius,
+        wheel_width=wheel_width,
+        wheel_separation=separation,
+        left_wheel_joint=left_wheel_joint,
+        right_wheel_joint=right_wheel_joint,
+        wheel_torque_limit=torque,
+        wheel_speed_limit=speed,
+        lidar_offset=lidar_offset,  # type: ignore[arg-type]
+        footprint=footprint,
+        swept_radius=swept,
+        total_mass=mass,
+    )
+
+
+def wrap_angle(a):
+    """Wrap angles (rad, float or array) to [-pi, pi)."""
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class WheelOdometry:
+    """Dead reckoning from the wheel joint angles (what the robot's encoders report).
+
+    Each update integrates the wheel rotations since the previous one as an arc of constant
+    curvature (exact for constant wheel speeds between samples). Drift comes from the
+    physics: slip, the finite sampling rate, contact with walls.
+    """
+
+    def __init__(self, spec: RobotSpec, pose: NDArray[np.float64], angles: tuple[float, float]):
+        self._r = spec.wheel_radius
+        self._b = spec.wheel_separation
+        self.pose = np.array(pose, dtype=float)
+        self._last = angles
+
+    def update(self, angles: tuple[float, float]) -> NDArray[np.float64]:
+        dl = (angles[0] - self._last[0]) * self._r
+        dr = (angles[1] - self._last[1]) * self._r
+        self._last = angles
+        ds = 0.5 * (dl + dr)
+        dth = (dr - dl) / self._b
+        x, y, th = self.pose
+        if abs(dth) < 1e-9:
+            x += ds * math.cos(th)
+            y += ds * math.sin(th)
+        else:
+            rad = ds / dth
+            x += rad * (math.sin(th + dth) - math.sin(th))
+            y -= rad * (math.cos(th + dth) - math.cos(th))
+        self.pose = np.array([x, y, wrap_angle(th + dth)])
+        return self.pose.copy()
+
+
+class DiffDrive:
+    """Velocity-motor differential drive of one robot body in one physics client.
+
+    ``command(v, w)`` saturates the body velocities to ``v_max`` / ``w_max``, converts them
+    to wheel speeds (scaled down together if one would exceed the wheel speed limit, so the
+    curvature is kept) and sets the two wheel motors with the URDF torque limit.
+    """
+
+    def __init__(self, client, body: int, spec: RobotSpec) -> None:
+        self._c = client
+        self.body = body
+        self.spec = spec
+        names = {client.getJointInfo(body, j)[1].decode(): j for j in range(client.getNumJoints(body))}
+        self.left = names[spec.left_wheel_joint]
+        self.right = names[spec.right_wheel_joint]
+        self._joints = [self.left, self.right]
+        # Release PyBullet's default velocity motors on every joint (they act as brakes).
+        for j in names.values():
+            client.setJointMotorControl2(body, j, pybullet.VELOCITY_CONTROL, force=0.0)
+        self.commanded = (0.0, 0.0)
+
+    def saturate(self, v: float, w: float) -> tuple[float, float]:
+        """Clip (v, w) to the robot limits and the wheel speed limit; returns what is applied."""
+        s = self.spec
+        v = min(max(v, -s.v_max), s.v_max)
+        w = min(max(w, -s.w_max), s.w_max)
+        half = 0.5 * s.wheel_separation
+        peak = max(abs(v - w * half), abs(v + w * half)) / s.wheel_radius
+        if peak > s.wheel_speed_limit:
+            k = s.wheel_speed_limit / peak
+            v, w = v * k, w * k
+        return v, w
+
+    def command(self, v: float, w: float) -> tuple[float, float]:
+        """Drive at forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s), saturated."""
+        v, w = self.saturate(v, w)
+        half = 0.5 * self.spec.wheel_separation
+        r = self.spec.wheel_radius
+        self._c.setJointMotorControlArray(
+            self.body, self._joints, pybullet.VELOCITY_CONTROL,
+            targetVelocities=[(v - w * half) / r, (v + w * half) / r],
+            forces=[self.spec.wheel_torque_limit] * 2,
+        )
+        self.commanded = (v, w)
+        return v, w
+
+    def wheel_angles(self) -> tuple[float, float]:
+        """Accumulated wheel joint angles (rad), left then right."""
+        states = self._c.getJointStates(self.body, self._joints)
+        return states[0][0], states[1][0]

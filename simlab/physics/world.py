@@ -1,0 +1,234 @@
+"""The physics world: one PyBullet client per arena, owning the robot and its LIDAR.
+
+Every :class:`World` has its own ``BulletClient`` (DIRECT unless ``gui=True``), so two
+arenas in one process never share state. Library code never touches the global
+``pybullet`` connection.
+
+Physics settings (chosen for speed, fidelity checked by tests/physics):
+
+* 240 Hz fixed time step, 5 solver iterations: commanded speeds are reproduced within
+  0.5 % and yaw rates within 0.5 % (see tests/physics/test_drive.py); at lower rates the
+  solver needs more iterations per step to converge and the cost per simulated second does
+  not drop (measured with benchmarks/physics_speed.py);
+* deterministic overlapping pairs, so the same commands give bit-identical trajectories;
+* :meth:`World.reset` rebuilds the whole simulation, so the state after a reset depends
+  only on the reset pose (no contact caches survive): a data collection can be resumed at
+  a part boundary and continue exactly as an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.physics._bullet import BulletClient, pybullet, quiet_stdout
+from simlab.physics.arena import ArenaConfig, load_arena
+from simlab.physics.lidar import Lidar, LidarScan, LidarSpec
+from simlab.physics.robot import DiffDrive, RobotSpec, WheelOdometry, load_robot_spec
+from simlab.physics.urdf_merge import merged_urdf_path
+
+FLOOR_FRICTION = 1.0
+WALL_FRICTION = 0.5
+
+
+class World:
+    """An arena with one robot. Use as a context manager or call :meth:`close`.
+
+    Parameters
+    ----------
+    arena:
+        An :class:`ArenaConfig`, a built-in arena name or a ``.toml`` path.
+    robot:
+        A :class:`RobotSpec`, a built-in robot name or a ``.urdf`` path.
+    gui:
+        Open the PyBullet GUI (needs a display); DIRECT (headless) otherwise.
+    physics_hz, solver_iterations:
+        Fixed time step and constraint solver iterations.
+    lidar:
+        Scanner parameters (LDS-01 defaults).
+    """
+
+    def __init__(
+        self,
+        arena: ArenaConfig | str | Path = "table",
+        *,
+        robot: RobotSpec | str | Path = "turtlebot3_burger",
+        gui: bool = False,
+        physics_hz: float = 240.0,
+        solver_iterations: int = 5,
+        lidar: LidarSpec | None = None,
+    ) -> None:
+        self.arena = arena if isinstance(arena, ArenaConfig) else load_arena(arena)
+        self.robot_spec = robot if isinstance(robot, RobotSpec) else load_robot_spec(robot)
+        self.lidar_spec = lidar or LidarSpec()
+        self.physics_hz = float(physics_hz)
+        self.dt = 1.0 / self.physics_hz
+        self.solver_iterations = int(solver_iterations)
+        self.gui = gui
+        with quiet_stdout():
+            self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        self._steps = 0
+        self.reset()
+
+    # ------------------------------------------------------------------ lifecycle
+    def reset(self, pose: NDArray[np.float64] | tuple[float, float, float] | None = None) -> None:
+        """Rebuild the simulation with the robot at rest at ``pose`` (x, y, yaw) or the start.
+
+        Simulated time and odometry restart (odometry = the reset pose).
+        """
+        c = self.client
+        c.resetSimulation()
+        c.setGravity(0.0, 0.0, -9.81)
+        c.setPhysicsEngineParameter(
+            fixedTimeStep=self.dt,
+            numSolverIterations=self.solver_iterations,
+            numSubSteps=1,
+            deterministicOverlappingPairs=1,
+        )
+        if self.gui:
+            c.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
+        self._build_arena()
+        pose = np.asarray(self.arena.start if pose is None else pose, dtype=float)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"reset pose must be 3 finite numbers (x, y, yaw), got {pose}")
+        # Friction comes from the URDF <contact> elements (frictionless caster/chassis,
+        # rubber wheels). The LIDAR housing is folded into the base by our own merge
+        # (see urdf_merge.py for why not PyBullet's URDF_MERGE_FIXED_LINKS).
+        with quiet_stdout():
+            self.body = c.loadURDF(
+                str(merged_urdf_path(self.robot_spec.urdf_path)),
+                basePosition=[0.0, 0.0, 0.0],
+                flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
+            )
+        # The base's reported position is its centre of mass; keep the inertial offset to
+        # convert between the link frame (our pose) and the COM frame.
+        info = c.getDynamicsInfo(self.body, -1)
+        self._inertial_pos = np.asarray(info[3], dtype=float)
+        self.set_pose(pose)
+        self.drive = DiffDrive(c, self.body, self.robot_spec)
+        self.lidar = Lidar(c, self.body, self.robot_spec.lidar_offset, self.lidar_spec)
+        self._steps = 0
+        self._odometry = WheelOdometry(self.robot_spec, pose, self.drive.wheel_angles())
+
+    def _build_arena(self) -> None:
+        c, a = self.client, self.arena
+        plane = c.createCollisionShape(pybullet.GEOM_PLANE)
+        self.floor = c.createMultiBody(0, plane)
+        c.changeDynamics(self.floor, -1, lateralFriction=FLOOR_FRICTION)
+        hx, hy = a.size[0] / 2, a.size[1] / 2
+        t, h = a.wall_thickness, a.wall_height
+        walls = [  # (centre x, centre y, half x, half y)
+            (-hx - t / 2, 0.0, t / 2, hy + t),
+            (hx + t / 2, 0.0, t / 2, hy + t),
+            (0.0, -hy - t / 2, hx + t, t / 2),
+            (0.0, hy + t / 2, hx + t, t / 2),
+        ]
+        self.static_bodies = [self.floor]
+        for x, y, ex, ey in walls:
+            shape = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[ex, ey, h / 2])
+            vis = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=[ex, ey, h / 2],
+                                      rgbaColor=[0.8, 0.7, 0.55, 1]) if self.gui else -1
+            body = c.createMultiBody(0, shape, vis, basePosition=[x, y, h / 2])
+            c.changeDynamics(body, -1, lateralFriction=WALL_FRICTION)
+            self.static_bodies.append(body)
+        for ob in a.obstacles:
+            if ob.kind == "box":
+                ext = [ob.size[0] / 2, ob.size[1] / 2, ob.height / 2]
+                shape = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=ext)
+                vis = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=ext,
+                                          rgbaColor=[0.5, 0.5, 0.6, 1]) if self.gui else -1
+            else:
+                shape = c.createCollisionShape(pybullet.GEOM_CYLINDER, radius=ob.radius,
+                                               height=ob.height)
+                vis = c.createVisualShape(pybullet.GEOM_CYLINDER, radius=ob.radius,
+                                          length=ob.height,
+                                          rgbaColor=[0.5, 0.5, 0.6, 1]) if self.gui else -1
+            body = c.createMultiBody(
+                0, shape, vis, basePosition=[ob.x, ob.y, ob.height / 2],
+                baseOrientation=c.getQuaternionFromEuler([0, 0, ob.yaw]),
+            )
+            c.changeDynamics(body, -1, lateralFriction=WALL_FRICTION)
+            self.static_bodies.append(body)
+
+    def close(self) -> None:
+        """Disconnect the physics client (idempotent)."""
+        if getattr(self, "client", None) is not None:
+            try:
+                self.client.disconnect()
+            except pybullet.error:
+                pass
+            self.client = None
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ stepping
+    @property
+    def time(self) -> float:
+        """Simulated seconds stepped since the last reset."""
+        return self._steps * self.dt
+
+    def step(self, n: int = 1) -> None:
+        """Advance the physics by ``n`` fixed steps."""
+        step = self.client.stepSimulation
+        for _ in range(n):
+            step()
+        self._steps += n
+
+    # ------------------------------------------------------------------ state
+    def _link_frame(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        com, orn = self.client.getBasePositionAndOrientation(self.body)
+        rot = np.asarray(self.client.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
+        return np.asarray(com, dtype=float) - rot @ self._inertial_pos, rot
+
+    def pose(self) -> NDArray[np.float64]:
+        """True pose ``(x, y, yaw)`` (m, m, rad) of the base frame (floor under the axle)."""
+        pos, rot = self._link_frame()
+        return np.array([pos[0], pos[1], math.atan2(rot[1, 0], rot[0, 0])])
+
+    def tilt(self) -> float:
+        """Angle (rad) between the robot's up axis and the vertical (0 when upright)."""
+        _, rot = self._link_frame()
+        return math.acos(min(1.0, max(-1.0, rot[2, 2])))
+
+    def height(self) -> float:
+        """Height (m) of the base frame origin above the floor (0 when resting on it)."""
+        return float(self._link_frame()[0][2])
+
+    def velocity(self) -> tuple[float, float]:
+        """Forward speed (m/s, along the heading) and yaw rate (rad/s) of the base."""
+        lin, ang = self.client.getBaseVelocity(self.body)
+        yaw = self.pose()[2]
+        return lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw), ang[2]
+
+    def set_pose(self, pose: NDArray[np.float64] | tuple[float, float, float]) -> None:
+        """Place the robot upright and at rest at ``pose`` on the floor."""
+        x, y, yaw = (float(v) for v in pose)
+        orn = self.client.getQuaternionFromEuler([0.0, 0.0, yaw])
+        rot = np.asarray(self.client.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
+        com = np.array([x, y, 0.0]) + rot @ self._inertial_pos
+        self.client.resetBasePositionAndOrientation(self.body, com.tolist(), orn)
+        self.client.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0])
+
+    def odometry(self) -> NDArray[np.float64]:
+        """Wheel-odometry pose estimate ``(x, y, yaw)`` (drifts from the truth)."""
+        return self._odometry.update(self.drive.wheel_angles())
+
+    def scan(self, rng: np.random.Generator | None,
+             beams: NDArray[np.int64] | None = None) -> LidarScan:
+        """One LIDAR scan at the current state (noise from ``rng``; none if ``rng`` is None).
+
+        ``beams`` restricts the cast to a subset of beam indices (see :meth:`Lidar.scan`).
+        """
+        pos, rot = self._link_frame()
+        pose = np.array([pos[0], pos[1], math.atan2(rot[1, 0], rot[0, 0])])
+        return self.lidar.scan(pos, rot, pose, rng, stamp=self.time, beams=beams)
