@@ -1,0 +1,55 @@
+"""Transition datasets and the empirical MDP (SPEC A7-A8, thesis 3.2.5 and 4.5).
+
+Layers, one per module:
+
+* :mod:`simlab.data.schema` — column names and types of a dataset part, file names;
+* :mod:`simlab.data.manifest` — the JSON manifest (provenance, seeds, checksums);
+* :mod:`simlab.data.dataset` — writing parts atomically, reading and validating a
+  dataset directory as one :class:`pyarrow.Table`;
+* :mod:`simlab.data.walkers` — what runs inside a worker: the physics random walk,
+  a physics-free kinematic stand-in, pose sources;
+* :mod:`simlab.data.backends` — local process pool and Ray;
+* :mod:`simlab.data.collect` — the ``simlab collect`` driver (budgets, exact resume);
+* :mod:`simlab.data.estimate` — counts, T = n(s,a,s')/n(s,a), entropy, coverage,
+  ``simlab estimate``;
+* :mod:`simlab.data.counts` — import of external count tables (real-robot logs);
+* :mod:`simlab.data.goals` — which Markov states belong to which goal area;
+* :mod:`simlab.data.plots` — the mean-entropy-per-action bar plot (thesis Fig. 4.8);
+* :mod:`simlab.data.minari_export` — the walk as a Minari dataset.
+
+Importing this package is cheap; the functions below load their module on first use.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY: dict[str, str] = {
+    "collect": "simlab.data.collect",
+    "CollectResult": "simlab.data.collect",
+    "estimate": "simlab.data.estimate",
+    "EstimateResult": "simlab.data.estimate",
+    "EmpiricalMDP": "simlab.data.estimate",
+    "empirical_mdp": "simlab.data.estimate",
+    "read_dataset": "simlab.data.dataset",
+    "open_dataset": "simlab.data.dataset",
+    "TransitionDataset": "simlab.data.dataset",
+    "load_counts": "simlab.data.counts",
+    "goal_state_masks": "simlab.data.goals",
+    "export_minari": "simlab.data.minari_export",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'simlab.data' has no attribute {name!r}") from None
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return __all__

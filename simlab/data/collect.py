@@ -1,0 +1,508 @@
+"""``simlab collect``: the epsilon = 1 random-walk transition dataset (SPEC A7).
+
+The thesis (3.2.5) let the real robot walk for about 10 hours with uniformly random
+actions and logged 8,448 transitions. :func:`collect` does the same headlessly in
+PyBullet, with ``workers`` independent walks in parallel, and writes a dataset
+directory (see :mod:`simlab.data.schema`).
+
+Budget: ``hours`` is total simulated robot time split evenly over the workers
+(10 h with 2 workers = 5 h per worker clock; a primitive starts only while its
+worker's clock is below the budget, so the last one may end a little after it), or
+``transitions`` in total (worker ``w`` gets ``N // W`` plus one if
+``w < N % W``). The result is deterministic given (seed, workers, parameters); the
+same seed with another number of workers is another dataset.
+
+Exact resume: see :mod:`simlab.data.walkers` for why every part can be recomputed on
+its own. The driver writes the manifest first, then each finished part atomically
+followed by the manifest listing it; ``resume=True`` checks the directory's manifest
+against this run (arena hash, discretizer hash, seed, workers, parameters, version),
+verifies the listed parts' checksums and continues each worker from its first missing
+part. A part file the manifest does not list (the run was killed between writing the
+part and the manifest) is recomputed and replaced by the identical part; stray
+temporary files are removed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from simlab.data.backends import BACKENDS, make_backend
+from simlab.data.dataset import validate_part, write_part
+from simlab.data.inputs import load_arena_config, load_discretizer
+from simlab.data.manifest import (
+    check_resumable,
+    file_sha256,
+    manifest_path,
+    new_manifest,
+    read_manifest,
+    write_manifest,
+)
+from simlab.data.schema import (
+    MANIFEST_NAME,
+    N_ACTIONS,
+    TRUTH_COLUMNS,
+    parse_part_name,
+    schema_to_json,
+    transition_schema,
+)
+from simlab.data.walkers import (
+    SIMULATORS,
+    KinematicParams,
+    PartJob,
+    PartResult,
+    WalkSpec,
+    check_pose_source,
+)
+from simlab.errors import ConfigError
+
+#: Default transitions per part: small enough that a crash loses little, large enough
+#: that per-part overheads (world rebuild, file, manifest) stay negligible.
+DEFAULT_PART_SIZE = 250
+
+
+@dataclass(frozen=True)
+class CollectResult:
+    """Summary of a collection run.
+
+    Attributes:
+        directory: the dataset directory.
+        transitions: rows in the dataset (all parts, including resumed ones).
+        parts: part files in the dataset.
+        parts_written: parts computed by this run (the rest were already there).
+        simulated_seconds: sum over workers of their clocks at the end (s).
+        wall_seconds: wall time of this run (s).
+        peak_worker_rss_mb: largest peak resident memory of a worker process (MiB);
+            for one local worker this is the calling process.
+        complete: every worker finished its budget.
+    """
+
+    directory: Path
+    transitions: int
+    parts: int
+    parts_written: int
+    simulated_seconds: float
+    wall_seconds: float
+    peak_worker_rss_mb: float
+    complete: bool
+
+    @property
+    def simulated_hours(self) -> float:
+        return self.simulated_seconds / 3600.0
+
+
+# --------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------
+
+
+def _jsonable(obj: Any) -> Any:
+    """``obj`` as it reads back from JSON (tuples -> lists, dataclasses -> dicts)."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        obj = dataclasses.asdict(obj)
+    return json.loads(json.dumps(obj, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
+
+
+def _arena_info(arena: Any) -> dict[str, Any]:
+    return {
+        "name": arena.name,
+        "sha256": getattr(arena, "source_sha256", None),
+        "bounds": [float(v) for v in arena.bounds],
+        "start": [float(v) for v in arena.start],
+        "goals": [
+            {"name": g.name, "x": float(g.x), "y": float(g.y), "radius": float(g.radius)}
+            for g in arena.goals
+        ],
+    }
+
+
+def _robot_info(simulator: str) -> dict[str, Any]:
+    if simulator == "kinematic":
+        return {"name": "point robot (kinematic simulator)"}
+    from simlab.physics.robot import load_robot_spec
+
+    spec = load_robot_spec()
+    return {"name": spec.name, "urdf_sha256": file_sha256(spec.urdf_path)}
+
+
+def _default_params(simulator: str) -> Any:
+    if simulator == "kinematic":
+        return KinematicParams()
+    from simlab.physics.motion import PrimitiveParams
+
+    return PrimitiveParams()
+
+
+def _check_inputs(hours: float | None, transitions: int | None, seed: int, workers: int,
+                  part_size: int, backend: str, simulator: str) -> None:
+    if (hours is None) == (transitions is None):
+        raise ConfigError("give exactly one budget: --hours H or --transitions N", key="budget")
+    if hours is not None and not (isinstance(hours, int | float) and math.isfinite(hours)
+                                  and hours > 0):
+        raise ConfigError(f"expected a number of hours > 0, got {hours!r}", key="hours")
+    if transitions is not None and (isinstance(transitions, bool) or int(transitions) != transitions
+                                    or transitions < 1):
+        raise ConfigError(f"expected a whole number >= 1, got {transitions!r}", key="transitions")
+    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+        raise ConfigError(f"expected a whole number >= 1, got {workers!r}", key="workers")
+    if workers > 999:
+        raise ConfigError(f"at most 999 workers, got {workers}", key="workers")
+    if transitions is not None and transitions < workers:
+        raise ConfigError(
+            f"{transitions} transitions cannot be split over {workers} workers", key="workers",
+            fix="use fewer workers or more transitions",
+        )
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
+    if isinstance(part_size, bool) or int(part_size) != part_size or part_size < 1:
+        raise ConfigError(f"expected a whole number >= 1, got {part_size!r}", key="part_size")
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend {backend!r}", key="backend",
+                          fix=f"choose one of {', '.join(BACKENDS)}")
+    if simulator not in SIMULATORS:
+        raise ConfigError(f"unknown simulator {simulator!r}", key="simulator",
+                          fix=f"choose one of {', '.join(SIMULATORS)}")
+
+
+def _split_transitions(total: int, workers: int) -> list[int]:
+    base, extra = divmod(int(total), workers)
+    return [base + (1 if w < extra else 0) for w in range(workers)]
+
+
+# --------------------------------------------------------------------------------------
+# Output directory
+# --------------------------------------------------------------------------------------
+
+
+def _is_stray_temp(name: str) -> bool:
+    """Temporary files our atomic writes leave when killed (``.<name>.<random>.tmp``)."""
+    return name.startswith((".part-", f".{MANIFEST_NAME}.")) and name.endswith(".tmp")
+
+
+def _prepare_directory(out: Path, manifest: dict[str, Any], resume: bool) -> dict[str, Any]:
+    """Create ``out`` with a fresh manifest, or load and check it for a resume."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError("output exists and is not a directory", path=out,
+                          fix="choose another --out")
+    entries = sorted(os.listdir(out)) if out.is_dir() else []
+    if not entries:
+        out.mkdir(parents=True, exist_ok=True)
+        write_manifest(out, manifest)
+        return manifest
+    if not resume:
+        raise ConfigError(
+            "output directory is not empty", path=out,
+            fix="pass --resume to continue the collection in it, or choose a new --out",
+        )
+    existing = read_manifest(out)
+    check_resumable(existing, manifest, out)
+    for entry in existing["parts"]:
+        validate_part(out, entry, existing)
+    for name in entries:
+        if _is_stray_temp(name):
+            (out / name).unlink(missing_ok=True)
+    return existing
+
+
+def _orphans(out: Path, manifest: dict[str, Any]) -> set[str]:
+    listed = {str(e["file"]) for e in manifest["parts"]}
+    return {n for n in os.listdir(out) if parse_part_name(n) is not None and n not in listed}
+
+
+# --------------------------------------------------------------------------------------
+# The driver
+# --------------------------------------------------------------------------------------
+
+
+@dataclass
+class _WorkerState:
+    next_part: int = 0
+    step: int = 0
+    t: float = 0.0
+    pose: tuple[float, float, float] | None = None
+    remaining: int | None = None
+    done: bool = False
+
+
+def _worker_states(manifest: dict[str, Any], workers: int, per_worker: list[int] | None,
+                   out: Path) -> list[_WorkerState]:
+    states = [
+        _WorkerState(remaining=None if per_worker is None else per_worker[w])
+        for w in range(workers)
+    ]
+    by_worker: dict[int, list[dict[str, Any]]] = {}
+    for entry in manifest["parts"]:
+        by_worker.setdefault(int(entry["worker"]), []).append(entry)
+    for w, entries in by_worker.items():
+        entries.sort(key=lambda e: int(e["part"]))
+        if [int(e["part"]) for e in entries] != list(range(len(entries))):
+            raise ConfigError(
+                f"worker {w}'s parts are not contiguous from 0",
+                path=manifest_path(out),
+                fix="the manifest was edited; collect into a new --out",
+            )
+        st = states[w]
+        last = entries[-1]
+        st.next_part = len(entries)
+        st.step = sum(int(e["rows"]) for e in entries)
+        st.t = float(last["t_end"])
+        st.pose = tuple(float(v) for v in last["pose_end"])  # type: ignore[assignment]
+        if st.remaining is not None:
+            st.remaining -= st.step
+        st.done = bool(last["final"])
+    return states
+
+
+def _part_table(result: PartResult, step0: int, discretizer: Any, pose_source: str,
+                schema: pa.Schema) -> pa.Table:
+    cols = result.columns
+    n = result.rows
+    xy = np.stack([cols["x"], cols["y"]], axis=1)
+    xy_next = np.stack([cols["x_next"], cols["y_next"]], axis=1)
+    data: dict[str, Any] = {
+        "worker": np.full(n, result.worker, dtype=np.int32),
+        "part": np.full(n, result.part, dtype=np.int32),
+        "step": np.arange(step0, step0 + n, dtype=np.int64),
+        "t": cols["t"],
+        "duration": cols["duration"],
+        "s": np.asarray(discretizer.state_of(xy), dtype=np.int32).reshape(n),
+        "a": cols["a"].astype(np.int32),
+        "s_next": np.asarray(discretizer.state_of(xy_next), dtype=np.int32).reshape(n),
+    }
+    for name in ("x", "y", "yaw", "x_next", "y_next", "yaw_next"):
+        data[name] = cols[name]
+    data["blocked"] = cols["blocked"]
+    data["pose_source"] = pa.DictionaryArray.from_arrays(
+        pa.array(np.zeros(n, dtype=np.int32)), pa.array([pose_source])
+    )
+    if pose_source != "truth":
+        for name in TRUTH_COLUMNS:
+            data[name] = cols[name]
+    arrays = [pa.array(data[f.name], type=f.type) if not isinstance(data[f.name], pa.Array)
+              else data[f.name] for f in schema]
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def collect(
+    arena: Any = "table",
+    states: Any = None,
+    *,
+    out: str | os.PathLike[str],
+    hours: float | None = None,
+    transitions: int | None = None,
+    seed: int = 0,
+    workers: int = 1,
+    resume: bool = False,
+    backend: str = "local",
+    address: str | None = None,
+    part_size: int = DEFAULT_PART_SIZE,
+    pose_source: str = "truth",
+    simulator: str = "physics",
+    params: Any = None,
+    pose_source_options: dict[str, Any] | None = None,
+    progress: bool = True,
+) -> CollectResult:
+    """Collect an epsilon = 1 random-walk transition dataset into the directory ``out``.
+
+    Args:
+        arena: built-in arena name, ``.toml`` path or an ``ArenaConfig``.
+        states: states file of ``simlab discretize`` (JSON) or a discretizer object
+            (``state_of(xy (N, 2)) -> (N,)``, ``n_states``, ``centres``,
+            ``content_hash()``).
+        out: dataset directory; must be empty or absent unless ``resume``.
+        hours: total simulated robot time (h), split evenly over the workers.
+        transitions: total number of transitions instead of ``hours``.
+        seed: root seed; worker ``w``, part ``p`` draw from
+            ``SeedSequence(seed, spawn_key=(w, p))``.
+        workers: independent walks, one arena (process) each.
+        resume: continue the collection already in ``out`` (see the module docstring).
+        backend: ``"local"`` (process pool; in-process for one worker) or ``"ray"``.
+        address: Ray cluster address (``ray`` backend); default: local Ray.
+        part_size: transitions per part file (the unit of crash loss and resumption).
+        pose_source: ``"truth"``, ``"odometry"`` or ``"mcl"`` — the poses recorded and
+            discretized (truth columns are added when it is not ``truth``).
+        simulator: ``"physics"`` (PyBullet) or ``"kinematic"`` (physics-free point robot
+            for dry runs; see :class:`~simlab.data.walkers.KinematicWalker`).
+        params: ``PrimitiveParams`` (physics) or ``KinematicParams``; default values if None.
+        pose_source_options: keyword arguments for the pose source factory.
+        progress: show a tqdm bar with transitions/s and simulated hours per wall second.
+
+    Returns:
+        A :class:`CollectResult`.
+
+    Raises:
+        ConfigError: bad options; a non-empty ``out`` without ``resume``; a resume with
+            options that differ from the dataset's (naming the field).
+        DataError: a listed part is missing, truncated or corrupted (naming the file).
+    """
+    _check_inputs(hours, transitions, seed, workers, part_size, backend, simulator)
+    check_pose_source(pose_source, simulator)
+    wall0 = time.perf_counter()
+    out = Path(out)
+    arena_cfg = load_arena_config(arena)
+    disc = load_discretizer(states)
+    params = _default_params(simulator) if params is None else params
+    from simlab import __version__
+
+    per_worker = None if transitions is None else _split_transitions(int(transitions), workers)
+    t_budget = None if hours is None else float(hours) * 3600.0 / workers
+    schema = transition_schema(pose_source)
+    parameters = _jsonable({
+        "epsilon": 1.0,
+        "n_actions": N_ACTIONS,
+        "hours": None if hours is None else float(hours),
+        "transitions": None if transitions is None else int(transitions),
+        "seconds_per_worker": t_budget,
+        "transitions_per_worker": per_worker,
+        "part_size": int(part_size),
+        "primitive": params,
+        "pose_source_options": pose_source_options or {},
+    })
+    centres = np.asarray(disc.centres, dtype=np.float64)
+    manifest = new_manifest(
+        simlab_version=__version__,
+        arena=_arena_info(arena_cfg),
+        robot=_robot_info(simulator),
+        simulator=simulator,
+        pose_source=pose_source,
+        discretizer={
+            "hash": disc.content_hash(),
+            "n_states": int(disc.n_states),
+            "centres": centres.tolist(),
+        },
+        seed=int(seed),
+        workers=int(workers),
+        parameters=parameters,
+        schema=schema_to_json(schema),
+    )
+    manifest["sources"] = {
+        "arena_file": getattr(arena_cfg, "source", None),
+        "states_file": None if not isinstance(states, str | os.PathLike) else str(states),
+    }
+    manifest = _jsonable(manifest)
+    manifest = _prepare_directory(out, manifest, resume)
+    wstates = _worker_states(manifest, workers, per_worker, out)
+    orphans = _orphans(out, manifest)
+
+    key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
+                         sort_keys=True) + repr(params) + repr(pose_source_options)
+    spec = WalkSpec(
+        key=hashlib.sha256(key_src.encode()).hexdigest(),
+        simulator=simulator,
+        arena=arena_cfg,
+        params=params,
+        pose_source=pose_source,
+        pose_source_options=dict(pose_source_options or {}),
+    )
+
+    def job_for(w: int) -> PartJob:
+        st = wstates[w]
+        return PartJob(spec=spec, seed=int(seed), worker=w, part=st.next_part, t0=st.t,
+                       pose0=st.pose, part_size=int(part_size), remaining=st.remaining,
+                       t_budget=t_budget)
+
+    done_rows = sum(int(e["rows"]) for e in manifest["parts"])
+    bar = _Progress(progress, transitions=transitions, hours=hours, done_rows=done_rows,
+                    done_seconds=sum(st.t for st in wstates))
+    written = 0
+    peak_rss = 0.0
+    pending = [w for w in range(workers) if not wstates[w].done]
+    if pending:
+        runner = make_backend(backend, len(pending), address)
+        try:
+            handles = {runner.submit(job_for(w)): w for w in pending}
+            while handles:
+                for handle, result in runner.wait(list(handles)):
+                    del handles[handle]
+                    w = result.worker
+                    st = wstates[w]
+                    table = _part_table(result, st.step, disc, pose_source, schema)
+                    entry = write_part(out, w, result.part, table, disc.content_hash())
+                    orphans.discard(entry["file"])
+                    entry.update(t_end=result.t_end, pose_end=list(result.pose_end),
+                                 final=result.final)
+                    manifest["parts"].append(entry)
+                    manifest["parts"].sort(key=lambda e: (e["worker"], e["part"]))
+                    st.next_part += 1
+                    st.step += result.rows
+                    sim_delta = result.t_end - st.t
+                    st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
+                    if st.remaining is not None:
+                        st.remaining -= result.rows
+                    manifest["complete"] = all(s.done for s in wstates)
+                    write_manifest(out, manifest)
+                    written += 1
+                    peak_rss = max(peak_rss, result.peak_rss_mb)
+                    bar.update(result.rows, sim_delta)
+                    if not st.done:
+                        handles[runner.submit(job_for(w))] = w
+        finally:
+            runner.close()
+            bar.close()
+    else:
+        bar.close()
+        if not manifest["complete"]:
+            manifest["complete"] = True
+            write_manifest(out, manifest)
+    for name in orphans:  # left by a run killed at a point this run never reached
+        (out / name).unlink(missing_ok=True)
+    return CollectResult(
+        directory=out,
+        transitions=sum(int(e["rows"]) for e in manifest["parts"]),
+        parts=len(manifest["parts"]),
+        parts_written=written,
+        simulated_seconds=float(sum(st.t for st in wstates)),
+        wall_seconds=time.perf_counter() - wall0,
+        peak_worker_rss_mb=peak_rss,
+        complete=bool(manifest["complete"]),
+    )
+
+
+class _Progress:
+    """tqdm bar in transitions (``--transitions``) or simulated hours (``--hours``),
+    with the other rate as a postfix; aggregated over workers, updated per part."""
+
+    def __init__(self, enabled: bool, *, transitions: int | None, hours: float | None,
+                 done_rows: int, done_seconds: float) -> None:
+        self._bar = None
+        self._rows = 0
+        self._seconds = 0.0
+        self._t0 = time.perf_counter()
+        self._by_rows = transitions is not None
+        if not enabled:
+            return
+        from tqdm.auto import tqdm
+
+        if self._by_rows:
+            self._bar = tqdm(total=int(transitions), initial=done_rows, unit="tr",
+                             desc="collect", dynamic_ncols=True)
+        else:
+            self._bar = tqdm(total=float(hours), initial=round(done_seconds / 3600.0, 3),
+                             unit="sim-h", desc="collect", dynamic_ncols=True,
+                             bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} sim-h "
+                                        "[{elapsed}<{remaining}{postfix}]")
+
+    def update(self, rows: int, sim_seconds: float) -> None:
+        self._rows += rows
+        self._seconds += sim_seconds
+        if self._bar is None:
+            return
+        wall = max(time.perf_counter() - self._t0, 1e-9)
+        postfix = {"tr/s": f"{self._rows / wall:.1f}",
+                   "sim-h/s": f"{self._seconds / 3600.0 / wall:.3f}"}
+        self._bar.set_postfix(postfix, refresh=False)
+        self._bar.update(rows if self._by_rows else sim_seconds / 3600.0)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()

@@ -1,0 +1,247 @@
+"""Write dataset parts atomically; read and validate a dataset directory.
+
+Reading goes through the manifest: only the parts it lists are read, in (worker,
+part) order, and with ``validate=True`` each one is checked against it (SHA-256,
+row count, column names and types, discretizer hash, index ranges). Any problem is a
+:class:`~simlab.errors.DataError` that names the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from simlab.data.manifest import file_sha256, manifest_path, read_manifest
+from simlab.data.schema import N_ACTIONS, parse_part_name, part_name
+from simlab.errors import DataError
+from simlab.io import atomic_write
+
+#: Key of the Parquet schema metadata holding the discretizer hash of a part.
+DISCRETIZER_META_KEY = b"simlab.discretizer"
+
+
+def encode_part(table: pa.Table, discretizer_hash: str) -> bytes:
+    """Parquet bytes of one part (zstd), tagged with the discretizer hash."""
+    table = table.replace_schema_metadata({DISCRETIZER_META_KEY: discretizer_hash.encode()})
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink, compression="zstd")
+    return sink.getvalue().to_pybytes()
+
+
+def write_part(
+    directory: str | os.PathLike[str],
+    worker: int,
+    part: int,
+    table: pa.Table,
+    discretizer_hash: str,
+) -> dict[str, Any]:
+    """Write one part atomically; return its manifest entry (file, worker, part, rows, sha256).
+
+    The bytes go to a ``.``-prefixed temporary file in the same directory, are fsynced
+    and renamed, so a crash leaves either no part or a complete one.
+    """
+    data = encode_part(table, discretizer_hash)
+    name = part_name(worker, part)
+    with atomic_write(Path(directory) / name, "wb") as fh:
+        fh.write(data)
+    return {
+        "file": name,
+        "worker": int(worker),
+        "part": int(part),
+        "rows": int(table.num_rows),
+        "sha256": hashlib.sha256(data).hexdigest(),
+    }
+
+
+@dataclass(frozen=True)
+class TransitionDataset:
+    """A dataset read from disk: its manifest and all transitions as one table.
+
+    Attributes:
+        directory: the dataset directory.
+        manifest: the parsed ``_manifest.json``.
+        table: every transition, ordered by (worker, step); see :mod:`simlab.data.schema`.
+    """
+
+    directory: Path
+    manifest: Mapping[str, Any]
+    table: pa.Table
+
+    @property
+    def n_states(self) -> int:
+        """Number of Markov states S of the discretizer used."""
+        return int(self.manifest["discretizer"]["n_states"])
+
+    @property
+    def n_actions(self) -> int:
+        """Number of actions A (16 motion primitives)."""
+        return int(self.manifest.get("parameters", {}).get("n_actions", N_ACTIONS))
+
+    @property
+    def centres(self) -> np.ndarray:
+        """Voronoi centres (S, 2) in metres."""
+        return np.asarray(self.manifest["discretizer"]["centres"], dtype=np.float64).reshape(-1, 2)
+
+    @property
+    def discretizer_hash(self) -> str:
+        """Content hash of the discretizer the states come from."""
+        return str(self.manifest["discretizer"]["hash"])
+
+    def column(self, name: str) -> np.ndarray:
+        """One column as a numpy array."""
+        return self.table.column(name).to_numpy()
+
+
+def _expected_fields(manifest: Mapping[str, Any]) -> dict[str, str]:
+    return {f["name"]: f["type"] for f in manifest["schema"]}
+
+
+def _check_schema(path: Path, schema: pa.Schema, expected: Mapping[str, str]) -> None:
+    names = schema.names
+    unknown = [n for n in names if n not in expected]
+    if unknown:
+        raise DataError(
+            f"{path}: unknown column(s) {', '.join(map(repr, unknown))} "
+            f"(the manifest's schema has {', '.join(expected)})"
+        )
+    missing = [n for n in expected if n not in names]
+    if missing:
+        raise DataError(f"{path}: missing column(s) {', '.join(map(repr, missing))}")
+    for field in schema:
+        if str(field.type) != expected[field.name]:
+            raise DataError(
+                f"{path}: column {field.name!r} has type {field.type}, "
+                f"the manifest says {expected[field.name]}"
+            )
+
+
+def _read_part(path: Path) -> pa.Table:
+    try:
+        return pq.read_table(path)
+    except (OSError, pa.ArrowException) as exc:
+        raise DataError(f"{path}: cannot read the Parquet part ({exc})") from None
+
+
+def _check_values(path: Path, table: pa.Table, entry: Mapping[str, Any], n_states: int,
+                  n_actions: int) -> None:
+    worker = table.column("worker").to_numpy()
+    part = table.column("part").to_numpy()
+    if np.any(worker != entry["worker"]) or np.any(part != entry["part"]):
+        raise DataError(
+            f"{path}: rows belong to another worker/part than the manifest's "
+            f"(worker {entry['worker']}, part {entry['part']})"
+        )
+    for name, upper in (("s", n_states), ("s_next", n_states), ("a", n_actions)):
+        values = table.column(name).to_numpy()
+        if values.size and (values.min() < 0 or values.max() >= upper):
+            raise DataError(
+                f"{path}: column {name!r} has values outside 0..{upper - 1} "
+                f"(min {values.min()}, max {values.max()})"
+            )
+
+
+def validate_part(
+    directory: Path, entry: Mapping[str, Any], manifest: Mapping[str, Any]
+) -> pa.Table:
+    """Check one listed part against the manifest and return its table (no metadata)."""
+    path = directory / str(entry["file"])
+    if not path.is_file():
+        raise DataError(f"{path}: part listed in {manifest_path(directory).name} is missing")
+    digest = file_sha256(path)
+    if digest != entry["sha256"]:
+        raise DataError(
+            f"{path}: checksum mismatch (sha256 {digest[:12]}..., manifest "
+            f"{str(entry['sha256'])[:12]}...): the part is truncated or was modified"
+        )
+    try:
+        schema = pq.read_schema(path)
+    except (OSError, pa.ArrowException) as exc:
+        raise DataError(f"{path}: cannot read the Parquet part ({exc})") from None
+    _check_schema(path, schema, _expected_fields(manifest))
+    tag = (schema.metadata or {}).get(DISCRETIZER_META_KEY, b"").decode()
+    if tag != manifest["discretizer"]["hash"]:
+        raise DataError(
+            f"{path}: part made with discretizer {tag[:12] or '(none)'}..., the manifest's "
+            f"is {str(manifest['discretizer']['hash'])[:12]}... (a part from another dataset?)"
+        )
+    table = _read_part(path)
+    if table.num_rows != entry["rows"]:
+        raise DataError(f"{path}: {table.num_rows} rows, the manifest says {entry['rows']}")
+    n_actions = int(manifest["parameters"].get("n_actions", N_ACTIONS))
+    _check_values(path, table, entry, int(manifest["discretizer"]["n_states"]), n_actions)
+    return table.replace_schema_metadata(None)
+
+
+def _sorted_entries(manifest: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    return sorted(manifest["parts"], key=lambda e: (int(e["worker"]), int(e["part"])))
+
+
+def open_dataset(
+    directory: str | os.PathLike[str],
+    *,
+    validate: bool = True,
+    expected_discretizer: str | None = None,
+) -> TransitionDataset:
+    """Read a dataset directory: its manifest and all listed parts as one table.
+
+    Args:
+        directory: a directory written by :func:`simlab.data.collect.collect`.
+        validate: check every part (SHA-256, rows, schema, discretizer tag, index
+            ranges) and refuse ``part-*.parquet`` files the manifest does not list.
+        expected_discretizer: if given, the content hash the dataset's discretizer must
+            have (e.g. ``Discretizer.content_hash()`` of the states file in use).
+
+    Raises:
+        DataError: naming the offending file.
+    """
+    directory = Path(directory)
+    manifest = read_manifest(directory)
+    disc_hash = str(manifest["discretizer"].get("hash"))
+    if expected_discretizer is not None and disc_hash != expected_discretizer:
+        raise DataError(
+            f"{manifest_path(directory)}: dataset made with discretizer {disc_hash[:12]}..., "
+            f"expected {expected_discretizer[:12]}... (states from another map or discretizer)"
+        )
+    entries = _sorted_entries(manifest)
+    if validate:
+        listed = {str(e["file"]) for e in entries}
+        for path in sorted(directory.iterdir()):
+            if parse_part_name(path.name) is not None and path.name not in listed:
+                raise DataError(
+                    f"{path}: part not listed in the manifest (left by an interrupted run? "
+                    "`simlab collect --resume` finishes it)"
+                )
+        tables = [validate_part(directory, e, manifest) for e in entries]
+    else:
+        tables = [_read_part(directory / str(e["file"])).replace_schema_metadata(None)
+                  for e in entries]
+    if tables:
+        table = pa.concat_tables(tables)
+    else:
+        from simlab.data.schema import transition_schema
+
+        table = transition_schema(str(manifest["pose_source"])).empty_table()
+    return TransitionDataset(directory=directory, manifest=manifest, table=table)
+
+
+def read_dataset(
+    directory: str | os.PathLike[str],
+    validate: bool = True,
+    *,
+    expected_discretizer: str | None = None,
+) -> pa.Table:
+    """All transitions of a dataset directory as one :class:`pyarrow.Table`.
+
+    Rows are ordered by (worker, step). See :func:`open_dataset` for the checks.
+    """
+    return open_dataset(
+        directory, validate=validate, expected_discretizer=expected_discretizer
+    ).table

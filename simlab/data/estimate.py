@@ -1,0 +1,400 @@
+"""The empirical MDP: counts, T = n(s,a,s')/n(s,a), entropy, coverage (SPEC A8).
+
+Thesis eq. 1.13: ``T(s, a, s') = n(s, a, s') / n(s, a)``. A pair (s, a) never tried
+has no estimate; the rule here makes it a **self-loop** (``T[s, a, s] = 1``) and flags
+it ``visited[s, a] = False``, so every row of T is a distribution and a planner sees
+an untried action as "nothing happens" (agents that want optimism, e.g. R-max, use
+``visited``). Eq. 1.14, ``R(s, a) = sum_i r_i / n(s, a)``, is computed per goal with
+the reward of the physics task, r = 1 when s' lies in the goal area
+(:meth:`EmpiricalMDP.rewards`; 0 for unvisited pairs).
+
+Entropy (thesis Fig. 4.8): ``H(s, a) = -sum_s' T log2 T`` in bits, 0 for unvisited
+pairs; the mean per action is taken over the visited pairs of that action (NaN if it
+has none), and the slow / fast means are the means of the 8 per-action values of
+actions 0-7 / 8-15. These are plug-in estimates: with few visits per pair they are
+biased low (no Miller-Madow correction), which is why coverage is reported with them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from simlab.data.inputs import load_arena_config, load_discretizer
+from simlab.data.schema import N_ACTIONS
+from simlab.errors import ConfigError
+from simlab.io import atomic_write, atomic_write_json, ensure_new
+
+#: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
+HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)
+
+
+# --------------------------------------------------------------------------------------
+# Pure functions
+# --------------------------------------------------------------------------------------
+
+
+def count_transitions(
+    s: ArrayLike, a: ArrayLike, s_next: ArrayLike, n_states: int, n_actions: int = N_ACTIONS
+) -> NDArray[np.int64]:
+    """Counts n(s, a, s') ``(S, A, S)`` int64 from logged index arrays ``(N,)``."""
+    s, a, s_next = (np.asarray(v, dtype=np.int64).ravel() for v in (s, a, s_next))
+    if not (len(s) == len(a) == len(s_next)):
+        raise ValueError(f"s, a, s_next lengths differ: {len(s)}, {len(a)}, {len(s_next)}")
+    for name, v, upper in (("s", s, n_states), ("a", a, n_actions), ("s_next", s_next, n_states)):
+        if v.size and (v.min() < 0 or v.max() >= upper):
+            raise ValueError(f"{name}: indices must lie in 0..{upper - 1}")
+    flat = (s * n_actions + a) * n_states + s_next
+    return np.bincount(flat, minlength=n_states * n_actions * n_states).reshape(
+        n_states, n_actions, n_states
+    ).astype(np.int64)
+
+
+def transition_matrix(counts: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """``(T (S, A, S), visited (S, A))`` from counts with the self-loop rule for unvisited."""
+    counts = np.asarray(counts)
+    if counts.ndim != 3 or counts.shape[0] != counts.shape[2]:
+        raise ValueError(f"counts: expected shape (S, A, S), got {counts.shape}")
+    if np.any(counts < 0):
+        raise ValueError("counts: negative entries")
+    n_sa = counts.sum(axis=2)
+    visited = n_sa > 0
+    T = np.zeros(counts.shape, dtype=np.float64)
+    np.divide(counts, n_sa[..., None], out=T, where=visited[..., None])
+    unvisited_s, unvisited_a = np.nonzero(~visited)
+    T[unvisited_s, unvisited_a, unvisited_s] = 1.0
+    return T, visited
+
+
+def entropy_bits(T: ArrayLike) -> NDArray[np.float64]:
+    """Shannon entropy ``-sum_s' p log2 p`` (bits) of each distribution on the last axis."""
+    p = np.asarray(T, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(p > 0, -p * np.log2(np.where(p > 0, p, 1.0)), 0.0)
+    return terms.sum(axis=-1) + 0.0  # + 0.0 turns -0.0 into 0.0
+
+
+def mean_entropy_per_action(entropy: ArrayLike, visited: ArrayLike) -> NDArray[np.float64]:
+    """Mean entropy ``(A,)`` over the visited states of each action (NaN if none)."""
+    h = np.asarray(entropy, dtype=np.float64)
+    v = np.asarray(visited, dtype=bool)
+    n = v.sum(axis=0)
+    total = np.where(v, h, 0.0).sum(axis=0)
+    out = np.full(h.shape[1], np.nan)
+    np.divide(total, n, out=out, where=n > 0)
+    return out
+
+
+def _nanmean(values: NDArray[np.float64]) -> float:
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else float("nan")
+
+
+@dataclass(frozen=True)
+class EmpiricalMDP:
+    """Counts and the estimated model (arrays are read-only views of the inputs).
+
+    Attributes:
+        counts: n(s, a, s') ``(S, A, S)`` int64.
+        T: transition probabilities ``(S, A, S)``; rows sum to 1 (self-loop if unvisited).
+        visited: ``(S, A)`` bool, n(s, a) > 0.
+        entropy: ``(S, A)`` Shannon entropy of ``T[s, a]`` in bits (0 if unvisited).
+    """
+
+    counts: NDArray[np.int64]
+    T: NDArray[np.float64]
+    visited: NDArray[np.bool_]
+    entropy: NDArray[np.float64]
+
+    @property
+    def n_states(self) -> int:
+        return int(self.counts.shape[0])
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.counts.shape[1])
+
+    @property
+    def n_sa(self) -> NDArray[np.int64]:
+        """Visits n(s, a) ``(S, A)``."""
+        return self.counts.sum(axis=2)
+
+    @property
+    def mean_entropy(self) -> NDArray[np.float64]:
+        """Mean entropy per action ``(A,)`` in bits over visited pairs (NaN if none)."""
+        return mean_entropy_per_action(self.entropy, self.visited)
+
+    @property
+    def slow_mean_entropy(self) -> float:
+        """Mean of the per-action mean entropies of the slow actions 0-7 (bits)."""
+        return _nanmean(self.mean_entropy[:8])
+
+    @property
+    def fast_mean_entropy(self) -> float:
+        """Mean of the per-action mean entropies of the fast actions 8-15 (bits)."""
+        return _nanmean(self.mean_entropy[8:16])
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of (s, a) pairs visited at least once."""
+        return float(self.visited.mean())
+
+    def rewards(self, goal_masks: ArrayLike) -> NDArray[np.float64]:
+        """Eq. 1.14 per goal: ``R[g, s, a]`` = mean over logged (s, a) of 1[s' in goal g].
+
+        ``goal_masks`` is ``(G, S)`` bool; returns ``(G, S, A)``, 0 for unvisited pairs.
+        """
+        m = np.asarray(goal_masks, dtype=np.float64)
+        hits = np.einsum("sat,gt->gsa", self.counts.astype(np.float64), m)
+        n = self.n_sa.astype(np.float64)
+        out = np.zeros_like(hits)
+        np.divide(hits, n[None], out=out, where=n[None] > 0)
+        return out
+
+
+def empirical_mdp(counts: ArrayLike) -> EmpiricalMDP:
+    """Estimate T, visited and entropy from counts ``(S, A, S)`` (see the module docstring)."""
+    c = np.asarray(counts)
+    if not np.issubdtype(c.dtype, np.integer):
+        if not np.all(np.isfinite(c)) or not np.all(c == np.round(c)):
+            raise ValueError("counts: expected whole numbers")
+    c = c.astype(np.int64)
+    T, visited = transition_matrix(c)
+    return EmpiricalMDP(counts=c, T=T, visited=visited, entropy=entropy_bits(T))
+
+
+def coverage_report(mdp: EmpiricalMDP, *, max_listed: int | None = None) -> dict[str, Any]:
+    """Coverage: visited pairs, unvisited (s, a) list, n(s, a) histogram and quantiles."""
+    n_sa = mdp.n_sa
+    edges = list(HISTOGRAM_EDGES)
+    hist = np.histogram(n_sa, bins=[*edges, np.inf])[0]
+    labels = [f"{lo}" if hi - lo == 1 else f"{lo}-{hi - 1}" for lo, hi in itertools.pairwise(edges)]
+    labels.append(f">={edges[-1]}")
+    unvisited = np.argwhere(~mdp.visited).tolist()
+    listed = unvisited if max_listed is None else unvisited[:max_listed]
+    return {
+        "pairs": int(n_sa.size),
+        "visited_pairs": int(mdp.visited.sum()),
+        "fraction_visited": mdp.coverage,
+        "unvisited": listed,
+        "n_unvisited": len(unvisited),
+        "n_sa_histogram": dict(zip(labels, (int(v) for v in hist), strict=True)),
+        "n_sa_min": int(n_sa.min()),
+        "n_sa_median": float(np.median(n_sa)),
+        "n_sa_max": int(n_sa.max()),
+        "states_never_left": [int(s) for s in np.flatnonzero(n_sa.sum(axis=1) == 0)],
+    }
+
+
+# --------------------------------------------------------------------------------------
+# The command
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class EstimateResult:
+    """What :func:`estimate` produced: the model, the output paths and the summary."""
+
+    mdp: EmpiricalMDP
+    npz: Path
+    summary_path: Path
+    plot: Path | None
+    summary: dict[str, Any] = field(repr=False)
+
+
+def output_paths(out: str | os.PathLike[str]) -> tuple[Path, Path, Path]:
+    """``(mdp.npz, mdp.json summary, mdp_entropy.png plot)`` for ``out = mdp.npz``."""
+    out = Path(out)
+    if out.suffix != ".npz":
+        raise ConfigError("the model file must end in .npz", path=out, fix="e.g. --out mdp.npz")
+    return out, out.with_suffix(".json"), out.with_name(f"{out.stem}_entropy.png")
+
+
+def _inside(path: Path, directory: Path) -> bool:
+    try:
+        path.resolve().relative_to(directory.resolve())
+    except ValueError:
+        return False
+    return True
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if np.isfinite(value) else None
+
+
+def _floats(values: NDArray[np.float64]) -> list[float | None]:
+    """JSON-safe floats: NaN (an action never tried) becomes null."""
+    return [_finite(v) for v in values]
+
+
+def estimate(
+    dataset: str | os.PathLike[str] | None = None,
+    out: str | os.PathLike[str] = "mdp.npz",
+    *,
+    counts: str | os.PathLike[str] | None = None,
+    arena: Any = None,
+    states: Any = None,
+    n_states: int | None = None,
+    n_actions: int = N_ACTIONS,
+    plot: bool = True,
+    overwrite: bool = False,
+) -> EstimateResult:
+    """Estimate the empirical MDP of a dataset directory or an external count table.
+
+    Args:
+        dataset: a directory written by ``simlab collect`` (validated: checksums,
+            schema, discretizer). Its manifest supplies S, the centres and the goals.
+        out: the model file ``*.npz``; the JSON summary and the entropy plot go beside
+            it (``mdp.json``, ``mdp_entropy.png``). Must not lie inside ``dataset``.
+        counts: instead of ``dataset``, a CSV/JSON count table (:mod:`simlab.data.counts`).
+        arena: arena name/path/``ArenaConfig`` whose goals define ``goal_masks``
+            (default for a dataset: the goals recorded in its manifest).
+        states: states file or discretizer: S and the centres for a count table; for a
+            dataset, its hash must equal the manifest's (else DataError).
+        n_states: S for a count table without ``states`` (default: largest index + 1).
+        n_actions: A for a count table (16 motion primitives).
+        plot: write the mean-entropy-per-action bar plot (thesis Fig. 4.8).
+        overwrite: replace existing output files.
+
+    Returns:
+        :class:`EstimateResult`. The npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
+        ``visited`` (S, A) bool, ``entropy`` (S, A) bits, ``mean_entropy`` (A,) bits and,
+        when the centres are known, ``centres`` (S, 2) m; with goals also
+        ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool and ``R`` (G, S, A).
+    """
+    from simlab.data.goals import goal_state_masks, goals_from_manifest
+
+    if (dataset is None) == (counts is None):
+        raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
+                          key="source")
+    npz_path, summary_path, plot_path = output_paths(out)
+    if dataset is not None and _inside(npz_path, Path(dataset)):
+        raise ConfigError(
+            "the model must not be written inside the dataset directory (Parquet readers "
+            "of the directory would choke on it)", path=npz_path,
+            fix="choose --out outside the dataset, e.g. beside it",
+        )
+    for p in (npz_path, summary_path, *((plot_path,) if plot else ())):
+        ensure_new(p, overwrite=overwrite)
+
+    disc = None
+    if states is not None:
+        disc = load_discretizer(states)
+    arena_cfg = None
+    if arena is not None:
+        arena_cfg = load_arena_config(arena)
+
+    summary: dict[str, Any] = {}
+    centres = None
+    goals: Any = None
+    blocked_by_action = None
+    if dataset is not None:
+        from simlab.data.dataset import open_dataset
+
+        ds = open_dataset(dataset, validate=True,
+                          expected_discretizer=None if disc is None else disc.content_hash())
+        S, A = ds.n_states, ds.n_actions
+        a_col = ds.column("a")
+        c = count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A)
+        centres = ds.centres
+        goals = arena_cfg if arena_cfg is not None else goals_from_manifest(
+            ds.manifest["arena"].get("goals", []))
+        blocked = ds.column("blocked")
+        tries = np.bincount(a_col, minlength=A)
+        hits = np.bincount(a_col, weights=blocked.astype(np.float64), minlength=A)
+        blocked_by_action = np.divide(hits, tries, out=np.full(A, np.nan), where=tries > 0)
+        summary["source"] = {
+            "dataset": str(Path(dataset)),
+            "arena": ds.manifest["arena"]["name"],
+            "simulator": ds.manifest.get("simulator"),
+            "pose_source": ds.manifest["pose_source"],
+            "discretizer_hash": ds.discretizer_hash,
+            "seed": ds.manifest["seed"],
+            "workers": ds.manifest["workers"],
+            "complete": ds.manifest.get("complete"),
+            "simulated_hours": float(
+                sum(max((e["t_end"] for e in ds.manifest["parts"] if e["worker"] == w),
+                        default=0.0) for w in range(int(ds.manifest["workers"])))) / 3600.0,
+        }
+    else:
+        from simlab.data.counts import load_counts
+
+        if disc is not None and n_states is not None and int(n_states) != disc.n_states:
+            raise ConfigError(
+                f"--n-states {n_states} disagrees with the states file ({disc.n_states} states)",
+                key="n_states",
+            )
+        S_given = disc.n_states if disc is not None else n_states
+        table = load_counts(counts, n_states=S_given, n_actions=n_actions)  # type: ignore[arg-type]
+        c = table.counts
+        if disc is not None:
+            centres = np.asarray(disc.centres, dtype=np.float64)
+        goals = arena_cfg
+        summary["source"] = {
+            "counts": str(Path(counts)),  # type: ignore[arg-type]
+            "rows": table.rows,
+            "duplicate_rows_summed": table.duplicates,
+            "n_states_from": "states file" if disc is not None else (
+                "--n-states" if n_states is not None else "largest index + 1"),
+        }
+
+    mdp = empirical_mdp(c)
+    arrays: dict[str, Any] = {
+        "counts": mdp.counts,
+        "T": mdp.T,
+        "visited": mdp.visited,
+        "entropy": mdp.entropy,
+        "mean_entropy": mdp.mean_entropy,
+    }
+    goal_info = None
+    if centres is not None:
+        arrays["centres"] = np.asarray(centres, dtype=np.float64)
+        if goals is not None:
+            names, masks = goal_state_masks(goals, centres)
+            arrays["goal_names"] = names
+            arrays["goal_masks"] = masks
+            arrays["R"] = mdp.rewards(masks)
+            goal_info = {str(n): [int(s) for s in np.flatnonzero(m)]
+                         for n, m in zip(names, masks, strict=True)}
+
+    summary.update({
+        "n_states": mdp.n_states,
+        "n_actions": mdp.n_actions,
+        "transitions": int(mdp.counts.sum()),
+        "coverage": coverage_report(mdp),
+        "entropy_bits": {
+            "per_action": _floats(mdp.mean_entropy),
+            "slow_mean": _finite(mdp.slow_mean_entropy) if mdp.n_actions == 16 else None,
+            "fast_mean": _finite(mdp.fast_mean_entropy) if mdp.n_actions == 16 else None,
+            "overall_mean_visited": float(mdp.entropy[mdp.visited].mean())
+            if mdp.visited.any() else None,
+        },
+        "unvisited_rule": "self-loop T[s, a, s] = 1, flagged visited[s, a] = False",
+    })
+    if blocked_by_action is not None:
+        summary["blocked_fraction_per_action"] = _floats(blocked_by_action)
+    if goal_info is not None:
+        summary["goal_states"] = goal_info
+    summary["files"] = {"npz": str(npz_path), "summary": str(summary_path),
+                        "plot": str(plot_path) if plot else None}
+
+    with atomic_write(npz_path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    if plot:
+        from simlab.data.plots import plot_entropy_per_action
+
+        title = None
+        if mdp.n_actions == 16:
+            title = (f"Mean entropy per action — slow {mdp.slow_mean_entropy:.2f} bits, "
+                     f"fast {mdp.fast_mean_entropy:.2f} bits "
+                     f"({summary['coverage']['fraction_visited']:.0%} of (s, a) visited)")
+        plot_entropy_per_action(mdp.mean_entropy, plot_path, title=title)
+    atomic_write_json(summary_path, summary)
+    return EstimateResult(mdp=mdp, npz=npz_path, summary_path=summary_path,
+                          plot=plot_path if plot else None, summary=summary)

@@ -1,0 +1,66 @@
+"""Which Markov states make up each goal area.
+
+Rule (shared by the estimator's ``mdp.npz`` and the closed-loop replay): state ``s``
+belongs to goal ``g`` when its Voronoi centre lies inside the goal circle (boundary
+included, :meth:`GoalArea.contains`). A goal circle containing no centre at all (a
+small goal between centres) gets the single state whose centre is nearest to the goal
+centre (ties: the lower state index), so that every goal is reachable in the MDP.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+class GoalMasks(NamedTuple):
+    """Goal names ``(G,)`` (numpy unicode) and membership ``masks`` ``(G, S)`` bool."""
+
+    names: NDArray[np.str_]
+    masks: NDArray[np.bool_]
+
+
+def _goal_fields(goal: Any) -> tuple[str, float, float, float]:
+    if isinstance(goal, Mapping):
+        return str(goal["name"]), float(goal["x"]), float(goal["y"]), float(goal["radius"])
+    return str(goal.name), float(goal.x), float(goal.y), float(goal.radius)
+
+
+def goals_from_manifest(goals: Iterable[Mapping[str, Any]]) -> tuple[Any, ...]:
+    """Goal areas rebuilt from a manifest's ``arena.goals`` list of dicts."""
+    from simlab.physics.arena import GoalArea
+
+    return tuple(GoalArea(*_goal_fields(g)) for g in goals)
+
+
+def goal_state_masks(arena: Any, centres: ArrayLike) -> GoalMasks:
+    """Goal membership of every state.
+
+    Args:
+        arena: an :class:`~simlab.physics.arena.ArenaConfig` (anything with ``.goals``),
+            or a sequence of goals (``GoalArea`` or dicts with name, x, y, radius; m).
+        centres: Voronoi centres ``(S, 2)`` in metres, in state order.
+
+    Returns:
+        :class:`GoalMasks` ``(names (G,), masks (G, S))``; every row has at least one
+        True (see the module docstring for the rule).
+    """
+    goals = tuple(getattr(arena, "goals", arena))
+    c = np.asarray(centres, dtype=np.float64)
+    if c.ndim != 2 or c.shape[1] != 2 or len(c) == 0:
+        raise ValueError(f"centres: expected a non-empty (S, 2) array, got shape {c.shape}")
+    names = np.array([_goal_fields(g)[0] for g in goals], dtype=np.str_)
+    masks = np.zeros((len(goals), len(c)), dtype=bool)
+    for i, goal in enumerate(goals):
+        _, x, y, radius = _goal_fields(goal)
+        if hasattr(goal, "contains"):
+            inside = np.asarray(goal.contains(c), dtype=bool)
+        else:
+            inside = np.hypot(c[:, 0] - x, c[:, 1] - y) <= radius
+        if not inside.any():
+            inside[int(np.argmin(np.hypot(c[:, 0] - x, c[:, 1] - y)))] = True
+        masks[i] = inside
+    return GoalMasks(names=names, masks=masks)

@@ -1,0 +1,182 @@
+"""The dataset manifest: what was collected, how, and the checksum of every part.
+
+The manifest is a JSON object (see :func:`new_manifest` for the fields). It is
+rewritten atomically after every finished part, so that on disk it always lists
+exactly the parts that are complete. Its ``discretizer`` entry holds the Voronoi
+centres, which makes a dataset self-contained for the estimator.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from simlab.data.schema import FORMAT_NAME, FORMAT_VERSION, MANIFEST_NAME
+from simlab.errors import ConfigError, DataError
+from simlab.io import atomic_write_json
+
+#: Manifest fields that must agree between a dataset on disk and a run resuming it.
+RESUME_KEYS = (
+    "format_version",
+    "simlab_version",
+    "arena",
+    "robot",
+    "simulator",
+    "pose_source",
+    "discretizer",
+    "seed",
+    "workers",
+    "parameters",
+)
+
+#: Fields every manifest has (checked on read).
+REQUIRED_KEYS = (
+    "format",
+    "format_version",
+    "arena",
+    "discretizer",
+    "pose_source",
+    "seed",
+    "workers",
+    "parameters",
+    "schema",
+    "parts",
+)
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def manifest_path(directory: str | os.PathLike[str]) -> Path:
+    """Path of the manifest inside a dataset directory."""
+    return Path(directory) / MANIFEST_NAME
+
+
+def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
+    """Load and sanity-check ``DIR/_manifest.json``.
+
+    Raises :class:`DataError` naming the file when it is missing, not JSON, not a
+    simlab transition manifest, of another format version, or lacks a field.
+    """
+    path = manifest_path(directory)
+    if not path.is_file():
+        raise DataError(
+            f"{path}: no manifest; {Path(directory)} is not a simlab transition dataset "
+            "(make one with `simlab collect`)"
+        )
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(f"{path}: manifest is not valid JSON ({exc})") from None
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+        raise DataError(f"{path}: not a simlab transition manifest (format != {FORMAT_NAME!r})")
+    if manifest.get("format_version") != FORMAT_VERSION:
+        raise DataError(
+            f"{path}: format_version {manifest.get('format_version')!r} is not supported "
+            f"(this simlab reads version {FORMAT_VERSION})"
+        )
+    missing = [key for key in REQUIRED_KEYS if key not in manifest]
+    if missing:
+        raise DataError(f"{path}: manifest lacks the field(s) {', '.join(missing)}")
+    if not isinstance(manifest["parts"], list):
+        raise DataError(f"{path}: parts: expected a list")
+    return manifest
+
+
+def write_manifest(directory: str | os.PathLike[str], manifest: Mapping[str, Any]) -> None:
+    """Write the manifest atomically (temporary file, fsync, rename)."""
+    atomic_write_json(manifest_path(directory), manifest)
+
+
+def _walk_differences(
+    old: Any, new: Any, prefix: str
+) -> Iterator[tuple[str, Any, Any]]:
+    if isinstance(old, Mapping) and isinstance(new, Mapping):
+        for key in list(old) + [k for k in new if k not in old]:
+            yield from _walk_differences(old.get(key), new.get(key), f"{prefix}.{key}")
+    elif isinstance(old, list) and isinstance(new, list) and len(old) == len(new):
+        for i, (o, n) in enumerate(zip(old, new, strict=True)):
+            yield from _walk_differences(o, n, f"{prefix}[{i}]")
+    elif old != new:
+        yield prefix, old, new
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_resumable(
+    existing: Mapping[str, Any], requested: Mapping[str, Any], directory: str | os.PathLike[str]
+) -> None:
+    """Raise :class:`ConfigError` naming the first field where a resume would differ.
+
+    ``existing`` is the manifest on disk, ``requested`` the one the current run would
+    write. Only the :data:`RESUME_KEYS` are compared; ``parts`` and timestamps are not.
+    """
+    for key in RESUME_KEYS:
+        for field, old, new in _walk_differences(existing.get(key), requested.get(key), key):
+            raise ConfigError(
+                f"cannot resume: the dataset has {_short(old)}, this run asks for {_short(new)}",
+                path=manifest_path(directory),
+                key=field,
+                fix="resume with the options of the original run, or collect into a new --out",
+            )
+
+
+def new_manifest(
+    *,
+    simlab_version: str,
+    arena: Mapping[str, Any],
+    robot: Mapping[str, Any],
+    simulator: str,
+    pose_source: str,
+    discretizer: Mapping[str, Any],
+    seed: int,
+    workers: int,
+    parameters: Mapping[str, Any],
+    schema: list[dict[str, str]],
+) -> dict[str, Any]:
+    """A manifest with no parts yet.
+
+    Fields: ``format``, ``format_version``, ``simlab_version``; ``arena`` (name, file,
+    sha256, bounds, start, goals); ``robot``; ``simulator`` (``physics`` or
+    ``kinematic``); ``pose_source``; ``discretizer`` (hash, n_states, centres (S, 2) in
+    metres); ``seed``, ``workers``, ``worker_seeds`` (the spawned SeedSequences as
+    ``{"entropy", "spawn_key"}``) and ``seed_rule`` (how part streams derive from them);
+    ``parameters`` (budget, part size, primitive parameters); ``schema`` (column names
+    and Arrow types); ``parts`` (file, worker, part, rows, sha256, t_end, pose_end,
+    final); ``complete``.
+    """
+    return {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "simlab_version": simlab_version,
+        "arena": dict(arena),
+        "robot": dict(robot),
+        "simulator": simulator,
+        "pose_source": pose_source,
+        "discretizer": dict(discretizer),
+        "seed": int(seed),
+        "workers": int(workers),
+        "worker_seeds": [{"entropy": int(seed), "spawn_key": [w]} for w in range(workers)],
+        "seed_rule": (
+            "part p of worker w draws from np.random.SeedSequence(seed, spawn_key=(w, p))"
+            ".spawn(3) -> (actions, motion noise, pose source); this equals "
+            "SeedSequence(seed).spawn(workers)[w].spawn(p + 1)[p]"
+        ),
+        "parameters": dict(parameters),
+        "schema": schema,
+        "parts": [],
+        "complete": False,
+    }

@@ -1,0 +1,182 @@
+"""Export a transition dataset as a Minari dataset (``minari`` extra).
+
+Offline-RL libraries read Minari datasets; ``minari.load_dataset(dataset_id)`` then
+gives the random walk with ``Discrete(S)`` observations (the Markov state) and
+``Discrete(16)`` actions (the motion primitives).
+
+Episodes: each worker's walk, in step order, cut into chunks of ``episode_length``
+transitions (default: the dataset's part size, so that an episode never spans the
+re-placement of the robot at a part boundary). A chunk is also cut where the walk is
+not continuous in the state (``s`` of a step differs from ``s_next`` of the step
+before, e.g. when an odometry pose source restarts at a part boundary). An episode
+of n steps has n + 1 observations ``[s_0, s'_0, ..., s'_{n-1}]``; ``terminations`` are
+all False (a random walk has no terminal state), ``truncations`` True on the last step.
+Rewards are 0, or with ``goal`` the physics task's reward 1[s' in the goal area]
+(states of the goal from :func:`simlab.data.goals.goal_state_masks`).
+``infos`` carry ``pose`` (n + 1, 3) (m, m, rad; from the dataset's pose source), and
+``blocked`` and ``t`` (n + 1, 1) (the step that produced the observation; False / the
+start time for the first one).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from simlab.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class MinariExportResult:
+    """The exported dataset: its id, episode and step counts and where Minari keeps it."""
+
+    dataset_id: str
+    episodes: int
+    steps: int
+    path: str
+
+
+def _episode_bounds(worker: np.ndarray, s: np.ndarray, s_next: np.ndarray,
+                    episode_length: int) -> list[tuple[int, int]]:
+    """``[(start, stop))`` row ranges of the episodes (rows sorted by worker, step)."""
+    n = len(worker)
+    if n == 0:
+        return []
+    cut = np.zeros(n, dtype=bool)
+    cut[0] = True
+    cut[1:] = (worker[1:] != worker[:-1]) | (s[1:] != s_next[:-1])
+    bounds = []
+    starts = [*np.flatnonzero(cut).tolist(), n]
+    for lo, hi in itertools.pairwise(starts):
+        for a in range(lo, hi, episode_length):
+            bounds.append((a, min(a + episode_length, hi)))
+    return bounds
+
+
+def export_minari(
+    dataset: str | os.PathLike[str],
+    dataset_id: str,
+    *,
+    episode_length: int | None = None,
+    goal: str | None = None,
+    author: str = "simlab",
+    author_email: str = "unknown",
+    overwrite: bool = False,
+) -> MinariExportResult:
+    """Write the dataset directory ``dataset`` as the Minari dataset ``dataset_id``.
+
+    Args:
+        dataset: a directory written by ``simlab collect`` (validated on read).
+        dataset_id: Minari id, ``[namespace/]name-v<version>`` (e.g. ``simlab/table-walk-v0``).
+        episode_length: transitions per episode (default: the dataset's part size).
+        goal: name of a goal area of the dataset's arena: reward 1 when s' is in it.
+        author, author_email: Minari metadata.
+        overwrite: replace an existing local Minari dataset with this id.
+
+    The dataset is stored where Minari keeps local datasets (``MINARI_DATASETS_PATH``
+    or ``~/.minari/datasets``) in Minari's Arrow format.
+    """
+    try:
+        import minari
+        from gymnasium import spaces
+        from minari.data_collector import EpisodeBuffer
+    except ModuleNotFoundError:
+        raise ConfigError("exporting to Minari needs minari", key="minari",
+                          fix='pip install "simlab[minari]"') from None
+    from minari.storage import get_dataset_path
+
+    from simlab.data.dataset import open_dataset
+    from simlab.data.goals import goal_state_masks, goals_from_manifest
+
+    ds = open_dataset(dataset, validate=True)
+    if episode_length is None:
+        episode_length = int(ds.manifest["parameters"].get("part_size", 250))
+    if isinstance(episode_length, bool) or int(episode_length) != episode_length \
+            or episode_length < 1:
+        raise ConfigError(f"expected a whole number >= 1, got {episode_length!r}",
+                          key="episode_length")
+    if ds.table.num_rows == 0:
+        raise ConfigError("the dataset has no transitions yet", path=ds.directory)
+    reward_states = None
+    if goal is not None:
+        goals = goals_from_manifest(ds.manifest["arena"].get("goals", []))
+        names, masks = goal_state_masks(goals, ds.centres)
+        if goal not in names:
+            raise ConfigError(f"unknown goal {goal!r}", key="goal",
+                              fix=f"the dataset's arena has {', '.join(names)}")
+        reward_states = masks[list(names).index(goal)]
+
+    target = get_dataset_path(dataset_id)
+    if target.exists():
+        if not overwrite:
+            raise ConfigError(f"a Minari dataset {dataset_id!r} already exists", path=target,
+                              fix="choose another --id or pass --overwrite")
+        minari.delete_dataset(dataset_id)
+
+    worker = ds.column("worker")
+    s = ds.column("s").astype(np.int64)
+    a = ds.column("a").astype(np.int64)
+    s_next = ds.column("s_next").astype(np.int64)
+    pose = np.stack([ds.column(c) for c in ("x", "y", "yaw")], axis=1)
+    pose_next = np.stack([ds.column(c) for c in ("x_next", "y_next", "yaw_next")], axis=1)
+    blocked = ds.column("blocked").astype(bool)
+    t = ds.column("t")
+    t_next = t + ds.column("duration")
+    episodes: list[Any] = []
+    for i, (lo, hi) in enumerate(_episode_bounds(worker, s, s_next, int(episode_length))):
+        n = hi - lo
+        obs = np.concatenate([s[lo:lo + 1], s_next[lo:hi]])
+        rewards = (np.zeros(n) if reward_states is None
+                   else reward_states[s_next[lo:hi]].astype(np.float64))
+        truncations = np.zeros(n, dtype=bool)
+        truncations[-1] = True
+        episodes.append(EpisodeBuffer(
+            id=i,
+            observations=obs,
+            actions=a[lo:hi].copy(),
+            rewards=rewards,
+            terminations=np.zeros(n, dtype=bool),
+            truncations=truncations,
+            infos={
+                "pose": np.concatenate([pose[lo:lo + 1], pose_next[lo:hi]]),
+                "blocked": np.concatenate([[False], blocked[lo:hi]]).reshape(-1, 1),
+                "t": np.concatenate([t[lo:lo + 1], t_next[lo:hi]]).reshape(-1, 1),
+            },
+        ))
+    m = ds.manifest
+    description = (
+        f"epsilon = 1 random walk of a TurtleBot3 Burger in the {m['arena']['name']!r} arena "
+        f"({m.get('simulator', 'physics')} simulator, pose source {m['pose_source']}); "
+        f"{m['discretizer']['n_states']} Voronoi states (discretizer "
+        f"{str(m['discretizer']['hash'])[:12]}), 16 motion primitives (index = speed * 8 + "
+        f"direction). Seed {m['seed']}, {m['workers']} workers. "
+        + (f"Reward: 1 when s' is in goal {goal!r}." if goal else "Rewards are 0.")
+    )
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\..*")
+        try:
+            minari.create_dataset_from_buffers(
+                dataset_id,
+                episodes,
+                observation_space=spaces.Discrete(ds.n_states),
+                action_space=spaces.Discrete(ds.n_actions),
+                algorithm_name="epsilon-greedy, epsilon = 1 (uniform random actions)",
+                author=author,
+                author_email=author_email,
+                code_permalink="simlab collect",
+                description=description,
+                data_format="arrow",
+            )
+        except ValueError as exc:
+            raise ConfigError(str(exc), key="dataset_id") from None
+    return MinariExportResult(
+        dataset_id=dataset_id,
+        episodes=len(episodes),
+        steps=int(sum(len(e.actions) for e in episodes)),
+        path=str(target),
+    )

@@ -1,0 +1,95 @@
+"""Layout of a transition dataset directory: file names and the Parquet schema.
+
+A dataset is a directory::
+
+    DIR/_manifest.json             provenance, parameters, seeds, per-part checksums
+    DIR/part-w000-00000.parquet    worker 0, part 0 (names sort by worker, then part)
+    DIR/part-w000-00001.parquet
+    DIR/part-w001-00000.parquet
+    ...
+
+The manifest's name starts with an underscore on purpose: Arrow (and so pandas, Ray
+Data and Polars) skip ``_``- and ``.``-prefixed files when they discover a dataset,
+so ``pyarrow.dataset.dataset(DIR, format="parquet").to_table()`` and
+``pandas.read_parquet(DIR)`` read every part as one table. A file called
+``manifest.json`` would make them fail ("Parquet magic bytes not found"). DuckDB reads
+``'DIR/*.parquet'``. Temporary files of an interrupted write also start with ``.``.
+
+One row is one transition (one motion primitive). Columns:
+
+===============  ==========  ========================================================
+column           type        meaning
+===============  ==========  ========================================================
+worker           int32       worker (independent walk) index
+part             int32       part index within the worker
+step             int64       transition index within the worker's walk, from 0
+t                float64     simulated seconds (worker clock) when the primitive starts
+duration         float64     stepped simulated seconds of the primitive (no idle time)
+s, a, s_next     int32       Markov state before, action 0-15, Markov state after
+x, y, yaw        float64     pose before (m, m, rad), from the dataset's pose source
+x_next, ...      float64     pose after (m, m, rad), from the pose source
+blocked          bool        the obstacle detector skipped the translation
+pose_source      dictionary  ``truth`` / ``odometry`` / ``mcl``
+x_true, ...      float64     ground-truth poses, only when the pose source is not truth
+===============  ==========  ========================================================
+"""
+
+from __future__ import annotations
+
+import re
+
+import pyarrow as pa
+
+#: Version of the directory layout; bump on incompatible changes.
+FORMAT_VERSION = 1
+#: ``format`` field of every manifest.
+FORMAT_NAME = "simlab.transitions"
+#: File name of the manifest inside a dataset directory (see the module docstring).
+MANIFEST_NAME = "_manifest.json"
+#: Number of motion primitives (SPEC A4): index = speed * 8 + direction.
+N_ACTIONS = 16
+
+POSE_COLUMNS = ("x", "y", "yaw", "x_next", "y_next", "yaw_next")
+TRUTH_COLUMNS = ("x_true", "y_true", "yaw_true", "x_next_true", "y_next_true", "yaw_next_true")
+
+_PART_RE = re.compile(r"^part-w(\d{3})-(\d{5})\.parquet$")
+
+
+def part_name(worker: int, part: int) -> str:
+    """File name of part ``part`` of worker ``worker`` (``part-w000-00000.parquet``)."""
+    if not 0 <= worker <= 999 or not 0 <= part <= 99_999:
+        raise ValueError(f"worker {worker} / part {part} outside the file-name range")
+    return f"part-w{worker:03d}-{part:05d}.parquet"
+
+
+def parse_part_name(name: str) -> tuple[int, int] | None:
+    """``(worker, part)`` of a part file name, or None if ``name`` is not one."""
+    m = _PART_RE.match(name)
+    return None if m is None else (int(m.group(1)), int(m.group(2)))
+
+
+def transition_schema(pose_source: str) -> pa.Schema:
+    """Arrow schema of a part for the given pose source (truth columns if not ``truth``)."""
+    fields = [
+        pa.field("worker", pa.int32(), nullable=False),
+        pa.field("part", pa.int32(), nullable=False),
+        pa.field("step", pa.int64(), nullable=False),
+        pa.field("t", pa.float64(), nullable=False),
+        pa.field("duration", pa.float64(), nullable=False),
+        pa.field("s", pa.int32(), nullable=False),
+        pa.field("a", pa.int32(), nullable=False),
+        pa.field("s_next", pa.int32(), nullable=False),
+    ]
+    fields += [pa.field(name, pa.float64(), nullable=False) for name in POSE_COLUMNS]
+    fields += [
+        pa.field("blocked", pa.bool_(), nullable=False),
+        pa.field("pose_source", pa.dictionary(pa.int32(), pa.string()), nullable=False),
+    ]
+    if pose_source != "truth":
+        fields += [pa.field(name, pa.float64(), nullable=False) for name in TRUTH_COLUMNS]
+    return pa.schema(fields)
+
+
+def schema_to_json(schema: pa.Schema) -> list[dict[str, str]]:
+    """The schema as ``[{"name": ..., "type": ...}]`` for the manifest."""
+    return [{"name": f.name, "type": str(f.type)} for f in schema]

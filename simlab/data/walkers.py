@@ -1,0 +1,526 @@
+"""What runs inside a collection worker: one part of one epsilon = 1 random walk.
+
+A *part* is the unit of work, of storage and of resumption. Part ``p`` of worker
+``w`` is a pure function of its :class:`PartJob`:
+
+* the simulator is rebuilt from scratch at the part's start pose
+  (``world.reset(pose=...)``: a full deterministic rebuild, robot at rest) — the truth
+  pose after the last transition of part ``p - 1``, or the arena's start pose for
+  ``p = 0``;
+* its random streams come from ``np.random.SeedSequence(seed, spawn_key=(w, p))``
+  spawned into (actions, motion noise, pose source);
+* the worker clock continues from the previous part's end time ``t0``.
+
+So an uninterrupted run and a run resumed after a crash compute every part from the
+same inputs and produce the same rows, bit for bit, whichever process (or Ray node)
+runs it. The price: the robot is re-placed at rest at each part boundary, and an
+odometry pose source restarts from the truth pose there (its drift is bounded by a
+part's length — see ``part_size`` in :func:`simlab.data.collect.collect`).
+
+Two simulators implement the :class:`Walker` protocol:
+
+* ``physics`` — :class:`PhysicsWalker`: the PyBullet world and the 16 motion
+  primitives of :mod:`simlab.physics.motion` (the real thing);
+* ``kinematic`` — :class:`KinematicWalker`: a physics-free point robot with noisy
+  straight moves inside the arena's free area, thousands of times faster; for dry runs
+  of the pipeline and for tests of the dataset machinery. Not a model of the robot.
+
+The states ``s``/``s_next`` are not computed here: the driver discretizes the poses of
+a whole part at once (the walk itself is random, so it never needs the state).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import math
+import resource
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.data.schema import N_ACTIONS
+from simlab.errors import ConfigError
+
+#: Headings (rad, map frame) of the 8 directions in the thesis order
+#: UP, DOWN, LEFT, RIGHT, UP_LEFT, UP_RIGHT, DOWN_LEFT, DOWN_RIGHT (UP = +y).
+DIRECTION_HEADINGS = np.array(
+    [math.pi / 2, -math.pi / 2, math.pi, 0.0,
+     3 * math.pi / 4, math.pi / 4, -3 * math.pi / 4, -math.pi / 4]
+)
+
+#: Pose source name -> "module:factory". A factory is called as
+#: ``factory(world, **options)`` in the worker and returns a :class:`PoseSource`.
+#: ``mcl`` (LIDAR particle filter on the occupancy map) is provided by the replay work.
+POSE_SOURCES: dict[str, str] = {
+    "truth": "simlab.data.walkers:TruthPose",
+    "odometry": "simlab.data.walkers:OdometryPose",
+    "mcl": "simlab.replay.localization:make_pose_source",
+}
+
+SIMULATORS = ("physics", "kinematic")
+
+
+# --------------------------------------------------------------------------------------
+# Pose sources (what the dataset records as x, y, yaw; and so what s and s' are)
+# --------------------------------------------------------------------------------------
+
+
+class PoseSource(Protocol):
+    """Turns the robot's sensing into the poses a dataset records.
+
+    ``needs_scans``: whether :meth:`on_scan` must be called during primitives (5 Hz of
+    simulated time; it slows the walk down). ``reset`` is called after every world
+    reset with the part's pose-source Generator; ``poses`` returns the (before, after)
+    poses (3,) of one :class:`~simlab.physics.motion.PrimitiveResult`.
+    """
+
+    needs_scans: bool
+
+    def reset(self, world: Any, rng: np.random.Generator) -> None: ...
+
+    def on_scan(self, scan: Any, odom: NDArray[np.float64]) -> None: ...
+
+    def poses(self, result: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
+
+class TruthPose:
+    """The simulator's ground-truth pose of the wheel-axis centre."""
+
+    needs_scans = False
+
+    def __init__(self, world: Any = None) -> None:
+        del world
+
+    def reset(self, world: Any, rng: np.random.Generator) -> None:
+        del world, rng
+
+    def on_scan(self, scan: Any, odom: NDArray[np.float64]) -> None:
+        del scan, odom
+
+    def poses(self, result: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return np.asarray(result.pose_before), np.asarray(result.pose_after)
+
+
+class OdometryPose(TruthPose):
+    """Wheel-encoder odometry (drifts; restarts from the truth pose at each part)."""
+
+    def poses(self, result: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return np.asarray(result.odom_before), np.asarray(result.odom_after)
+
+
+def make_pose_source(name: str, world: Any, options: dict[str, Any]) -> PoseSource:
+    """Build the pose source ``name`` for ``world`` (lazy import from :data:`POSE_SOURCES`)."""
+    try:
+        target = POSE_SOURCES[name]
+    except KeyError:
+        raise ConfigError(
+            f"unknown pose source {name!r}", key="pose_source",
+            fix=f"choose one of {', '.join(POSE_SOURCES)}",
+        ) from None
+    module_name, attr = target.split(":")
+    try:
+        factory = getattr(importlib.import_module(module_name), attr)
+    except (ModuleNotFoundError, AttributeError):
+        raise ConfigError(
+            f"pose source {name!r} is not available in this installation ({target} not found)",
+            key="pose_source", fix="use truth or odometry",
+        ) from None
+    return factory(world, **options)
+
+
+def check_pose_source(name: str, simulator: str) -> None:
+    """Raise ConfigError early (in the driver) for an unusable pose source."""
+    if name not in POSE_SOURCES:
+        raise ConfigError(
+            f"unknown pose source {name!r}", key="pose_source",
+            fix=f"choose one of {', '.join(POSE_SOURCES)}",
+        )
+    if simulator == "kinematic" and name not in ("truth", "odometry"):
+        raise ConfigError(
+            f"the kinematic simulator has no LIDAR, so no {name!r} pose source",
+            key="pose_source", fix="use truth or odometry, or --simulator physics",
+        )
+    if name not in ("truth", "odometry"):
+        module_name = POSE_SOURCES[name].split(":")[0]
+        if importlib.util.find_spec(module_name) is None:
+            raise ConfigError(
+                f"pose source {name!r} is not available in this installation "
+                f"({module_name} not found)",
+                key="pose_source", fix="use truth or odometry",
+            )
+
+
+# --------------------------------------------------------------------------------------
+# Walkers
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class StepOutcome:
+    """One primitive: blocked flag, stepped duration (s), truth and recorded poses (3,)."""
+
+    blocked: bool
+    duration: float
+    truth_before: NDArray[np.float64]
+    truth_after: NDArray[np.float64]
+    pose_before: NDArray[np.float64]
+    pose_after: NDArray[np.float64]
+
+
+class Walker(Protocol):
+    """A simulator able to run motion primitives from a deterministic start."""
+
+    decision_latency: float
+
+    def reset(self, pose: NDArray[np.float64] | None, source_rng: np.random.Generator) -> None:
+        """Rebuild at ``pose`` (truth, (3,)) or at the arena start, robot at rest."""
+
+    def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
+        """Run primitive ``action`` (0-15) with motion noise from ``rng``."""
+
+    def close(self) -> None: ...
+
+
+class PhysicsWalker:
+    """The PyBullet world running :func:`simlab.physics.motion.execute_primitive`."""
+
+    def __init__(self, arena: Any, params: Any, pose_source: str,
+                 pose_source_options: dict[str, Any]) -> None:
+        from simlab.physics.motion import execute_primitive
+        from simlab.physics.world import World
+
+        self._execute = execute_primitive
+        self.params = params
+        self.decision_latency = float(params.decision_latency)
+        self.world = World(arena, gui=False)
+        try:
+            self.source = make_pose_source(pose_source, self.world, pose_source_options)
+        except BaseException:
+            self.world.close()
+            raise
+        self._on_scan: Callable[..., None] | None = (
+            self.source.on_scan if self.source.needs_scans else None
+        )
+
+    def reset(self, pose: NDArray[np.float64] | None, source_rng: np.random.Generator) -> None:
+        self.world.reset(pose=None if pose is None else np.asarray(pose, dtype=np.float64))
+        self.source.reset(self.world, source_rng)
+
+    def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
+        res = self._execute(self.world, action, rng, self.params, on_scan=self._on_scan)
+        before, after = self.source.poses(res)
+        return StepOutcome(
+            blocked=bool(res.blocked),
+            duration=float(res.duration),
+            truth_before=np.asarray(res.pose_before, dtype=np.float64),
+            truth_after=np.asarray(res.pose_after, dtype=np.float64),
+            pose_before=np.asarray(before, dtype=np.float64),
+            pose_after=np.asarray(after, dtype=np.float64),
+        )
+
+    def close(self) -> None:
+        self.world.close()
+
+
+@dataclass(frozen=True)
+class KinematicParams:
+    """Parameters of the physics-free point robot (:class:`KinematicWalker`).
+
+    Attributes:
+        slow_speed: m/s of actions 0-7.
+        fast_speed: m/s of actions 8-15.
+        drive_time: s of straight driving per primitive.
+        turn_rate: rad/s of the in-place rotation to the heading.
+        distance_noise: relative standard deviation of the distance driven.
+        heading_noise: standard deviation (rad) of the heading actually driven.
+        clearance: m; the "detector" blocks a move whose intended end point lies closer
+            than this to a wall or obstacle.
+        radius: m; the robot's centre never comes closer than this to the area's edge.
+        decision_latency: s of idle time between primitives (added to the clock).
+    """
+
+    slow_speed: float = 0.11
+    fast_speed: float = 0.22
+    drive_time: float = 1.0
+    turn_rate: float = 2.0
+    distance_noise: float = 0.15
+    heading_noise: float = 0.08
+    clearance: float = 0.12
+    radius: float = 0.09
+    decision_latency: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("slow_speed", "fast_speed", "drive_time", "turn_rate"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"KinematicParams.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("distance_noise", "heading_noise", "clearance", "radius",
+                     "decision_latency"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"KinematicParams.{name} must be >= 0, got {getattr(self, name)}")
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+class KinematicWalker:
+    """A point robot in the arena's free area; no physics, no LIDAR.
+
+    A primitive turns in place to the action's heading (``turn_rate``), then, unless
+    the end point would lie within ``clearance`` of a wall or obstacle ("blocked"),
+    drives ``speed * drive_time`` metres with relative noise ``distance_noise`` along
+    the heading perturbed by ``heading_noise``; the robot stops at ``radius`` from the
+    arena edge. Odometry integrates the commanded motion (exact heading and distance),
+    so it drifts from the truth.
+    """
+
+    def __init__(self, arena: Any, params: KinematicParams, pose_source: str = "truth") -> None:
+        if pose_source not in ("truth", "odometry"):
+            raise ConfigError(
+                f"the kinematic simulator has no LIDAR, so no {pose_source!r} pose source",
+                key="pose_source", fix="use truth or odometry, or --simulator physics",
+            )
+        self.arena = arena
+        self.params = params
+        self.pose_source = pose_source
+        self.decision_latency = float(params.decision_latency)
+        self._truth = np.asarray(arena.start, dtype=np.float64).copy()
+        self._odom = self._truth.copy()
+
+    def reset(self, pose: NDArray[np.float64] | None, source_rng: np.random.Generator) -> None:
+        del source_rng
+        start = self.arena.start if pose is None else pose
+        self._truth = np.asarray(start, dtype=np.float64).copy()
+        self._odom = self._truth.copy()
+
+    def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
+        p = self.params
+        heading = float(DIRECTION_HEADINGS[action % 8])
+        speed = p.fast_speed if action >= 8 else p.slow_speed
+        distance = speed * p.drive_time
+        # Both noise draws happen on every step so the stream does not depend on blocking.
+        heading_true = _wrap(heading + p.heading_noise * rng.standard_normal())
+        distance_true = max(0.0, distance * (1.0 + p.distance_noise * rng.standard_normal()))
+        truth_before, odom_before = self._truth.copy(), self._odom.copy()
+        turn_time = abs(_wrap(heading - float(truth_before[2]))) / p.turn_rate
+        probe = truth_before[:2] + (distance + p.clearance) * np.array(
+            [math.cos(heading), math.sin(heading)]
+        )
+        blocked = bool(self.arena.occupied(probe))
+        truth_after, odom_after = truth_before.copy(), odom_before.copy()
+        truth_after[2], odom_after[2] = heading_true, heading
+        if blocked:
+            duration = turn_time
+        else:
+            duration = turn_time + p.drive_time
+            x0, y0, x1, y1 = self.arena.bounds
+            xy = truth_before[:2] + distance_true * np.array(
+                [math.cos(heading_true), math.sin(heading_true)]
+            )
+            truth_after[0] = min(max(xy[0], x0 + p.radius), x1 - p.radius)
+            truth_after[1] = min(max(xy[1], y0 + p.radius), y1 - p.radius)
+            odom_after[:2] += distance * np.array([math.cos(heading), math.sin(heading)])
+        self._truth, self._odom = truth_after, odom_after
+        if self.pose_source == "truth":
+            return StepOutcome(blocked, duration, truth_before, truth_after,
+                               truth_before, truth_after)
+        return StepOutcome(blocked, duration, truth_before, truth_after,
+                           odom_before, odom_after)
+
+    def close(self) -> None:
+        pass
+
+
+# --------------------------------------------------------------------------------------
+# The part job
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WalkSpec:
+    """Everything a worker needs to rebuild its simulator (picklable, hashable ``key``).
+
+    Attributes:
+        key: identifies the simulator configuration (cache key in a worker process).
+        simulator: ``"physics"`` or ``"kinematic"``.
+        arena: the :class:`~simlab.physics.arena.ArenaConfig`.
+        params: ``PrimitiveParams`` (physics) or :class:`KinematicParams`.
+        pose_source: ``truth``, ``odometry`` or ``mcl``.
+        pose_source_options: keyword arguments of the pose-source factory.
+    """
+
+    key: str
+    simulator: str
+    arena: Any
+    params: Any
+    pose_source: str = "truth"
+    pose_source_options: dict[str, Any] = field(default_factory=dict, hash=False)
+
+
+def build_walker(spec: WalkSpec) -> Walker:
+    """Instantiate the walker of ``spec`` (a PyBullet world for ``physics``)."""
+    if spec.simulator == "physics":
+        return PhysicsWalker(spec.arena, spec.params, spec.pose_source, spec.pose_source_options)
+    if spec.simulator == "kinematic":
+        return KinematicWalker(spec.arena, spec.params, spec.pose_source)
+    raise ConfigError(f"unknown simulator {spec.simulator!r}", key="simulator",
+                      fix=f"choose one of {', '.join(SIMULATORS)}")
+
+
+class WalkerCache:
+    """Walkers kept alive between parts in one process (one world per configuration)."""
+
+    def __init__(self) -> None:
+        self._walkers: dict[str, Walker] = {}
+
+    def get(self, spec: WalkSpec) -> Walker:
+        walker = self._walkers.get(spec.key)
+        if walker is None:
+            walker = build_walker(spec)
+            self._walkers[spec.key] = walker
+        return walker
+
+    def close(self) -> None:
+        for walker in self._walkers.values():
+            walker.close()
+        self._walkers.clear()
+
+    def __enter__(self) -> WalkerCache:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+#: The cache of a worker process (process pool or Ray worker); lives until it exits.
+_PROCESS_CACHE = WalkerCache()
+
+
+@dataclass(frozen=True)
+class PartJob:
+    """One part of one worker's walk.
+
+    Attributes:
+        spec: the simulator to use.
+        seed: the collection's root seed.
+        worker: worker index w.
+        part: part index p within the worker.
+        t0: simulated seconds on the worker clock when the part starts.
+        pose0: truth pose (3,) to start from, or None for the arena start pose.
+        part_size: maximum number of transitions in a part.
+        remaining: transitions the worker still owes (``--transitions`` budget), or None.
+        t_budget: the worker's simulated-seconds budget (``--hours``), or None. A
+            primitive is started only while the clock is below it.
+    """
+
+    spec: WalkSpec
+    seed: int
+    worker: int
+    part: int
+    t0: float
+    pose0: tuple[float, float, float] | None
+    part_size: int
+    remaining: int | None = None
+    t_budget: float | None = None
+
+
+@dataclass(frozen=True)
+class PartResult:
+    """What a worker sends back: the part's columns (without ``s``, ``s_next``) and its end.
+
+    ``columns`` maps column names of :func:`simlab.data.schema.transition_schema` to
+    numpy arrays of equal length (``truth_*`` arrays for the truth poses, always).
+    ``t_end`` and ``pose_end`` (truth) seed the next part; ``final`` says the worker's
+    budget is spent. ``peak_rss_mb`` is the worker process's peak resident memory.
+    """
+
+    worker: int
+    part: int
+    columns: dict[str, NDArray[Any]]
+    t_end: float
+    pose_end: tuple[float, float, float]
+    final: bool
+    wall_seconds: float
+    peak_rss_mb: float
+
+    @property
+    def rows(self) -> int:
+        return int(self.columns["a"].shape[0])
+
+
+def part_generators(seed: int, worker: int, part: int) -> tuple[np.random.Generator, ...]:
+    """(actions, motion, pose source) Generators of part ``part`` of worker ``worker``."""
+    children = np.random.SeedSequence(seed, spawn_key=(worker, part)).spawn(3)
+    return tuple(np.random.default_rng(c) for c in children)
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process in MiB (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_part(job: PartJob, cache: WalkerCache | None = None) -> PartResult:
+    """Run one part of an epsilon = 1 random walk (uniform actions over the 16 primitives).
+
+    Deterministic given ``job``: see the module docstring. ``cache`` keeps simulators
+    alive between calls (default: this process's cache).
+    """
+    start_wall = time.perf_counter()
+    walker = (cache if cache is not None else _PROCESS_CACHE).get(job.spec)
+    actions_rng, motion_rng, source_rng = part_generators(job.seed, job.worker, job.part)
+    walker.reset(None if job.pose0 is None else np.asarray(job.pose0, dtype=np.float64),
+                 source_rng)
+    n_max = job.part_size if job.remaining is None else min(job.part_size, job.remaining)
+    actions = actions_rng.integers(0, N_ACTIONS, size=n_max)
+    t_start = np.empty(n_max)
+    duration = np.empty(n_max)
+    blocked = np.empty(n_max, dtype=bool)
+    pose = np.empty((n_max, 6))
+    truth = np.empty((n_max, 6))
+    t = float(job.t0)
+    truth_end = None if job.pose0 is None else np.asarray(job.pose0, dtype=np.float64)
+    n = 0
+    for i in range(n_max):
+        if job.t_budget is not None and t >= job.t_budget:
+            break
+        out = walker.step(int(actions[i]), motion_rng)
+        t_start[i] = t
+        duration[i] = out.duration
+        blocked[i] = out.blocked
+        pose[i, :3], pose[i, 3:] = out.pose_before, out.pose_after
+        truth[i, :3], truth[i, 3:] = out.truth_before, out.truth_after
+        t = t + out.duration + walker.decision_latency
+        truth_end = out.truth_after
+        n = i + 1
+    if truth_end is None:  # the driver never schedules a part with no transition left
+        raise ValueError(f"part {job.part} of worker {job.worker} has nothing to do")
+    final = (job.remaining is not None and n >= job.remaining) or (
+        job.t_budget is not None and t >= job.t_budget
+    )
+    columns: dict[str, NDArray[Any]] = {
+        "t": t_start[:n].copy(),
+        "duration": duration[:n].copy(),
+        "a": actions[:n].astype(np.int32),
+        "x": pose[:n, 0].copy(), "y": pose[:n, 1].copy(), "yaw": pose[:n, 2].copy(),
+        "x_next": pose[:n, 3].copy(), "y_next": pose[:n, 4].copy(),
+        "yaw_next": pose[:n, 5].copy(),
+        "blocked": blocked[:n].copy(),
+        "x_true": truth[:n, 0].copy(), "y_true": truth[:n, 1].copy(),
+        "yaw_true": truth[:n, 2].copy(), "x_next_true": truth[:n, 3].copy(),
+        "y_next_true": truth[:n, 4].copy(), "yaw_next_true": truth[:n, 5].copy(),
+    }
+    return PartResult(
+        worker=job.worker,
+        part=job.part,
+        columns=columns,
+        t_end=t,
+        pose_end=(float(truth_end[0]), float(truth_end[1]), float(truth_end[2])),
+        final=bool(final),
+        wall_seconds=time.perf_counter() - start_wall,
+        peak_rss_mb=peak_rss_mb(),
+    )
