@@ -299,3 +299,75 @@ class OccupancyGrid:
         occ[~self.observed_mask()] = UNKNOWN
         return OccupancyMap(occupancy=occ, resolution=self.resolution, origin=(*self.origin_xy, 0.0))
 
+
+
+@dataclass(frozen=True)
+class MapAccuracy:
+    """A map compared with a ground-truth raster (fractions in [0, 1]).
+
+    Attributes:
+        wall_correct: of the truth-occupied pixels the map has observed (not
+            unknown), the fraction mapped occupied; a pixel also counts as correct
+            when a mapped-occupied pixel lies within ``tolerance_px`` of it (range
+            noise and pixel quantisation smear a wall's surface by about a pixel).
+        wall_coverage: of the truth wall-surface pixels (occupied pixels 8-adjacent
+            to truth-free ones), the fraction with a mapped-occupied pixel within
+            ``tolerance_px``: how much of the walls the map shows.
+        free_correct: of the truth-free pixels of ``region`` farther than
+            ``tolerance_px`` from any truth-occupied pixel, the fraction mapped free
+            (unknown counts as wrong, so this also measures coverage).
+        n_wall_observed, n_surface, n_free: the pixel counts behind the fractions.
+        tolerance_px: the tolerance band, pixels (Chebyshev distance).
+    """
+
+    wall_correct: float
+    wall_coverage: float
+    free_correct: float
+    n_wall_observed: int
+    n_surface: int
+    n_free: int
+    tolerance_px: int
+
+
+def map_accuracy(
+    grid: OccupancyMap,
+    truth_occupied: np.ndarray,
+    region: np.ndarray | None = None,
+    tolerance_px: int = 1,
+) -> MapAccuracy:
+    """Compare ``grid`` with ``truth_occupied`` ``(H, W)`` bool (same pixels, True = wall).
+
+    ``region`` ``(H, W)`` bool restricts the free-space score (default: every
+    truth-free pixel). See :class:`MapAccuracy` for the definitions.
+    """
+    from scipy import ndimage
+
+    truth = np.asarray(truth_occupied, dtype=bool)
+    if truth.shape != grid.shape:
+        raise ValueError(f"truth_occupied: expected shape {grid.shape}, got {truth.shape}")
+    truth_free = ~truth
+    if region is not None:
+        truth_free &= np.asarray(region, dtype=bool)
+    k = 2 * int(tolerance_px) + 1
+    box = np.ones((k, k), dtype=bool)
+    mapped_occ = grid.occupancy >= OCCUPIED * 0.65
+    near_mapped_occ = ndimage.binary_dilation(mapped_occ, box) if tolerance_px else mapped_occ
+    observed = grid.occupancy != UNKNOWN
+    wall_obs = truth & observed
+    surface = truth & ndimage.binary_dilation(~truth, np.ones((3, 3), dtype=bool))
+    near_truth_occ = ndimage.binary_dilation(truth, box) if tolerance_px else truth
+    free_scored = truth_free & ~near_truth_occ
+
+    def frac(mask_ok: np.ndarray, mask_all: np.ndarray) -> float:
+        n = int(mask_all.sum())
+        return float((mask_ok & mask_all).sum() / n) if n else float("nan")
+
+    return MapAccuracy(
+        wall_correct=frac(near_mapped_occ, wall_obs),
+        wall_coverage=frac(near_mapped_occ, surface),
+        free_correct=frac(grid.occupancy == FREE, free_scored),
+        n_wall_observed=int(wall_obs.sum()),
+        n_surface=int(surface.sum()),
+        n_free=int(free_scored.sum()),
+        tolerance_px=int(tolerance_px),
+    )
