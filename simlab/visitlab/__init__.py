@@ -1,0 +1,42 @@
+"""Visit the lab: the tabular human-robot interaction simulation (SPEC B, thesis ch. 2).
+
+A robot must get a simulated human's attention and lead them to goal rooms. Layers:
+
+* :mod:`~simlab.visitlab.actions` — actions 0-29 and the one direction table;
+* :mod:`~simlab.visitlab.grid` — layouts (gridworld, random lab, the paper's lab)
+  and the movement kernel;
+* :mod:`~simlab.visitlab.perception` — angle, fields of view, line of sight,
+  distance classes;
+* :mod:`~simlab.visitlab.humans` — the :class:`Human` parameters and presets;
+* :mod:`~simlab.visitlab.dynamics` — the navigation, social and go-to-human step
+  kernels (numba), the one source of truth for the dynamics;
+* :mod:`~simlab.visitlab.envs` — Gymnasium wrappers (``simlab/VisitLab-*-v0``);
+* :mod:`~simlab.visitlab.training` — fused numba training loops and
+  :func:`~simlab.visitlab.training.train` (``simlab visitlab train``).
+
+Nothing here knows about PyBullet.
+"""
+
+from __future__ import annotations
+
+from simlab.visitlab.actions import Action, Direction, move_action
+from simlab.visitlab.grid import Layout, gridworld, lab_layout, make_layout, paper_layout
+from simlab.visitlab.humans import PRESETS, Human, human
+from simlab.visitlab.perception import PAPER_PERCEPTION, THESIS_PERCEPTION, Perception
+
+__all__ = [
+    "PAPER_PERCEPTION",
+    "PRESETS",
+    "THESIS_PERCEPTION",
+    "Action",
+    "Direction",
+    "Human",
+    "Layout",
+    "Perception",
+    "gridworld",
+    "human",
+    "lab_layout",
+    "make_layout",
+    "move_action",
+    "paper_layout",
+]
