@@ -106,11 +106,17 @@ class CollectResult:
 # --------------------------------------------------------------------------------------
 
 
+def _json_default(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return dataclasses.asdict(obj)
+    if isinstance(obj, np.generic | np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"cannot record {type(obj).__name__} in the manifest")
+
+
 def _jsonable(obj: Any) -> Any:
     """``obj`` as it reads back from JSON (tuples -> lists, dataclasses -> dicts)."""
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        obj = dataclasses.asdict(obj)
-    return json.loads(json.dumps(obj, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
+    return json.loads(json.dumps(obj, default=_json_default))
 
 
 def _arena_info(arena: Any) -> dict[str, Any]:
@@ -498,10 +504,16 @@ class _Progress:
         if self._bar is None:
             return
         wall = max(time.perf_counter() - self._t0, 1e-9)
-        postfix = {"tr/s": f"{self._rows / wall:.1f}",
-                   "sim-h/s": f"{self._seconds / 3600.0 / wall:.3f}"}
+        # tqdm shows the rate of its own unit; the other rate goes in the postfix.
+        if self._by_rows:
+            postfix = {"sim-h/s": f"{self._seconds / 3600.0 / wall:.3f}"}
+        else:
+            postfix = {"tr/s": f"{self._rows / wall:.1f}"}
         self._bar.set_postfix(postfix, refresh=False)
-        self._bar.update(rows if self._by_rows else sim_seconds / 3600.0)
+        if self._by_rows:
+            self._bar.update(rows)
+        else:  # the last primitive of a worker may end past its budget: clamp the bar
+            self._bar.update(max(0.0, min(sim_seconds / 3600.0, self._bar.total - self._bar.n)))
 
     def close(self) -> None:
         if self._bar is not None:

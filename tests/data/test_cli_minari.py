@@ -1,0 +1,115 @@
+"""The three CLI commands end to end (kinematic simulator) and the Minari export."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simlab.cli import main
+from simlab.data.dataset import read_dataset
+from simlab.data.schema import MANIFEST_NAME
+
+
+def test_collect_estimate_cli(tmp_path: Path, grid_states_file: Path,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "walk"
+    code = main(["collect", "--states", str(grid_states_file), "--transitions", "300",
+                 "--seed", "2", "--out", str(out), "--simulator", "kinematic",
+                 "--part-size", "100", "--no-progress"])
+    assert code == 0
+    assert "300 transitions in 3 parts" in capsys.readouterr().out
+    assert read_dataset(out).num_rows == 300
+
+    code = main(["estimate", str(out), "--out", str(tmp_path / "mdp.npz")])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "25 states x 16 actions from 300 transitions" in printed
+    assert "slow" in printed and "fast" in printed
+    summary = json.loads((tmp_path / "mdp.json").read_text())
+    assert summary["transitions"] == 300
+
+    # second collect into the same directory: one-line error, exit 2, nothing touched
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    code = main(["collect", "--states", str(grid_states_file), "--transitions", "300",
+                 "--out", str(out), "--simulator", "kinematic", "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--resume" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_estimate_cli_errors_are_one_line(tmp_path: Path, dataset_copy: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    (dataset_copy / MANIFEST_NAME).write_text("{")
+    code = main(["estimate", str(dataset_copy), "--out", str(tmp_path / "mdp.npz")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and MANIFEST_NAME in err
+    code = main(["estimate", str(tmp_path / "nowhere"), "--out", str(tmp_path / "mdp.npz")])
+    assert code == 2 and "no manifest" in capsys.readouterr().err
+
+
+def test_estimate_cli_from_counts(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "robot.csv"
+    path.write_text("s,a,s_next,count\n0,0,1,3\n1,8,0,1\n1,8,2,1\n")
+    code = main(["estimate", "--counts", str(path), "--n-states", "3", "--out",
+                 str(tmp_path / "m.npz"), "--no-plot"])
+    assert code == 0
+    with np.load(tmp_path / "m.npz", allow_pickle=False) as z:
+        assert z["entropy"][1, 8] == pytest.approx(1.0)
+        assert z["visited"].sum() == 2
+    path.write_text("s,a,s_next,count\n0,0,1,-3\n")
+    code = main(["estimate", "--counts", str(path), "--out", str(tmp_path / "n.npz")])
+    err = capsys.readouterr().err
+    assert code == 2 and str(path) in err and "line 2" in err
+
+
+@pytest.fixture()
+def minari_home(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    pytest.importorskip("minari")
+    home = tmp_path / "minari"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(home))
+    return home
+
+
+def test_minari_export_loads_back(kinematic_dataset: Path, minari_home: Path) -> None:
+    import minari
+
+    from simlab.data.minari_export import export_minari
+
+    result = export_minari(kinematic_dataset, "simlab/kin-walk-v0", episode_length=128,
+                           goal="C")
+    assert str(minari_home) in result.path
+    data = minari.load_dataset("simlab/kin-walk-v0")
+    table = read_dataset(kinematic_dataset)
+    assert data.total_steps == table.num_rows == result.steps
+    assert data.observation_space.n == 25 and data.action_space.n == 16
+    s = table.column("s").to_numpy()
+    a = table.column("a").to_numpy()
+    s_next = table.column("s_next").to_numpy()
+    row = 0
+    for episode in data.iterate_episodes():
+        n = len(episode.actions)
+        assert n <= 128
+        np.testing.assert_array_equal(episode.actions, a[row:row + n])
+        np.testing.assert_array_equal(episode.observations[:-1], s[row:row + n])
+        np.testing.assert_array_equal(episode.observations[1:], s_next[row:row + n])
+        # reward 1 exactly when s' is the goal's state (12 on the 5 x 5 lattice)
+        np.testing.assert_array_equal(episode.rewards, (s_next[row:row + n] == 12) * 1.0)
+        assert episode.truncations[-1] and not episode.terminations.any()
+        assert episode.infos["pose"].shape == (n + 1, 3)
+        row += n
+    assert row == table.num_rows
+
+
+def test_minari_cli_refuses_an_existing_id(kinematic_dataset: Path, minari_home: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["export-minari", str(kinematic_dataset), "--id", "simlab/cli-walk-v0"]
+    assert main(args) == 0
+    assert "episodes" in capsys.readouterr().out
+    assert main(args) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert main([*args, "--overwrite"]) == 0
+    assert main([*args[:-1], "simlab/cli-walk-v1", "--goal", "nowhere"]) == 2
+    assert "unknown goal" in capsys.readouterr().err
