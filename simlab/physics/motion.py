@@ -20,10 +20,10 @@ Between primitives the robot idles for ``decision_latency`` (the thesis's robot 
 ROS services and the learner between actions). The idle time is accounted for by callers
 but never stepped: a robot at rest on a flat floor stays at rest.
 
-The default decision latency makes 10 simulated hours give about the thesis's 8,448
-transitions on the table arena (36,000 s / 8,448 = 4.26 s per transition, of which the
-primitive itself takes about 1.9 s on average: rotation 0.5 s, drive 1 s, braking and the
-fine heading approach the rest; re-measure with benchmarks/physics_speed.py).
+The default decision latency (2.70 s) makes 10 simulated hours give about the thesis's
+8,448 transitions on the table arena: 36,000 s / 8,448 = 4.26 s per transition, of which a
+random primitive itself takes 1.56 s on average (measured over 1,000 random primitives:
+rotation, the obstacle check, 1 s of driving unless blocked - 20 % are - and braking).
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ class PrimitiveParams:
     detector_margin: float = 0.05
     detector_side_margin: float = 0.02
     detector_cone: float = math.radians(90.0)
-    decision_latency: float = 2.35
+    decision_latency: float = 2.70
     heading_source: str = "truth"
 
     def __post_init__(self) -> None:

@@ -19,12 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yourdfpy
 from numpy.typing import NDArray
 
 from simlab.assets import resolve
 from simlab.errors import ConfigError
-from simlab.physics._bullet import pybullet
+from simlab.physics._bullet import pybullet, quiet_stdout
 
 #: Published TurtleBot3 Burger controller limits.
 BURGER_V_MAX = 0.22  # m/s
@@ -59,14 +58,14 @@ class RobotSpec:
     w_max: float = BURGER_W_MAX
 
 
-def _joint(robot: yourdfpy.Robot, name: str, path: Path) -> yourdfpy.Joint:
+def _joint(robot, name: str, path: Path):
     for j in robot.joints:
         if j.name == name:
             return j
     raise ConfigError(f"joint {name!r} not found", path=path, key=f"joint[@name={name!r}]")
 
 
-def _link(robot: yourdfpy.Robot, name: str, path: Path) -> yourdfpy.Link:
+def _link(robot, name: str, path: Path):
     for link in robot.links:
         if link.name == name:
             return link
@@ -82,6 +81,8 @@ def load_robot_spec(
 ) -> RobotSpec:
     """Read a :class:`RobotSpec` from a built-in robot name or a ``.urdf`` path."""
     path = resolve("robots", name_or_path, ".urdf")
+    with quiet_stdout():  # yourdfpy imports trimesh, which imports (and so wakes) pybullet
+        import yourdfpy
     try:
         urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
     except Exception as exc:  # yourdfpy raises assorted lxml/ValueError types
@@ -202,9 +203,13 @@ class DiffDrive:
     ``command(v, w)`` saturates the body velocities to ``v_max`` / ``w_max``, converts them
     to wheel speeds (scaled down together if one would exceed the wheel speed limit, so the
     curvature is kept) and sets the two wheel motors with the URDF torque limit.
+
+    The drive keeps the wheel odometry: it integrates the encoders at every command change
+    (between commands the wheel speeds are constant, so each segment is an arc) and on
+    :meth:`odometry`.
     """
 
-    def __init__(self, client, body: int, spec: RobotSpec) -> None:
+    def __init__(self, client, body: int, spec: RobotSpec, pose: NDArray[np.float64]) -> None:
         self._c = client
         self.body = body
         self.spec = spec
@@ -216,6 +221,7 @@ class DiffDrive:
         for j in names.values():
             client.setJointMotorControl2(body, j, pybullet.VELOCITY_CONTROL, force=0.0)
         self.commanded = (0.0, 0.0)
+        self._odometry = WheelOdometry(spec, pose, self.wheel_angles())
 
     def saturate(self, v: float, w: float) -> tuple[float, float]:
         """Clip (v, w) to the robot limits and the wheel speed limit; returns what is applied."""
@@ -232,6 +238,9 @@ class DiffDrive:
     def command(self, v: float, w: float) -> tuple[float, float]:
         """Drive at forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s), saturated."""
         v, w = self.saturate(v, w)
+        if (v, w) == self.commanded:
+            return v, w
+        self._odometry.update(self.wheel_angles())
         half = 0.5 * self.spec.wheel_separation
         r = self.spec.wheel_radius
         self._c.setJointMotorControlArray(
@@ -241,6 +250,10 @@ class DiffDrive:
         )
         self.commanded = (v, w)
         return v, w
+
+    def odometry(self) -> NDArray[np.float64]:
+        """Wheel-odometry pose ``(x, y, yaw)``, integrated up to now."""
+        return self._odometry.update(self.wheel_angles())
 
     def wheel_angles(self) -> tuple[float, float]:
         """Accumulated wheel joint angles (rad), left then right."""
