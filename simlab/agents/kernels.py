@@ -32,13 +32,14 @@ Count-based sparse model (:mod:`simlab.agents.sparse_model`, eq. 1.13–1.14)
     -> n(s, a)``, ``count_model_backup(m, Q, s, a, gamma, m_known) -> |dQ|``,
     ``count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known) ->
     sweeps``, ``count_model_reward``, ``count_model_transition_row``,
-    ``count_model_triples``, ``count_model_memory_bytes``.
+    ``count_model_triples``, ``count_model_load``, ``count_model_memory_bytes``.
     Memory grows with distinct observed (s, a, s') triples; the pool grows by
     doubling inside njit, so no transition is ever dropped.
 
 Sliding-window model (:mod:`simlab.agents.window_model`, last ``H`` outcomes)
     ``window_model_new(S, A, H, capacity)`` and ``window_model_*`` with the same
-    signatures as the count model.
+    signatures as the count model (plus ``window_model_visits``,
+    ``window_model_export`` / ``window_model_load``).
 
 Generic model API (works on either model type; used by the harness)
     ``model_observe``, ``model_backup``, ``model_value_iteration``,
@@ -119,6 +120,7 @@ from simlab.agents.sparse_model import (
     CountModelType,
     count_model_add,
     count_model_backup,
+    count_model_load,
     count_model_memory_bytes,
     count_model_new,
     count_model_observe,
@@ -131,6 +133,8 @@ from simlab.agents.window_model import (
     WindowModel,
     WindowModelType,
     window_model_backup,
+    window_model_export,
+    window_model_load,
     window_model_memory_bytes,
     window_model_new,
     window_model_observe,
@@ -148,6 +152,7 @@ __all__ = [
     "WindowModel",
     "count_model_add",
     "count_model_backup",
+    "count_model_load",
     "count_model_memory_bytes",
     "count_model_new",
     "count_model_observe",
@@ -171,6 +176,8 @@ __all__ = [
     "softmax_action",
     "softmax_probabilities",
     "window_model_backup",
+    "window_model_export",
+    "window_model_load",
     "window_model_memory_bytes",
     "window_model_new",
     "window_model_observe",
@@ -352,29 +359,44 @@ def sample_from_cdf(cdf, rng):
 
 
 # --------------------------------------------------------------------------- generic model API
+# In njit code these names resolve to the overloads below (compiled per model
+# type); called from Python they dispatch on the proxy class.
+def _python_dispatch(model, count_fn, window_fn, *args):
+    if isinstance(model, CountModel):
+        return count_fn(model, *args)
+    if isinstance(model, WindowModel):
+        return window_fn(model, *args)
+    raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
+
+
 def model_observe(model, s, a, r, s_next):
     """Record a transition in a count or window model; returns the lifetime ``n(s, a)``."""
-    raise NotImplementedError  # replaced by the overloads in njit code (see below)
+    return _python_dispatch(model, count_model_observe, window_model_observe, s, a, r, s_next)
 
 
 def model_backup(model, Q, s, a, gamma, m_known):
     """Bellman backup at ``(s, a)`` on a count or window model; returns ``|dQ|``."""
-    raise NotImplementedError
+    return _python_dispatch(model, count_model_backup, window_model_backup, Q, s, a, gamma, m_known)
 
 
 def model_value_iteration(model, Q, gamma, max_sweeps, tol, m_known):
     """Value-iteration sweeps on a count or window model; returns the sweeps done."""
-    raise NotImplementedError
+    return _python_dispatch(
+        model, count_model_value_iteration, window_model_value_iteration,
+        Q, gamma, max_sweeps, tol, m_known,
+    )  # fmt: skip
 
 
 def model_reward(model, s, a):
     """Model reward R(s, a) of a count or window model."""
-    raise NotImplementedError
+    return _python_dispatch(model, count_model_reward, window_model_reward, s, a)
 
 
 def model_transition_row(model, s, a, out):
     """Model row T(s, a, .) of a count or window model into ``out`` (S,)."""
-    raise NotImplementedError
+    return _python_dispatch(
+        model, count_model_transition_row, window_model_transition_row, s, a, out
+    )
 
 
 _CACHE = {"cache": True}

@@ -51,6 +51,7 @@ __all__ = [
     "CountModelType",
     "count_model_add",
     "count_model_backup",
+    "count_model_load",
     "count_model_memory_bytes",
     "count_model_new",
     "count_model_observe",
@@ -395,7 +396,8 @@ def count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
 def count_model_triples(m):
     """All observed triples as arrays ``(s, a, s_next, count)`` (each (n_entries,) int64).
 
-    Ordered by pair (first-visit order); used to save a model without pickle.
+    Ordered by pair (first-visit order); :func:`count_model_load` rebuilds an
+    identical model (same pair and successor order) from them.
     """
     n = m.n_entries
     ss = np.empty(n, dtype=np.int64)
@@ -408,15 +410,27 @@ def count_model_triples(m):
         p = m.pairs[i]
         s = p // A
         a = p - s * A
+        # successors are listed newest first; write them oldest first so that
+        # re-adding them in file order rebuilds the same list
+        j += m.n_succ[s, a]
+        t = j - 1
         k = m.head[s, a]
         while k != -1:
-            ss[j] = s
-            aa[j] = a
-            nn[j] = m.succ_state[k]
-            cc[j] = m.succ_count[k]
-            j += 1
+            ss[t] = s
+            aa[t] = a
+            nn[t] = m.succ_state[k]
+            cc[t] = m.succ_count[k]
+            t -= 1
             k = m.succ_link[k]
     return ss, aa, nn, cc
+
+
+@njit(cache=True)
+def count_model_load(m, ss, aa, nn, cc, r_sum):
+    """Fill an empty model from :func:`count_model_triples` output and ``r_sum`` (S, A)."""
+    for i in range(ss.shape[0]):
+        count_model_add(m, ss[i], aa[i], nn[i], cc[i], 0.0)
+    m.r_sum[:, :] = r_sum
 
 
 @njit(cache=True)

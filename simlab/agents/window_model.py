@@ -32,6 +32,8 @@ __all__ = [
     "WindowModel",
     "WindowModelType",
     "window_model_backup",
+    "window_model_export",
+    "window_model_load",
     "window_model_memory_bytes",
     "window_model_new",
     "window_model_observe",
@@ -325,3 +327,38 @@ def window_model_memory_bytes(m):
         + m.win_pos.nbytes
         + m.slot_pair.nbytes
     )
+
+
+@njit(cache=True)
+def window_model_export(m):
+    """Copies of the used slots: ``(slot_pair (n,), win_state (n, H), win_reward (n, H),
+    win_fill (n,), win_pos (n,))``, for saving without pickle."""
+    n = m.n_slots
+    return (
+        m.slot_pair[:n].copy(),
+        m.win_state[:n].copy(),
+        m.win_reward[:n].copy(),
+        m.win_fill[:n].copy(),
+        m.win_pos[:n].copy(),
+    )
+
+
+@njit(cache=True)
+def window_model_load(m, n_sa, slot_pair, win_state, win_reward, win_fill, win_pos):
+    """Fill an empty model (same S, A, H) from :func:`window_model_export` output."""
+    A = m.n_actions
+    n = slot_pair.shape[0]
+    while m.win_fill.shape[0] < n:
+        _wm_grow(m)
+    for k in range(n):
+        p = slot_pair[k]
+        s = p // A
+        a = p - s * A
+        m.slot[s, a] = k
+        m.slot_pair[k] = p
+        m.win_state[k, :] = win_state[k]
+        m.win_reward[k, :] = win_reward[k]
+        m.win_fill[k] = win_fill[k]
+        m.win_pos[k] = win_pos[k]
+    m.n_slots = n
+    m.n_sa[:, :] = n_sa

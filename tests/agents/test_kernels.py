@@ -282,7 +282,9 @@ def _rmax_run(model, Q, steps, m):
     for t in range(steps):
         a = t % 2
         s2 = s if a == 0 else 1 - s
-        n = K.model_based_update(model, Q, s, a, 1.0 if s2 == 1 else 0.0, s2, 0.5, m, True, True, 100, 1e-12)
+        n = K.model_based_update(
+            model, Q, s, a, 1.0 if s2 == 1 else 0.0, s2, 0.5, m, True, True, 100, 1e-12
+        )
         replans[t] = n
         s = s2
     return replans
@@ -338,6 +340,16 @@ def test_fused_loop_example_from_the_module_docstring_learns_the_chain():
     assert returns[-20:].mean() >= 0.9 * 21
     assert np.all(Q.argmax(1) == 1)
     assert model.n_sa.sum() == 200 * 30
-    again = _train(np.zeros((S, A)), np.zeros((S, A)), K.count_model_new(S, A, 64),
-                   np.random.default_rng(0), 200, 30, 0.9, 0.1, 0.5, 100)
+    again = _train(
+        np.zeros((S, A)),
+        np.zeros((S, A)),
+        K.count_model_new(S, A, 64),
+        np.random.default_rng(0),
+        200,
+        30,
+        0.9,
+        0.1,
+        0.5,
+        100,
+    )
     np.testing.assert_array_equal(returns, again)
