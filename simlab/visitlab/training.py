@@ -166,7 +166,9 @@ def agent_spec(name: str | AgentSpec, task: str = "nav", variant: str = "thesis"
     """An agent by name with the task/variant defaults, then ``overrides`` applied.
 
     Paper variant: alpha 0.5 and planning every 1000 steps. R-max: m = 1 for
-    navigation and go-to-human, m = 5 for the social task (paper).
+    navigation and go-to-human, m = 5 for the social task (paper); on the social
+    task it relies on the periodic planning and the per-step backups
+    (``replan_sweeps=0``) because a sweep per newly known pair costs too much there.
     """
     if isinstance(name, AgentSpec):
         spec = name
@@ -180,6 +182,8 @@ def agent_spec(name: str | AgentSpec, task: str = "nav", variant: str = "thesis"
             changes.update(alpha=0.5, plan_every=1000)
         if spec.kind == "rmax":
             changes["m_known"] = 5 if task == "social" else 1
+            if task == "social":  # a sweep per newly known pair is too costly on 76,800 pairs
+                changes["replan_sweeps"] = 0
         spec = replace(spec, **changes)
     return replace(spec, **overrides) if overrides else spec
 
@@ -398,6 +402,28 @@ def smooth_curve(returns: np.ndarray, n_points: int = 100) -> tuple[np.ndarray, 
     return x, mean, std
 
 
+def _run_seed(task: str, variant: str, env_kwargs: dict[str, Any], spec: AgentSpec,
+              trials: int, gens: tuple[np.random.Generator, np.random.Generator],
+              q0: np.ndarray | None, chunk: int, on_chunk: Any = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """One seeded run: returns ``(returns (trials,), final Q (S, A))``."""
+    env = make_env(task, variant=variant, **env_kwargs)
+    runner = _Runner(env, task)
+    env_rng, agent_rng = gens
+    Q = (spec.initial_q(runner.n_states, runner.n_actions) if q0 is None
+         else np.array(q0, dtype=np.float64, order="C"))
+    model = spec.new_model(runner.n_states, runner.n_actions)
+    ap = spec.to_array()
+    returns = np.zeros(trials, dtype=np.float64)
+    t = 0
+    for lo in range(0, trials, chunk):
+        hi = min(trials, lo + chunk)
+        t = runner.run(Q, model, ap, env_rng, agent_rng, t, returns[lo:hi])
+        if on_chunk is not None:
+            on_chunk(hi - lo)
+    return returns, Q
+
+
 def train(
     task: str = "social",
     agent: str | AgentSpec = "mb-egreedy",
@@ -407,6 +433,8 @@ def train(
     variant: str = "thesis",
     progress: bool = True,
     agent_overrides: dict[str, Any] | None = None,
+    initial_q: np.ndarray | None = None,
+    workers: int = 1,
     **env_kwargs: Any,
 ) -> TrainResult:
     """Train one agent on one Visit-the-lab task for ``seeds`` seeded runs.
@@ -419,6 +447,9 @@ def train(
         seeds: number of independent runs; ``seed`` the root of the SeedSequence.
         variant: ``"thesis"`` or ``"paper"`` (env and agent defaults).
         agent_overrides: AgentSpec fields to change (e.g. ``{"plan_every": 1000}``).
+        initial_q: starting Q table, ``(S, A)`` for every seed or ``(seeds, S, A)``
+            (e.g. continue learning with another human); the model starts empty.
+        workers: processes running seeds in parallel (results do not depend on it).
         env_kwargs: passed to the env (e.g. ``human="medium"``, ``layout="lab"``,
             ``episode="fixed"``, ``max_steps=40``).
     """
@@ -426,30 +457,45 @@ def train(
         raise ConfigError(f"expected one of {TASKS}, got {task!r}", key="task")
     if trials is None:
         trials = {"nav": 2000, "social": 40_000, "gotohuman": 2000}[task]
-    for key, value, lo in (("trials", trials, 1), ("seeds", seeds, 1)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < lo:
-            raise ConfigError(f"expected an integer >= {lo}, got {value!r}", key=key)
+    for key, value in (("trials", trials), ("seeds", seeds), ("workers", workers)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise ConfigError(f"expected an integer >= 1, got {value!r}", key=key)
     env = make_env(task, variant=variant, **env_kwargs)
     spec = agent_spec(agent, task, variant, **(agent_overrides or {}))
-    runner = _Runner(env, task)
-    ap = spec.to_array()
-    returns = np.zeros((seeds, trials), dtype=np.float64)
-    qs = np.zeros((seeds, runner.n_states, runner.n_actions), dtype=np.float64)
+    n_states, n_actions = env.observation_space.n, env.action_space.n
+    q0s: list[np.ndarray | None] = [None] * seeds
+    if initial_q is not None:
+        q = np.asarray(initial_q, dtype=np.float64)
+        if q.shape == (n_states, n_actions):
+            q0s = [q] * seeds
+        elif q.shape == (seeds, n_states, n_actions):
+            q0s = list(q)
+        else:
+            raise ConfigError(f"expected shape {(n_states, n_actions)} or "
+                              f"{(seeds, n_states, n_actions)}, got {q.shape}", key="initial_q")
     chunk = max(1, min(trials, 200_000 // env.max_steps))
+    gens = seed_generators(seed, seeds)
+    returns = np.zeros((seeds, trials), dtype=np.float64)
+    qs = np.zeros((seeds, n_states, n_actions), dtype=np.float64)
     start = time.perf_counter()
     from tqdm.auto import tqdm
 
     with tqdm(total=seeds * trials, disable=not progress, unit="trial",
               desc=f"{task} {spec.name}") as bar:
-        for i, (env_rng, agent_rng) in enumerate(seed_generators(seed, seeds)):
-            Q = spec.initial_q(runner.n_states, runner.n_actions)
-            model = spec.new_model(runner.n_states, runner.n_actions)
-            t = 0
-            for lo in range(0, trials, chunk):
-                hi = min(trials, lo + chunk)
-                t = runner.run(Q, model, ap, env_rng, agent_rng, t, returns[i, lo:hi])
-                bar.update(hi - lo)
-            qs[i] = Q
+        if workers == 1 or seeds == 1:
+            for i in range(seeds):
+                returns[i], qs[i] = _run_seed(task, variant, env_kwargs, spec, trials, gens[i],
+                                              q0s[i], chunk, bar.update)
+        else:
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            with ProcessPoolExecutor(max_workers=min(workers, seeds)) as pool:
+                futures = {pool.submit(_run_seed, task, variant, env_kwargs, spec, trials,
+                                       gens[i], q0s[i], chunk): i for i in range(seeds)}
+                for fut in as_completed(futures):
+                    i = futures[fut]
+                    returns[i], qs[i] = fut.result()
+                    bar.update(trials)
     wall = time.perf_counter() - start
     human = getattr(env, "human", None)
     label = spec.name if human is None or task != "social" else f"{spec.name} / {human.name}"
@@ -463,8 +509,8 @@ def train(
         "max_steps": int(env.max_steps),
         "layout": env.layout.name,
         "human": None if human is None else asdict(human),
+        "initial_q": initial_q is not None,
         "env_kwargs": {k: (v if isinstance(v, int | float | str | bool | type(None)) else repr(v))
                        for k, v in env_kwargs.items()},
     }
     return TrainResult(label, returns, qs, config, wall)
-
