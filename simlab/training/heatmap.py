@@ -1,0 +1,239 @@
+"""Q-value heat maps over the arena's Voronoi cells (thesis Fig. 4.3 / 4.11).
+
+Each cell (the points nearest to a centre, rasterised on a pixel grid with a
+``scipy.spatial.cKDTree``) is coloured by ``max_a Q(s, a)``; an arrow from the
+centre shows ``argmax_a Q(s, a)``: direction ``a % 8`` in the order UP, DOWN,
+LEFT, RIGHT, UP_LEFT, UP_RIGHT, DOWN_LEFT, DOWN_RIGHT (UP = +y, map frame), length
+growing with the speed ``a // 8`` (slow, fast). Goal cells are outlined. States
+whose Q row is constant (nothing learned) get no arrow. An occupancy map (for
+example a ``discretize`` :class:`OccupancyMap` or any object with ``occupancy``
+(H, W), ``resolution`` m/px and ``origin`` (x, y, yaw)) can be drawn underneath.
+
+Coordinates are metres; ``bounds`` is ``(x_min, y_min, x_max, y_max)`` as in
+:attr:`simlab.physics.arena.ArenaConfig.bounds`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from simlab.errors import ConfigError
+
+__all__ = [
+    "ARROW_DIRECTIONS",
+    "bounds_from_centres",
+    "plot_q_heatmap",
+    "rasterize_cells",
+    "save_heatmap_grid",
+    "save_q_heatmap",
+]
+
+_D = np.sqrt(0.5)
+#: (8, 2) unit vectors (x, y) of the direction part ``a % 8`` of an action; UP is +y.
+ARROW_DIRECTIONS = np.array(
+    [[0, 1], [0, -1], [-1, 0], [1, 0], [-_D, _D], [_D, _D], [-_D, -_D], [_D, -_D]], dtype=float
+)
+
+
+def bounds_from_centres(centres: np.ndarray) -> tuple[float, float, float, float]:
+    """Bounds enclosing the centres plus half the median nearest-neighbour spacing.
+
+    A fallback when the arena is unknown: cells then reach about as far past the
+    outer centres as they do between centres.
+    """
+    c = np.asarray(centres, dtype=float)
+    if len(c) > 1:
+        d, _ = cKDTree(c).query(c, k=2)
+        pad = 0.5 * float(np.median(d[:, 1]))
+    else:
+        pad = 0.5
+    return (c[:, 0].min() - pad, c[:, 1].min() - pad, c[:, 0].max() + pad, c[:, 1].max() + pad)
+
+
+def rasterize_cells(
+    centres: np.ndarray, bounds: Sequence[float], resolution: float | None = None
+) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """Label every pixel of ``bounds`` with the index of its nearest centre.
+
+    Returns ``(labels (H, W) int64, extent)``; row 0 is the top (largest y), as
+    ``imshow(origin="upper", extent=extent)`` expects; ``extent`` is
+    ``(x_min, x_max, y_min, y_max)``. ``resolution`` m/px (default: 400 px across).
+    """
+    x0, y0, x1, y1 = (float(b) for b in bounds)
+    if resolution is None:
+        resolution = max(x1 - x0, y1 - y0) / 400
+    W = max(1, round((x1 - x0) / resolution))
+    H = max(1, round((y1 - y0) / resolution))
+    xs = x0 + (np.arange(W) + 0.5) * (x1 - x0) / W
+    ys = y1 - (np.arange(H) + 0.5) * (y1 - y0) / H
+    gx, gy = np.meshgrid(xs, ys)
+    _, labels = cKDTree(np.asarray(centres, dtype=float)).query(
+        np.column_stack([gx.ravel(), gy.ravel()])
+    )
+    return labels.reshape(H, W).astype(np.int64), (x0, x1, y0, y1)
+
+
+def _check_inputs(centres: np.ndarray, Q: np.ndarray, goal_mask: np.ndarray | None) -> None:
+    if centres.ndim != 2 or centres.shape[1] != 2:
+        raise ConfigError(f"expected (S, 2) metres, got shape {centres.shape}", key="centres")
+    if Q.ndim != 2 or Q.shape[0] != centres.shape[0]:
+        raise ConfigError(
+            f"expected (S, A) with S = {centres.shape[0]} (the centres), got {Q.shape}", key="Q"
+        )
+    if goal_mask is not None and np.shape(goal_mask) != (centres.shape[0],):
+        raise ConfigError(f"expected ({centres.shape[0]},) bool, got {np.shape(goal_mask)}",
+                          key="goal_mask")  # fmt: skip
+
+
+def _draw_background(ax, background: Any) -> None:
+    occ = np.asarray(background.occupancy, dtype=float)
+    res = float(background.resolution)
+    ox, oy = float(background.origin[0]), float(background.origin[1])
+    H, W = occ.shape
+    shade = np.where(occ < 0, 0.75, 1.0 - np.clip(occ, 0, 100) / 100.0)  # unknown grey
+    ax.imshow(shade, cmap="gray", vmin=0, vmax=1, origin="upper",
+              extent=(ox, ox + W * res, oy, oy + H * res), zorder=0)  # fmt: skip
+
+
+def plot_q_heatmap(
+    ax,
+    centres: np.ndarray,
+    Q: np.ndarray,
+    bounds: Sequence[float] | None = None,
+    goal_mask: np.ndarray | None = None,
+    *,
+    background: Any = None,
+    title: str | None = None,
+    cmap: str = "Blues",
+    vmin: float | None = None,
+    vmax: float | None = None,
+    resolution: float | None = None,
+    arrows: bool = True,
+    colorbar: bool = True,
+):
+    """Draw the heat map of ``Q`` (S, A) over the cells of ``centres`` (S, 2) on ``ax``.
+
+    Returns the ``AxesImage`` of the cells (for a shared colour bar).
+    """
+    centres = np.asarray(centres, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    _check_inputs(centres, Q, goal_mask)
+    if bounds is None:
+        bounds = bounds_from_centres(centres)
+    labels, extent = rasterize_cells(centres, bounds, resolution)
+    V = Q.max(axis=1)
+    if background is not None:
+        _draw_background(ax, background)
+    img = ax.imshow(V[labels], cmap=cmap, origin="upper", extent=extent, vmin=vmin, vmax=vmax,
+                    alpha=0.85 if background is not None else 1.0, zorder=1,
+                    interpolation="nearest")  # fmt: skip
+    # cell borders: label changes between neighbouring pixels
+    edge = np.zeros(labels.shape, dtype=bool)
+    edge[:, 1:] |= labels[:, 1:] != labels[:, :-1]
+    edge[1:, :] |= labels[1:, :] != labels[:-1, :]
+    ax.imshow(np.ma.masked_where(~edge, edge), cmap="Greys", vmin=0, vmax=1, origin="upper",
+              extent=extent, alpha=0.35, zorder=2, interpolation="nearest")  # fmt: skip
+    if goal_mask is not None and np.any(goal_mask):
+        inside = np.asarray(goal_mask, dtype=bool)[labels].astype(float)
+        xs = np.linspace(extent[0], extent[1], labels.shape[1])
+        ys = np.linspace(extent[3], extent[2], labels.shape[0])
+        ax.contour(xs, ys, inside, levels=[0.5], colors="crimson", linewidths=2, zorder=4)
+    if arrows and Q.shape[1] % 8 == 0:
+        best = Q.argmax(axis=1)
+        learned = Q.max(axis=1) > Q.min(axis=1)
+        n_speeds = Q.shape[1] // 8
+        spacing = np.sqrt((extent[1] - extent[0]) * (extent[3] - extent[2]) / max(len(centres), 1))
+        length = spacing * (0.15 + 0.3 * (1 + best // 8) / n_speeds)
+        d = ARROW_DIRECTIONS[best % 8] * length[:, None]
+        sel = learned
+        ax.quiver(centres[sel, 0], centres[sel, 1], d[sel, 0], d[sel, 1], angles="xy",
+                  scale_units="xy", scale=1, color="darkorange", width=0.006, zorder=5,
+                  pivot="tail")  # fmt: skip
+    ax.plot(centres[:, 0], centres[:, 1], ".", color="0.2", ms=2, zorder=5)
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    if title:
+        ax.set_title(title, fontsize=9)
+    if colorbar:
+        ax.figure.colorbar(img, ax=ax, fraction=0.046, pad=0.04, label="max_a Q(s, a)")
+    return img
+
+
+def _save(fig, path: str | os.PathLike[str]) -> None:
+    import matplotlib.pyplot as plt
+
+    from simlab.io import atomic_write
+
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    plt.close(fig)
+
+
+def save_q_heatmap(
+    path: str | os.PathLike[str],
+    centres: np.ndarray,
+    Q: np.ndarray,
+    bounds: Sequence[float] | None = None,
+    goal_mask: np.ndarray | None = None,
+    **kwargs: Any,
+) -> None:
+    """Save one heat map as a PNG (atomic write; the caller checks overwrite)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.2, 4.6))
+    plot_q_heatmap(ax, centres, Q, bounds, goal_mask, **kwargs)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def save_heatmap_grid(
+    path: str | os.PathLike[str],
+    centres: np.ndarray,
+    Qs: Sequence[np.ndarray],
+    goal_masks: Sequence[np.ndarray],
+    names: Sequence[str],
+    bounds: Sequence[float] | None = None,
+    *,
+    background: Any = None,
+    suptitle: str | None = None,
+) -> None:
+    """Save one figure with a heat map per goal (3 columns; a 3 x 3 grid for 9 goals).
+
+    All panels share one colour scale so goals can be compared.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(Qs)
+    if not (n == len(goal_masks) == len(names)) or n == 0:
+        raise ConfigError("need one Q, goal mask and name per goal", key="Qs")
+    vmin = min(float(np.max(Q, axis=1).min()) for Q in Qs)
+    vmax = max(float(np.max(Q, axis=1).max()) for Q in Qs)
+    cols = min(3, n)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.4 * rows), squeeze=False)
+    img = None
+    for ax, Q, mask, name in zip(axes.flat, Qs, goal_masks, names, strict=False):
+        img = plot_q_heatmap(ax, centres, Q, bounds, mask, background=background, title=name,
+                             vmin=vmin, vmax=vmax, colorbar=False)  # fmt: skip
+        ax.set_xlabel("")
+        ax.set_ylabel("")
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    fig.colorbar(img, ax=axes.ravel().tolist(), fraction=0.02, pad=0.02, label="max_a Q(s, a)")
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=10)
+    _save(fig, path)

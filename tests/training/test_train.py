@@ -1,0 +1,131 @@
+"""``simlab train`` end to end, its outputs, its errors, and the heat maps."""
+
+from __future__ import annotations
+
+import json
+
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from simlab.agents import load_q_table
+from simlab.cli import main
+from simlab.errors import ConfigError
+from simlab.training.heatmap import ARROW_DIRECTIONS, rasterize_cells
+from simlab.training.train import train
+
+
+def test_train_writes_q_tables_curves_summary_and_heat_maps(small_mdp_file, tmp_path):
+    out = tmp_path / "out"
+    s = train(small_mdp_file, "vi-softmax", "g1,g5", episodes=60, runs=2, seed=3, out=out,
+              progress=False)  # fmt: skip
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["curves.npz", "curves.png", "heatmap_g1.png", "heatmap_g5.png",
+                     "heatmaps.png", "q_g1.npz", "q_g5.npz", "summary.json"]  # fmt: skip
+    Q, meta = load_q_table(out / "q_g1.npz")
+    assert Q.shape == (12, 16) and Q.dtype == np.float64
+    assert meta["goal"] == "g1" and meta["agent"] == "vi-softmax" and meta["runs"] == 2
+    with np.load(out / "q_g1.npz", allow_pickle=False) as q:
+        np.testing.assert_allclose(q["Q_runs"].mean(0), Q)
+        assert q["Q_star"].shape == (12, 16) and q["goal_mask"].dtype == bool
+    with np.load(out / "curves.npz", allow_pickle=False) as c:
+        assert c["rewards"].shape == (2, 2, 60)
+        assert list(c["goal_names"]) == ["g1", "g5"]
+        assert c["curve_mean"].shape == (2, 60)
+        np.testing.assert_array_equal(c["rewards"], s.rewards)
+    summary = json.loads((out / "summary.json").read_text())
+    g1 = summary["goals"]["g1"]
+    assert g1["final_mean_reward"] == pytest.approx(s.rewards[0][:, -6:].mean())
+    assert g1["ratio"] == pytest.approx(g1["final_mean_reward"] / g1["optimal_return"])
+    assert 0 < g1["optimal_return"] <= g1["upper_bound"] + 1e-9 <= 50
+    img = mpimg.imread(out / "heatmaps.png")
+    assert img.ndim == 3 and img.shape[0] > 100
+
+
+def test_one_goal_alone_equals_the_same_goal_among_all(small_mdp_file):
+    alone = train(small_mdp_file, "q-softmax", "g7", episodes=30, runs=2, seed=9, progress=False)
+    every = train(small_mdp_file, "q-softmax", "all", episodes=30, runs=2, seed=9, progress=False)
+    np.testing.assert_array_equal(alone.rewards[0], every.rewards[6])
+    np.testing.assert_array_equal(alone.Q["g7"], every.Q["g7"])
+    assert len(every.goals) == 9
+
+
+def test_existing_outputs_are_kept_unless_overwrite(small_mdp_file, tmp_path):
+    out = tmp_path / "out"
+    train(small_mdp_file, "rmax", "g2", episodes=5, runs=1, out=out, plots=False, progress=False)
+    before = (out / "q_g2.npz").read_bytes()
+    with pytest.raises(ConfigError, match="already exists"):
+        train(small_mdp_file, "rmax", "g2", episodes=5, runs=1, seed=1, out=out, plots=False,
+              progress=False)  # fmt: skip
+    assert (out / "q_g2.npz").read_bytes() == before
+    train(small_mdp_file, "rmax", "g2", episodes=5, runs=1, seed=1, out=out, plots=False,
+          progress=False, overwrite=True)  # fmt: skip
+    assert (out / "q_g2.npz").read_bytes() != before
+
+
+def test_cli_train(small_mdp_file, tmp_path, capsys):
+    out = tmp_path / "cli"
+    code = main(["train", "--mdp", str(small_mdp_file), "--agent", "vi-softmax", "--goals", "all",
+                 "--episodes", "20", "--runs", "2", "--seed", "1", "--out", str(out),
+                 "--no-progress", "--no-plots", "--param", "tau=0.05"])  # fmt: skip
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "9 goal(s) x 2 runs x 20 episodes" in text and "g9" in text
+    assert len(list(out.glob("q_*.npz"))) == 9
+    assert json.loads((out / "summary.json").read_text())["config"]["tau"] == 0.05
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--agent", "dqn"], "unknown agent 'dqn'; known agents: q-learning"),
+        (["--goals", "g1,hall"], "unknown goal 'hall'; valid goals: g1, g2"),
+        (["--param", "temperature=1"], "unknown parameter 'temperature'"),
+        (["--param", "tau=-1"], "tau: expected a finite number > 0"),
+    ],
+)
+def test_cli_errors_are_one_line_and_exit_2(small_mdp_file, tmp_path, capsys, args, message):
+    code = main(["train", "--mdp", str(small_mdp_file), "--out", str(tmp_path / "o"),
+                 "--episodes", "2", "--runs", "1", "--no-progress", *args])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()  # nothing written before the check
+
+
+def test_cli_rejects_a_bad_npz(tmp_path, small_mdp, write_mdp, capsys):
+    T = small_mdp.T.copy()
+    T[0, 0, :] = 0
+    path = write_mdp(tmp_path / "bad.npz", small_mdp, T=T)
+    assert main(["train", "--mdp", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "bad.npz: T: row T[0, 0, :] sums to 0" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- heat maps
+def test_rasterized_cells_are_the_nearest_centres():
+    rng = np.random.default_rng(0)
+    centres = rng.uniform(-0.75, 0.75, (15, 2))
+    labels, extent = rasterize_cells(centres, (-0.75, -0.75, 0.75, 0.75), resolution=0.01)
+    assert labels.shape == (150, 150) and extent == (-0.75, 0.75, -0.75, 0.75)
+    # pixel (row i, col j) has its centre at x = -0.75 + (j + .5) * 0.01, y = 0.75 - (i + .5) * 0.01
+    i, j = rng.integers(0, 150, 200), rng.integers(0, 150, 200)
+    xy = np.column_stack([-0.75 + (j + 0.5) * 0.01, 0.75 - (i + 0.5) * 0.01])
+    d = np.linalg.norm(xy[:, None] - centres[None], axis=2)
+    np.testing.assert_array_equal(labels[i, j], d.argmin(1))
+    assert set(np.unique(labels)) <= set(range(15))
+    # the top-left pixel is the cell of the centre nearest to the top-left corner
+    assert labels[0, 0] == cKDTree(centres).query([-0.745, 0.745])[1]
+
+
+def test_arrow_directions_follow_the_action_order():
+    up, down, left, right, ul, ur, dl, dr = ARROW_DIRECTIONS
+    np.testing.assert_allclose(up, [0, 1])  # UP = +y
+    np.testing.assert_allclose(down, [0, -1])
+    np.testing.assert_allclose(left, [-1, 0])
+    np.testing.assert_allclose(right, [1, 0])
+    np.testing.assert_allclose(ul, np.array([-1, 1]) / np.sqrt(2))
+    np.testing.assert_allclose(ur, np.array([1, 1]) / np.sqrt(2))
+    np.testing.assert_allclose(dl, np.array([-1, -1]) / np.sqrt(2))
+    np.testing.assert_allclose(dr, np.array([1, -1]) / np.sqrt(2))
+    np.testing.assert_allclose(np.linalg.norm(ARROW_DIRECTIONS, axis=1), 1.0)
