@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from simlab.agents.config import QLearningConfig, Selection
 from simlab.errors import ConfigError
-from simlab.visitlab.training import AgentSpec
 
 
 def python_greedy(q: np.ndarray, rng: np.random.Generator) -> int:
@@ -35,7 +35,7 @@ def python_epsilon_greedy(q: np.ndarray, epsilon: float, rng: np.random.Generato
 
 def train_python(
     env: Any,
-    spec: AgentSpec,
+    config: QLearningConfig,
     trials: int,
     env_rng: np.random.Generator,
     agent_rng: np.random.Generator,
@@ -44,16 +44,17 @@ def train_python(
     """Q-learning, one Python call per step; returns ``(returns (trials,), Q (S, A))``.
 
     ``env`` is an unwrapped Visit-the-lab env; its ``np_random`` is replaced by
-    ``env_rng``. Only ``kind="mf"`` with epsilon-greedy or greedy selection.
+    ``env_rng``. Epsilon-greedy or greedy selection only. ``Q`` defaults to the
+    config's initial value everywhere.
     """
-    if spec.kind != "mf" or spec.selection == "softmax":
+    if not isinstance(config, QLearningConfig) or config.selection == Selection.SOFTMAX:
         raise ConfigError("the Python reference loop runs epsilon-greedy Q-learning only",
                           key="agent")
     env.np_random = env_rng
     if Q is None:
-        Q = np.zeros((env.observation_space.n, env.action_space.n), dtype=np.float64)
-    epsilon = spec.epsilon if spec.selection == "egreedy" else 0.0
-    alpha, gamma = spec.alpha, spec.gamma
+        Q = np.full((env.observation_space.n, env.action_space.n), config.initial_value)
+    epsilon = config.epsilon if config.selection == Selection.EPSILON_GREEDY else 0.0
+    alpha, gamma = config.alpha, config.gamma
     returns = np.zeros(trials, dtype=np.float64)
     for k in range(trials):
         s, _ = env.reset()

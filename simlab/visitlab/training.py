@@ -4,21 +4,25 @@ The loops call the dynamics kernels of :mod:`simlab.visitlab.dynamics` and the
 agent kernels of :mod:`simlab.agents.kernels` (action selection, Q-learning, the
 sparse count model and sliding-window model with Bellman backups and value
 iteration); no Python runs per step. Python calls a loop once per chunk of trials
-(to drive a progress bar); the loop carries the step counter across chunks.
+(to drive a progress bar); the loop carries its step counter across chunks.
 
-Agents (:data:`AGENTS`, parameters in :class:`AgentSpec`; thesis defaults
-gamma 0.9, alpha 0.7, epsilon 0.05, tau 0.1):
+Agents are the registry's (:mod:`simlab.agents.registry`: ``q-learning``,
+``q-softmax``, ``mb-egreedy``, ``vi-softmax``, ``rmax``, ``sliding-window``,
+``passive-observer``) with their frozen configs; a loop step does exactly what
+the agent classes of :mod:`simlab.agents.agents` do in ``act`` then ``update``
+(same kernels, same random draws, same order — tested), so the fused loop and
+``agent.fit(env)`` on the Gymnasium env give identical curves. On top of the
+registry presets, :func:`loop_agent_config` applies the settings of a variant:
 
-* ``mf-egreedy`` / ``mf-softmax`` — Q-learning (eq. 1.12).
-* ``mb-egreedy`` / ``mb-vi-softmax`` — model-based on the count model (eq.
-  1.13-1.14): after each step one Bellman backup at the visited pair, and value
-  iteration (at most ``max_sweeps`` sweeps) every ``plan_every`` steps (thesis
-  Fig. 4.1: 50 sweeps every 10,000 steps).
-* ``rmax`` — R-max: Q starts at ``r_max / (1 - gamma)``, greedy selection, a pair is
-  known after ``m_known`` visits (nav 1, social 5 as in the paper), value iteration
-  (``replan_sweeps`` sweeps) the step a pair becomes known, plus periodic planning.
-* ``mb-window-egreedy`` — as ``mb-egreedy`` on a sliding-window model of the last
-  ``window`` outcomes per pair (for humans that change).
+* both — Q starts at 0 for Q-learning and the model-based agents (the original
+  implementation's choice; the registry's default is optimistic, pass
+  ``{"q_init": None}`` to get it back); R-max keeps its optimistic start;
+* ``thesis`` — model-based planning every 10,000 steps with at most 50 sweeps
+  (thesis Fig. 4.1 caption);
+* ``paper`` — Q-learning alpha 0.5, planning every 1000 steps, R-max m = 5 on the
+  social task (m = 1 otherwise).
+
+then the caller's overrides (registry keys, ``"actor.plan_every"`` for nested ones).
 
 Learning transitions cross the fixed-length trial boundary as time-outs: the last
 transition of a trial bootstraps from its real next state (truncation is not
@@ -32,12 +36,20 @@ agent's — so identical seeds give identical curves and Q tables.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 from numba import njit
 
+from simlab.agents.config import (
+    ModelBasedConfig,
+    PassiveObserverConfig,
+    QLearningConfig,
+    RMaxConfig,
+    SlidingWindowConfig,
+    config_to_dict,
+)
 from simlab.agents.kernels import (
     count_model_new,
     model_based_update,
@@ -47,186 +59,158 @@ from simlab.agents.kernels import (
     select_action,
     window_model_new,
 )
+from simlab.agents.registry import AGENTS, agent_config
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 
 TASKS = ("nav", "social", "gotohuman")
-KINDS = ("mf", "mb", "rmax")
-SELECTIONS = ("greedy", "egreedy", "softmax")
 
 # indices into the agent parameter array handed to the loops
 (A_KIND, A_SELECT, A_ALPHA, A_GAMMA, A_EPS, A_TAU, A_PLAN_EVERY, A_SWEEPS, A_TOL, A_M_KNOWN,
- A_INCREMENTAL, A_REPLAN_SWEEPS) = range(12)
-_N_AP = 12
+ A_INCREMENTAL, A_REPLAN, A_OBSERVER, A_OBS_SELECT, A_OBS_ALPHA, A_OBS_GAMMA, A_OBS_EPS,
+ A_OBS_TAU, A_TAKEOVER) = range(19)
+_N_AP = 19
 _KIND_MF, _KIND_MB, _KIND_RMAX = 0, 1, 2
 
 
-@dataclass(frozen=True)
-class AgentSpec:
-    """A tabular agent for the fused loops.
+def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",
+                      overrides: dict[str, Any] | None = None) -> Any:
+    """Registry config of agent ``name`` with the variant settings, then ``overrides``.
 
-    Attributes:
-        name: label used in curves and summaries.
-        kind: ``"mf"`` (Q-learning), ``"mb"`` (count/window model) or ``"rmax"``.
-        selection: ``"greedy"``, ``"egreedy"`` or ``"softmax"`` (ties at random).
-        alpha: Q-learning step size (mf only).
-        gamma: discount factor in [0, 1).
-        epsilon: exploration rate of epsilon-greedy.
-        tau: softmax temperature (reward units).
-        plan_every: steps between value-iteration runs (mb, rmax); 0 never.
-        max_sweeps: sweeps per value-iteration run.
-        tol: value iteration stops when no Q entry changes by more than this.
-        m_known: visits before a pair's model is used (R-max's m; 1 otherwise).
-        incremental: one Bellman backup at the visited pair after every step (mb, rmax).
-        replan_sweeps: R-max: sweeps run the step a pair becomes known.
-        window: > 0 uses a sliding-window model of the last ``window`` outcomes.
-        r_max: R-max's optimistic reward bound (Q starts at ``r_max / (1 - gamma)``).
+    See the module docstring for the variant settings.
     """
-
-    name: str = "mf-egreedy"
-    kind: str = "mf"
-    selection: str = "egreedy"
-    alpha: float = 0.7
-    gamma: float = 0.9
-    epsilon: float = 0.05
-    tau: float = 0.1
-    plan_every: int = 10_000
-    max_sweeps: int = 50
-    tol: float = 1e-3
-    m_known: int = 1
-    incremental: bool = True
-    replan_sweeps: int = 1
-    window: int = 0
-    r_max: float = 1.0
-
-    def __post_init__(self) -> None:
-        if self.kind not in KINDS:
-            raise ConfigError(f"expected one of {KINDS}, got {self.kind!r}", key="kind")
-        if self.selection not in SELECTIONS:
-            raise ConfigError(f"expected one of {SELECTIONS}, got {self.selection!r}",
-                              key="selection")
-        for key, lo, hi in (("alpha", 0.0, 1.0), ("epsilon", 0.0, 1.0)):
-            v = getattr(self, key)
-            if not lo <= v <= hi:
-                raise ConfigError(f"expected a value in [{lo}, {hi}], got {v}", key=key)
-        if not 0.0 <= self.gamma < 1.0:
-            raise ConfigError(f"expected a value in [0, 1), got {self.gamma}", key="gamma")
-        if self.tau < 0:
-            raise ConfigError(f"expected tau >= 0, got {self.tau}", key="tau")
-        for key in ("plan_every", "max_sweeps", "replan_sweeps", "window"):
-            if int(getattr(self, key)) < 0:
-                raise ConfigError(f"expected an integer >= 0, got {getattr(self, key)}", key=key)
-        if self.m_known < 1:
-            raise ConfigError(f"expected an integer >= 1, got {self.m_known}", key="m_known")
-
-    def to_array(self) -> np.ndarray:
-        """Parameters for the loops, float64 shape (12,) (see the ``A_*`` indices)."""
-        ap = np.zeros(_N_AP, dtype=np.float64)
-        ap[A_KIND] = KINDS.index(self.kind)
-        ap[A_SELECT] = SELECTIONS.index(self.selection)
-        ap[A_ALPHA] = self.alpha
-        ap[A_GAMMA] = self.gamma
-        ap[A_EPS] = self.epsilon
-        ap[A_TAU] = self.tau
-        ap[A_PLAN_EVERY] = self.plan_every
-        ap[A_SWEEPS] = self.max_sweeps
-        ap[A_TOL] = self.tol
-        ap[A_M_KNOWN] = self.m_known
-        ap[A_INCREMENTAL] = 1.0 if self.incremental else 0.0
-        ap[A_REPLAN_SWEEPS] = self.replan_sweeps
-        return ap
-
-    def initial_q(self, n_states: int, n_actions: int) -> np.ndarray:
-        """Initial Q table, shape ``(n_states, n_actions)``: zeros, optimistic for R-max."""
-        if self.kind == "rmax":
-            return rmax_q_init(n_states, n_actions, self.r_max, self.gamma)
-        return np.zeros((n_states, n_actions), dtype=np.float64)
-
-    def new_model(self, n_states: int, n_actions: int) -> Any:
-        """The agent's (empty) model: a count or window model (a 1 x 1 stub for mf)."""
-        if self.kind == "mf":
-            return count_model_new(1, 1, 1)
-        if self.window > 0:
-            return window_model_new(n_states, n_actions, self.window, 1024)
-        return count_model_new(n_states, n_actions, 4096)
+    if name not in AGENTS:
+        raise ConfigError(f"unknown agent {name!r}", key="agent",
+                          fix=f"use one of {', '.join(AGENTS)}")
+    preset = AGENTS[name].config
+    changes: dict[str, Any] = {}
+    prefix = "actor." if isinstance(preset, PassiveObserverConfig) else ""
+    if isinstance(preset, QLearningConfig | ModelBasedConfig | PassiveObserverConfig):
+        changes[f"{prefix}q_init"] = 0.0  # the original code starts from Q = 0
+    if isinstance(preset, ModelBasedConfig | PassiveObserverConfig):
+        if variant == "thesis":
+            changes.update({f"{prefix}plan_every": 10_000, f"{prefix}max_sweeps": 50})
+        else:
+            changes[f"{prefix}plan_every"] = 1000
+    if variant == "paper":
+        if isinstance(preset, QLearningConfig):
+            changes["alpha"] = 0.5
+        elif isinstance(preset, PassiveObserverConfig):
+            changes["observer.alpha"] = 0.5
+    if isinstance(preset, RMaxConfig) and variant == "paper" and task == "social":
+        changes["m"] = 5
+    changes.update(overrides or {})
+    return agent_config(name, changes)
 
 
-AGENTS: dict[str, AgentSpec] = {
-    "mf-egreedy": AgentSpec("mf-egreedy", "mf", "egreedy"),
-    "mf-softmax": AgentSpec("mf-softmax", "mf", "softmax"),
-    "mb-egreedy": AgentSpec("mb-egreedy", "mb", "egreedy"),
-    "mb-vi-softmax": AgentSpec("mb-vi-softmax", "mb", "softmax"),
-    "rmax": AgentSpec("rmax", "rmax", "greedy", plan_every=1000),
-    "mb-window-egreedy": AgentSpec("mb-window-egreedy", "mb", "egreedy", window=20),
-}
+def agent_arrays(cfg: Any, n_states: int, n_actions: int, takeover_trial: int = -1
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    """Loop inputs of an agent config: ``(ap, Q, Q_observer, model)``.
 
-
-def agent_spec(name: str | AgentSpec, task: str = "nav", variant: str = "thesis",
-               **overrides: Any) -> AgentSpec:
-    """An agent by name with the task/variant defaults, then ``overrides`` applied.
-
-    Paper variant: alpha 0.5 and planning every 1000 steps. R-max: m = 1 for
-    navigation and go-to-human, m = 5 for the social task (paper); on the social
-    task it relies on the periodic planning and the per-step backups
-    (``replan_sweeps=0``) because a sweep per newly known pair costs too much there.
+    ``ap`` float64 (19,) parameters (``A_*`` indices); ``Q`` the acting table with
+    the config's initial values; ``Q_observer`` the passive observer's table
+    (``(1, 1)`` when there is none); ``model`` a count or window model (a 1 x 1
+    stub for Q-learning). ``takeover_trial``: the trial from which a passive
+    observer acts (-1: never).
     """
-    if isinstance(name, AgentSpec):
-        spec = name
+    ap = np.zeros(_N_AP, dtype=np.float64)
+    ap[A_TAKEOVER] = -1
+    q_obs = np.zeros((1, 1), dtype=np.float64)
+    actor = cfg.actor if isinstance(cfg, PassiveObserverConfig) else cfg
+    ap[A_GAMMA] = actor.gamma
+    if isinstance(actor, QLearningConfig):
+        ap[A_KIND] = _KIND_MF
+        ap[A_SELECT] = int(actor.selection)
+        ap[A_ALPHA] = actor.alpha
+        ap[A_EPS], ap[A_TAU] = actor.epsilon, actor.tau
+        q = np.full((n_states, n_actions), actor.initial_value)
+        model = count_model_new(1, 1, 1)
+    elif isinstance(actor, RMaxConfig):
+        ap[A_KIND] = _KIND_RMAX
+        ap[A_SELECT] = 0  # greedy
+        ap[A_M_KNOWN] = actor.m
+        ap[A_REPLAN] = 1.0 if actor.replan_when_known else 0.0
+        q = rmax_q_init(n_states, n_actions, float(actor.r_max), float(actor.gamma))
+        model = count_model_new(n_states, n_actions, actor.capacity)
+    elif isinstance(actor, ModelBasedConfig):
+        ap[A_KIND] = _KIND_MB
+        ap[A_SELECT] = int(actor.selection)
+        ap[A_EPS], ap[A_TAU] = actor.epsilon, actor.tau
+        ap[A_M_KNOWN] = 1
+        q = np.full((n_states, n_actions), actor.initial_value)
+        if isinstance(actor, SlidingWindowConfig):
+            cap = max(1, min(actor.capacity, n_states * n_actions))
+            model = window_model_new(n_states, n_actions, actor.window, cap)
+        else:
+            model = count_model_new(n_states, n_actions, actor.capacity)
     else:
-        if name not in AGENTS:
-            raise ConfigError(f"unknown agent {name!r}", key="agent",
-                              fix=f"use one of {', '.join(AGENTS)}")
-        spec = AGENTS[name]
-        changes: dict[str, Any] = {}
-        if variant == "paper":
-            changes.update(alpha=0.5, plan_every=1000)
-        if spec.kind == "rmax":
-            changes["m_known"] = 5 if task == "social" else 1
-            if task == "social":  # a sweep per newly known pair is too costly on 76,800 pairs
-                changes["replan_sweeps"] = 0
-        spec = replace(spec, **changes)
-    return replace(spec, **overrides) if overrides else spec
+        raise ConfigError(f"unsupported agent config {type(cfg).__name__}", key="agent")
+    if not isinstance(actor, QLearningConfig):
+        ap[A_INCREMENTAL] = 1.0 if actor.incremental else 0.0
+        ap[A_PLAN_EVERY] = actor.plan_every
+        ap[A_SWEEPS] = actor.max_sweeps
+        ap[A_TOL] = actor.tol
+    if isinstance(cfg, PassiveObserverConfig):
+        obs = cfg.observer
+        ap[A_OBSERVER] = 1.0
+        ap[A_OBS_SELECT] = int(obs.selection)
+        ap[A_OBS_ALPHA], ap[A_OBS_GAMMA] = obs.alpha, obs.gamma
+        ap[A_OBS_EPS], ap[A_OBS_TAU] = obs.epsilon, obs.tau
+        ap[A_TAKEOVER] = takeover_trial
+        q_obs = np.full((n_states, n_actions), obs.initial_value)
+    return ap, q, q_obs, model
 
 
 # --------------------------------------------------------------------------- kernels
 
 
 @njit(cache=True)
-def _act(Q, s, ap, rng):
+def _act(Q, Q_obs, ap, s, trial, rng):
+    """Action of the agent (the observer's once it has taken over)."""
+    if ap[A_OBSERVER] > 0.0 and 0 <= ap[A_TAKEOVER] <= trial:
+        return select_action(Q_obs[s], int(ap[A_OBS_SELECT]), ap[A_OBS_EPS], ap[A_OBS_TAU], rng)
     return select_action(Q[s], int(ap[A_SELECT]), ap[A_EPS], ap[A_TAU], rng)
 
 
 @njit(cache=True)
-def _learn(Q, model, ap, s, a, r, s_next, t):
+def _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial):
+    """The agent's update after step ``t`` (1-based count of the acting agent's steps)."""
+    if ap[A_OBSERVER] > 0.0:
+        q_learning_update(Q_obs, s, a, r, s_next, ap[A_OBS_ALPHA], ap[A_OBS_GAMMA])
+        if 0 <= ap[A_TAKEOVER] <= trial:
+            return t  # after the take-over only the observer learns
     kind = int(ap[A_KIND])
     gamma = ap[A_GAMMA]
     if kind == _KIND_MF:
         q_learning_update(Q, s, a, r, s_next, ap[A_ALPHA], gamma)
-        return
+        return t + 1
     m_known = int(ap[A_M_KNOWN])
     model_based_update(model, Q, s, a, r, s_next, gamma, m_known, ap[A_INCREMENTAL] > 0.0,
-                       kind == _KIND_RMAX, int(ap[A_REPLAN_SWEEPS]), ap[A_TOL])
+                       ap[A_REPLAN] > 0.0, int(ap[A_SWEEPS]), ap[A_TOL])
+    t += 1
     plan_every = int(ap[A_PLAN_EVERY])
     if plan_every > 0 and t % plan_every == 0:
         model_value_iteration(model, Q, gamma, int(ap[A_SWEEPS]), ap[A_TOL], m_known)
+    return t
 
 
 @njit(cache=True)
 def nav_train_chunk(walls_h, walls_v, labels, start_cell, goal_label, goal_labels, n_steps,
-                    Q, model, ap, env_rng, agent_rng, t, returns):
-    """Run ``len(returns)`` navigation trials, learning; fills ``returns``; returns ``t``."""
+                    Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns):
+    """Run ``len(returns)`` navigation trials (global index from ``trial0``), learning;
+    fills ``returns``; returns the updated step counter ``t``."""
     n_cells = labels.shape[0]
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
+        trial = trial0 + k
         dyn.nav_reset(st, env_rng, n_cells, start_cell, goal_label, goal_labels)
         s = dyn.nav_obs(st, n_cells)
         total = 0.0
         for _ in range(n_steps):
-            a = _act(Q, s, ap, agent_rng)
+            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
             r = dyn.nav_step(walls_h, walls_v, labels, st, a)
             s_next = dyn.nav_obs(st, n_cells)
-            t += 1
-            _learn(Q, model, ap, s, a, r, s_next, t)
+            t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
             total += r
             s = s_next
         returns[k] = total
@@ -235,20 +219,20 @@ def nav_train_chunk(walls_h, walls_v, labels, start_cell, goal_label, goal_label
 
 @njit(cache=True)
 def social_train_chunk(walls_h, walls_v, los, pcfg, hp, redraw_p, robot_start, human_start,
-                       n_steps, Q, model, ap, env_rng, agent_rng, t, returns):
+                       n_steps, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns):
     """Run ``len(returns)`` social trials, learning; fills ``returns``; returns ``t``."""
     n_cells = walls_v.shape[0] * walls_h.shape[1]
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
+        trial = trial0 + k
         dyn.social_reset(st, env_rng, n_cells, robot_start, human_start)
         s = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
         total = 0.0
         for _ in range(n_steps):
-            a = _act(Q, s, ap, agent_rng)
+            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
             r = dyn.social_step(walls_h, walls_v, los, pcfg, hp, redraw_p, st, a, env_rng)
             s_next = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
-            t += 1
-            _learn(Q, model, ap, s, a, r, s_next, t)
+            t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
             total += r
             s = s_next
         returns[k] = total
@@ -257,20 +241,21 @@ def social_train_chunk(walls_h, walls_v, los, pcfg, hp, redraw_p, robot_start, h
 
 @njit(cache=True)
 def gth_train_chunk(walls_h, walls_v, los, pcfg, hp, human_moves, episode, robot_cell, human_cell,
-                    robot_ori, human_ori, n_steps, Q, model, ap, env_rng, agent_rng, t, returns):
+                    robot_ori, human_ori, n_steps, Q, Q_obs, model, ap, env_rng, agent_rng, t,
+                    trial0, returns):
     """Run ``len(returns)`` go-to-human trials, learning; fills ``returns``; returns ``t``."""
     n_cells = walls_v.shape[0] * walls_h.shape[1]
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
+        trial = trial0 + k
         dyn.gth_reset(st, env_rng, n_cells, episode, robot_cell, human_cell, robot_ori, human_ori)
         s = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
         total = 0.0
         for _ in range(n_steps):
-            a = _act(Q, s, ap, agent_rng)
+            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
             r = dyn.gth_step(walls_h, walls_v, los, pcfg, hp, human_moves, st, a, env_rng)
             s_next = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
-            t += 1
-            _learn(Q, model, ap, s, a, r, s_next, t)
+            t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
             total += r
             s = s_next
         returns[k] = total
@@ -313,8 +298,9 @@ class _Runner:
                           env.robot_ori, env.human_ori, env.max_steps)
             self.kernel = gth_train_chunk
 
-    def run(self, Q, model, ap, env_rng, agent_rng, t, returns) -> int:
-        return int(self.kernel(*self.fixed, Q, model, ap, env_rng, agent_rng, t, returns))
+    def run(self, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns) -> int:
+        return int(self.kernel(*self.fixed, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0,
+                               returns))
 
 
 def seed_generators(seed: int, n_seeds: int) -> list[tuple[np.random.Generator, np.random.Generator]]:
@@ -402,31 +388,36 @@ def smooth_curve(returns: np.ndarray, n_points: int = 100) -> tuple[np.ndarray, 
     return x, mean, std
 
 
-def _run_seed(task: str, variant: str, env_kwargs: dict[str, Any], spec: AgentSpec,
+def _run_seed(task: str, variant: str, env_kwargs: dict[str, Any], cfg: Any,
               trials: int, gens: tuple[np.random.Generator, np.random.Generator],
               q0: np.ndarray | None, chunk: int, on_chunk: Any = None
               ) -> tuple[np.ndarray, np.ndarray]:
-    """One seeded run: returns ``(returns (trials,), final Q (S, A))``."""
+    """One seeded run: returns ``(returns (trials,), final Q (S, A))``.
+
+    The Q returned is the agent's ``Q`` (for a passive observer: the observer's).
+    """
     env = make_env(task, variant=variant, **env_kwargs)
     runner = _Runner(env, task)
     env_rng, agent_rng = gens
-    Q = (spec.initial_q(runner.n_states, runner.n_actions) if q0 is None
-         else np.array(q0, dtype=np.float64, order="C"))
-    model = spec.new_model(runner.n_states, runner.n_actions)
-    ap = spec.to_array()
+    takeover = (round(cfg.takeover_fraction * trials)
+                if isinstance(cfg, PassiveObserverConfig) else -1)
+    ap, Q, Q_obs, model = agent_arrays(cfg, runner.n_states, runner.n_actions, takeover)
+    if q0 is not None:
+        target = Q_obs if isinstance(cfg, PassiveObserverConfig) else Q
+        target[...] = q0
     returns = np.zeros(trials, dtype=np.float64)
     t = 0
     for lo in range(0, trials, chunk):
         hi = min(trials, lo + chunk)
-        t = runner.run(Q, model, ap, env_rng, agent_rng, t, returns[lo:hi])
+        t = runner.run(Q, Q_obs, model, ap, env_rng, agent_rng, t, lo, returns[lo:hi])
         if on_chunk is not None:
             on_chunk(hi - lo)
-    return returns, Q
+    return returns, (Q_obs if isinstance(cfg, PassiveObserverConfig) else Q)
 
 
 def train(
     task: str = "social",
-    agent: str | AgentSpec = "mb-egreedy",
+    agent: str = "mb-egreedy",
     trials: int | None = None,
     seeds: int = 10,
     seed: int = 0,
@@ -441,12 +432,13 @@ def train(
 
     Args:
         task: ``"nav"``, ``"social"`` or ``"gotohuman"``.
-        agent: a name in :data:`AGENTS` or an :class:`AgentSpec`.
+        agent: a registry name (:data:`simlab.agents.registry.AGENTS`).
         trials: trials per run (default: thesis counts — nav 2000, social 40,000,
             go-to-human 2000).
         seeds: number of independent runs; ``seed`` the root of the SeedSequence.
-        variant: ``"thesis"`` or ``"paper"`` (env and agent defaults).
-        agent_overrides: AgentSpec fields to change (e.g. ``{"plan_every": 1000}``).
+        variant: ``"thesis"`` or ``"paper"`` (env and agent settings).
+        agent_overrides: config fields to change (e.g. ``{"plan_every": 1000}``,
+            ``{"q_init": 0.0}``, ``{"actor.epsilon": 0.1}``).
         initial_q: starting Q table, ``(S, A)`` for every seed or ``(seeds, S, A)``
             (e.g. continue learning with another human); the model starts empty.
         workers: processes running seeds in parallel (results do not depend on it).
@@ -461,7 +453,7 @@ def train(
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
             raise ConfigError(f"expected an integer >= 1, got {value!r}", key=key)
     env = make_env(task, variant=variant, **env_kwargs)
-    spec = agent_spec(agent, task, variant, **(agent_overrides or {}))
+    cfg = loop_agent_config(agent, task, variant, agent_overrides)
     n_states, n_actions = env.observation_space.n, env.action_space.n
     q0s: list[np.ndarray | None] = [None] * seeds
     if initial_q is not None:
@@ -481,16 +473,16 @@ def train(
     from tqdm.auto import tqdm
 
     with tqdm(total=seeds * trials, disable=not progress, unit="trial",
-              desc=f"{task} {spec.name}") as bar:
+              desc=f"{task} {agent}") as bar:
         if workers == 1 or seeds == 1:
             for i in range(seeds):
-                returns[i], qs[i] = _run_seed(task, variant, env_kwargs, spec, trials, gens[i],
+                returns[i], qs[i] = _run_seed(task, variant, env_kwargs, cfg, trials, gens[i],
                                               q0s[i], chunk, bar.update)
         else:
             from concurrent.futures import ProcessPoolExecutor, as_completed
 
             with ProcessPoolExecutor(max_workers=min(workers, seeds)) as pool:
-                futures = {pool.submit(_run_seed, task, variant, env_kwargs, spec, trials,
+                futures = {pool.submit(_run_seed, task, variant, env_kwargs, cfg, trials,
                                        gens[i], q0s[i], chunk): i for i in range(seeds)}
                 for fut in as_completed(futures):
                     i = futures[fut]
@@ -498,11 +490,12 @@ def train(
                     bar.update(trials)
     wall = time.perf_counter() - start
     human = getattr(env, "human", None)
-    label = spec.name if human is None or task != "social" else f"{spec.name} / {human.name}"
+    label = agent if human is None or task != "social" else f"{agent} / {human.name}"
     config = {
         "task": task,
         "variant": variant,
-        "agent": asdict(spec),
+        "agent": agent,
+        "agent_config": config_to_dict(cfg),
         "trials": int(trials),
         "seeds": int(seeds),
         "seed": int(seed),

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from simlab.agents.registry import make_agent
 from simlab.errors import ConfigError
 from simlab.visitlab.reference import train_python
 from simlab.visitlab.training import (
-    AgentSpec,
-    agent_spec,
+    loop_agent_config,
     make_env,
     seed_generators,
     smooth_curve,
@@ -46,22 +46,53 @@ def test_fused_loop_equals_python_gymnasium_loop(task, kwargs, social_easy_mb):
     trials = 40
     # the social task starts from a trained Q so that rewarded transitions occur
     q0 = social_easy_mb.q[0] if task == "social" else None
-    fused = train(task, "mf-egreedy", trials=trials, seeds=1, seed=9, progress=False,
+    fused = train(task, "q-learning", trials=trials, seeds=1, seed=9, progress=False,
                   agent_overrides={"epsilon": 0.3}, initial_q=q0, **kwargs)
     env = make_env(task, **kwargs)
-    spec = agent_spec("mf-egreedy", task, kwargs.get("variant", "thesis"), epsilon=0.3)
+    cfg = loop_agent_config("q-learning", task, kwargs.get("variant", "thesis"),
+                            {"epsilon": 0.3})
     env_rng, agent_rng = seed_generators(9, 1)[0]
-    returns, Q = train_python(env, spec, trials, env_rng, agent_rng,
+    returns, Q = train_python(env, cfg, trials, env_rng, agent_rng,
                               None if q0 is None else q0.copy())
     np.testing.assert_array_equal(fused.returns[0], returns)
     np.testing.assert_array_equal(fused.q[0], Q)
     assert returns.sum() > 0  # the comparison covered rewarded transitions
 
 
+@pytest.mark.parametrize(("agent", "task", "kwargs"), [
+    ("mb-egreedy", "social", {"human": "H2"}),
+    ("vi-softmax", "nav", {"variant": "paper"}),
+    ("rmax", "gotohuman", {}),
+    ("sliding-window", "social", {"human": "medium"}),
+    ("passive-observer", "nav", {}),
+])
+def test_fused_loop_equals_agent_classes_on_the_env(agent, task, kwargs):
+    """The fused loop does what simlab.agents' agent classes do on the Gymnasium env."""
+    trials, seed = 30, 4
+    overrides = {"plan_every": 200} if agent != "passive-observer" else {"actor.plan_every": 200}
+    if agent == "rmax":
+        overrides = {"plan_every": 200}
+    fused = train(task, agent, trials=trials, seeds=1, seed=seed, progress=False,
+                  agent_overrides=overrides, **kwargs)
+    env = make_env(task, **kwargs)
+    cfg = loop_agent_config(agent, task, kwargs.get("variant", "thesis"), overrides)
+    env_rng, agent_rng = seed_generators(seed, 1)[0]
+    env.np_random = env_rng
+    learner = make_agent(agent, env.observation_space.n, env.action_space.n, agent_rng,
+                         config=cfg)
+    returns = np.zeros(trials)
+    for k in range(trials):
+        if agent == "passive-observer" and k == round(cfg.takeover_fraction * trials):
+            learner.take_over()
+        returns[k] = learner.fit(env, 1)[0]
+    np.testing.assert_array_equal(fused.returns[0], returns)
+    np.testing.assert_array_equal(fused.q[0], learner.Q)
+
+
 def test_navigation_model_based_learns_fast_and_before_model_free():
     """Thesis Fig. 4.1 shape: MB reaches >= 40/50 within ~300 trials, earlier than MF."""
     mb = train("nav", "mb-egreedy", trials=600, seeds=3, seed=0, progress=False)
-    mf = train("nav", "mf-egreedy", trials=600, seeds=3, seed=0, progress=False)
+    mf = train("nav", "q-learning", trials=600, seeds=3, seed=0, progress=False)
     x, mb_curve, _ = smooth_curve(mb.returns, 30)  # bins of 20 trials
     _, mf_curve, _ = smooth_curve(mf.returns, 30)
     mb_hit = x[np.flatnonzero(mb_curve >= 40)[0]]
@@ -74,7 +105,7 @@ def test_navigation_model_based_learns_fast_and_before_model_free():
 
 
 def test_social_easy_human_improves_far_above_random_policy(social_easy_mb):
-    random_policy = train("social", "mf-egreedy", trials=2000, seeds=1, seed=1, human="easy",
+    random_policy = train("social", "q-learning", trials=2000, seeds=1, seed=1, human="easy",
                           progress=False, agent_overrides={"epsilon": 1.0})
     random_level = random_policy.returns.mean()
     late = social_easy_mb.returns[0, -1000:].mean()
@@ -95,8 +126,8 @@ def test_continued_learning_starts_from_the_given_q(social_easy_mb):
 
 
 def test_parallel_workers_give_the_same_result():
-    a = train("gotohuman", "mf-egreedy", trials=50, seeds=3, seed=2, progress=False)
-    b = train("gotohuman", "mf-egreedy", trials=50, seeds=3, seed=2, progress=False, workers=2)
+    a = train("gotohuman", "q-learning", trials=50, seeds=3, seed=2, progress=False)
+    b = train("gotohuman", "q-learning", trials=50, seeds=3, seed=2, progress=False, workers=2)
     np.testing.assert_array_equal(a.returns, b.returns)
     np.testing.assert_array_equal(a.q, b.q)
 
@@ -122,17 +153,21 @@ def test_smoothing_and_summary_are_exact_on_a_known_curve():
     assert s["n_seeds"] == 2 and s["n_trials"] == 200
 
 
-def test_agent_specs_and_validation():
-    assert agent_spec("rmax", "social").m_known == 5
-    assert agent_spec("rmax", "nav").m_known == 1
-    assert agent_spec("mf-egreedy", "nav", "paper").alpha == 0.5
-    assert agent_spec("mb-egreedy", "nav", plan_every=7).plan_every == 7
-    q = AgentSpec(kind="rmax", gamma=0.9).initial_q(3, 2)
-    np.testing.assert_allclose(q, 10.0)
+def test_variant_settings_and_validation():
+    assert loop_agent_config("mb-egreedy").plan_every == 10_000
+    assert loop_agent_config("mb-egreedy", variant="paper").plan_every == 1000
+    assert loop_agent_config("rmax", "social", "paper").m == 5
+    assert loop_agent_config("rmax", "nav", "paper").m == 1
+    assert loop_agent_config("q-learning", variant="paper").alpha == 0.5
+    assert loop_agent_config("passive-observer", variant="paper").observer.alpha == 0.5
+    assert loop_agent_config("mb-egreedy", overrides={"plan_every": 7}).plan_every == 7
+    assert loop_agent_config("mb-egreedy").initial_value == 0.0
+    assert loop_agent_config("passive-observer").actor.initial_value == 0.0
+    assert loop_agent_config("mb-egreedy", overrides={"q_init": None}).initial_value == 10.0
     with pytest.raises(ConfigError, match="agent"):
-        agent_spec("dqn")
+        loop_agent_config("dqn")
     with pytest.raises(ConfigError, match="gamma"):
-        AgentSpec(gamma=1.0)
+        loop_agent_config("q-learning", overrides={"gamma": 1.0})
     with pytest.raises(ConfigError, match="task"):
         train("dance", progress=False)
     with pytest.raises(ConfigError, match="trials"):
@@ -140,11 +175,11 @@ def test_agent_specs_and_validation():
 
 
 @pytest.mark.parametrize(("agent", "task"), [
-    ("mf-softmax", "social"),
-    ("mb-vi-softmax", "gotohuman"),
+    ("q-softmax", "social"),
+    ("vi-softmax", "gotohuman"),
     ("rmax", "nav"),
     ("rmax", "social"),
-    ("mb-window-egreedy", "social"),
+    ("passive-observer", "social"),
 ])
 def test_other_agents_run_and_keep_q_finite(agent, task):
     res = train(task, agent, trials=30, seeds=1, progress=False)
