@@ -163,7 +163,7 @@ def test_variant_settings_and_validation():
     assert loop_agent_config("mb-egreedy", overrides={"plan_every": 7}).plan_every == 7
     assert loop_agent_config("mb-egreedy").initial_value == 0.0
     assert loop_agent_config("passive-observer").actor.initial_value == 0.0
-    assert loop_agent_config("mb-egreedy", overrides={"q_init": None}).initial_value == 10.0
+    assert loop_agent_config("mb-egreedy", overrides={"q_init": None}).initial_value == pytest.approx(10)
     with pytest.raises(ConfigError, match="agent"):
         loop_agent_config("dqn")
     with pytest.raises(ConfigError, match="gamma"):
