@@ -210,6 +210,11 @@ def _prepare_directory(out: Path, manifest: dict[str, Any], resume: bool) -> dic
             "output directory is not empty", path=out,
             fix="pass --resume to continue the collection in it, or choose a new --out",
         )
+    if all(_is_stray_temp(name) for name in entries):  # killed while writing the first manifest
+        for name in entries:
+            (out / name).unlink(missing_ok=True)
+        write_manifest(out, manifest)
+        return manifest
     existing = read_manifest(out)
     check_resumable(existing, manifest, out)
     for entry in existing["parts"]:

@@ -160,6 +160,19 @@ def test_resume_into_an_empty_directory_starts_fresh(tmp_path: Path,
     assert read_dataset(tmp_path / "new").equals(read_dataset(tmp_path / "ref"))
 
 
+def test_resume_after_a_kill_during_the_first_manifest_write(
+        tmp_path: Path, collect_kinematic: Collect) -> None:
+    collect_kinematic(tmp_path / "ref")
+    out = tmp_path / "new"
+    out.mkdir()
+    (out / f".{MANIFEST_NAME}.q1w2e3.tmp").write_text('{"format": ')
+    with pytest.raises(ConfigError, match="not empty"):
+        collect_kinematic(out)
+    collect_kinematic(out, resume=True)
+    assert read_dataset(out).equals(read_dataset(tmp_path / "ref"))
+    assert sorted(os.listdir(out)) == sorted(os.listdir(tmp_path / "ref"))
+
+
 def test_non_empty_directory_without_resume_is_refused(tmp_path: Path,
                                                        collect_kinematic: Collect) -> None:
     out = tmp_path / "ds"

@@ -1,0 +1,113 @@
+"""How fast is a 10-hour-equivalent random-walk dataset of the table arena?
+
+The thesis's robot needed ~10 hours of real time for 8,448 transitions (3.2.5). This
+script collects the same simulated budget headlessly and prints:
+
+* wall time with ``--workers`` processes (default 2; target <= 60 s on 2 cores) and,
+  in the same run, with 1 worker, and their ratio;
+* transitions, transitions per second and simulated hours per wall second;
+* peak resident memory of a worker process (``ru_maxrss`` read in the worker; target
+  <= 300 MB) — with 1 worker this is the driver process itself;
+* estimation time (counts, T, entropy, coverage, npz, summary and plot) and the two
+  numbers of thesis Fig. 4.8 / the issue's acceptance: the fraction of (s, a) pairs
+  visited and the mean entropy of slow vs fast actions.
+
+States: ``--states FILE`` (``simlab discretize`` output) or, by default, 41 Voronoi
+states placed on the arena's ground-truth raster at 2 cm (no LIDAR mapping needed).
+
+Run: ``python benchmarks/collect_speed.py [--hours 10] [--workers 2] [--repeat 1]``.
+The machine is shared: run it 2-3 times (or ``--repeat``) and report best and spread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+
+def ground_truth_states(path: Path, arena_name: str, n_states: int) -> Path:
+    import numpy as np
+
+    from discretize.gridmap import OccupancyMap
+    from discretize.voronoi import Discretizer
+    from simlab.physics.arena import load_arena
+
+    arena = load_arena(arena_name)
+    x0, y0, x1, y1 = arena.bounds
+    res, pad = 0.02, 0.15
+    origin = (x0 - pad, y0 - pad)
+    shape = (round((y1 - y0 + 2 * pad) / res), round((x1 - x0 + 2 * pad) / res))
+    occ = np.where(arena.rasterize(res, origin, shape), 100, 0).astype(np.int8)
+    grid = OccupancyMap(occ, res, (origin[0], origin[1], 0.0))
+    Discretizer.from_map(grid, n_states).save(path)
+    return path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--arena", default="table")
+    parser.add_argument("--states", default=None, help="states file (default: ground truth)")
+    parser.add_argument("--hours", type=float, default=10.0)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--repeat", type=int, default=1, help="timed repetitions of each run")
+    parser.add_argument("--skip-single", action="store_true", help="skip the 1-worker baseline")
+    args = parser.parse_args()
+
+    from simlab.data.collect import collect
+    from simlab.data.estimate import estimate
+
+    with tempfile.TemporaryDirectory(prefix="simlab-bench-") as tmp:
+        tmp_path = Path(tmp)
+        states = Path(args.states) if args.states else ground_truth_states(
+            tmp_path / "states.json", args.arena, 41)
+        configs = [args.workers] if args.skip_single or args.workers == 1 else [args.workers, 1]
+        walls: dict[int, list[float]] = {w: [] for w in configs}
+        last = {}
+        for rep in range(args.repeat):
+            for workers in configs:
+                out = tmp_path / f"walk-w{workers}-r{rep}"
+                t0 = time.perf_counter()
+                result = collect(args.arena, states, out=out, hours=args.hours, seed=args.seed,
+                                 workers=workers, progress=False)
+                walls[workers].append(time.perf_counter() - t0)
+                last[workers] = (out, result)
+        print(f"arena {args.arena}, {args.hours:g} simulated hours in total, seed {args.seed}, "
+              f"states {'ground-truth raster (41)' if not args.states else states}")
+        for workers in configs:
+            _, result = last[workers]
+            best = min(walls[workers])
+            spread = (max(walls[workers]) - best) if len(walls[workers]) > 1 else 0.0
+            print(f"  {workers} worker(s): wall {best:6.1f} s (best of {len(walls[workers])}, "
+                  f"spread {spread:.1f} s); {result.transitions} transitions, "
+                  f"{result.transitions / best:6.1f} transitions/s, "
+                  f"{result.simulated_hours / best * 3600:6.0f} simulated s per wall s; "
+                  f"peak worker RSS {result.peak_worker_rss_mb:.0f} MB")
+        if len(configs) == 2:
+            ratio = min(walls[1]) / min(walls[args.workers])
+            print(f"  speed-up {args.workers} workers vs 1: {ratio:.2f}x")
+
+        out, result = last[args.workers]
+        times = []
+        est = None
+        for i in range(max(1, args.repeat)):
+            t0 = time.perf_counter()
+            est = estimate(out, tmp_path / f"mdp{i}.npz")
+            times.append(time.perf_counter() - t0)
+        assert est is not None
+        mdp = est.mdp
+        print(f"  estimation (read+validate, counts, T, entropy, npz, json, plot): "
+              f"{min(times):.2f} s")
+        print(f"  coverage: {mdp.coverage:.1%} of {mdp.visited.size} (s, a) pairs visited; "
+              f"mean entropy slow {mdp.slow_mean_entropy:.3f} bits, "
+              f"fast {mdp.fast_mean_entropy:.3f} bits "
+              f"(fast - slow = {mdp.fast_mean_entropy - mdp.slow_mean_entropy:+.3f})")
+        if len(times) > 1:
+            print(f"  estimation spread {statistics.pstdev(times):.2f} s")
+
+
+if __name__ == "__main__":
+    main()
