@@ -17,7 +17,10 @@ Layers, one per module:
 * :mod:`simlab.data.plots` — the mean-entropy-per-action bar plot (thesis Fig. 4.8);
 * :mod:`simlab.data.minari_export` — the walk as a Minari dataset.
 
-Importing this package is cheap; the functions below load their module on first use.
+Importing this package is cheap; the names in ``__all__`` load their module on first
+use. The two commands are :func:`simlab.data.collect.collect` and
+:func:`simlab.data.estimate.estimate` (also :mod:`simlab.commands`); they are not
+re-exported here because their names are those of their modules.
 """
 
 from __future__ import annotations
@@ -26,9 +29,7 @@ import importlib
 from typing import Any
 
 _LAZY: dict[str, str] = {
-    "collect": "simlab.data.collect",
     "CollectResult": "simlab.data.collect",
-    "estimate": "simlab.data.estimate",
     "EstimateResult": "simlab.data.estimate",
     "EmpiricalMDP": "simlab.data.estimate",
     "empirical_mdp": "simlab.data.estimate",

@@ -512,8 +512,9 @@ class _Progress:
         # tqdm shows the rate of its own unit; the other rate goes in the postfix.
         if self._by_rows:
             postfix = {"sim-h/s": f"{self._seconds / 3600.0 / wall:.3f}"}
-        else:
-            postfix = {"tr/s": f"{self._rows / wall:.1f}"}
+        else:  # (tqdm would print its own rate upside down, as s/sim-h, when below 1)
+            postfix = {"sim-h/s": f"{self._seconds / 3600.0 / wall:.3f}",
+                       "tr/s": f"{self._rows / wall:.1f}"}
         self._bar.set_postfix(postfix, refresh=False)
         if self._by_rows:
             self._bar.update(rows)

@@ -266,7 +266,8 @@ def estimate(
         :class:`EstimateResult`. The npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
         ``visited`` (S, A) bool, ``entropy`` (S, A) bits, ``mean_entropy`` (A,) bits and,
         when the centres are known, ``centres`` (S, 2) m; with goals also
-        ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool and ``R`` (G, S, A).
+        ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool and ``R`` (G, S, A);
+        with a known arena ``bounds`` (4,) ``x_min, y_min, x_max, y_max`` m.
     """
     from simlab.data.goals import goal_state_masks, goals_from_manifest
 
@@ -293,6 +294,7 @@ def estimate(
     summary: dict[str, Any] = {}
     centres = None
     goals: Any = None
+    bounds = None if arena_cfg is None else [float(v) for v in arena_cfg.bounds]
     blocked_by_action = None
     if dataset is not None:
         from simlab.data.dataset import open_dataset
@@ -305,6 +307,8 @@ def estimate(
         centres = ds.centres
         goals = arena_cfg if arena_cfg is not None else goals_from_manifest(
             ds.manifest["arena"].get("goals", []))
+        if bounds is None and ds.manifest["arena"].get("bounds") is not None:
+            bounds = [float(v) for v in ds.manifest["arena"]["bounds"]]
         blocked = ds.column("blocked")
         tries = np.bincount(a_col, minlength=A)
         hits = np.bincount(a_col, weights=blocked.astype(np.float64), minlength=A)
@@ -353,6 +357,8 @@ def estimate(
         "mean_entropy": mdp.mean_entropy,
     }
     goal_info = None
+    if bounds is not None:
+        arrays["bounds"] = np.asarray(bounds, dtype=np.float64)
     if centres is not None:
         arrays["centres"] = np.asarray(centres, dtype=np.float64)
         if goals is not None:

@@ -174,12 +174,22 @@ def test_estimate_of_a_dataset_writes_npz_summary_and_plot(tmp_path: Path,
     c = list(arrays["goal_names"]).index("C")
     assert np.flatnonzero(arrays["goal_masks"][c]).tolist() == [12]
     assert arrays["R"].shape == (9, S, 16)
+    np.testing.assert_array_equal(arrays["bounds"], [-0.75, -0.75, 0.75, 0.75])
     summary = json.loads((tmp_path / "mdp.json").read_text())
     assert summary["transitions"] == table.num_rows
     assert summary["coverage"]["fraction_visited"] == pytest.approx(arrays["visited"].mean())
     assert summary["entropy_bits"]["slow_mean"] == pytest.approx(result.mdp.slow_mean_entropy)
     assert len(summary["blocked_fraction_per_action"]) == 16
     assert (tmp_path / "mdp_entropy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_estimate_output_loads_in_the_empirical_mdp_env(tmp_path: Path,
+                                                      kinematic_dataset: Path) -> None:
+    envs = pytest.importorskip("simlab.envs.empirical_mdp")
+    estimate(kinematic_dataset, tmp_path / "mdp.npz", plot=False)
+    mdp = envs.load_mdp(tmp_path / "mdp.npz")
+    assert list(mdp.goal_names) == ["NW", "N", "NE", "W", "C", "E", "SW", "S", "SE"]
+    assert mdp.bounds == (-0.75, -0.75, 0.75, 0.75)
 
 
 def test_estimate_never_overwrites(tmp_path: Path, kinematic_dataset: Path) -> None:
