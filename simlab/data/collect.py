@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import importlib.util
 import json
 import math
 import os
@@ -150,7 +151,7 @@ def _default_params(simulator: str) -> Any:
 
 
 def _check_inputs(hours: float | None, transitions: int | None, seed: int, workers: int,
-                  part_size: int, backend: str, simulator: str) -> None:
+                  part_size: int, backend: str, address: str | None, simulator: str) -> None:
     if (hours is None) == (transitions is None):
         raise ConfigError("give exactly one budget: --hours H or --transitions N", key="budget")
     if hours is not None and not (isinstance(hours, int | float) and math.isfinite(hours)
@@ -175,6 +176,12 @@ def _check_inputs(hours: float | None, transitions: int | None, seed: int, worke
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend {backend!r}", key="backend",
                           fix=f"choose one of {', '.join(BACKENDS)}")
+    if backend == "local" and address is not None:
+        raise ConfigError("--address applies to the ray backend only", key="address",
+                          fix="add --backend ray or drop --address")
+    if backend == "ray" and importlib.util.find_spec("ray") is None:
+        raise ConfigError("the ray backend needs Ray", key="backend",
+                          fix='pip install "simlab[ray]", or use --backend local')
     if simulator not in SIMULATORS:
         raise ConfigError(f"unknown simulator {simulator!r}", key="simulator",
                           fix=f"choose one of {', '.join(SIMULATORS)}")
@@ -356,7 +363,7 @@ def collect(
             options that differ from the dataset's (naming the field).
         DataError: a listed part is missing, truncated or corrupted (naming the file).
     """
-    _check_inputs(hours, transitions, seed, workers, part_size, backend, simulator)
+    _check_inputs(hours, transitions, seed, workers, part_size, backend, address, simulator)
     check_pose_source(pose_source, simulator)
     wall0 = time.perf_counter()
     out = Path(out)
