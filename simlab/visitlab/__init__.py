@@ -12,7 +12,11 @@ A robot must get a simulated human's attention and lead them to goal rooms. Laye
   kernels (numba), the one source of truth for the dynamics;
 * :mod:`~simlab.visitlab.envs` — Gymnasium wrappers (``simlab/VisitLab-*-v0``);
 * :mod:`~simlab.visitlab.training` — fused numba training loops and
-  :func:`~simlab.visitlab.training.train` (``simlab visitlab train``).
+  :func:`~simlab.visitlab.training.train` (``simlab visitlab train``);
+* :mod:`~simlab.visitlab.results` — curves files (npz), Fig. 4.1-style plots,
+  summaries;
+* :mod:`~simlab.visitlab.reference` — the plain per-step Python loop (benchmark
+  baseline and cross-check).
 
 Nothing here knows about PyBullet.
 """
