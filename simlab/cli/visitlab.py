@@ -54,6 +54,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     t.add_argument("--title", default="", help="plot title")
     t.add_argument("--overwrite", action="store_true", help="replace existing output files")
     t.add_argument("--no-progress", action="store_true", help="no progress bar")
+    pl = sub.add_parser("plot", help="plot curves of several 'visitlab train' outputs together",
+                        description="Draw the curves of one or more curves.npz files on one "
+                                    "Fig. 4.1-style plot.")
+    pl.add_argument("curves", nargs="+", help="curves.npz files")
+    pl.add_argument("--labels", default=None,
+                    help="comma-separated legend labels, one per curve in file order")
+    pl.add_argument("--title", default="", help="plot title")
+    pl.add_argument("--out", required=True, help="PNG to write")
+    pl.add_argument("--overwrite", action="store_true", help="replace an existing PNG")
     s = sub.add_parser("show", help="print an episode as text frames",
                        description="Run one episode with a random policy, or greedily with a "
                                    "trained Q table, and print each step as text.")
@@ -194,7 +203,31 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _plot(args: argparse.Namespace) -> int:
+    from simlab.errors import ConfigError
+    from simlab.io import ensure_new
+    from simlab.visitlab.results import load_results, plot_results, summarize_curve
+
+    ensure_new(args.out, overwrite=args.overwrite, what="plot")
+    runs = [r for path in args.curves for r in load_results(path)]
+    if args.labels is not None:
+        labels = [x.strip() for x in args.labels.split(",")]
+        if len(labels) != len(runs):
+            raise ConfigError(f"{len(labels)} labels for {len(runs)} curves", key="--labels")
+        for r, label in zip(runs, labels, strict=True):
+            r.label = label
+    plot_results(runs, args.out, title=args.title)
+    for r in runs:
+        s = summarize_curve(r.returns)
+        print(f"{r.label}: plateau {s['plateau']:.2f} +- {s['plateau_std']:.2f}, 90% at trial "
+              f"{s['trials_to_90pct']}")
+    print(f"wrote {args.out}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int | None:
     if args.visitlab_command == "train":
         return _train(args)
+    if args.visitlab_command == "plot":
+        return _plot(args)
     return _show(args)

@@ -23,9 +23,12 @@ import numpy as np
 
 from simlab.errors import DataError
 from simlab.io import atomic_write, atomic_write_json, ensure_new
-from simlab.visitlab.training import TrainResult, smooth_curve
+from simlab.visitlab.training import TrainResult, smooth_curve, summarize_curve
 
 FILES = ("curves.npz", "curves.png", "summary.json")
+
+__all__ = ["FILES", "load_results", "plot_results", "save_results", "smooth_curve",
+           "summarize_curve"]
 
 
 def save_results(results: list[TrainResult], out_dir: str | os.PathLike[str], *,

@@ -79,3 +79,24 @@ def test_show_prints_frames_and_uses_a_trained_q(tmp_path, capsys):
     # the greedy policy of a trained agent ends the 50-step trial with most steps rewarded
     totals = [float(line.split("total ")[1]) for line in text.splitlines() if "total " in line]
     assert len(totals) == 50 and totals[-1] >= 40
+
+
+def test_plot_combines_curves_files(tmp_path, capsys):
+    for name in ("a", "b"):
+        assert main(["visitlab", "train", "--task", "gotohuman", "--agent", "q-learning",
+                     "--trials", "10", "--seeds", "1", "--seed", "1" if name == "a" else "2",
+                     "--out", str(tmp_path / name), "--no-progress"]) == 0
+    capsys.readouterr()
+    png = tmp_path / "both.png"
+    assert main(["visitlab", "plot", str(tmp_path / "a" / "curves.npz"),
+                 str(tmp_path / "b" / "curves.npz"), "--labels", "first,second",
+                 "--out", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "first: plateau" in out and "second: plateau" in out
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert main(["visitlab", "plot", str(tmp_path / "a" / "curves.npz"), "--labels", "x,y",
+                 "--out", str(tmp_path / "c.png")]) == 2
+    assert "labels" in capsys.readouterr().err
+    assert main(["visitlab", "plot", str(tmp_path / "a" / "summary.json"),
+                 "--out", str(tmp_path / "d.png")]) == 2
+    assert "not a Visit-the-lab curves file" in capsys.readouterr().err
