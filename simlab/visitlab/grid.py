@@ -54,7 +54,7 @@ class Layout:
     room_names: tuple[str, ...]
     goal_labels: tuple[int, ...]
     start_cell: int = 0
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         walls_h = np.array(self.walls_h, dtype=bool)
