@@ -6,6 +6,8 @@ script collects the same simulated budget headlessly and prints:
 * wall time with ``--workers`` processes (default 2; target <= 60 s on 2 cores) and,
   in the same run, with 1 worker, and their ratio;
 * transitions, transitions per second and simulated hours per wall second;
+* the CPU time of each worker (load-independent: on a shared machine the wall time
+  is inflated, the slowest worker's CPU time is what an idle core would take);
 * peak resident memory of a worker process (``ru_maxrss`` read in the worker; target
   <= 300 MB) — with 1 worker this is the driver process itself;
 * estimation time (counts, T, entropy, coverage, npz, summary and plot) and the two
@@ -86,6 +88,10 @@ def main() -> None:
                   f"{result.transitions / best:6.1f} transitions/s, "
                   f"{result.simulated_hours / best * 3600:6.0f} simulated s per wall s; "
                   f"peak worker RSS {result.peak_worker_rss_mb:.0f} MB")
+            cpu = result.worker_cpu_seconds
+            print(f"      worker CPU {', '.join(f'{c:.1f}' for c in cpu)} s "
+                  f"({sum(cpu) / result.transitions * 1e3:.2f} ms CPU per transition; "
+                  f"slowest worker {max(cpu):.1f} s = the wall time on idle cores)")
         if len(configs) == 2:
             ratio = min(walls[1]) / min(walls[args.workers])
             print(f"  speed-up {args.workers} workers vs 1: {ratio:.2f}x")

@@ -86,6 +86,8 @@ class CollectResult:
         peak_worker_rss_mb: largest peak resident memory of a worker process (MiB);
             for one local worker this is the calling process.
         complete: every worker finished its budget.
+        worker_cpu_seconds: CPU time each worker's parts took in this run (s); on an
+            idle machine with a core per worker, the wall time is about their maximum.
     """
 
     directory: Path
@@ -96,6 +98,7 @@ class CollectResult:
     wall_seconds: float
     peak_worker_rss_mb: float
     complete: bool
+    worker_cpu_seconds: tuple[float, ...] = ()
 
     @property
     def simulated_hours(self) -> float:
@@ -434,6 +437,7 @@ def collect(
                     done_seconds=sum(st.t for st in wstates))
     written = 0
     peak_rss = 0.0
+    cpu = [0.0] * workers
     pending = [w for w in range(workers) if not wstates[w].done]
     if pending:
         runner = make_backend(backend, len(pending), address)
@@ -461,6 +465,7 @@ def collect(
                     write_manifest(out, manifest)
                     written += 1
                     peak_rss = max(peak_rss, result.peak_rss_mb)
+                    cpu[w] += result.cpu_seconds
                     bar.update(result.rows, sim_delta)
                     if not st.done:
                         handles[runner.submit(job_for(w))] = w
@@ -483,6 +488,7 @@ def collect(
         wall_seconds=time.perf_counter() - wall0,
         peak_worker_rss_mb=peak_rss,
         complete=bool(manifest["complete"]),
+        worker_cpu_seconds=tuple(cpu),
     )
 
 

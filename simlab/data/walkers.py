@@ -434,9 +434,11 @@ class PartResult:
     """What a worker sends back: the part's columns (without ``s``, ``s_next``) and its end.
 
     ``columns`` maps column names of :func:`simlab.data.schema.transition_schema` to
-    numpy arrays of equal length (``truth_*`` arrays for the truth poses, always).
+    numpy arrays of equal length; the truth-pose columns (``x_true`` ...) are always
+    included (the driver keeps them only when the pose source is not ``truth``).
     ``t_end`` and ``pose_end`` (truth) seed the next part; ``final`` says the worker's
-    budget is spent. ``peak_rss_mb`` is the worker process's peak resident memory.
+    budget is spent. ``peak_rss_mb`` is the worker process's peak resident memory,
+    ``cpu_seconds`` the CPU time the part took (user + system of this process).
     """
 
     worker: int
@@ -447,6 +449,7 @@ class PartResult:
     final: bool
     wall_seconds: float
     peak_rss_mb: float
+    cpu_seconds: float = 0.0
 
     @property
     def rows(self) -> int:
@@ -471,6 +474,7 @@ def run_part(job: PartJob, cache: WalkerCache | None = None) -> PartResult:
     alive between calls (default: this process's cache).
     """
     start_wall = time.perf_counter()
+    start_cpu = time.process_time()
     walker = (cache if cache is not None else _PROCESS_CACHE).get(job.spec)
     actions_rng, motion_rng, source_rng = part_generators(job.seed, job.worker, job.part)
     walker.reset(None if job.pose0 is None else np.asarray(job.pose0, dtype=np.float64),
@@ -523,4 +527,5 @@ def run_part(job: PartJob, cache: WalkerCache | None = None) -> PartResult:
         final=bool(final),
         wall_seconds=time.perf_counter() - start_wall,
         peak_rss_mb=peak_rss_mb(),
+        cpu_seconds=time.process_time() - start_cpu,
     )
