@@ -150,8 +150,9 @@ class ModelBasedConfig:
 
     Planning: with ``incremental`` one Bellman backup at the visited ``(s, a)``
     every step, plus ``max_sweeps`` value-iteration sweeps (stopping early below
-    ``tol``) every ``plan_every`` steps (0: never). The thesis ran 50 VI
-    iterations every 10,000 steps; the paper one sweep every 1,000 steps.
+    ``tol``) every ``plan_every`` steps (0: never). Defaults: the thesis's 50 VI
+    iterations every 10,000 steps (Fig. 4.1 caption); the paper ran one sweep
+    every 1,000 steps (``plan_every=1000, max_sweeps=1``).
     """
 
     gamma: float = 0.9
@@ -164,7 +165,7 @@ class ModelBasedConfig:
     """Softmax temperature (> 0)."""
     incremental: bool = True
     """One backup at the visited pair after every step."""
-    plan_every: int = 1000
+    plan_every: int = 10_000
     """Steps between value-iteration calls (0 = never)."""
     max_sweeps: int = 50
     """Sweeps per value-iteration call."""
@@ -211,8 +212,12 @@ class SlidingWindowConfig(ModelBasedConfig):
 class RMaxConfig:
     """R-max: every pair is worth ``r_max / (1 - gamma)`` until visited ``m`` times.
 
-    Acts greedily (random tie-breaking) on optimistic values; the step a pair
-    becomes known, value iteration (``max_sweeps``, ``tol``) propagates it.
+    Acts greedily (random tie-breaking) on optimistic values. Defaults follow the
+    paper: one backup per step at the visited known pair and one value-iteration
+    sweep every 1,000 steps. ``replan_when_known=True`` gives the classic R-max
+    (value iteration, ``max_sweeps`` / ``tol``, the step a pair becomes known):
+    exact but one full planning per pair, too slow for thousands of pairs (see
+    ``benchmarks/agent_speed.py``).
     """
 
     gamma: float = 0.9
@@ -221,14 +226,14 @@ class RMaxConfig:
     """Visits after which a pair is known (paper: 1 navigation, 5 social)."""
     r_max: float = 1.0
     """Largest one-step reward (the optimistic value is ``r_max / (1 - gamma)``)."""
-    replan_when_known: bool = True
-    """Run value iteration the step a pair becomes known."""
+    replan_when_known: bool = False
+    """Run value iteration the step a pair becomes known (classic R-max)."""
     incremental: bool = True
     """One backup at the visited (known) pair after every step."""
-    plan_every: int = 0
-    """Steps between extra value-iteration calls (0 = never)."""
-    max_sweeps: int = 50
-    """Sweeps per value-iteration call."""
+    plan_every: int = 1000
+    """Steps between value-iteration calls (0 = never)."""
+    max_sweeps: int = 1
+    """Sweeps per value-iteration call (also the budget of ``replan_when_known``)."""
     tol: float = 1e-6
     """A value-iteration call stops when a sweep changes no entry by more than this."""
     capacity: int = 4096

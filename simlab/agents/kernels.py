@@ -32,7 +32,8 @@ Count-based sparse model (:mod:`simlab.agents.sparse_model`, eq. 1.13–1.14)
     -> n(s, a)``, ``count_model_backup(m, Q, s, a, gamma, m_known) -> |dQ|``,
     ``count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known) ->
     sweeps``, ``count_model_reward``, ``count_model_transition_row``,
-    ``count_model_triples``, ``count_model_load``, ``count_model_memory_bytes``.
+    ``count_model_triples``, ``count_model_load``, ``count_model_memory_bytes``,
+    ``count_model_compact`` (sweeps call it themselves when the pool is fragmented).
     Memory grows with distinct observed (s, a, s') triples; the pool grows by
     doubling inside njit, so no transition is ever dropped.
 
@@ -120,6 +121,7 @@ from simlab.agents.sparse_model import (
     CountModelType,
     count_model_add,
     count_model_backup,
+    count_model_compact,
     count_model_load,
     count_model_memory_bytes,
     count_model_new,
@@ -152,6 +154,7 @@ __all__ = [
     "WindowModel",
     "count_model_add",
     "count_model_backup",
+    "count_model_compact",
     "count_model_load",
     "count_model_memory_bytes",
     "count_model_new",

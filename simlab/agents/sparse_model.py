@@ -19,6 +19,10 @@ distinct observed triple and grows by doubling, so memory grows with the number
 of distinct visited ``(s, a, s')`` triples, never with ``S * A * S`` (a dense
 float64 table for 5,184 x 25 x 5,184 is 5.4 GB).
 
+Value-iteration sweeps re-lay the pool contiguously in sweep order when it has
+become fragmented (:func:`count_model_compact`), so a sweep reads memory
+sequentially instead of chasing pointers.
+
 Growth is done **inside** njit code: :func:`count_model_observe` reallocates the
 pool (doubling its capacity, copying the used part) when it is full, and
 replaces the arrays in the structref. A transition is therefore never dropped,
@@ -51,6 +55,7 @@ __all__ = [
     "CountModelType",
     "count_model_add",
     "count_model_backup",
+    "count_model_compact",
     "count_model_load",
     "count_model_memory_bytes",
     "count_model_new",
@@ -87,7 +92,8 @@ COUNT_MODEL_TYPE = CountModelType(
         ("succ_count", _I64_1D),  # (capacity,) n(s, a, s') of a pool entry
         ("succ_link", _I64_1D),  # (capacity,) next pool entry of the same (s, a), -1 ends
         ("n_entries", types.int64),  # used pool entries = distinct observed triples
-        ("pairs", _I64_1D),  # (S*A,) visited pairs s*A + a, in order of first visit
+        ("n_compact", types.int64),  # entries laid out contiguously in pair order (see compact)
+        ("pairs", _I64_1D),  # (S*A,) visited pairs s*A + a, in sweep order
         ("n_pairs", types.int64),  # number of visited pairs
     ]
 )
@@ -217,6 +223,7 @@ def count_model_new(n_states, n_actions, capacity):
     m.succ_count = np.empty(cap, dtype=np.int64)
     m.succ_link = np.empty(cap, dtype=np.int64)
     m.n_entries = 0
+    m.n_compact = 0
     m.pairs = np.empty(n_states * n_actions, dtype=np.int64)
     m.n_pairs = 0
     return m
@@ -349,16 +356,59 @@ def count_model_backup(m, Q, s, a, gamma, m_known):
 
 
 @njit(cache=True)
+def count_model_compact(m):
+    """Re-lay the pool so each pair's successors are contiguous, pairs in sweep order.
+
+    Observations append entries wherever the pool ends, so after exploration a
+    pair's successors are scattered and a sweep chases pointers through the
+    whole pool (a cache miss per entry). Compaction copies the entries in the
+    order sweeps visit them, after sorting the visited pairs by index ``s * A + a``
+    (so sweeps also read ``Q`` row by row); new pairs are appended to that order
+    until the next compaction. Counts and successor lists are unchanged.
+    O(entries + pairs log pairs); called by :func:`count_model_value_iteration` when more than an
+    eighth of the entries arrived since the last compaction.
+    """
+    cap = m.succ_state.shape[0]
+    st = np.empty(cap, dtype=np.int64)
+    ct = np.empty(cap, dtype=np.int64)
+    ln = np.empty(cap, dtype=np.int64)
+    A = m.n_actions
+    m.pairs[: m.n_pairs].sort()
+    k = 0
+    for i in range(m.n_pairs):
+        p = m.pairs[i]
+        s = p // A
+        a = p - s * A
+        j = m.head[s, a]
+        if j == -1:
+            continue
+        m.head[s, a] = k
+        while j != -1:
+            st[k] = m.succ_state[j]
+            ct[k] = m.succ_count[j]
+            ln[k] = k + 1
+            k += 1
+            j = m.succ_link[j]
+        ln[k - 1] = -1
+    m.succ_state = st
+    m.succ_count = ct
+    m.succ_link = ln
+    m.n_compact = k
+
+
+@njit(cache=True)
 def count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
     """Value-iteration sweeps over the visited pairs, in place on ``Q`` (S, A).
 
-    Each sweep backs up every pair with ``n(s, a) >= max(m_known, 1)`` in order
-    of first visit (Gauss-Seidel: a backup sees the values updated earlier in the
+    Each sweep backs up every pair with ``n(s, a) >= max(m_known, 1)`` in the
+    model's pair order (see :func:`count_model_compact`; Gauss-Seidel: a backup sees the values updated earlier in the
     same sweep; ``V(s) = max_a Q[s, a]`` is cached and refreshed after each
     change). Stops after ``max_sweeps`` sweeps or as soon as a sweep changes no
     entry by more than ``tol``. Pairs below ``m_known`` keep their ``Q`` value.
     Returns the number of sweeps done. Cost per sweep: O(distinct triples + pairs * A).
     """
+    if 8 * (m.n_entries - m.n_compact) > m.n_entries:
+        count_model_compact(m)
     S = m.n_states
     A = m.n_actions
     V = np.empty(S, dtype=np.float64)
@@ -396,7 +446,7 @@ def count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
 def count_model_triples(m):
     """All observed triples as arrays ``(s, a, s_next, count)`` (each (n_entries,) int64).
 
-    Ordered by pair (first-visit order); :func:`count_model_load` rebuilds an
+    Ordered by pair (the model's sweep order); :func:`count_model_load` rebuilds an
     identical model (same pair and successor order) from them.
     """
     n = m.n_entries

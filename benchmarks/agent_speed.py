@@ -1,0 +1,181 @@
+"""Agent updates per second on a 2,560-state, 30-action MDP (the social task's size).
+
+The MDP has random sparse transitions (``--branching`` successors per (s, a),
+Dirichlet probabilities) and reward 1 on arriving in 5 % of the states; episodes
+of 40 steps (thesis social trials) from a uniform start. Each agent is measured
+
+* **fused**: environment sampling and agent step in one njit loop calling the
+  kernels of :mod:`simlab.agents.kernels` (how the training loops run), and
+* **python**: the agent class's ``act`` / ``update`` called per step from Python
+  (environment sampled with the same kernel),
+
+and the ratio fused / python is printed (the baseline is measured in the same
+run). One "update" is one environment step: action selection, transition,
+learning (model-based agents: count update, one Bellman backup, and their
+periodic value iteration, included in the time). Model-based agents are shown
+with their default planning (50 sweeps at most every 1000 steps, stopping at
+tol 1e-6) and with the paper's (one sweep every 1000 steps).
+
+Usage::
+
+    python benchmarks/agent_speed.py [--steps 2000000] [--python-steps 40000] [--repeats 3]
+
+The machine is shared: each figure is the best of ``--repeats`` with the spread
+(worst/best) beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from numba import njit
+
+from simlab.agents import kernels as K
+from simlab.agents import make_agent
+from simlab.agents.agents import PassiveObserverAgent, QLearningAgent, RMaxAgent
+
+S, A, HORIZON = 2560, 30, 40
+
+
+def sparse_mdp(rng: np.random.Generator, branching: int):
+    succ = np.empty((S, A, branching), dtype=np.int64)
+    cdf = np.empty((S, A, branching))
+    for s in range(S):
+        succ[s] = rng.choice(S, size=(A, branching))
+        cdf[s] = np.cumsum(rng.dirichlet(np.ones(branching), size=A), axis=1)
+    reward = (rng.random(S) < 0.05).astype(np.float64)
+    return succ, cdf, reward
+
+
+@njit(cache=True)
+def fused_q(succ, cdf, reward, steps, Q, alpha, gamma, method, eps, tau, env_rng, agent_rng):
+    s = env_rng.integers(0, S)
+    total = 0.0
+    for t in range(steps):
+        if t % HORIZON == 0:
+            s = env_rng.integers(0, S)
+        a = K.select_action(Q[s], method, eps, tau, agent_rng)
+        s2 = succ[s, a, K.sample_from_cdf(cdf[s, a], env_rng)]
+        r = reward[s2]
+        K.q_learning_update(Q, s, a, r, s2, alpha, gamma)
+        total += r
+        s = s2
+    return total
+
+
+@njit(cache=True)
+def fused_mb(succ, cdf, reward, steps, Q, model, gamma, method, eps, tau, m_known,
+             incremental, replan, plan_every, sweeps, tol, env_rng, agent_rng):  # fmt: skip
+    s = env_rng.integers(0, S)
+    total = 0.0
+    for t in range(steps):
+        if t % HORIZON == 0:
+            s = env_rng.integers(0, S)
+        a = K.select_action(Q[s], method, eps, tau, agent_rng)
+        s2 = succ[s, a, K.sample_from_cdf(cdf[s, a], env_rng)]
+        r = reward[s2]
+        K.model_based_update(model, Q, s, a, r, s2, gamma, m_known, incremental, replan, sweeps,
+                             tol)  # fmt: skip
+        if plan_every > 0 and (t + 1) % plan_every == 0:
+            K.model_value_iteration(model, Q, gamma, sweeps, tol, m_known)
+        total += r
+        s = s2
+    return total
+
+
+def run_fused(agent, mdp, steps, env_rng):
+    succ, cdf, reward = mdp
+    if isinstance(agent, QLearningAgent):
+        c = agent.config
+        return fused_q(succ, cdf, reward, steps, agent.Q, c.alpha, c.gamma, int(c.selection),
+                       c.epsilon, c.tau, env_rng, agent.rng)  # fmt: skip
+    c = agent.config
+    return fused_mb(succ, cdf, reward, steps, agent.Q, agent.model, c.gamma, agent._selection,
+                    float(agent._epsilon), float(agent._tau), agent._m_known, c.incremental,
+                    agent._replan_when_known, c.plan_every, c.max_sweeps, c.tol, env_rng,
+                    agent.rng)  # fmt: skip
+
+
+def run_python(agent, mdp, steps, env_rng):
+    succ, cdf, reward = mdp
+    s = int(env_rng.integers(0, S))
+    total = 0.0
+    for t in range(steps):
+        if t % HORIZON == 0:
+            s = int(env_rng.integers(0, S))
+        a = agent.act(s)
+        s2 = int(succ[s, a, K.sample_from_cdf(cdf[s, a], env_rng)])
+        r = float(reward[s2])
+        agent.update(s, a, r, s2)
+        total += r
+        s = s2
+    return total
+
+
+AGENT_CASES = [
+    ("q-learning", {}),
+    ("q-softmax", {}),
+    ("mb-egreedy", {}),
+    ("vi-softmax", {}),
+    ("vi-softmax (paper: 1 sweep / 1000 steps)", {"max_sweeps": 1}),
+    ("rmax", {}),
+    (
+        "rmax (paper: m=5, 1 sweep / 1000 steps)",
+        {"m": 5, "replan_when_known": False, "plan_every": 1000, "max_sweeps": 1},
+    ),
+    ("sliding-window", {}),
+]
+
+
+def measure(label, overrides, mdp, steps, python_steps, repeats):
+    name = label.split(" ")[0]
+    fused_times, py_times = [], []
+    for rep in range(repeats):
+        # a fresh agent per repeat; warm it up (compilation, first model growth) first
+        agent = make_agent(name, S, A, np.random.default_rng(rep), **overrides)
+        run_fused(agent, mdp, 1000, np.random.default_rng(100 + rep))
+        t0 = time.perf_counter()
+        run_fused(agent, mdp, steps, np.random.default_rng(200 + rep))
+        fused_times.append(time.perf_counter() - t0)
+        agent = make_agent(name, S, A, np.random.default_rng(rep), **overrides)
+        run_python(agent, mdp, 200, np.random.default_rng(300 + rep))
+        t0 = time.perf_counter()
+        run_python(agent, mdp, python_steps, np.random.default_rng(400 + rep))
+        py_times.append(time.perf_counter() - t0)
+    f_best, p_best = min(fused_times), min(py_times)
+    f_rate, p_rate = steps / f_best, python_steps / p_best
+    print(
+        f"{label:<44} {f_rate / 1e6:8.2f} M/s (x{max(fused_times) / f_best:4.2f})"
+        f" {p_rate / 1e3:8.1f} k/s (x{max(py_times) / p_best:4.2f}) {f_rate / p_rate:8.0f}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--steps", type=int, default=2_000_000, help="fused steps per repeat")
+    parser.add_argument("--python-steps", type=int, default=40_000, help="Python steps per repeat")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--branching", type=int, default=4, help="successors per (s, a)")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    mdp = sparse_mdp(np.random.default_rng(args.seed), args.branching)
+    print(
+        f"MDP: {S} states, {A} actions, {args.branching} successors per pair, "
+        f"{HORIZON}-step episodes; best of {args.repeats} (worst/best in brackets)"
+    )
+    print(f"{'agent':<44} {'fused':>10} {'':>8} {'python':>10} {'':>8} {'ratio':>8}")
+    for label, overrides in AGENT_CASES:
+        measure(label, overrides, mdp, args.steps, args.python_steps, args.repeats)
+    # the passive observer runs the MB actor plus a Q-learner: shown in Python only
+    po = make_agent("passive-observer", S, A, np.random.default_rng(0))
+    assert isinstance(po, PassiveObserverAgent) and not isinstance(po, RMaxAgent)
+    t0 = time.perf_counter()
+    run_python(po, mdp, args.python_steps, np.random.default_rng(1))
+    rate = args.python_steps / (time.perf_counter() - t0)
+    print(f"{'passive-observer (python path)':<44} {'':>21} {rate / 1e3:8.1f} k/s")
+
+
+if __name__ == "__main__":
+    main()
