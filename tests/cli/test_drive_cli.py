@@ -11,6 +11,7 @@ import pytest
 
 from simlab.cli import main
 from simlab.physics.drive import drive
+from simlab.physics.motion import PrimitiveParams
 
 
 def test_drive_function_summary():
@@ -19,7 +20,7 @@ def test_drive_function_summary():
     path = np.hypot(*np.diff(s.trail[:, :2], axis=0).T).sum()
     assert s.distance == pytest.approx(path)
     assert 0 <= s.blocked <= 20
-    assert s.sim_time == pytest.approx(s.stepped_time + 20 * 2.70)
+    assert s.sim_time == pytest.approx(s.stepped_time + 20 * PrimitiveParams().decision_latency)
     again = drive("table", steps=20, seed=3, progress=False)
     np.testing.assert_array_equal(s.trail, again.trail)
 

@@ -44,8 +44,8 @@ def test_same_seed_same_rollout():
 def test_reward_is_one_inside_the_goal_area_only():
     env = gym.make("simlab/TableArena-v0", max_steps=50)
     env.reset(seed=0, options={"goal": "C", "pose": (0.0, 0.0, np.pi / 2)})
-    # slow steps UP leave the 0.15 m goal circle after the second step
-    rewards = [env.step(0)[1] for _ in range(3)]
+    # fast steps UP (0.11 m each) leave the 0.15 m goal circle at the second step
+    rewards = [env.step(8)[1] for _ in range(3)]
     assert rewards == [1.0, 0.0, 0.0]
     obs, info = env.reset(seed=0, options={"goal": "NE"})
     assert info["goal"] == "NE"

@@ -60,18 +60,20 @@ def test_primitive_toward_a_close_wall_is_blocked():
     params = PrimitiveParams()
     rng = np.random.default_rng(0)
     with World("table") as world:
-        # robot 0.15 m below the top wall (front edge 0.113 m from it), facing UP
-        world.reset((0.0, 0.60, math.pi / 2))
+        # robot 0.13 m below the top wall (front edge 0.093 m from it), facing UP: both
+        # corridors (0.05 + 0.05 m slow, 0.11 + 0.05 m fast) reach the wall
+        world.reset((0.0, 0.62, math.pi / 2))
         for action in (action_index(Speed.SLOW, Direction.UP), action_index(Speed.FAST, Direction.UP),
                        action_index(Speed.FAST, Direction.UP_LEFT)):
-            world.reset((0.0, 0.60, math.pi / 2))
+            world.reset((0.0, 0.62, math.pi / 2))
             res = execute_primitive(world, action, rng, params)
             assert res.blocked
             assert np.hypot(*(res.pose_after[:2] - res.pose_before[:2])) < 0.01
-        world.reset((0.0, 0.60, math.pi / 2))
+        # same spot facing away from the wall (no rotation near it): free to go
+        world.reset((0.0, 0.62, -math.pi / 2))
         res = execute_primitive(world, action_index(Speed.FAST, Direction.DOWN), rng, params)
         assert not res.blocked
-        assert res.pose_after[1] == pytest.approx(0.60 - 0.22, abs=0.022)
+        assert res.pose_after[1] == pytest.approx(0.62 - params.nominal_distance(8), abs=0.011)
 
 
 @pytest.mark.parametrize(("arena", "n"), [("table", 1000), ("table_obstacles", 400)])
