@@ -4,7 +4,7 @@ Card
 ----
 * **Actions** ``Discrete(16)``: the thesis's motion primitives, index = speed * 8 +
   direction (UP, DOWN, LEFT, RIGHT, UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT in the map
-  frame; slow 0.11 m/s or fast 0.22 m/s for 1 s), each preceded by the LIDAR obstacle
+  frame; slow 0.10 m/s or fast 0.22 m/s for 0.5 s), each preceded by the LIDAR obstacle
   check (see :mod:`simlab.physics.motion`).
 * **Observation** ``Dict(pose=Box(3), lidar=Box(360))``: the true pose (x, y in metres,
   yaw in radians) after the primitive, and a full 360-beam LIDAR scan (metres, ``inf`` for
