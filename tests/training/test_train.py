@@ -129,3 +129,49 @@ def test_arrow_directions_follow_the_action_order():
     np.testing.assert_allclose(dl, np.array([-1, -1]) / np.sqrt(2))
     np.testing.assert_allclose(dr, np.array([1, -1]) / np.sqrt(2))
     np.testing.assert_allclose(np.linalg.norm(ARROW_DIRECTIONS, axis=1), 1.0)
+
+
+def test_heat_map_colours_cells_by_max_q_and_draws_the_background():
+    import types
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from simlab.training.heatmap import plot_q_heatmap
+
+    centres = np.array([[-0.5, -0.5], [0.5, -0.5], [0.0, 0.5]])
+    Q = np.zeros((3, 16))
+    Q[0, 3] = 2.0  # RIGHT, slow
+    Q[1, 8] = 5.0  # UP, fast
+    occupancy = types.SimpleNamespace(occupancy=np.zeros((40, 40), np.int8), resolution=0.05,
+                                      origin=(-1.0, -1.0, 0.0))  # fmt: skip
+    fig, ax = plt.subplots()
+    img = plot_q_heatmap(ax, centres, Q, (-1, -1, 1, 1), np.array([False, True, False]),
+                         background=occupancy, resolution=0.02)  # fmt: skip
+    labels, _ = rasterize_cells(centres, (-1, -1, 1, 1), 0.02)
+    np.testing.assert_array_equal(img.get_array(), Q.max(1)[labels])
+    assert ax.images[0].get_extent() == [-1.0, 1.0, -1.0, 1.0]  # the map, under the cells
+    from matplotlib.quiver import Quiver
+
+    (quiver,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    # arrows only where something was learned (state 2 has a constant row)
+    np.testing.assert_allclose(quiver.get_offsets(), centres[:2])
+    assert quiver.U[0] > 0 and quiver.V[0] == 0  # RIGHT
+    assert quiver.U[1] == 0 and quiver.V[1] > quiver.U[0]  # UP, fast arrow is longer
+    plt.close(fig)
+
+
+def test_agents_fit_a_gymnasium_env(arena_mdp):
+    from simlab.agents import make_agent
+    from simlab.envs.empirical_mdp import EmpiricalMDPEnv
+    from simlab.training.harness import evaluate_q
+
+    env = EmpiricalMDPEnv(arena_mdp, "g5")
+    env.reset(seed=0)
+    agent = make_agent("vi-softmax", 41, 16, np.random.default_rng(0))
+    rewards = agent.fit(env, 60)
+    assert rewards.shape == (60,)
+    optimum = evaluate_q(arena_mdp.T, arena_mdp.goal_reward("g5"), agent.Q[None], 0.9, 50)
+    assert rewards[-20:].mean() > 0.8 * optimum.optimal_return > rewards[:3].mean()
