@@ -93,9 +93,9 @@ def run_fused(agent, mdp, steps, env_rng):
         return fused_q(succ, cdf, reward, steps, agent.Q, c.alpha, c.gamma, int(c.selection),
                        c.epsilon, c.tau, env_rng, agent.rng)  # fmt: skip
     c = agent.config
-    return fused_mb(succ, cdf, reward, steps, agent.Q, agent.model, c.gamma, agent._selection,
-                    float(agent._epsilon), float(agent._tau), agent._m_known, c.incremental,
-                    agent._replan_when_known, c.plan_every, c.max_sweeps, c.tol, env_rng,
+    return fused_mb(succ, cdf, reward, steps, agent.Q, agent.model, c.gamma, agent.selection,
+                    float(agent.epsilon), float(agent.tau), agent.m_known, c.incremental,
+                    agent.replan_when_known, c.plan_every, c.max_sweeps, c.tol, env_rng,
                     agent.rng)  # fmt: skip
 
 

@@ -158,20 +158,26 @@ class _ModelAgentBase(TabularAgent):
     """Shared stepping logic of the model-based agents (count or window model)."""
 
     model: CountModel | WindowModel
-    _m_known: int
-    _replan_when_known: bool
-    _selection: int
-    _epsilon: float
-    _tau: float
+    # Effective kernel settings (read by the fused loops; derived from the config):
+    m_known: int
+    """Visits after which a pair's model is used (1; R-max: ``m``)."""
+    replan_when_known: bool
+    """Run value iteration the step a pair becomes known."""
+    selection: int
+    """Selection code (:class:`~simlab.agents.config.Selection`)."""
+    epsilon: float
+    """Exploration probability (epsilon-greedy)."""
+    tau: float
+    """Softmax temperature."""
 
     def act(self, s: int) -> int:
-        return int(K.select_action(self.Q[s], self._selection, self._epsilon, self._tau, self.rng))
+        return int(K.select_action(self.Q[s], self.selection, self.epsilon, self.tau, self.rng))
 
     def update(self, s: int, a: int, r: float, s_next: int) -> None:
         c = self.config
         K.model_based_update(
-            self.model, self.Q, s, a, r, s_next, c.gamma, self._m_known,
-            c.incremental, self._replan_when_known, c.max_sweeps, c.tol,
+            self.model, self.Q, s, a, r, s_next, c.gamma, self.m_known,
+            c.incremental, self.replan_when_known, c.max_sweeps, c.tol,
         )  # fmt: skip
         self.steps += 1
         if c.plan_every and self.steps % c.plan_every == 0:
@@ -182,7 +188,7 @@ class _ModelAgentBase(TabularAgent):
         c = self.config
         sweeps = c.max_sweeps if max_sweeps is None else max_sweeps
         return int(
-            K.model_value_iteration(self.model, self.Q, c.gamma, sweeps, c.tol, self._m_known)
+            K.model_value_iteration(self.model, self.Q, c.gamma, sweeps, c.tol, self.m_known)
         )
 
     def transition_matrix(self) -> tuple[np.ndarray, np.ndarray]:
@@ -213,10 +219,10 @@ class ModelBasedAgent(_ModelAgentBase):
         self.n_states, self.n_actions = int(n_states), int(n_actions)
         self.Q = np.full((self.n_states, self.n_actions), c.initial_value)
         self.model = self._new_model()
-        self._m_known = 1
-        self._replan_when_known = False
-        self._selection = int(c.selection)
-        self._epsilon, self._tau = c.epsilon, c.tau
+        self.m_known = 1
+        self.replan_when_known = False
+        self.selection = int(c.selection)
+        self.epsilon, self.tau = c.epsilon, c.tau
         self.steps = 0
 
     def _new_model(self) -> CountModel | WindowModel:
@@ -263,10 +269,10 @@ class RMaxAgent(_ModelAgentBase):
         self.n_states, self.n_actions = int(n_states), int(n_actions)
         self.Q = K.rmax_q_init(self.n_states, self.n_actions, float(c.r_max), float(c.gamma))
         self.model = CountModel(self.n_states, self.n_actions, c.capacity)
-        self._m_known = c.m
-        self._replan_when_known = c.replan_when_known
-        self._selection = int(Selection.GREEDY)
-        self._epsilon, self._tau = 0.0, 0.0
+        self.m_known = c.m
+        self.replan_when_known = c.replan_when_known
+        self.selection = int(Selection.GREEDY)
+        self.epsilon, self.tau = 0.0, 0.0
         self.steps = 0
 
     def known(self) -> np.ndarray:

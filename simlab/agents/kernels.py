@@ -1,8 +1,9 @@
 """Numba kernels of the agent library, for fused env + agent loops.
 
-Every function here is ``@numba.njit(cache=True)``: call it from your own njit
-loop (fast path) or from Python (each call then pays numba's dispatch cost, a
-few microseconds). Every stochastic kernel takes a ``numpy.random.Generator``
+Every kernel here is ``@numba.njit(cache=True)`` (the generic ``model_*``
+functions are numba overloads in njit code and plain dispatchers in Python): call
+it from your own njit loop (fast path) or from Python (each call then pays
+numba's dispatch cost, a few microseconds). Every stochastic kernel takes a ``numpy.random.Generator``
 (numba supports Generator objects in nopython mode and advances the *same*
 bit-generator state, so a seeded Generator gives the same stream whether it is
 used from Python or njit code).

@@ -163,9 +163,9 @@ def _run_fused(agent, cdf, reward_next, start_cdf, horizon, n_episodes, takeover
     c = actor.config
     totals, steps = fused.run_model_based(
         cdf, reward_next, start_cdf, int(horizon), int(n_episodes),
-        actor.Q, actor.model, float(c.gamma), int(actor._selection), float(actor._epsilon),
-        float(actor._tau), int(actor._m_known), bool(c.incremental),
-        bool(actor._replan_when_known), int(c.plan_every), int(c.max_sweeps), float(c.tol),
+        actor.Q, actor.model, float(c.gamma), int(actor.selection), float(actor.epsilon),
+        float(actor.tau), int(actor.m_known), bool(c.incremental),
+        bool(actor.replan_when_known), int(c.plan_every), int(c.max_sweeps), float(c.tol),
         int(actor.steps), Q_obs, *obs_args, env_rng, agent.rng,
     )  # fmt: skip
     actor.steps = int(steps)
