@@ -231,6 +231,9 @@ class PhysicsWalker:
 class KinematicParams:
     """Parameters of the physics-free point robot (:class:`KinematicWalker`).
 
+    Speeds and drive time follow the physics primitives' defaults (0.10 / 0.22 m/s for
+    0.5 s); the noise is invented (the kinematic walker is a stand-in, not a model).
+
     Attributes:
         slow_speed: m/s of actions 0-7.
         fast_speed: m/s of actions 8-15.
@@ -244,15 +247,15 @@ class KinematicParams:
         decision_latency: s of idle time between primitives (added to the clock).
     """
 
-    slow_speed: float = 0.11
+    slow_speed: float = 0.10
     fast_speed: float = 0.22
-    drive_time: float = 1.0
+    drive_time: float = 0.5
     turn_rate: float = 2.0
     distance_noise: float = 0.15
     heading_noise: float = 0.08
     clearance: float = 0.12
     radius: float = 0.09
-    decision_latency: float = 2.0
+    decision_latency: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("slow_speed", "fast_speed", "drive_time", "turn_rate"):
