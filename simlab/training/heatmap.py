@@ -233,7 +233,9 @@ def save_heatmap_grid(
         ax.set_ylabel("")
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
-    fig.colorbar(img, ax=axes.ravel().tolist(), fraction=0.02, pad=0.02, label="max_a Q(s, a)")
+    fig.subplots_adjust(left=0.06, right=0.87, bottom=0.05, top=0.92, wspace=0.3, hspace=0.3)
+    cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
+    fig.colorbar(img, cax=cax, label="max_a Q(s, a)")
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     _save(fig, path)
