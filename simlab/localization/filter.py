@@ -1,0 +1,352 @@
+"""Monte Carlo localization: a particle filter on an occupancy map (augmented MCL).
+
+One cycle (Thrun, Burgard & Fox, *Probabilistic Robotics*, Table 8.3):
+
+1. :meth:`ParticleFilter.predict` moves every particle by the odometry motion between two
+   odometry poses, with sampled noise (:mod:`simlab.localization.motion`);
+2. :meth:`ParticleFilter.update` weights the particles by the likelihood field of a scan
+   (:mod:`simlab.localization.likelihood`, ``n_beams`` beams evenly spread over the scan)
+   and stores the pose estimate;
+3. low-variance resampling when the effective sample size drops below
+   ``resample_threshold * n_particles``, or when particles are to be injected.
+
+Recovery (augmented MCL): ``w_slow`` and ``w_fast`` are long- and short-term averages of
+the measurement likelihood; at each resampling a fraction ``max(0, 1 - w_fast / w_slow)``
+of the particles is replaced by poses drawn uniformly in free space. Two choices where
+the book leaves room:
+
+* the likelihood averaged is the *per-beam* geometric mean of the predictive likelihood,
+  ``exp(log(sum_i w_i p(z | x_i)) / K)`` with ``K`` the beams with a return, so that the
+  ratio does not depend on how many beams are used (the raw product of 40 densities spans
+  dozens of orders of magnitude);
+* both averages start at the *nominal* fit, the expected per-beam likelihood of a
+  perfectly localized robot (:meth:`SensorModelParams.nominal_beam_log_likelihood` with
+  the range noise and the map's cell size). A filter started at a wrong pose therefore
+  sees its short-term fit fall below the long-term one at once and injects particles;
+  with averages initialised from the first (already wrong) measurement it would not.
+
+Estimate: the weighted mean of the particles near the best one (a few mean-shift steps
+from the highest-weight particle, radius ``estimate_radius`` and ``estimate_angle``), so
+that a multi-modal cloud (global initialisation, injected particles) gives the pose of
+its strongest mode rather than the average of all modes. It is computed at each update,
+before resampling, and carried forward by the odometry between updates.
+
+Limitation: in a symmetric arena (the bare square table) the scans of a pose and of its
+images under the arena's symmetries (rotations by 90 degrees about the centre) are the
+same, so global localization and kidnapped-robot recovery can settle on an image of the
+truth; only the initial pose (tracking) or asymmetric obstacles disambiguate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from discretize.gridmap import OccupancyMap
+from simlab.errors import ConfigError
+from simlab.localization.likelihood import LikelihoodField, SensorModelParams
+from simlab.localization.motion import (
+    OdometryMotionParams,
+    compose,
+    relative,
+    sample_odometry_motion,
+    wrap,
+)
+
+
+class ScanLike(Protocol):
+    """What :meth:`ParticleFilter.update` reads from a scan (e.g. a ``LidarScan``)."""
+
+    ranges: NDArray[np.float64]
+    angles: NDArray[np.float64]
+    sensor_offset: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class MCLParams:
+    """Parameters of the particle filter (SI units: m, rad).
+
+    Attributes:
+        n_particles: number of particles N.
+        n_beams: beams K used per update, evenly spread over the scan (AMCL ``max_beams``).
+        sensor: likelihood-field parameters.
+        motion: odometry motion-model noise.
+        resample_threshold: resample when N_eff < this fraction of N.
+        alpha_slow, alpha_fast: smoothing of the long- and short-term likelihood averages
+            (per update; AMCL's recovery_alpha_slow / _fast). 0 disables injection.
+        range_noise: range noise (m) assumed for the nominal fit (LDS-01: 0.01).
+        inject_clearance: injected and globally initialised particles keep this distance
+            (m) from occupied cells (about the robot's half-width: the robot's centre can
+            be no nearer to a wall).
+        update_min_distance, update_min_angle: a tracker updates the filter only after the
+            odometry moved this far (m) or turned this much (rad) since the last update.
+        estimate_radius, estimate_angle: neighbourhood of the estimate's mean-shift (m, rad).
+    """
+
+    n_particles: int = 500
+    n_beams: int = 40
+    sensor: SensorModelParams = field(default_factory=SensorModelParams)
+    motion: OdometryMotionParams = field(default_factory=OdometryMotionParams)
+    resample_threshold: float = 0.5
+    alpha_slow: float = 0.001
+    alpha_fast: float = 0.1
+    range_noise: float = 0.01
+    inject_clearance: float = 0.07
+    update_min_distance: float = 0.02
+    update_min_angle: float = 0.1
+    estimate_radius: float = 0.1
+    estimate_angle: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("n_particles", "n_beams"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+                raise ConfigError(f"must be a whole number >= 1, got {value!r}",
+                                  key=f"MCLParams.{name}")
+        for name in ("resample_threshold", "alpha_slow", "alpha_fast"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0 <= value <= 1):
+                raise ConfigError(f"must lie in [0, 1], got {value!r}", key=f"MCLParams.{name}")
+        if self.alpha_fast < self.alpha_slow:
+            raise ConfigError(
+                f"alpha_fast ({self.alpha_fast}) must be >= alpha_slow ({self.alpha_slow})",
+                key="MCLParams.alpha_fast",
+            )
+        for name in ("range_noise", "inject_clearance", "update_min_distance",
+                     "update_min_angle"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ConfigError(f"must be a number >= 0, got {value!r}", key=f"MCLParams.{name}")
+        for name in ("estimate_radius", "estimate_angle"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"must be a number > 0, got {value!r}", key=f"MCLParams.{name}")
+
+
+def low_variance_resample(weights: NDArray[np.float64], n: int,
+                          rng: np.random.Generator) -> NDArray[np.int64]:
+    """Indices ``(n,)`` drawn by low-variance (systematic) resampling (Thrun Table 4.4).
+
+    One uniform draw; particle ``i`` is picked ``floor(n w_i)`` or ``ceil(n w_i)`` times.
+    ``weights`` must sum to 1.
+    """
+    cdf = np.cumsum(np.asarray(weights, dtype=np.float64))
+    cdf[-1] = 1.0  # guard against round-off: every pointer below 1 finds a particle
+    pointers = (rng.random() + np.arange(n)) / n
+    return np.searchsorted(cdf, pointers, side="right").astype(np.int64)
+
+
+def effective_sample_size(weights: NDArray[np.float64]) -> float:
+    """``1 / sum w_i^2`` of normalized weights (N for uniform, 1 for a single particle)."""
+    w = np.asarray(weights, dtype=np.float64)
+    return float(1.0 / np.sum(w * w))
+
+
+def weighted_pose_mean(particles: NDArray[np.float64],
+                       weights: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Weighted mean ``(3,)`` of poses: arithmetic in x, y; circular in yaw."""
+    w = np.asarray(weights, dtype=np.float64)
+    w = w / w.sum()
+    x = float(w @ particles[:, 0])
+    y = float(w @ particles[:, 1])
+    yaw = math.atan2(float(w @ np.sin(particles[:, 2])), float(w @ np.cos(particles[:, 2])))
+    return np.array([x, y, yaw])
+
+
+class ParticleFilter:
+    """A particle filter on an :class:`OccupancyMap` (see the module docstring).
+
+    Parameters
+    ----------
+    grid:
+        The occupancy map (or a prebuilt :class:`LikelihoodField` of it).
+    params:
+        :class:`MCLParams`.
+    rng:
+        Draws the motion noise, resampling and injected particles.
+
+    Attributes: ``particles`` ``(N, 3)`` (x, y, yaw), ``weights`` ``(N,)`` normalized,
+    ``w_slow``, ``w_fast`` (per-beam likelihood averages, 1/m), ``n_updates``,
+    ``n_resamples``, ``n_injected`` (total particles injected), ``last_fit`` (per-beam
+    likelihood of the last update).
+    """
+
+    def __init__(self, grid: OccupancyMap | LikelihoodField, params: MCLParams | None = None,
+                 rng: np.random.Generator | None = None) -> None:
+        if rng is None:
+            raise ConfigError("a numpy Generator is needed (np.random.default_rng(seed))",
+                              key="rng")
+        self.params = params or MCLParams()
+        if isinstance(grid, LikelihoodField):
+            self.field = grid
+        else:
+            self.field = LikelihoodField(grid, self.params.sensor)
+        self.map = self.field.map
+        self.rng = rng
+        res = self.map.resolution
+        nominal = self.params.sensor.nominal_beam_log_likelihood(
+            math.hypot(self.params.range_noise, res))
+        self.nominal_fit = math.exp(nominal)
+        free = (self.map.occupancy == 0) & (self.field.distance >= self.params.inject_clearance)
+        if not free.any():
+            raise ConfigError(
+                f"the map has no free cell {self.params.inject_clearance} m away from obstacles",
+                key="map", fix="check the map (free cells must be white)",
+            )
+        self._free_rc = np.argwhere(free)
+        n = int(self.params.n_particles)
+        self.particles = np.zeros((n, 3))
+        self.weights = np.full(n, 1.0 / n)
+        self._estimate = np.zeros(3)
+        self.w_slow = self.nominal_fit
+        self.w_fast = self.nominal_fit
+        self.last_fit = float("nan")
+        self.n_updates = 0
+        self.n_resamples = 0
+        self.n_injected = 0
+        self.initialised = False
+
+    # ------------------------------------------------------------------ initialisation
+    def _reset_stats(self) -> None:
+        self.w_slow = self.nominal_fit
+        self.w_fast = self.nominal_fit
+        self.weights = np.full(self.params.n_particles, 1.0 / self.params.n_particles)
+        self.initialised = True
+
+    def init_gaussian(self, pose: NDArray[np.float64],
+                      cov: NDArray[np.float64] | None = None) -> None:
+        """Particles drawn from ``N(pose, cov)``; ``cov`` ``(3, 3)`` (m^2, rad^2), default
+        ``diag(0.05^2, 0.05^2, 0.1^2)``."""
+        pose = np.asarray(pose, dtype=np.float64)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"pose: expected 3 finite numbers, got {pose}")
+        cov = np.diag([0.05**2, 0.05**2, 0.1**2]) if cov is None else np.asarray(cov, float)
+        if cov.shape != (3, 3):
+            raise ValueError(f"cov: expected a (3, 3) matrix, got shape {cov.shape}")
+        p = self.rng.multivariate_normal(pose, cov, size=self.params.n_particles,
+                                         method="cholesky")
+        p[:, 2] = wrap(p[:, 2])
+        self.particles = p
+        self._reset_stats()
+        self._estimate = np.array([pose[0], pose[1], float(wrap(pose[2]))])
+
+    def sample_free(self, n: int) -> NDArray[np.float64]:
+        """``n`` poses uniform over the free cells (clearance ``inject_clearance``), uniform yaw."""
+        rc = self._free_rc[self.rng.integers(0, len(self._free_rc), size=n)]
+        jitter = self.rng.random((n, 2))
+        xy = self.map.pixel_to_world(rc + jitter - 0.5)
+        yaw = self.rng.uniform(-math.pi, math.pi, size=n)
+        return np.column_stack([xy, yaw])
+
+    def init_global(self) -> None:
+        """Global localization: particles uniform over the free space, headings uniform."""
+        self.particles = self.sample_free(self.params.n_particles)
+        self._reset_stats()
+        self._estimate = weighted_pose_mean(self.particles, self.weights)
+
+    def _check_init(self) -> None:
+        if not self.initialised:
+            raise RuntimeError("initialise the filter first (init_gaussian or init_global)")
+
+    # ------------------------------------------------------------------ the cycle
+    def predict(self, odom_prev: NDArray[np.float64], odom_now: NDArray[np.float64]) -> None:
+        """Move the particles by the odometry motion ``odom_prev -> odom_now`` (with noise)."""
+        self._check_init()
+        self.particles = sample_odometry_motion(self.particles, odom_prev, odom_now,
+                                                self.params.motion, self.rng)
+        self._estimate = compose(self._estimate, relative(odom_prev, odom_now))
+
+    def beam_subset(self, n_total: int) -> NDArray[np.int64]:
+        """Indices of the ``n_beams`` beams used out of a scan of ``n_total``."""
+        k = min(self.params.n_beams, n_total)
+        return np.floor(np.arange(k) * (n_total / k)).astype(np.int64)
+
+    def update(self, scan: ScanLike) -> bool:
+        """Weight the particles by ``scan``, store the estimate and resample if needed.
+
+        Returns False (and changes nothing) when none of the beams used has a return.
+        """
+        self._check_init()
+        idx = self.beam_subset(len(scan.ranges))
+        ranges = np.asarray(scan.ranges, dtype=np.float64)[idx]
+        angles = np.asarray(scan.angles, dtype=np.float64)[idx]
+        k_used = int(np.isfinite(ranges).sum())
+        if k_used == 0:
+            return False
+        loglik = self.field.log_likelihoods(self.particles, ranges, angles,
+                                            np.asarray(scan.sensor_offset, dtype=np.float64))
+        with np.errstate(divide="ignore"):
+            logw = np.log(self.weights) + loglik
+        top = float(logw.max())
+        total = top + math.log(float(np.exp(logw - top).sum()))
+        self.weights = np.exp(logw - total)
+        # Per-beam geometric mean of the predictive likelihood sum_i w_i p(z | x_i).
+        fit = math.exp(total / k_used)
+        self.last_fit = fit
+        p = self.params
+        self.w_slow += p.alpha_slow * (fit - self.w_slow)
+        self.w_fast += p.alpha_fast * (fit - self.w_fast)
+        self.n_updates += 1
+        self._estimate = self._mode_estimate()
+        inject = self.injection_probability
+        if inject > 0 or effective_sample_size(self.weights) < p.resample_threshold * p.n_particles:
+            self._resample(inject)
+        return True
+
+    @property
+    def injection_probability(self) -> float:
+        """Fraction of particles the next resampling replaces: ``max(0, 1 - w_fast/w_slow)``."""
+        if self.params.alpha_slow == 0 or self.w_slow <= 0:
+            return 0.0
+        return max(0.0, 1.0 - self.w_fast / self.w_slow)
+
+    def _resample(self, inject: float) -> None:
+        n = self.params.n_particles
+        idx = low_variance_resample(self.weights, n, self.rng)
+        new = self.particles[idx]
+        if inject > 0:
+            mask = self.rng.random(n) < inject
+            m = int(mask.sum())
+            if m:
+                new[mask] = self.sample_free(m)
+                self.n_injected += m
+        self.particles = new
+        self.weights = np.full(n, 1.0 / n)
+        self.n_resamples += 1
+
+    # ------------------------------------------------------------------ estimates
+    def _mode_estimate(self, steps: int = 3) -> NDArray[np.float64]:
+        p, w = self.particles, self.weights
+        centre = p[int(np.argmax(w))].copy()
+        r2 = self.params.estimate_radius ** 2
+        for _ in range(steps):
+            near = ((p[:, 0] - centre[0]) ** 2 + (p[:, 1] - centre[1]) ** 2 <= r2) & (
+                np.abs(wrap(p[:, 2] - centre[2])) <= self.params.estimate_angle)
+            if not near.any() or w[near].sum() <= 0:
+                break
+            centre = weighted_pose_mean(p[near], w[near])
+        return centre
+
+    def estimate(self) -> NDArray[np.float64]:
+        """Pose estimate ``(3,)`` (x, y, yaw): the strongest mode at the last update, moved
+        by the odometry since (see the module docstring)."""
+        self._check_init()
+        return self._estimate.copy()
+
+    def covariance(self) -> NDArray[np.float64]:
+        """Weighted covariance ``(3, 3)`` of all particles (m^2, rad^2; yaw about its mean)."""
+        self._check_init()
+        mean = weighted_pose_mean(self.particles, self.weights)
+        d = self.particles - mean
+        d[:, 2] = wrap(d[:, 2])
+        w = self.weights / self.weights.sum()
+        return (d * w[:, None]).T @ d
+
+    def spread(self) -> tuple[float, float]:
+        """``(position std (m), heading std (rad))`` of the particle cloud."""
+        c = self.covariance()
+        return math.sqrt(max(0.0, c[0, 0] + c[1, 1])), math.sqrt(max(0.0, c[2, 2]))
