@@ -3,10 +3,10 @@
 Every kernel here is ``@numba.njit(cache=True)`` (the generic ``model_*``
 functions are numba overloads in njit code and plain dispatchers in Python): call
 it from your own njit loop (fast path) or from Python (each call then pays
-numba's dispatch cost, a few microseconds). Every stochastic kernel takes a ``numpy.random.Generator``
-(numba supports Generator objects in nopython mode and advances the *same*
-bit-generator state, so a seeded Generator gives the same stream whether it is
-used from Python or njit code).
+numba's dispatch cost, a few microseconds). Every stochastic kernel takes a
+``numpy.random.Generator`` (numba supports Generator objects in nopython mode and
+advances the *same* bit-generator state, so a seeded Generator gives the same
+stream whether it is used from Python or njit code).
 
 The names below are a stable public API (simlab's Visit-the-lab simulation
 builds on them); new kernels may be added, these will not change meaning.
@@ -52,10 +52,12 @@ Generic model API (works on either model type; used by the harness)
 R-max
     Initialise ``Q`` with ``rmax_q_init(S, A, r_max, gamma)`` (every entry
     ``r_max / (1 - gamma)``), act greedily, and update with
-    ``model_based_update(..., m_known=m, incremental=True,
-    replan_when_known=True, ...)``: a pair's value stays optimistic until it has
-    been visited ``m`` times (thesis/paper: m=1 navigation, m=5 social); the step
-    it becomes known, value iteration propagates the change. Counts keep
+    ``model_based_update(..., m_known=m, incremental=True, replan_when_known, ...)``:
+    a pair's value stays optimistic until it has been visited ``m`` times (paper:
+    m=1 navigation, m=5 social). Either plan periodically (the paper, and
+    :class:`~simlab.agents.config.RMaxConfig`'s default: one sweep every 1,000
+    steps) or pass ``replan_when_known=True`` (classic R-max: value iteration the
+    step a pair becomes known; exact, but one planning per pair). Counts keep
     accumulating after ``m`` visits (a better model in stochastic worlds).
 
 How a foreign fused loop uses these kernels
