@@ -175,3 +175,22 @@ def test_agents_fit_a_gymnasium_env(arena_mdp):
     assert rewards.shape == (60,)
     optimum = evaluate_q(arena_mdp.T, arena_mdp.goal_reward("g5"), agent.Q[None], 0.9, 50)
     assert rewards[-20:].mean() > 0.8 * optimum.optimal_return > rewards[:3].mean()
+
+
+def test_train_heat_maps_over_an_arena_and_a_map_server_map(small_mdp_file, tmp_path):
+    from discretize.gridmap import OccupancyMap
+    from discretize.mapio import write_map
+
+    occ = np.zeros((80, 80), dtype=np.int8)
+    occ[:, :2] = 100  # a wall on the left
+    yaml_path, _ = write_map(tmp_path / "map.yaml", OccupancyMap(occ, 0.02, (-0.05, -0.05, 0.0)))
+    s = train(small_mdp_file, "rmax", "g1", episodes=5, runs=1, out=tmp_path / "o",
+              bounds=(0.0, 0.0, 1.5, 1.5), occupancy_map=yaml_path, progress=False)  # fmt: skip
+    assert (tmp_path / "o" / "heatmap_g1.png").stat().st_size > 1000
+    assert s.files["heatmaps"].endswith("heatmaps.png")
+    with pytest.raises(ConfigError, match=r"bounds: expected x_min y_min x_max y_max"):
+        train(small_mdp_file, "rmax", "g1", episodes=5, runs=1, bounds=(0, 0, -1, 1),
+              progress=False)  # fmt: skip
+    b = train(small_mdp_file, "rmax", "g1", episodes=5, runs=1, out=tmp_path / "a",
+              arena="table", progress=False)  # fmt: skip
+    assert b.out == tmp_path / "a"
