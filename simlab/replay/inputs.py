@@ -1,0 +1,245 @@
+"""The replay's inputs, checked against each other before the robot moves.
+
+* **Q-tables**: one ``q_<goal>.npz`` per goal of the arena in a directory (the files
+  ``simlab train`` writes; read with :func:`simlab.agents.storage.load_q_table`), or a
+  mapping ``goal -> Q``. Each must be ``(S, 16)``: S the states of the discretizer, 16
+  the motion primitives. A goal without a file, a wrong shape or non-finite values raise
+  :class:`~simlab.errors.ConfigError` naming the file.
+* **The empirical MDP** (for the predicted rate): the ``mdp.npz`` given, or the one the
+  Q-tables record in their metadata (``mdp``). Its ``T`` must be ``(S, 16, S)``, its
+  centres (if stored) those of the discretizer and its goals those of the arena.
+* **Goal masks**: from the arena's goals and the discretizer's centres with the
+  estimator's rule (:func:`simlab.data.goals.goal_state_masks`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.errors import ConfigError
+
+#: Number of motion primitives (SPEC A4).
+N_ACTIONS = 16
+
+
+def q_file_name(goal: str) -> str:
+    """File name of a goal's Q-table in a ``simlab train`` directory (``q_<goal>.npz``;
+    characters other than letters, digits, ``_.-`` become ``_``, as ``simlab train``
+    writes them)."""
+    return f"q_{re.sub(r'[^A-Za-z0-9_.-]+', '_', goal)}.npz"
+
+
+@dataclass(frozen=True)
+class QTables:
+    """Per-goal Q-tables in the arena's goal order.
+
+    ``Q`` ``(G, S, A)`` float64; ``names`` the goal names; ``files`` the file of each
+    (None for tables passed in memory); ``metadata`` the JSON metadata of each file.
+    """
+
+    Q: NDArray[np.float64]
+    names: tuple[str, ...]
+    files: tuple[str | None, ...]
+    metadata: tuple[dict[str, Any], ...]
+    source: str | None
+
+
+def load_qtables(qtables: str | os.PathLike[str] | Mapping[str, Any], goal_names: tuple[str, ...],
+                 n_states: int, states_source: str | None = None) -> QTables:
+    """Load and check the Q-table of every goal in ``goal_names`` (see the module doc)."""
+    from simlab.agents.storage import load_q_table
+
+    expected = (n_states, N_ACTIONS)
+    where = f" of {states_source}" if states_source else ""
+    tables, files, metas = [], [], []
+    if isinstance(qtables, Mapping):
+        source = None
+        for g in goal_names:
+            if g not in qtables:
+                raise ConfigError(f"no Q-table for goal {g!r}", key="qtables",
+                                  fix=f"give one per goal: {', '.join(goal_names)}")
+            tables.append(np.asarray(qtables[g], dtype=np.float64))
+            files.append(None)
+            metas.append({})
+    else:
+        directory = Path(qtables)
+        source = str(directory)
+        if not directory.is_dir():
+            raise ConfigError("Q-table directory not found", path=directory,
+                              fix="give the --out directory of `simlab train`")
+        for g in goal_names:
+            path = directory / q_file_name(g)
+            if not path.is_file():
+                present = sorted(p.name for p in directory.glob("q_*.npz"))
+                raise ConfigError(
+                    f"no Q-table for goal {g!r} (expected {path.name})", path=directory,
+                    key="qtables",
+                    fix=f"train every goal of the arena (`simlab train --goals all`); found: "
+                        f"{', '.join(present) or 'no q_*.npz file'}",
+                )
+            Q, meta = load_q_table(path)
+            tables.append(Q)
+            files.append(str(path))
+            metas.append(meta)
+    for g, Q, f in zip(goal_names, tables, files, strict=True):
+        if Q.shape != expected:
+            raise ConfigError(
+                f"Q-table of goal {g!r} has shape {Q.shape}, expected {expected}: "
+                f"{n_states} states{where} x {N_ACTIONS} motion primitives",
+                path=f, key="Q",
+                fix="train on an MDP estimated with the same states file",
+            )
+        if not np.all(np.isfinite(Q)):
+            raise ConfigError(f"Q-table of goal {g!r} has NaN or infinite values", path=f, key="Q")
+    return QTables(Q=np.stack(tables), names=tuple(goal_names), files=tuple(files),
+                   metadata=tuple(metas), source=source)
+
+
+def discover_mdp(qtables: QTables) -> str | None:
+    """The ``mdp.npz`` the Q-tables were trained on, from their metadata (if it exists)."""
+    for meta, f in zip(qtables.metadata, qtables.files, strict=True):
+        value = meta.get("mdp")
+        if not isinstance(value, str) or not value:
+            continue
+        path = Path(value)
+        if not path.is_absolute() and f is not None and not path.is_file():
+            path = Path(f).parent / path
+        if path.is_file():
+            return str(path)
+    return None
+
+
+@dataclass(frozen=True)
+class ModelInputs:
+    """The empirical model the prediction needs.
+
+    ``T`` ``(S, A, S)``; ``source`` the file; from the estimator's summary beside it
+    (``mdp.json``) and the dataset's manifest when they can be found:
+    ``dataset_seconds_per_transition`` (robot seconds per transition of the walk),
+    ``dataset`` (its directory) and ``primitive_params`` (the motion-primitive parameters
+    it was collected with, a dict; None for a kinematic dry-run dataset); None when
+    unknown.
+    """
+
+    T: NDArray[np.float64]
+    source: str | None
+    dataset_seconds_per_transition: float | None
+    dataset: str | None = None
+    primitive_params: dict[str, Any] | None = None
+
+
+def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
+               goal_masks: NDArray[np.bool_]) -> ModelInputs:
+    """Load an ``mdp.npz`` (or an :class:`~simlab.envs.empirical_mdp.EmpiricalMDP`) and
+    check it against the discretizer and the arena's goals."""
+    from simlab.envs.empirical_mdp import EmpiricalMDP, load_mdp
+
+    m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
+    src = None if m.source is None else str(m.source)
+    S = discretizer.n_states
+    if m.T.shape != (S, N_ACTIONS, S):
+        raise ConfigError(
+            f"T has shape {m.T.shape}, expected ({S}, {N_ACTIONS}, {S}) for the states file",
+            path=src, key="T", fix="estimate the MDP with the same states file",
+        )
+    if m.centres is not None and not np.allclose(m.centres, discretizer.centres, atol=1e-9):
+        raise ConfigError(
+            "the MDP was estimated with other states (its centres differ from the states "
+            "file's)", path=src, key="centres",
+            fix="use the states file the dataset was collected with",
+        )
+    if m.goal_names:
+        if set(m.goal_names) != set(goal_names):
+            raise ConfigError(
+                f"the MDP's goals {list(m.goal_names)} are not the arena's {list(goal_names)}",
+                path=src, key="goal_names", fix="estimate with the same arena",
+            )
+        for i, g in enumerate(goal_names):
+            if not np.array_equal(m.goal_mask(g), goal_masks[i]):
+                raise ConfigError(
+                    f"goal {g!r} covers other states in the MDP than in the arena",
+                    path=src, key="goal_masks", fix="estimate with the same arena and states",
+                )
+    pace, dataset, primitive = None, None, None
+    doc = _read_json(Path(src).with_suffix(".json")) if src is not None else None
+    if doc is not None:
+        try:
+            hours = float(doc["source"]["simulated_hours"])
+            n = int(doc["transitions"])
+            pace = hours * 3600.0 / n if hours > 0 and n > 0 else None
+        except (KeyError, TypeError, ValueError, ZeroDivisionError):
+            pace = None
+        name = (doc.get("source") or {}).get("dataset") if isinstance(doc.get("source"), dict) \
+            else None
+        if isinstance(name, str):
+            for candidate in (Path(name), Path(src).parent / name):  # type: ignore[arg-type]
+                manifest = _read_json(candidate / "_manifest.json")
+                if manifest is not None:
+                    dataset = str(candidate)
+                    prim = (manifest.get("parameters") or {}).get("primitive")
+                    # Only a physics walk's parameters are motion primitives.
+                    if manifest.get("simulator", "physics") == "physics" and isinstance(prim,
+                                                                                        dict):
+                        primitive = prim
+                    break
+    return ModelInputs(T=np.asarray(m.T, dtype=np.float64), source=src,
+                       dataset_seconds_per_transition=pace, dataset=dataset,
+                       primitive_params=primitive)
+
+
+def _read_json(path: Path) -> dict[str, Any] | None:
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, str]:
+    """The primitive parameters to replay with, and where they come from.
+
+    The robot must drive the primitives the model was estimated from: with ``params``
+    None, the dataset's recorded parameters are used (the defaults if unknown); given
+    ``params`` that differ from the dataset's (other than ``heading_source``) raise
+    :class:`ConfigError`.
+    """
+    from dataclasses import asdict, fields
+
+    from simlab.physics.motion import PrimitiveParams
+
+    recorded = None if model is None else model.primitive_params
+    if recorded is None:
+        return (params if params is not None else PrimitiveParams()), "default"
+    names = {f.name for f in fields(PrimitiveParams)}
+    if params is None:
+        unknown = sorted(set(recorded) - names)
+        if unknown:
+            raise ConfigError(
+                f"the dataset's primitive parameters have unknown fields {unknown}",
+                path=model.dataset, key="parameters.primitive",  # type: ignore[union-attr]
+                fix="collect the dataset again with this version of simlab",
+            )
+        return PrimitiveParams(**recorded), "dataset"
+    given = asdict(params)
+    diff = sorted(k for k in names - {"heading_source"} if k in recorded
+                  and given[k] != recorded[k])
+    if diff:
+        shown = ", ".join(f"{k} {given[k]!r} vs {recorded[k]!r}" for k in diff[:4])
+        raise ConfigError(
+            f"the replay's motion primitives differ from those the MDP's dataset was "
+            f"collected with ({shown})",
+            path=model.dataset, key="parameters.primitive",  # type: ignore[union-attr]
+            fix="replay with the dataset's parameters (leave params unset) or collect again",
+        )
+    return params, "given (same as the dataset's)"
