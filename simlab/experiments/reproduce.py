@@ -140,8 +140,9 @@ def _run_one(spec: ExperimentSpec, budget: str, out: Path, executor: Any, seed: 
         "budget": budget, "budget_table": table, "params": dict(spec.params),
         "backend": executor.describe(), "seed": seed, "written": _now(),
     }
-    ctx = RunContext(name=spec.name, out=exp_dir, seed=experiment_seed(seed, spec.name),
-                     root_seed=seed, budget_name=budget, cache=out / CACHE_DIR,
+    ctx = RunContext(name=spec.name, out=exp_dir.resolve(),
+                     seed=experiment_seed(seed, spec.name), root_seed=seed, budget_name=budget,
+                     cache=(out / CACHE_DIR).resolve(),
                      progress=progress, backend_name=executor.name, executor=executor,
                      logger=log)
     t0 = time.perf_counter()
@@ -238,19 +239,19 @@ def reproduce(
             done.append(entry)
             say(f"[{i}/{len(specs)}] {spec.name}: {_headline(entry)}")
             header["wall_seconds"] = time.perf_counter() - t_start
-            _write_tables(out, header, previous, done, [s.name for s in specs])
+            _write_tables(out, header, previous, done)
     finally:
         executor.close()
     wall = time.perf_counter() - t_start
     header["wall_seconds"] = wall
-    _write_tables(out, header, previous, done, [s.name for s in specs])
+    _write_tables(out, header, previous, done)
     return ReproduceResult(out=out, budget=budget, backend=executor.describe(),
                            entries=tuple(done), results_md=out / RESULTS_MD,
                            results_json=out / RESULTS_JSON, wall_seconds=wall)
 
 
 def _write_tables(out: Path, header: dict[str, Any], previous: dict[str, dict[str, Any]],
-                  done: list[dict[str, Any]], order: list[str]) -> None:
+                  done: list[dict[str, Any]]) -> None:
     from simlab.experiments.report import render_results
     from simlab.experiments.spec import _natural_key
 

@@ -142,8 +142,12 @@ def _num(v: Any) -> str:
     f = float(v)
     if math.isnan(f):
         return "NaN"
-    if f == int(f) and abs(f) < 1e9:
-        return str(int(f))
+    if math.isinf(f):
+        return "inf" if f > 0 else "-inf"
+    if f == int(f) and abs(f) < 1e15:
+        return f"{int(f):,}" if abs(f) >= 10000 else str(int(f))
+    if abs(f) >= 1000:
+        return f"{f:,.0f}"
     return f"{f:.3g}"
 
 

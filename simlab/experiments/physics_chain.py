@@ -1,0 +1,304 @@
+"""The physics chain of Figs. 4.8-4.10, built once per output folder and shared.
+
+The three physics experiments need the same intermediate products: an occupancy map,
+Voronoi states, a random-walk dataset, the empirical MDP and the Q-tables trained on
+it. :class:`PhysicsChain` builds each of them with the library function that owns the
+stage (:func:`simlab.mapping.build_map`, :func:`discretize.voronoi.discretize_map`,
+:func:`simlab.data.collect.collect`, :func:`simlab.data.estimate.estimate`,
+:func:`simlab.training.train.train`) into ``DIR/_cache/physics/<stage>-<key>/`` where
+``key`` hashes the stage's settings, its parent stage's key, the root seed and the
+simlab version. So Fig. 4.9 reuses the 10-hour dataset Fig. 4.8 collected when their
+settings agree (the three TOMLs keep them equal; a test checks it), and a second
+``simlab reproduce`` into the same folder reuses the whole chain.
+
+A stage folder is complete when its ``_stage.json`` exists (written last, atomically);
+a folder without it (an interrupted build) is deleted and rebuilt. A lock file per
+stage (``fcntl.flock``) keeps two processes from building the same stage at once.
+Delete ``DIR/_cache`` after changing simlab's physics code without changing its version.
+
+Seeds: stage ``k`` of chain seed ``i`` uses the integer
+``SeedSequence(root_seed, spawn_key=(PHYSICS_SPAWN_KEY, k, i)).generate_state(1)[0]``:
+independent streams for the map, the walks, the training and the replays, the same for
+every experiment of a reproduction (so they share), different for another ``--seed``.
+
+Settings (``[params]`` of the TOML, overridden by the budget table; every key is
+optional and defaults to the thesis's setting):
+
+==================  =========================================================  ========
+key                 meaning                                                    default
+==================  =========================================================  ========
+``arena``           built-in arena name or ``.toml`` path                      table
+``map_minutes``     robot minutes of the random mapping exploration            20
+``map_resolution``  occupancy cell size (m)                                    0.01
+``states``          Voronoi states (thesis 4.5: 41)                            41
+``hours``           robot hours of each random walk (thesis: ~10 h)            10
+``workers``         parallel walks per dataset (part of the dataset's seed)    2
+``agent``           agent trained on the empirical MDP (thesis: VI softmax)    vi-softmax
+``episodes``        training episodes per goal (thesis: ~2000)                 2000
+``runs``            independent training runs per goal (averaged Q)            10
+``horizon``         steps per training episode                                 50
+``replay_hours``    robot hours of each closed-loop replay (thesis: 3 h)       3
+``pose_source``     the replay's pose source: truth, odometry or mcl           mcl
+``video``           write the replay GIF of chain seed 0 (thesis Fig. 4.11)    false
+``seeds``           independent chains: datasets (with their MDP, training     1
+                    and replay) from one map and one set of states
+==================  =========================================================  ========
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import fcntl
+import hashlib
+import json
+import math
+import shutil
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab.errors import ConfigError
+from simlab.io import atomic_write_json
+
+#: First element of every physics spawn key ("PHYS" in ASCII).
+PHYSICS_SPAWN_KEY = 0x50485953
+STAGE_INDEX = {"map": 0, "dataset": 1, "train": 2, "replay": 3, "baseline": 4}
+MARKER = "_stage.json"
+
+
+@dataclass(frozen=True)
+class PhysicsSettings:
+    """The physics chain's settings (see the module docstring's table)."""
+
+    arena: str = "table"
+    map_minutes: float = 20.0
+    map_resolution: float = 0.01
+    states: int = 41
+    hours: float = 10.0
+    workers: int = 2
+    agent: str = "vi-softmax"
+    episodes: int = 2000
+    runs: int = 10
+    horizon: int = 50
+    replay_hours: float = 3.0
+    pose_source: str = "mcl"
+    video: bool = False
+    seeds: int = 1
+
+    @classmethod
+    def from_tables(cls, params: Mapping[str, Any], budget: Mapping[str, Any]
+                    ) -> PhysicsSettings:
+        """Merge ``[params]`` and the budget table (the budget wins) and validate, naming
+        the table and key of a bad value (``budget.hours``)."""
+        names = {f.name: f for f in dataclasses.fields(cls)}
+        values: dict[str, Any] = {}
+        where: dict[str, str] = {}
+        for table, src in (("params", params), ("budget", budget)):
+            for k, v in src.items():
+                if k not in names:
+                    raise ConfigError(f"unknown physics setting {k!r}", key=f"{table}.{k}",
+                                      fix=f"known: {', '.join(names)}")
+                values[k] = v
+                where[k] = f"{table}.{k}"
+        defaults = cls()
+        for name in names:
+            v = values.get(name, getattr(defaults, name))
+            key = where.get(name, name)
+            kind = type(getattr(defaults, name))
+            if kind is bool:
+                if not isinstance(v, bool):
+                    raise ConfigError(f"expected true or false, got {v!r}", key=key)
+            elif kind is int:
+                if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                    raise ConfigError(f"expected a whole number >= 1, got {v!r}", key=key)
+            elif kind is float:
+                if (isinstance(v, bool) or not isinstance(v, int | float)
+                        or not math.isfinite(v) or v <= 0):
+                    raise ConfigError(f"expected a number > 0, got {v!r}", key=key)
+                v = float(v)
+            elif not isinstance(v, str) or not v:
+                raise ConfigError(f"expected a non-empty string, got {v!r}", key=key)
+            values[name] = v
+        if values["pose_source"] not in ("truth", "odometry", "mcl"):
+            raise ConfigError(f"expected truth, odometry or mcl, got {values['pose_source']!r}",
+                              key=where.get("pose_source", "pose_source"))
+        return cls(**{k: values[k] for k in names})
+
+
+def chain_seed(root_seed: int, stage: str, i: int) -> int:
+    """The integer seed of ``stage`` for chain seed ``i`` (module docstring)."""
+    seq = np.random.SeedSequence(int(root_seed),
+                                 spawn_key=(PHYSICS_SPAWN_KEY, STAGE_INDEX[stage], int(i)))
+    return int(seq.generate_state(1, np.uint32)[0])
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A built stage: its folder, key, the numbers its build recorded, and whether this
+    call built it (False: found in the cache)."""
+
+    path: Path
+    key: str
+    summary: dict[str, Any]
+    built: bool
+    wall_seconds: float
+
+
+class PhysicsChain:
+    """Builds (or finds in ``cache``) the stages of the physics chain for ``settings``.
+
+    ``root_seed`` is the reproduction's seed; ``backend`` / ``address`` are passed to
+    :func:`~simlab.data.collect.collect` (its walks run as local processes or Ray tasks);
+    ``log`` receives one line per stage.
+    """
+
+    def __init__(self, cache: Path, settings: PhysicsSettings, root_seed: int, *,
+                 backend: str = "local", progress: bool = False,
+                 log: Callable[[str], None] | None = None) -> None:
+        self.root = Path(cache) / "physics"
+        self.s = settings
+        self.root_seed = int(root_seed)
+        self.backend = backend
+        self.progress = progress
+        self._log = log or (lambda _m: None)
+        self._built: dict[str, Stage] = {}
+
+    # ------------------------------------------------------------------ machinery
+
+    def _stage(self, stage: str, key: Mapping[str, Any], build: Callable[[Path], dict[str, Any]]
+               ) -> Stage:
+        from simlab import __version__
+
+        full_key = {"stage": stage, "simlab": __version__, **key}
+        digest = hashlib.sha256(json.dumps(full_key, sort_keys=True).encode()).hexdigest()[:16]
+        d = self.root / f"{stage}-{digest}"
+        if d.name in self._built:
+            return self._built[d.name]
+        marker = d / MARKER
+        with _locked(self.root / f".{stage}-{digest}.lock"):
+            if marker.exists():
+                rec = json.loads(marker.read_text())
+                st = Stage(d, digest, rec["summary"], False, 0.0)
+                self._log(f"{stage}: reused from the cache ({d.name})")
+            else:
+                if d.exists():  # an interrupted build
+                    shutil.rmtree(d)
+                d.mkdir(parents=True)
+                t0 = time.perf_counter()
+                summary = build(d)
+                wall = time.perf_counter() - t0
+                atomic_write_json(marker, {"key": full_key, "summary": summary,
+                                           "wall_seconds": wall})
+                st = Stage(d, digest, summary, True, wall)
+                self._log(f"{stage}: built in {wall:.0f} s ({d.name})")
+        self._built[d.name] = st
+        return st
+
+    @property
+    def stages(self) -> list[Stage]:
+        """The stages this chain object built or found, in the order first needed."""
+        return list(self._built.values())
+
+    # ------------------------------------------------------------------ stages
+
+    def map(self) -> Stage:
+        """The occupancy map (``map.yaml``) of a random exploration."""
+        s = self.s
+        seed = chain_seed(self.root_seed, "map", 0)
+
+        def build(d: Path) -> dict[str, Any]:
+            from simlab.mapping import build_map
+
+            run = build_map(s.arena, minutes=s.map_minutes, seed=seed, out=d,
+                            resolution=s.map_resolution, progress=self.progress)
+            return {"wall_correct": run.accuracy.wall_correct,
+                    "free_correct": run.accuracy.free_correct, "scans": run.n_scans}
+
+        return self._stage("map", {"arena": s.arena, "minutes": s.map_minutes,
+                                   "resolution": s.map_resolution, "seed": seed}, build)
+
+    def states(self) -> Stage:
+        """Voronoi states on the map (``states.json``, ``states.png``)."""
+        parent = self.map()
+
+        def build(d: Path) -> dict[str, Any]:
+            from discretize.voronoi import discretize_map
+
+            res = discretize_map(parent.path / "map.yaml", d / "states.json",
+                                 states=self.s.states, png=d / "states.png",
+                                 progress=self.progress)
+            return {"n_states": int(res.discretizer.n_states),
+                    "hash": res.discretizer.content_hash()}
+
+        return self._stage("states", {"parent": parent.key, "states": self.s.states}, build)
+
+    def dataset(self, i: int) -> Stage:
+        """Chain seed ``i``'s random-walk dataset (``data/``)."""
+        s = self.s
+        parent = self.states()
+        seed = chain_seed(self.root_seed, "dataset", i)
+
+        def build(d: Path) -> dict[str, Any]:
+            from simlab.data.collect import collect
+
+            res = collect(s.arena, parent.path / "states.json", out=d / "data", hours=s.hours,
+                          seed=seed, workers=s.workers, backend=self.backend,
+                          progress=self.progress)
+            return {"transitions": res.transitions, "simulated_hours": res.simulated_hours,
+                    "collect_wall_seconds": res.wall_seconds}
+
+        return self._stage("dataset", {"parent": parent.key, "hours": s.hours,
+                                       "workers": s.workers, "seed": seed}, build)
+
+    def mdp(self, i: int) -> Stage:
+        """Chain seed ``i``'s empirical MDP (``mdp.npz``, ``mdp.json``, entropy plot)."""
+        parent = self.dataset(i)
+
+        def build(d: Path) -> dict[str, Any]:
+            from simlab.data.estimate import estimate
+
+            res = estimate(parent.path / "data", d / "mdp.npz")
+            e = res.summary["entropy_bits"]
+            return {"entropy_slow": e["slow_mean"], "entropy_fast": e["fast_mean"],
+                    "fraction_visited": res.summary["coverage"]["fraction_visited"],
+                    "transitions": res.summary["transitions"]}
+
+        return self._stage("mdp", {"parent": parent.key}, build)
+
+    def qtables(self, i: int) -> Stage:
+        """Chain seed ``i``'s Q-tables: the ``simlab train`` folder (``q_<goal>.npz``,
+        ``summary.json``, ``curves.png``, ``heatmaps.png``) for every goal."""
+        s = self.s
+        parent = self.mdp(i)
+        occupancy = self.map().path / "map.yaml"
+        seed = chain_seed(self.root_seed, "train", i)
+
+        def build(d: Path) -> dict[str, Any]:
+            from simlab.training.train import train
+
+            res = train(parent.path / "mdp.npz", agent=s.agent, goals="all",
+                        episodes=s.episodes, runs=s.runs, seed=seed, out=d, horizon=s.horizon,
+                        arena=s.arena, occupancy_map=occupancy, overwrite=True,
+                        progress=self.progress)
+            return {"goals": {g.goal: g.as_dict() for g in res.goals},
+                    "train_seconds": res.seconds}
+
+        return self._stage("train", {"parent": parent.key, "agent": s.agent,
+                                     "episodes": s.episodes, "runs": s.runs,
+                                     "horizon": s.horizon, "seed": seed}, build)
