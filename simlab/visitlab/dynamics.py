@@ -36,11 +36,15 @@ depends only on the state the robot observed and its action:
    human's cell along the human's orientation ends (walls stop it; two cells ahead of
    the gaze in the open), with a random orientation (the option does not choose
    one); if that cell is the human's own (human facing a wall) nothing happens.
-5. The human reacts (after the robot, so it sees where the robot now is). Engaged:
-   its gaze tracks the robot (orientation = quantised direction human -> robot);
-   at level 7 it walks toward the robot, along that direction, at a speed drawn
-   from s_H, unless the robot did HELLO, COME or POINTING this step; it stops at
-   walls and before the robot's cell, then looks at the robot again. Not engaged:
+5. The human reacts. Engaged: its gaze tracks the robot (orientation = quantised
+   direction human -> robot, at the robot's new cell); at level 7 it walks toward
+   the robot *as it saw it at the start of the step* — along the direction opposite
+   to the observed angle — at a speed drawn from s_H, unless the robot did HELLO,
+   COME or POINTING this step; it stops at walls and before the robot's (new) cell,
+   then looks at the robot again. (Like the reference implementation, the human
+   reacts with a one-step lag; this also makes the direction it walks a function
+   of the observed state, so the reward is Markov in the social observation.)
+   Not engaged:
    with probability r_H it walks in a uniformly random direction at a speed drawn
    from s_H and faces that direction; then, with probability O_H, it turns to one
    of the 7 *other* orientations uniformly (so O_H is exactly the rate of random
@@ -57,6 +61,11 @@ distance class 1-3.
 
 Navigation step (:func:`nav_step`): the robot moves (no human); reward +1 if the
 new cell lies in the goal room.
+
+Note for developers: the kernels are compiled with ``cache=True`` and numba does
+not track dependencies between files, so after editing this module delete the
+numba cache files (``simlab/visitlab/__pycache__/*.nbi``, ``*.nbc``) or the fused
+loops of :mod:`simlab.visitlab.training` keep running the old dynamics.
 """
 
 from __future__ import annotations
@@ -224,6 +233,8 @@ def social_step(
     elif action == _POINTING:
         if e == 6:
             e = 7
+    # the human walks toward where it saw the robot at the start of the step
+    follow_dir = direction_between(width, st[S_HUMAN], st[S_ROBOT])
     # 4. the robot acts
     if action < 24:
         st[S_ROBOT] = move_action_cell(walls_h, walls_v, st[S_ROBOT], action, st[S_HUMAN])
@@ -240,7 +251,7 @@ def social_step(
     if e >= 5:
         st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
         if e == 7 and not (_HELLO <= action <= _POINTING):
-            d = st[S_HUMAN_ORI]
+            d = follow_dir
             speed = draw_speed(rng, hp)
             new = move(walls_h, walls_v, st[S_HUMAN], d, speed, st[S_ROBOT])
             if new != st[S_HUMAN]:

@@ -275,6 +275,19 @@ def test_level_7_human_follows_the_robot_at_its_speed(speed, rng):
     assert reward == 1.0
 
 
+def test_following_human_walks_toward_where_it_saw_the_robot(rng):
+    # the robot (right of the human) jumps up; the human still walks RIGHT this step
+    # (the direction opposite to the observed angle), then looks at the robot again
+    sim = Sim(human_with())
+    st = scene(sim, 4, engaged=7, req=R)
+    assert sim.obs(st)[3] == L  # observed angle robot -> human
+    reward = sim.step(st, Action.UP3, rng)
+    assert sim.pos(st, dyn.S_ROBOT) == (7, 13)
+    assert sim.pos(st, dyn.S_HUMAN) == (10, 11) and st[dyn.S_HUMAN_MOVE] == R
+    assert reward == 1.0
+    assert st[dyn.S_HUMAN_ORI] == UR  # offset (-3, +2): 56.3 deg
+
+
 def test_following_human_stops_before_the_robot(rng):
     sim = Sim(human_with(speed_probs=(0.0, 0.0, 1.0)))
     st = scene(sim, 4, engaged=7, robot=(10, 12))
