@@ -43,6 +43,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -155,6 +156,45 @@ def weighted_pose_mean(particles: NDArray[np.float64],
     y = float(w @ particles[:, 1])
     yaw = math.atan2(float(w @ np.sin(particles[:, 2])), float(w @ np.cos(particles[:, 2])))
     return np.array([x, y, yaw])
+
+
+@numba.njit(cache=True)
+def _mean_shift(p, w, r2, max_angle, steps):  # pragma: no cover - compiled
+    """Weighted mean of the particles within (sqrt(r2), max_angle) of a centre that starts
+    at the highest-weight particle, iterated ``steps`` times (see ``estimate``)."""
+    centre = p[np.argmax(w)].copy()
+    two_pi = 2.0 * math.pi
+    for _ in range(steps):
+        sw = sx = sy = ss = sc = 0.0
+        for i in range(p.shape[0]):
+            dx = p[i, 0] - centre[0]
+            dy = p[i, 1] - centre[1]
+            da = (p[i, 2] - centre[2] + math.pi) % two_pi - math.pi
+            if dx * dx + dy * dy <= r2 and abs(da) <= max_angle:
+                sw += w[i]
+                sx += w[i] * p[i, 0]
+                sy += w[i] * p[i, 1]
+                ss += w[i] * math.sin(p[i, 2])
+                sc += w[i] * math.cos(p[i, 2])
+        if sw <= 0.0:
+            break
+        centre[0] = sx / sw
+        centre[1] = sy / sw
+        centre[2] = math.atan2(ss, sc)
+    return centre
+
+
+def mean_shift_numpy(p: NDArray[np.float64], w: NDArray[np.float64], r2: float,
+                     max_angle: float, steps: int) -> NDArray[np.float64]:
+    """Plain-numpy reference of the compiled mean shift of :meth:`ParticleFilter.estimate`."""
+    centre = p[int(np.argmax(w))].copy()
+    for _ in range(steps):
+        near = ((p[:, 0] - centre[0]) ** 2 + (p[:, 1] - centre[1]) ** 2 <= r2) & (
+            np.abs(wrap(p[:, 2] - centre[2])) <= max_angle)
+        if not near.any() or w[near].sum() <= 0:
+            break
+        centre = weighted_pose_mean(p[near], w[near])
+    return centre
 
 
 class ParticleFilter:
@@ -320,16 +360,8 @@ class ParticleFilter:
 
     # ------------------------------------------------------------------ estimates
     def _mode_estimate(self, steps: int = 3) -> NDArray[np.float64]:
-        p, w = self.particles, self.weights
-        centre = p[int(np.argmax(w))].copy()
-        r2 = self.params.estimate_radius ** 2
-        for _ in range(steps):
-            near = ((p[:, 0] - centre[0]) ** 2 + (p[:, 1] - centre[1]) ** 2 <= r2) & (
-                np.abs(wrap(p[:, 2] - centre[2])) <= self.params.estimate_angle)
-            if not near.any() or w[near].sum() <= 0:
-                break
-            centre = weighted_pose_mean(p[near], w[near])
-        return centre
+        return _mean_shift(self.particles, self.weights, self.params.estimate_radius ** 2,
+                           self.params.estimate_angle, steps)
 
     def estimate(self) -> NDArray[np.float64]:
         """Pose estimate ``(3,)`` (x, y, yaw): the strongest mode at the last update, moved
