@@ -31,7 +31,8 @@ from (its simulated hours over its transitions); the replay reports the predicti
 its own measured pace too, which isolates the error of the transition model.
 
 :func:`expected_cumulative_reward` gives the finite-horizon expectation
-``sum_{t<n} mu0 P^t r`` (the transient from the start included) for the curve.
+``sum_{t<n} mu0 P^t r`` (the transient from the start included); the replay reports it
+for its own number of transitions next to the long-run rate.
 """
 
 from __future__ import annotations
@@ -178,6 +179,12 @@ class RatePrediction:
         n_closed_classes: closed classes of the joint chain reachable from the start
             (1 for a well-connected MDP; more means the long-run rate depends on luck).
         transitions_per_goal: expected transitions between two goals reached (1 / rho).
+        horizon: transitions of the finite-horizon expectation (None if not asked).
+        expected_rewards: expected cumulative reward over the first ``horizon``
+            transitions from the start (:func:`expected_cumulative_reward`); differs from
+            ``horizon * rho`` by the transient from the start, and a lot when the chain
+            can fall into a rewardless closed class (e.g. states whose actions were never
+            tried in the dataset, self-loops by the estimator's rule).
     """
 
     reward_per_transition: float
@@ -185,9 +192,11 @@ class RatePrediction:
     rate_per_hour: float
     n_closed_classes: int
     transitions_per_goal: float
+    horizon: int | None = None
+    expected_rewards: float | None = None
 
     def as_dict(self) -> dict[str, float | int | None]:
-        return {
+        out: dict[str, float | int | None] = {
             "reward_per_transition": self.reward_per_transition,
             "seconds_per_transition": self.seconds_per_transition,
             "rate_per_hour": self.rate_per_hour,
@@ -195,6 +204,10 @@ class RatePrediction:
             "transitions_per_goal": None if not np.isfinite(self.transitions_per_goal)
             else self.transitions_per_goal,
         }
+        if self.horizon is not None:
+            out["horizon_transitions"] = self.horizon
+            out["expected_rewards_over_horizon"] = self.expected_rewards
+        return out
 
 
 def start_distribution(n_goals: int, n_states: int, start_state: int,
@@ -210,11 +223,13 @@ def start_distribution(n_goals: int, n_states: int, start_state: int,
 
 def predict_reward_rate(T: NDArray[np.float64], goal_masks: NDArray[np.bool_],
                         policies: NDArray[np.float64], start_state: int,
-                        seconds_per_transition: float) -> RatePrediction:
+                        seconds_per_transition: float,
+                        horizon: int | None = None) -> RatePrediction:
     """Long-run reward per transition and per hour (see the module docstring).
 
     ``policies`` ``(G, S, A)``: e.g. ``greedy_policy_matrix`` of each goal's Q-table, or
-    :func:`uniform_policy_matrix` repeated for the random policy.
+    :func:`uniform_policy_matrix` repeated for the random policy. With ``horizon``, also
+    the expected cumulative reward of the first ``horizon`` transitions.
     """
     if not (np.isfinite(seconds_per_transition) and seconds_per_transition > 0):
         raise ConfigError(f"expected a time > 0 s, got {seconds_per_transition!r}",
@@ -236,12 +251,17 @@ def predict_reward_rate(T: NDArray[np.float64], goal_masks: NDArray[np.bool_],
         members = labels == c
         if not np.any(chain.P[np.ix_(members, ~members)] > 0):
             closed += 1
+    expected = None
+    if horizon is not None:
+        expected = float(expected_cumulative_reward(chain.P, chain.r, mu0, int(horizon))[-1])
     return RatePrediction(
         reward_per_transition=rho,
         seconds_per_transition=float(seconds_per_transition),
         rate_per_hour=3600.0 * rho / float(seconds_per_transition),
         n_closed_classes=closed,
         transitions_per_goal=1.0 / rho if rho > 0 else float("inf"),
+        horizon=None if horizon is None else int(horizon),
+        expected_rewards=expected,
     )
 
 

@@ -56,7 +56,9 @@ Decisions where the thesis is silent:
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
 
-Outputs in ``out``: ``replay.json`` (summary), ``cumulative_reward.png`` (Fig. 4.10:
+Outputs in ``out``: ``replay.json`` (summary; the headline numbers also flat at its top
+level: ``reward_rate_per_hour``, ``random_rate_per_hour``, ``predicted_rate_per_hour``,
+``position_error_mean_m`` of a non-truth pose source), ``cumulative_reward.png`` (Fig. 4.10:
 learned policy, random policy, MDP-predicted rates), ``transitions.parquet`` (one row per
 transition), ``localization.parquet`` (one row per filter update, ``mcl`` only),
 ``replay.gif`` (and ``replay.mp4`` if imageio-ffmpeg is installed) with ``video=True``.
@@ -729,13 +731,24 @@ def replay(
         for name, pol in pols.items():
             if pace is None:
                 continue
-            pred = predict_reward_rate(model.T, goal_masks, pol, start_state, pace).as_dict()
+            horizon = result["transitions"] if name == policy else None
+            pred = predict_reward_rate(model.T, goal_masks, pol, start_state, pace,
+                                       horizon=horizon).as_dict()
             if measured_pace:
                 pred["rate_per_hour_at_replay_pace"] = (
                     3600.0 * pred["reward_per_transition"] / measured_pace)
             prediction[name] = pred
         summary["prediction"] = prediction
     summary["comparison"] = _comparison(summary, policy)
+    # Flat headline numbers (what reports such as ``simlab pipeline``'s read).
+    comp = summary["comparison"]
+    summary["reward_rate_per_hour"] = result["rate_per_hour"]
+    for key in ("random_rate_per_hour", "predicted_rate_per_hour"):
+        if comp.get(key) is not None:
+            summary[key] = comp[key]
+    if pose_source != "truth":
+        loc = summary["localization"][pose_source]["at_decisions"]
+        summary["position_error_mean_m"] = loc.get("position_mean_m")
     summary["files"] = {k: str(v) for k, v in files.items()}
 
     # ---- outputs
@@ -766,6 +779,15 @@ def _comparison(summary: dict[str, Any], policy: str) -> dict[str, Any]:
         per_tr = summary["result"]["reward_per_transition"]
         q = pred["reward_per_transition"]
         out["reward_per_transition_measured_over_predicted"] = per_tr / q if q else None
+        e = pred.get("expected_rewards_over_horizon")
+        if e is not None:
+            out["rewards_measured_over_expected_over_horizon"] = (
+                summary["result"]["rewards"] / e if e > 0 else None)
+        if pred["n_closed_classes"] > 1:
+            out["warning"] = (f"the MDP's chain has {pred['n_closed_classes']} closed classes "
+                              "reachable from the start: its long-run rate depends on which "
+                              "one the robot falls into (often states whose actions the "
+                              "dataset never tried); collect more data")
     return out
 
 

@@ -74,6 +74,10 @@ def test_a_trap_weights_the_gain_by_the_absorption_probability() -> None:
     assert pred.reward_per_transition == pytest.approx(q, abs=1e-12)
     # Closed classes: the trap under goal A, the trap under goal B, the rewarding cycle.
     assert pred.n_closed_classes == 3
+    # Over 10 transitions: the first step rewards only from goal A (prob q / 2); escaping
+    # the trap (prob q), each of the 9 later ones rewards.
+    finite = predict_reward_rate(T, masks, policy, 0, 1.0, horizon=10)
+    assert finite.expected_rewards == pytest.approx(q / 2 + 9 * q)
 
 
 def _random_mdp(rng: np.random.Generator, S: int = 12, A: int = 4, G: int = 3):
@@ -106,6 +110,8 @@ def test_gain_equals_the_cesaro_limit_of_the_expected_cumulative_reward() -> Non
     # error shrinks like 1/n.
     assert abs(curve[-1] / n - rho) < 5.0 / n
     assert np.all(np.diff(curve) >= 0)
+    pred = predict_reward_rate(T, masks, pol, 5, 1.0, horizon=n)
+    assert pred.expected_rewards == pytest.approx(curve[-1])
 
 
 def test_monte_carlo_replay_in_the_mdp_agrees_with_the_exact_rate() -> None:

@@ -31,6 +31,13 @@ def test_outputs_and_summary(truth_run) -> None:
     table = pq.read_table(files["transitions"])
     assert table.num_rows == summary["result"]["transitions"] == truth_run.run.log.n
     assert summary["prediction"]["pace_source"] == "dataset"
+    assert summary["reward_rate_per_hour"] == summary["result"]["rate_per_hour"]
+    assert summary["random_rate_per_hour"] == summary["random_baseline"]["rate_per_hour"]
+    assert summary["predicted_rate_per_hour"] == summary["prediction"]["greedy"]["rate_per_hour"]
+    assert "position_error_mean_m" not in summary  # truth poses
+    greedy = summary["prediction"]["greedy"]
+    assert greedy["horizon_transitions"] == summary["result"]["transitions"]
+    assert 0 < greedy["expected_rewards_over_horizon"] <= greedy["horizon_transitions"]
     assert summary["primitive_params_source"] == "default"  # kinematic model: no primitives
 
 
@@ -78,6 +85,7 @@ def test_mcl_replay_localizes_within_5_cm(chain, tmp_path) -> None:
                  out=tmp_path / "mcl", progress=False, baseline_hours=0)
     loc = res.summary["localization"]
     assert loc["mcl"]["at_decisions"]["position_mean_m"] < 0.05
+    assert res.summary["position_error_mean_m"] == loc["mcl"]["at_decisions"]["position_mean_m"]
     assert loc["mcl"]["updates"]["n"] > 100
     assert "odometry" in loc
     table = pq.read_table(res.files["localization"])
