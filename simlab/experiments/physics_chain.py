@@ -181,8 +181,10 @@ class PhysicsChain:
 
     # ------------------------------------------------------------------ machinery
 
-    def _stage(self, stage: str, key: Mapping[str, Any], build: Callable[[Path], dict[str, Any]]
-               ) -> Stage:
+    def cached_stage(self, stage: str, key: Mapping[str, Any],
+                     build: Callable[[Path], dict[str, Any]]) -> Stage:
+        """The folder of ``stage`` for ``key``: found complete in the cache, or made by
+        ``build(folder) -> summary`` (JSON-ready numbers recorded in ``_stage.json``)."""
         from simlab import __version__
 
         full_key = {"stage": stage, "simlab": __version__, **key}
@@ -195,7 +197,6 @@ class PhysicsChain:
             if marker.exists():
                 rec = json.loads(marker.read_text())
                 st = Stage(d, digest, rec["summary"], False, 0.0)
-                self._log(f"{stage}: reused from the cache ({d.name})")
             else:
                 if d.exists():  # an interrupted build
                     shutil.rmtree(d)
@@ -230,8 +231,8 @@ class PhysicsChain:
             return {"wall_correct": run.accuracy.wall_correct,
                     "free_correct": run.accuracy.free_correct, "scans": run.n_scans}
 
-        return self._stage("map", {"arena": s.arena, "minutes": s.map_minutes,
-                                   "resolution": s.map_resolution, "seed": seed}, build)
+        return self.cached_stage("map", {"arena": s.arena, "minutes": s.map_minutes,
+                                         "resolution": s.map_resolution, "seed": seed}, build)
 
     def states(self) -> Stage:
         """Voronoi states on the map (``states.json``, ``states.png``)."""
@@ -246,7 +247,7 @@ class PhysicsChain:
             return {"n_states": int(res.discretizer.n_states),
                     "hash": res.discretizer.content_hash()}
 
-        return self._stage("states", {"parent": parent.key, "states": self.s.states}, build)
+        return self.cached_stage("states", {"parent": parent.key, "states": self.s.states}, build)
 
     def dataset(self, i: int) -> Stage:
         """Chain seed ``i``'s random-walk dataset (``data/``)."""
@@ -263,8 +264,8 @@ class PhysicsChain:
             return {"transitions": res.transitions, "simulated_hours": res.simulated_hours,
                     "collect_wall_seconds": res.wall_seconds}
 
-        return self._stage("dataset", {"parent": parent.key, "hours": s.hours,
-                                       "workers": s.workers, "seed": seed}, build)
+        return self.cached_stage("dataset", {"parent": parent.key, "hours": s.hours,
+                                             "workers": s.workers, "seed": seed}, build)
 
     def mdp(self, i: int) -> Stage:
         """Chain seed ``i``'s empirical MDP (``mdp.npz``, ``mdp.json``, entropy plot)."""
@@ -279,7 +280,7 @@ class PhysicsChain:
                     "fraction_visited": res.summary["coverage"]["fraction_visited"],
                     "transitions": res.summary["transitions"]}
 
-        return self._stage("mdp", {"parent": parent.key}, build)
+        return self.cached_stage("mdp", {"parent": parent.key}, build)
 
     def qtables(self, i: int) -> Stage:
         """Chain seed ``i``'s Q-tables: the ``simlab train`` folder (``q_<goal>.npz``,
@@ -299,6 +300,6 @@ class PhysicsChain:
             return {"goals": {g.goal: g.as_dict() for g in res.goals},
                     "train_seconds": res.seconds}
 
-        return self._stage("train", {"parent": parent.key, "agent": s.agent,
-                                     "episodes": s.episodes, "runs": s.runs,
-                                     "horizon": s.horizon, "seed": seed}, build)
+        return self.cached_stage("train", {"parent": parent.key, "agent": s.agent,
+                                           "episodes": s.episodes, "runs": s.runs,
+                                           "horizon": s.horizon, "seed": seed}, build)
