@@ -136,7 +136,7 @@ def _as_float(v: Any) -> float | None:
 
 
 def _num(v: Any) -> str:
-    """A number for people: integers as such, otherwise 3 significant digits."""
+    """A number for people: integers as such, otherwise 4 significant digits."""
     if isinstance(v, bool) or v is None or isinstance(v, str):
         return str(v)
     f = float(v)
@@ -148,7 +148,7 @@ def _num(v: Any) -> str:
         return f"{int(f):,}" if abs(f) >= 10000 else str(int(f))
     if abs(f) >= 1000:
         return f"{f:,.0f}"
-    return f"{f:.3g}"
+    return f"{f:.4g}"
 
 
 @dataclass(frozen=True)
