@@ -118,10 +118,7 @@ class RayExecutor:
             ray.init(include_dashboard=False)
             self._owns = True
         self._remote = ray.remote(num_cpus=1)(_call)
-
-    @property
-    def workers(self) -> int:
-        return int(self._ray.cluster_resources().get("CPU", 1))
+        self.workers = int(ray.cluster_resources().get("CPU", 1))
 
     def map(self, fn: Callable[..., Any], kwargs_list: Sequence[dict[str, Any]], *,
             desc: str | None = None, progress: bool = False) -> list[Any]:

@@ -169,3 +169,65 @@ def test_cli_end_to_end_and_errors(tmp_path, capsys):
     assert main(["reproduce", "--list", "--experiments", str(EXAMPLE)]) == 0
     assert "example_coin" in capsys.readouterr().out
     shutil.rmtree(out)
+
+
+class _FakeRay:
+    """Just enough of the ``ray`` module to run RayExecutor in-process."""
+
+    def __init__(self):
+        self.up = False
+        self.calls = []
+
+    def is_initialized(self):
+        return self.up
+
+    def init(self, **kwargs):
+        self.calls.append(("init", kwargs))
+        self.up = True
+
+    def shutdown(self):
+        self.calls.append(("shutdown", {}))
+        self.up = False
+
+    def cluster_resources(self):
+        if not self.up:
+            raise RuntimeError("Ray has not been started yet")
+        return {"CPU": 3.0}
+
+    def remote(self, **_options):
+        class _Remote:
+            def __init__(self, fn):
+                self.fn = fn
+
+            def remote(self, *args):
+                return self.fn(*args)
+
+        return _Remote
+
+    def put(self, obj):
+        return obj
+
+    def wait(self, refs, num_returns=1):
+        return refs[:num_returns], refs[num_returns:]
+
+    def get(self, refs):
+        return refs
+
+
+def test_ray_executor_owns_only_the_runtime_it_started(tmp_path, monkeypatch):
+    import sys
+
+    fake = _FakeRay()
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    res = reproduce(tmp_path / "a", experiments=EXAMPLE, backend="ray", progress=False, log=None)
+    assert res.backend == "ray (3 CPUs)"  # described after the runtime was shut down
+    assert [c[0] for c in fake.calls] == ["init", "shutdown"]
+    local = reproduce(tmp_path / "b", experiments=EXAMPLE, workers=1, progress=False, log=None)
+    assert res.entry("example_coin")["metrics"] == local.entry("example_coin")["metrics"]
+    fake.calls.clear()
+    fake.up = True  # a runtime the caller started: reused, left running
+    reproduce(tmp_path / "c", experiments=EXAMPLE, backend="ray", progress=False, log=None)
+    assert fake.calls == [] and fake.up
+    with pytest.raises(ConfigError) as err:
+        make_executor("ray", address="ray://head:10001")
+    assert err.value.key == "address"
