@@ -213,9 +213,16 @@ def reproduce(
                           fix=f"choose one of {', '.join(BUDGETS)}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
-    specs = select(discover_experiments(experiments, resolve_runner=True), only)
+    specs = select(discover_experiments(experiments), only)
     if not specs:
         raise ConfigError("no experiment files found", path=experiments, key="experiments")
+    from simlab.experiments.registry import get_runner
+
+    for spec in specs:  # only the selected ones: a broken group must not block the others
+        try:
+            get_runner(spec.runner)
+        except ConfigError as exc:
+            raise ConfigError(exc.problem, path=spec.path, key="runner", fix=exc.fix) from None
     out = Path(out)
     _check_outputs(out, specs, overwrite)
     previous = _read_previous(out / RESULTS_JSON)

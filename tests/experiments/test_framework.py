@@ -231,3 +231,17 @@ def test_ray_executor_owns_only_the_runtime_it_started(tmp_path, monkeypatch):
     with pytest.raises(ConfigError) as err:
         make_executor("ray", address="ray://head:10001")
     assert err.value.key == "address"
+
+
+def test_unknown_runner_stops_before_anything_runs_unless_not_selected(tmp_path):
+    d = tmp_path / "exps"
+    d.mkdir()
+    shutil.copy(EXAMPLE, d / "example.toml")
+    bad = _toml(d, "zz_bad", "example.nosuch")
+    with pytest.raises(ConfigError) as err:
+        reproduce(tmp_path / "out", experiments=d, workers=1, progress=False, log=None)
+    assert err.value.path == str(bad) and err.value.key == "runner"
+    assert not (tmp_path / "out").exists()
+    res = reproduce(tmp_path / "out", experiments=d, only="example_coin", workers=1,
+                    progress=False, log=None)
+    assert [e["name"] for e in res.entries] == ["example_coin"]
