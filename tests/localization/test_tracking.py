@@ -109,3 +109,18 @@ def test_mcl_pose_source_records_localized_poses(tmp_path) -> None:
     assert len(err) == 30
     assert err.mean() < 0.05
     assert not np.array_equal(ds.column("x_next"), ds.column("x_next_true"))
+
+
+def test_global_localization_in_an_asymmetric_arena(asym_arena_path) -> None:
+    with World(asym_arena_path) as world:
+        tracker = MCLTracker(arena_map(world.arena), np.random.default_rng(5),
+                             MCLParams(n_particles=3000), initial_pose=None,
+                             odometry=world.odometry())
+        first = tracker.filter.spread()[0]
+        for _ in _drive(world, tracker, 60, seed=6):  # about a minute of primitives
+            pass
+    log = tracker.log()
+    assert first > 0.3  # the cloud started spread over the whole table
+    late = log.t >= log.t[-1] - 30.0
+    assert log.position_error[late].max() < 0.10
+    assert tracker.filter.spread()[0] < 0.05
