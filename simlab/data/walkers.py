@@ -212,7 +212,8 @@ class PhysicsWalker:
         self.source.reset(self.world, source_rng)
 
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
-        res = self._execute(self.world, action, rng, self.params, on_scan=self._on_scan)
+        res = self._execute(self.world, action, rng, self.params, on_scan=self._on_scan,
+                            scan_beams=getattr(self.source, "scan_beams", None))
         before, after = self.source.poses(res)
         return StepOutcome(
             blocked=bool(res.blocked),

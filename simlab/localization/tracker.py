@@ -219,10 +219,13 @@ class MCLPoseSource:
         self.initial_cov = np.diag(np.square(np.asarray(initial_std, dtype=np.float64)))
         self.tracker: MCLTracker | None = None
         self._before: NDArray[np.float64] | None = None
+        #: beam indices the filter reads; the walker casts only these (None before reset)
+        self.scan_beams: NDArray[np.int64] | None = None
 
     def reset(self, world: Any, rng: np.random.Generator) -> None:
         self.tracker = MCLTracker(self.field, rng, self.params, initial_pose=world.pose(),
                                   initial_cov=self.initial_cov, odometry=world.odometry())
+        self.scan_beams = self.tracker.filter.beam_subset(world.lidar_spec.n_beams)
         self._before = self.tracker.pose()
 
     def on_scan(self, scan: Any, odom: NDArray[np.float64]) -> None:

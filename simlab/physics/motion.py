@@ -204,17 +204,27 @@ def _cone_beams(n_beams: int, half_angle: float) -> NDArray[np.int64]:
     return np.flatnonzero(np.abs(wrap_angle(angles)) <= half_angle + 1e-9)
 
 
-class _Stepper:
-    """Steps a world, firing the scan callback at the LIDAR rate of simulated time."""
+class ScanStepper:
+    """Steps a world, calling ``on_scan(scan, odometry_pose)`` at the LIDAR rate.
 
-    def __init__(self, world: World, rng: np.random.Generator, on_scan: ScanCallback | None):
+    Scans are due every ``1 / rate_hz`` seconds of simulated time from the stepper's
+    creation; ``beams`` restricts each cast to those beam indices (None: all), for
+    consumers that read only a few (a particle filter's 40 beams). Used by the primitives
+    and by any other controlled motion that must keep a localizer fed (the replay's
+    return to the start pose).
+    """
+
+    def __init__(self, world: World, rng: np.random.Generator, on_scan: ScanCallback | None,
+                 beams: NDArray[np.int64] | None = None):
         self.world = world
         self.rng = rng
         self.on_scan = on_scan
+        self.beams = beams
         self.period = 1.0 / world.lidar_spec.rate_hz
         self.next_scan = world.time + self.period
 
     def advance(self, seconds: float) -> None:
+        """Step ``seconds`` (rounded to whole physics steps, at least one)."""
         w = self.world
         n = max(1, round(seconds * w.physics_hz))
         if self.on_scan is None:
@@ -226,7 +236,7 @@ class _Stepper:
             w.step(k)
             n -= k
             if w.time >= self.next_scan - 1e-9:
-                self.on_scan(w.scan(self.rng), w.odometry())
+                self.on_scan(w.scan(self.rng, beams=self.beams), w.odometry())
                 self.next_scan += self.period
 
 
@@ -236,17 +246,19 @@ def execute_primitive(
     rng: np.random.Generator,
     params: PrimitiveParams | None = None,
     on_scan: ScanCallback | None = None,
+    scan_beams: NDArray[np.int64] | None = None,
 ) -> PrimitiveResult:
     """Run one primitive (rotate, check, drive, brake) in ``world``; see the module doc.
 
     ``rng`` draws the LIDAR noise. ``on_scan(scan, odometry_pose)`` is called at the LIDAR
-    rate while the primitive runs, if given.
+    rate while the primitive runs, if given, with scans of the ``scan_beams`` beam indices
+    (None: all 360).
     """
     p = params or PrimitiveParams()
     _speed, direction = decode_action(action)
     target = float(HEADINGS[direction])
     drive = world.drive
-    stepper = _Stepper(world, rng, on_scan)
+    stepper = ScanStepper(world, rng, on_scan, scan_beams)
     t0 = world.time
     pose_before = world.pose()
     odom_before = world.odometry()

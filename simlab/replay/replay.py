@@ -201,41 +201,19 @@ def _recurs(history: list[tuple[float, float, int]], pose: NDArray[np.float64], 
 # --------------------------------------------------------------------------------------
 
 
-class _ScanStepper:
-    """Steps a world and fires a scan callback at the LIDAR rate of simulated time."""
-
-    def __init__(self, world: Any, rng: np.random.Generator,
-                 on_scan: Callable[[Any, NDArray[np.float64]], None] | None) -> None:
-        self.world, self.rng, self.on_scan = world, rng, on_scan
-        self.period = 1.0 / world.lidar_spec.rate_hz
-        self.next_scan = world.time + self.period
-
-    def advance(self, seconds: float) -> None:
-        w = self.world
-        n = max(1, round(seconds * w.physics_hz))
-        while n > 0:
-            due = max(1, math.ceil((self.next_scan - w.time) * w.physics_hz - 1e-9))
-            k = min(n, due)
-            w.step(k)
-            n -= k
-            if w.time >= self.next_scan - 1e-9:
-                if self.on_scan is not None:
-                    self.on_scan(w.scan(self.rng), w.odometry())
-                self.next_scan += self.period
-
-
 def drive_to_pose(world: Any, target: NDArray[np.float64],
                   pose_fn: Callable[[], NDArray[np.float64]], rng: np.random.Generator,
                   on_scan: Callable[[Any, NDArray[np.float64]], None] | None = None, *,
-                  speed: float = 0.11, position_tolerance: float = 0.03,
+                  scan_beams: NDArray[np.int64] | None = None, speed: float = 0.11, position_tolerance: float = 0.03,
                   heading_tolerance: float = 0.05, timeout: float = 60.0) -> float:
     """Drive back to ``target`` (x, y, yaw) steering by ``pose_fn``: turn to face it, drive
     straight (proportional heading hold), turn to its yaw. No obstacle check (the table
     is convex). Returns the stepped seconds; gives up after ``timeout`` s."""
     from simlab.localization.motion import wrap
+    from simlab.physics.motion import ScanStepper
 
     t0 = world.time
-    stepper = _ScanStepper(world, rng, on_scan)
+    stepper = ScanStepper(world, rng, on_scan, scan_beams)
     drive = world.drive
     w_max = world.robot_spec.w_max
     dt = 0.1
@@ -319,11 +297,14 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
     with World(spec.arena) as world:
         tracker = None
         on_scan = None
+        scan_beams = None
         if spec.pose_source == "mcl":
             tracker = MCLTracker(spec.mcl_field, loc_rng, spec.mcl_params,
                                  initial_pose=np.asarray(spec.arena.start, dtype=np.float64),
                                  odometry=world.odometry())
             on_scan = tracker.on_scan
+            # cast only the beams the filter reads (40 of 360): half the replay's time
+            scan_beams = tracker.filter.beam_subset(world.lidar_spec.n_beams)
 
         def pose_now(odom: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
             if spec.pose_source == "truth":
@@ -355,7 +336,8 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
                     escapes += 1
             history.append((est[0], est[1], a))
             truth_before = world.pose()
-            res = execute_primitive(world, a, noise_rng, params, on_scan=on_scan)
+            res = execute_primitive(world, a, noise_rng, params, on_scan=on_scan,
+                                    scan_beams=scan_beams)
             est_after = pose_now(res.odom_after)
             s_next = int(disc.state_of(est_after[:2]))
             reward = int(spec.goal_masks[goal, s_next])
@@ -385,7 +367,8 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
                 if G > 1:
                     goal = int((goal + 1 + goal_rng.integers(0, G - 1)) % G)
                 if spec.return_to_start:
-                    drive_to_pose(world, start, pose_now, noise_rng, on_scan)
+                    drive_to_pose(world, start, pose_now, noise_rng, on_scan,
+                                  scan_beams=scan_beams)
                     returns += 1
                     est = pose_now()
                     s = int(disc.state_of(est[:2]))
