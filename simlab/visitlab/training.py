@@ -19,8 +19,9 @@ registry presets, :func:`loop_agent_config` applies the settings of a variant:
   ``{"q_init": None}`` to get it back); R-max keeps its optimistic start;
 * ``thesis`` — model-based planning every 10,000 steps with at most 50 sweeps
   (thesis Fig. 4.1 caption);
-* ``paper`` — Q-learning alpha 0.5, planning every 1000 steps, R-max m = 5 on the
-  social task (m = 1 otherwise).
+* ``paper`` — Q-learning alpha 0.5, one value-iteration sweep every 1000 steps,
+  R-max m = 5 on the social task (m = 1 otherwise; the registry's R-max already
+  plans like the paper: one sweep every 1000 steps).
 
 then the caller's overrides (registry keys, ``"actor.plan_every"`` for nested ones).
 
@@ -90,8 +91,8 @@ def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",
     if isinstance(preset, ModelBasedConfig | PassiveObserverConfig):
         if variant == "thesis":
             changes.update({f"{prefix}plan_every": 10_000, f"{prefix}max_sweeps": 50})
-        else:
-            changes[f"{prefix}plan_every"] = 1000
+        else:  # "one VI sweep every 1000 steps"
+            changes.update({f"{prefix}plan_every": 1000, f"{prefix}max_sweeps": 1})
     if variant == "paper":
         if isinstance(preset, QLearningConfig):
             changes["alpha"] = 0.5

@@ -156,6 +156,7 @@ def test_smoothing_and_summary_are_exact_on_a_known_curve():
 def test_variant_settings_and_validation():
     assert loop_agent_config("mb-egreedy").plan_every == 10_000
     assert loop_agent_config("mb-egreedy", variant="paper").plan_every == 1000
+    assert loop_agent_config("vi-softmax", variant="paper").max_sweeps == 1
     assert loop_agent_config("rmax", "social", "paper").m == 5
     assert loop_agent_config("rmax", "nav", "paper").m == 1
     assert loop_agent_config("q-learning", variant="paper").alpha == 0.5
