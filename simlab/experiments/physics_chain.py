@@ -11,10 +11,14 @@ simlab version. So Fig. 4.9 reuses the 10-hour dataset Fig. 4.8 collected when t
 settings agree (the three TOMLs keep them equal; a test checks it), and a second
 ``simlab reproduce`` into the same folder reuses the whole chain.
 
+The key also holds :func:`code_fingerprint`, a hash of the source of every package the
+chain runs (physics, mapping, discretizer, data, agents, training, envs) and of the
+robot and arena files: after a change to that code a stage is rebuilt, never silently
+reused (folders of older code stay in the cache until ``DIR/_cache`` is deleted).
+
 A stage folder is complete when its ``_stage.json`` exists (written last, atomically);
 a folder without it (an interrupted build) is deleted and rebuilt. A lock file per
 stage (``fcntl.flock``) keeps two processes from building the same stage at once.
-Delete ``DIR/_cache`` after changing simlab's physics code without changing its version.
 
 Seeds: stage ``k`` of chain seed ``i`` uses the integer
 ``SeedSequence(root_seed, spawn_key=(PHYSICS_SPAWN_KEY, k, i)).generate_state(1)[0]``:
@@ -130,6 +134,35 @@ class PhysicsSettings:
         return cls(**{k: values[k] for k in names})
 
 
+_FINGERPRINT: list[str] = []
+
+
+def code_fingerprint() -> str:
+    """sha256 (16 hex digits) of the files the physics chain's results depend on: the
+    ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.mapping``, ``discretize``,
+    ``simlab.agents``, ``simlab.training``, ``simlab.envs`` and the robot and arena assets.
+    Computed once per process."""
+    if _FINGERPRINT:
+        return _FINGERPRINT[0]
+    import discretize
+    import simlab
+    from simlab.assets import asset_dir
+
+    pkg = Path(simlab.__file__).resolve().parent
+    roots = [pkg / "physics", pkg / "data", pkg / "mapping.py", pkg / "agents",
+             pkg / "training", pkg / "envs", Path(discretize.__file__).resolve().parent,
+             asset_dir("robots"), asset_dir("arenas")]
+    h = hashlib.sha256()
+    for root in roots:
+        files = [root] if root.is_file() else sorted(
+            p for p in root.rglob("*") if p.is_file() and p.suffix in (".py", ".urdf", ".toml"))
+        for f in files:
+            h.update(f"{root.name}/{f.relative_to(root.parent).as_posix()}\0".encode())
+            h.update(f.read_bytes())
+    _FINGERPRINT.append(h.hexdigest()[:16])
+    return _FINGERPRINT[0]
+
+
 def chain_seed(root_seed: int, stage: str, i: int) -> int:
     """The integer seed of ``stage`` for chain seed ``i`` (module docstring)."""
     seq = np.random.SeedSequence(int(root_seed),
@@ -187,7 +220,7 @@ class PhysicsChain:
         ``build(folder) -> summary`` (JSON-ready numbers recorded in ``_stage.json``)."""
         from simlab import __version__
 
-        full_key = {"stage": stage, "simlab": __version__, **key}
+        full_key = {"stage": stage, "simlab": __version__, "code": code_fingerprint(), **key}
         digest = hashlib.sha256(json.dumps(full_key, sort_keys=True).encode()).hexdigest()[:16]
         d = self.root / f"{stage}-{digest}"
         if d.name in self._built:

@@ -78,6 +78,19 @@ def test_stage_cache_builds_once_and_rebuilds_an_interrupted_stage(tmp_path):
     assert json.loads((d.path / MARKER).read_text())["key"]["k"] == 1
 
 
+def test_stage_cache_is_rebuilt_when_the_code_changes(tmp_path, monkeypatch):
+    import simlab.experiments.physics_chain as pc
+
+    def build(d):
+        return {}
+
+    a = PhysicsChain(tmp_path, PhysicsSettings(), 0).cached_stage("toy", {"k": 1}, build)
+    assert json.loads((a.path / MARKER).read_text())["key"]["code"] == pc.code_fingerprint()
+    monkeypatch.setattr(pc, "code_fingerprint", lambda: "edited-physics")
+    b = PhysicsChain(tmp_path, PhysicsSettings(), 0).cached_stage("toy", {"k": 1}, build)
+    assert b.built and b.path != a.path
+
+
 def test_paired_entropy_difference_on_known_arrays():
     rng = np.random.default_rng(0)
     S = 6
