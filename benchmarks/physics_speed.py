@@ -26,7 +26,7 @@ def bare(seconds: float) -> tuple[float, float]:
     with World("table") as world:
         world.reset((0.0, -0.3, 0.0))
         world.drive.command(0.15, 0.5)  # a 0.3 m circle inside the table
-        world.step(240)
+        world.step(round(world.physics_hz))
         n = round(seconds * world.physics_hz)
         step = world.client.stepSimulation
         t = time.perf_counter()

@@ -46,7 +46,7 @@ class TableArenaEnv(gym.Env):
         max_steps: int = 50,
         params: PrimitiveParams | None = None,
         render_mode: str | None = None,
-        physics_hz: float = 240.0,
+        physics_hz: float = 200.0,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, "

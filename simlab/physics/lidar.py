@@ -94,7 +94,7 @@ class Lidar:
 
     def __init__(self, client, body: int, offset: tuple[float, float, float],
                  spec: LidarSpec | None = None) -> None:
-        self._c = client
+        self._ray_batch = client.rayTestBatch  # bound once (hot path)
         self.body = body
         self.spec = spec or LidarSpec()
         self.offset = np.asarray(offset, dtype=float)
@@ -118,7 +118,7 @@ class Lidar:
         dirs = local @ link_rot.T
         starts = origin + spec.range_min * dirs
         ends = origin + spec.range_max * dirs
-        results = self._c.rayTestBatch(starts.tolist(), ends.tolist())
+        results = self._ray_batch(starts.tolist(), ends.tolist())
         hit_ids = np.fromiter((h[0] for h in results), dtype=np.int64, count=len(results))
         frac = np.fromiter((h[2] for h in results), dtype=np.float64, count=len(results))
         ranges = spec.range_min + frac * self._span

@@ -210,7 +210,6 @@ class DiffDrive:
     """
 
     def __init__(self, client, body: int, spec: RobotSpec, pose: NDArray[np.float64]) -> None:
-        self._c = client
         self.body = body
         self.spec = spec
         names = {client.getJointInfo(body, j)[1].decode(): j for j in range(client.getNumJoints(body))}
@@ -221,6 +220,8 @@ class DiffDrive:
         for j in names.values():
             client.setJointMotorControl2(body, j, pybullet.VELOCITY_CONTROL, force=0.0)
         self.commanded = (0.0, 0.0)
+        self._set_motors = client.setJointMotorControlArray  # bound once (hot path)
+        self._joint_states = client.getJointStates
         self._odometry = WheelOdometry(spec, pose, self.wheel_angles())
 
     def saturate(self, v: float, w: float) -> tuple[float, float]:
@@ -243,7 +244,7 @@ class DiffDrive:
         self._odometry.update(self.wheel_angles())
         half = 0.5 * self.spec.wheel_separation
         r = self.spec.wheel_radius
-        self._c.setJointMotorControlArray(
+        self._set_motors(
             self.body, self._joints, pybullet.VELOCITY_CONTROL,
             targetVelocities=[(v - w * half) / r, (v + w * half) / r],
             forces=[self.spec.wheel_torque_limit] * 2,
@@ -257,5 +258,5 @@ class DiffDrive:
 
     def wheel_angles(self) -> tuple[float, float]:
         """Accumulated wheel joint angles (rad), left then right."""
-        states = self._c.getJointStates(self.body, self._joints)
+        states = self._joint_states(self.body, self._joints)
         return states[0][0], states[1][0]
