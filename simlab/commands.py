@@ -22,6 +22,7 @@ _FUNCTIONS: dict[str, str] = {
     "train": "simlab.training.train:train",
     "replay": "simlab.replay.replay:replay",
     "pipeline": "simlab.pipeline:pipeline",
+    "visitlab_train": "simlab.visitlab.training:train",
     "reproduce": "simlab.experiments.reproduce:reproduce",
 }
 
