@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "Collect a random-walk transition dataset (Parquet parts + manifest)."
+HELP = "collect a random-walk transition dataset (Parquet parts + manifest)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

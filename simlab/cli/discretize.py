@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "Place Voronoi state centres on a map_server map and save them as JSON (and a figure)."
+HELP = "place Voronoi state centres on a map_server map and save them as JSON (and a figure)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

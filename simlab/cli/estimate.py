@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "Estimate T(s,a,s') with entropy and coverage from a dataset or a count table."
+HELP = "estimate T(s,a,s') with entropy and coverage from a dataset or a count table"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

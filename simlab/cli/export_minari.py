@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "Export a transition dataset as a Minari dataset (minari extra)."
+HELP = "export a transition dataset as a Minari dataset (minari extra)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

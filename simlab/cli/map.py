@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "Explore an arena at random in physics and write its occupancy map (map.pgm + map.yaml)."
+HELP = "explore an arena at random in physics and write its occupancy map (map.pgm + map.yaml)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-HELP = ("Replay learned Q-tables in physics with goal switching; cumulative reward vs a "
-        "random policy and the MDP-predicted rate (optional top-down GIF).")
+HELP = ("replay learned Q-tables in physics with goal switching; cumulative reward vs a "
+        "random policy and the MDP-predicted rate (optional top-down GIF)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
