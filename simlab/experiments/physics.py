@@ -24,6 +24,8 @@ from simlab.experiments.registry import runner
 
 #: Transitions the thesis's robot logged in about 10 hours of random walk (3.2.5).
 THESIS_TRANSITIONS_10H = 8448
+#: Mean MCL position error (m) above which the 4.10 notes say the filter lost track.
+MCL_LOST_M = 0.05
 
 
 def _chain(ctx: RunContext, s: PhysicsSettings) -> PhysicsChain:
@@ -132,6 +134,8 @@ def entropy(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> 
         f"Plug-in entropies of T(s, a, .) from {s.seeds} random walk(s) of {s.hours:g} robot "
         f"hours on {metrics['n_states']} Voronoi states; with few visits per (s, a) they are "
         "biased low, equally for slow and fast actions (both are drawn uniformly).",
+        f"Pace: {metrics['transitions_per_10h']:,.0f} transitions per 10 robot hours "
+        f"(thesis: {THESIS_TRANSITIONS_10H:,} in about 10 h).",
         _cache_note(chain),
     ]
     details = {"mean_entropy_per_action": [None if not np.isfinite(v) else float(v)
@@ -335,6 +339,14 @@ def replay_experiment(params: dict[str, Any], budget: dict[str, Any], ctx: RunCo
         warning = g["summary"]["comparison"].get("warning")
         if warning:
             notes.append(f"Seed {i}: {warning}.")
+        loc = (g["summary"]["localization"].get("mcl") or {}).get("at_decisions", {})
+        err = loc.get("position_mean_m")
+        if err is not None and err > MCL_LOST_M:
+            notes.append(f"Seed {i}: the MCL pose was {err:.2f} m off on average (heading "
+                         f"{math.degrees(loc.get('heading_mean_rad', math.nan)):.0f} deg): the "
+                         "filter lost track, so the robot acted on wrong states "
+                         f"({g['summary']['result']['state_agrees_with_truth']:.0%} agree "
+                         "with the true state).")
     details = {"per_seed": [{"rate_per_hour": float(rates[i]),
                              "random_rate_per_hour": float(rand_rates[i]),
                              "predicted_rate_per_hour": float(predicted[i]),
