@@ -508,3 +508,123 @@ def train(
                        for k, v in env_kwargs.items()},
     }
     return TrainResult(label, returns, qs, config, wall)
+
+
+# --------------------------------------------------------------------------- one seed, observers, models
+
+
+def observer_arrays(ap: np.ndarray, observer: QLearningConfig, takeover_trial: int,
+                    n_states: int, n_actions: int) -> np.ndarray:
+    """Make ``ap`` (from :func:`agent_arrays`) the parameters of an actor watched by a
+    passive Q-learner ``observer``; returns the observer's Q table ``(S, A)``.
+
+    Works for any acting agent (model-based, R-max, Q-learning): the fused loops update
+    the observer on every transition the actor makes and, from trial ``takeover_trial``
+    on (``-1``: never), let the observer act (its own selection rule) while the actor
+    stops learning. The registry's ``passive-observer`` is this with an epsilon-greedy
+    model-based actor; :mod:`simlab.visitlab.passive` uses it with R-max too.
+    """
+    if not isinstance(observer, QLearningConfig):
+        raise ConfigError(f"expected a QLearningConfig, got {type(observer).__name__}",
+                          key="observer")
+    ap[A_OBSERVER] = 1.0
+    ap[A_OBS_SELECT] = int(observer.selection)
+    ap[A_OBS_ALPHA], ap[A_OBS_GAMMA] = observer.alpha, observer.gamma
+    ap[A_OBS_EPS], ap[A_OBS_TAU] = observer.epsilon, observer.tau
+    ap[A_TAKEOVER] = int(takeover_trial)
+    return np.full((n_states, n_actions), observer.initial_value)
+
+
+def model_state(model: Any) -> dict[str, np.ndarray]:
+    """A count model as plain arrays (picklable, npz-ready): the observed triples
+    ``s``, ``a``, ``s_next``, ``count`` (n,) int64 in the model's order, ``r_sum``
+    (S, A) float64, and ``shape`` = (S, A). :func:`model_from_state` rebuilds it."""
+    from simlab.agents.kernels import count_model_triples
+    from simlab.agents.sparse_model import CountModel
+
+    if not isinstance(model, CountModel):
+        raise ConfigError(f"only count models can be carried over, got {type(model).__name__}",
+                          key="model")
+    ss, aa, nn, cc = count_model_triples(model)
+    return {"s": ss, "a": aa, "s_next": nn, "count": cc, "r_sum": model.r_sum.copy(),
+            "shape": np.array([model.n_states, model.n_actions], dtype=np.int64)}
+
+
+def model_from_state(state: dict[str, np.ndarray]) -> Any:
+    """The count model saved by :func:`model_state` (same counts, rewards and order)."""
+    from simlab.agents.kernels import count_model_load
+
+    n_states, n_actions = (int(x) for x in state["shape"])
+    model = count_model_new(n_states, n_actions, max(1, len(state["s"])))
+    count_model_load(model, *(np.ascontiguousarray(state[k], dtype=np.int64)
+                              for k in ("s", "a", "s_next", "count")),
+                     np.ascontiguousarray(state["r_sum"], dtype=np.float64))
+    return model
+
+
+@dataclass(frozen=True, eq=False)
+class SeedRun:
+    """One seeded training run (:func:`run_seed`).
+
+    Attributes:
+        returns: reward per trial, float64 ``(trials,)``.
+        q: the acting agent's final Q table ``(S, A)``.
+        q_observer: the passive observer's final Q table ``(S, A)``, or None.
+        model: the actor's count model as :func:`model_state` arrays (``keep_model``),
+            or None.
+        steps: steps counted by the actor's planning clock at the end.
+    """
+
+    returns: np.ndarray
+    q: np.ndarray
+    q_observer: np.ndarray | None = None
+    model: dict[str, np.ndarray] | None = None
+    steps: int = 0
+
+
+def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
+                                                           np.random.Generator], *,
+             variant: str = "thesis", env_kwargs: dict[str, Any] | None = None,
+             observer: QLearningConfig | None = None, takeover_fraction: float = 0.5,
+             initial_q: np.ndarray | None = None, keep_model: bool = False) -> SeedRun:
+    """One seeded run of agent config ``cfg`` (from :func:`loop_agent_config`).
+
+    The building block of :func:`train` for callers that spread seeds over their own
+    workers (``simlab reproduce``): with ``gens = seed_generators(seed, n)[i]`` it gives
+    exactly seed ``i`` of ``train(..., seeds=n, seed=seed)``. ``observer`` adds a
+    passive Q-learner (:func:`observer_arrays`) taking over after ``takeover_fraction``
+    of the trials (1.0: it only watches). ``initial_q`` starts the actor's Q (the
+    observer's for the registry's ``passive-observer``); ``keep_model`` returns the
+    actor's count model as arrays.
+    """
+    env = make_env(task, variant=variant, **(env_kwargs or {}))
+    runner = _Runner(env, task)
+    env_rng, agent_rng = gens
+    registry_observer = isinstance(cfg, PassiveObserverConfig)
+    if registry_observer and observer is not None:
+        raise ConfigError("the passive-observer agent already has an observer", key="observer")
+    fraction = cfg.takeover_fraction if registry_observer else takeover_fraction
+    if not 0.0 <= float(fraction) <= 1.0:
+        raise ConfigError(f"expected a fraction in [0, 1], got {fraction!r}",
+                          key="takeover_fraction")
+    takeover = round(fraction * trials) if (registry_observer or observer is not None) else -1
+    ap, Q, Q_obs, model = agent_arrays(cfg, runner.n_states, runner.n_actions, takeover)
+    if observer is not None:
+        Q_obs = observer_arrays(ap, observer, takeover, runner.n_states, runner.n_actions)
+    if initial_q is not None:
+        target = Q_obs if registry_observer else Q
+        target[...] = initial_q
+    returns = np.zeros(trials, dtype=np.float64)
+    chunk = max(1, min(trials, 200_000 // env.max_steps))
+    t = 0
+    for lo in range(0, trials, chunk):
+        hi = min(trials, lo + chunk)
+        t = runner.run(Q, Q_obs, model, ap, env_rng, agent_rng, t, lo, returns[lo:hi])
+    has_observer = registry_observer or observer is not None
+    kept = None
+    if keep_model:
+        actor = cfg.actor if registry_observer else cfg
+        if isinstance(actor, QLearningConfig):
+            raise ConfigError("a Q-learner has no model to keep", key="keep_model")
+        kept = model_state(model)
+    return SeedRun(returns, Q, Q_obs if has_observer else None, kept, int(t))
