@@ -7,13 +7,20 @@ Examples::
     simlab visitlab train --task social --agent mb-egreedy --human easy,medium,hard \\
         --trials 100000 --seeds 10 --workers 2 --out runs/social
     simlab visitlab show --task social --human medium --steps 8
+    simlab visitlab combined --nav runs/nav/curves.npz --social runs/social/curves.npz \
+        --gotohuman runs/gth/curves.npz --trials 200 --gif episode.gif
+
+For ``combined``, train the navigation module on the combined world with random starts
+and goals (``visitlab train --task nav --agent rmax --start random --goal random``; the
+thesis's fixed-goal navigation run only knows one room).
 """
 
 from __future__ import annotations
 
 import argparse
 
-HELP = "Visit the lab: train the navigation, social and go-to-human modules; show episodes"
+HELP = ("Visit the lab: train the navigation, social and go-to-human modules; show episodes; "
+        "run the combined architecture")
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -29,6 +36,10 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--layout-seed", type=int, default=None, help="seed of a random lab layout")
     p.add_argument("--episode", choices=("random", "fixed_positions", "fixed"), default=None,
                    help="go-to-human episode variant (thesis Fig. 4.4; default random)")
+    p.add_argument("--start", default=None,
+                   help="navigation start: 'random' or a cell index (default: the variant's)")
+    p.add_argument("--goal", default=None,
+                   help="navigation goal room: 'random' or a label (default: the variant's)")
     p.add_argument("--steps", type=int, default=None,
                    help="steps per trial (default: thesis 50 nav / 40 others, paper 20)")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
@@ -72,6 +83,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     s.add_argument("--run", type=int, default=0, help="run index in the curves file")
     s.add_argument("--seed-index", type=int, default=0, help="seeded run whose Q to use")
     s.add_argument("--png", default=None, help="also save the last frame as a PNG")
+    c = sub.add_parser("combined", help="run the combined architecture with trained modules",
+                       description="Lead a human to goal rooms with three trained Q tables "
+                                   "(thesis Fig. 3.1): prints goal rooms reached per trial, "
+                                   "optionally writes an episode GIF.")
+    for module, what in (("nav", "goal-conditioned navigation (random start and goal)"),
+                         ("social", "social"), ("gotohuman", "go-to-human")):
+        c.add_argument(f"--{module}", required=True, metavar="CURVES",
+                       help=f"curves.npz of the {what} module ('visitlab train')")
+    c.add_argument("--run", type=int, default=0, help="run index in each curves file")
+    c.add_argument("--seed-index", type=int, default=0, help="seeded run whose Q tables to use")
+    c.add_argument("--human", default=None,
+                   help="human preset (default: the social module's training human)")
+    c.add_argument("--layout", default="gridworld", help="the world (the navigation module's)")
+    c.add_argument("--steps", type=int, default=100, help="steps per trial (default 100)")
+    c.add_argument("--weights", default="0.1,0.1,0.8",
+                   help="speed coefficients w1,w2,w3 (thesis 0.1,0.1,0.8; paper 1/3 each)")
+    c.add_argument("--trials", type=int, default=100, help="trials (default 100)")
+    c.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    c.add_argument("--gif", default=None,
+                   help="write the first trial with two goals or more (else the best) as a GIF")
+    c.add_argument("--overwrite", action="store_true", help="replace an existing GIF")
 
 
 def _parse_value(text: str):
@@ -112,6 +144,15 @@ def _env_kwargs(args: argparse.Namespace) -> dict:
 
             raise ConfigError("only the gotohuman task has episode variants", key="--episode")
         kw["episode"] = args.episode
+    for key in ("start", "goal"):
+        value = getattr(args, key)
+        if value is None:
+            continue
+        if args.task != "nav":
+            from simlab.errors import ConfigError
+
+            raise ConfigError("only the nav task has a start and a goal", key=f"--{key}")
+        kw[key] = value if value == "random" else _parse_value(value)
     if args.steps is not None:
         kw["max_steps"] = args.steps
     return kw
@@ -225,9 +266,75 @@ def _plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _module_q(path: str, run: int, seed_index: int):
+    from simlab.errors import ConfigError
+    from simlab.visitlab.results import load_results
+
+    runs = load_results(path)
+    if not 0 <= run < len(runs):
+        raise ConfigError(f"expected a run index in 0..{len(runs) - 1}", path=path, key="--run")
+    q = runs[run].q
+    if not 0 <= seed_index < q.shape[0]:
+        raise ConfigError(f"expected a seed index in 0..{q.shape[0] - 1}", path=path,
+                          key="--seed-index")
+    return q[seed_index], runs[run].config
+
+
+def _combined(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from simlab.errors import ConfigError
+    from simlab.io import ensure_new
+    from simlab.visitlab.combined import (
+        CombinedTask,
+        Modules,
+        evaluate,
+        record_episodes,
+        write_episode_gif,
+    )
+    from simlab.visitlab.humans import Human
+    from simlab.visitlab.training import seed_generators
+
+    if args.gif:
+        ensure_new(args.gif, overwrite=args.overwrite, what="GIF")
+    nav, _ = _module_q(args.nav, args.run, args.seed_index)
+    social, social_cfg = _module_q(args.social, args.run, args.seed_index)
+    gth, _ = _module_q(args.gotohuman, args.run, args.seed_index)
+    human = args.human
+    if human is None:
+        trained = social_cfg.get("human")
+        if not trained:
+            raise ConfigError("the social curves file names no human", key="--human",
+                              fix="pass --human")
+        human = Human(**{**trained, "speed_probs": tuple(trained["speed_probs"])})
+    try:
+        weights = tuple(float(x) for x in args.weights.split(","))
+    except ValueError:
+        raise ConfigError(f"expected three numbers, got {args.weights!r}", key="--weights") from None
+    task = CombinedTask(layout=args.layout, human=human, speed_weights=weights,
+                        max_steps=args.steps)
+    modules = Modules(nav, social, gth)
+    res = evaluate(task, modules, args.trials, seed_generators(args.seed, 1)[0])
+    chance = evaluate(task, modules, args.trials, seed_generators(args.seed, 1)[0], epsilon=1.0)
+    print(f"goal rooms per {args.steps}-step trial: {res.goals.mean():.2f} "
+          f"(random social actions: {chance.goals.mean():.2f}; {args.trials} trials, human "
+          f"'{task.human.name}', weights {task.speed_weights})")
+    if args.gif:
+        episodes = record_episodes(task, modules, min(args.trials, 50),
+                                   seed_generators(args.seed, 1)[0])
+        pick = next((e for e in episodes if e.goals >= 2),
+                    max(episodes, key=lambda e: e.goals))
+        write_episode_gif(task, pick, args.gif, overwrite=args.overwrite)
+        print(f"wrote {args.gif} ({pick.goals} goal rooms in {args.steps} steps; "
+              f"goals per trial of those shown: {np.mean([e.goals for e in episodes]):.2f})")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int | None:
     if args.visitlab_command == "train":
         return _train(args)
     if args.visitlab_command == "plot":
         return _plot(args)
+    if args.visitlab_command == "combined":
+        return _combined(args)
     return _show(args)

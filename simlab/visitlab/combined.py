@@ -460,11 +460,33 @@ def _action_name(a: int) -> str:
     return Action(int(a)).name.replace("_", "-") if 0 <= a < 30 else "-"
 
 
+def _room_edges(layout: Layout, label: int, cell_px: int
+                ) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """Pixel segments on the grid lines between cells of room ``label`` and other cells
+    (``label`` -1: between any two rooms)."""
+    lab = layout.labels
+    h, w = lab.shape
+    segs = []
+    for r in range(h):
+        for c in range(w):
+            for dr, dc in ((0, 1), (1, 0)):
+                r2, c2 = r + dr, c + dc
+                if r2 >= h or c2 >= w or lab[r, c] == lab[r2, c2]:
+                    continue
+                if label >= 0 and label not in (lab[r, c], lab[r2, c2]):
+                    continue
+                if dc:  # vertical line left of column c2
+                    segs.append(((c2 * cell_px, r * cell_px), (c2 * cell_px, (r + 1) * cell_px)))
+                else:
+                    segs.append(((c * cell_px, r2 * cell_px), ((c + 1) * cell_px, r2 * cell_px)))
+    return segs
+
+
 def episode_frames(task: CombinedTask, episode: Episode, cell_px: int = 18) -> list[np.ndarray]:
-    """RGB frames (uint8) of an episode: the world (goal room in blue, fields of view,
-    walls), robot (red) and human (blue) with orientations, and a caption strip with the
-    step, the action (and the delegated move), the interaction level, the required
-    direction and the goals reached so far."""
+    """RGB frames (uint8) of an episode: the world (room borders in grey, the goal room
+    tinted and outlined in blue, fields of view, walls), robot (red) and human (blue)
+    with orientations, and a caption strip with the step, the action (and the delegated
+    move), the interaction level, the required direction and the goals reached so far."""
     import cv2
 
     from simlab.visitlab.actions import DIRECTION_NAMES
@@ -482,6 +504,10 @@ def episode_frames(task: CombinedTask, episode: Episode, cell_px: int = 18) -> l
                          Scene(int(st[dyn.S_ROBOT]), int(st[dyn.S_ROBOT_ORI]),
                                int(st[dyn.S_HUMAN]), int(st[dyn.S_HUMAN_ORI]),
                                goal_label=int(st[dyn.S_GOAL])), cell_px=cell_px)
+        for p0, p1 in _room_edges(lay, -1, cell_px):
+            cv2.line(img, p0, p1, (150, 150, 150), 1)
+        for p0, p1 in _room_edges(lay, int(st[dyn.S_GOAL]), cell_px):
+            cv2.line(img, p0, p1, (30, 90, 200), 3)
         strip = np.full((44, img.shape[1], 3), 255, dtype=np.uint8)
         if t < T:
             a, ex = int(episode.actions[t]), int(episode.executed[t])

@@ -100,3 +100,36 @@ def test_plot_combines_curves_files(tmp_path, capsys):
     assert main(["visitlab", "plot", str(tmp_path / "a" / "summary.json"),
                  "--out", str(tmp_path / "d.png")]) == 2
     assert "not a Visit-the-lab curves file" in capsys.readouterr().err
+
+
+def test_combined_runs_trained_modules_and_writes_a_gif(tmp_path, capsys):
+    common = ["--seeds", "1", "--no-progress"]
+    assert main(["visitlab", "train", "--task", "nav", "--agent", "rmax", "--start", "random",
+                 "--goal", "random", "--trials", "300", *common,
+                 "--out", str(tmp_path / "nav")]) == 0
+    assert main(["visitlab", "train", "--task", "social", "--agent", "mb-egreedy",
+                 "--human", "easy", "--trials", "300", *common,
+                 "--out", str(tmp_path / "soc")]) == 0
+    assert main(["visitlab", "train", "--task", "gotohuman", "--agent", "mb-egreedy",
+                 "--trials", "100", *common, "--out", str(tmp_path / "gth")]) == 0
+    capsys.readouterr()
+    args = ["visitlab", "combined", "--nav", str(tmp_path / "nav" / "curves.npz"),
+            "--social", str(tmp_path / "soc" / "curves.npz"),
+            "--gotohuman", str(tmp_path / "gth" / "curves.npz"), "--trials", "5",
+            "--steps", "30", "--gif", str(tmp_path / "ep.gif")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "goal rooms per 30-step trial" in out and "human 'easy'" in out
+    assert (tmp_path / "ep.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+    assert main(args) == 2  # the GIF exists
+    assert "already exists" in capsys.readouterr().err
+    # a table of another module does not fit as the navigation module
+    assert main([*args[:2], "--nav", str(tmp_path / "gth" / "curves.npz"), *args[4:],
+                 "--overwrite"]) == 2
+    assert "nav_q" in capsys.readouterr().err
+
+
+def test_start_and_goal_are_navigation_options(tmp_path, capsys):
+    assert main(["visitlab", "train", "--task", "social", "--start", "random", "--trials", "2",
+                 "--seeds", "1", "--no-progress", "--out", str(tmp_path / "x")]) == 2
+    assert "start" in capsys.readouterr().err
