@@ -117,10 +117,12 @@ def test_global_localization_in_an_asymmetric_arena(asym_arena_path) -> None:
                              MCLParams(n_particles=3000), initial_pose=None,
                              odometry=world.odometry())
         first = tracker.filter.spread()[0]
-        for _ in _drive(world, tracker, 60, seed=6):  # about a minute of primitives
-            pass
+        spreads = [tracker.filter.spread()[0]
+                   for _ in _drive(world, tracker, 60, seed=6)]  # about a minute
     log = tracker.log()
     assert first > 0.3  # the cloud started spread over the whole table
     late = log.t >= log.t[-1] - 30.0
     assert log.position_error[late].max() < 0.10
-    assert tracker.filter.spread()[0] < 0.05
+    # the cloud has concentrated; a single step may spike while augmented MCL injects
+    # random particles (by design), so look at the last ten primitives, not one instant
+    assert float(np.median(spreads[-10:])) < 0.05
