@@ -36,7 +36,7 @@ A run is one agent trained on one task for ``seeds`` seeds (``budget.seeds``) of
 final Q tables; ``model_<i>.npz`` when a model is kept; ``_stage.json`` written last),
 where ``key`` hashes everything that defines it (task, agent, variant, env, overrides,
 observer, trials, seeds), the root seed, the simlab version and a fingerprint of the
-source of ``simlab.visitlab`` and ``simlab.agents`` (changed code is never reused). So
+source the run depends on (:func:`code_fingerprint`: changed code is never reused). So
 Figs. 4.1 and 4.2 share their model-based navigation runs, poster Fig. 4 reuses
 Fig. 4.5's social run, Fig. 4.4's random-episode go-to-human run is the combined
 architecture's module, and the combined task and Fig. 4.7 share the three trained
@@ -226,17 +226,26 @@ def parse_run(raw: Any, where: str, params: Mapping[str, Any], budget: Mapping[s
 _FINGERPRINT: list[str] = []
 
 
+#: The modules a training run's numbers depend on (besides ``simlab.agents``).
+_RUN_SOURCES = ("actions", "grid", "perception", "humans", "dynamics", "envs", "training",
+                "passive")
+
+
 def code_fingerprint() -> str:
-    """sha256 (16 hex digits) of the source of ``simlab.visitlab`` and ``simlab.agents``."""
+    """sha256 (16 hex digits) of the source a training run depends on: the Visit-the-lab
+    simulation and training loops (:data:`_RUN_SOURCES`) and every module of
+    ``simlab.agents``. Figures, the combined architecture and these runners are not part
+    of it (they do not change a run's numbers)."""
     if not _FINGERPRINT:
         import simlab
 
         pkg = Path(simlab.__file__).resolve().parent
+        files = [pkg / "visitlab" / f"{name}.py" for name in _RUN_SOURCES]
+        files += sorted((pkg / "agents").glob("*.py"))
         h = hashlib.sha256()
-        for root in (pkg / "visitlab", pkg / "agents"):
-            for f in sorted(root.glob("*.py")):
-                h.update(f"{root.name}/{f.name}\0".encode())
-                h.update(f.read_bytes())
+        for f in files:
+            h.update(f"{f.parent.name}/{f.name}\0".encode())
+            h.update(f.read_bytes())
         _FINGERPRINT.append(h.hexdigest()[:16])
     return _FINGERPRINT[0]
 
@@ -474,7 +483,7 @@ def curves(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> R
     metrics["seeds"] = specs[0].seeds
     panels_raw = params.get("panels") or [{"title": params.get("title", ""), "runs": labels}]
     panels = []
-    marks: list[float] = []
+    marks: list[list[float]] = []
     for i, p in enumerate(panels_raw):
         p = _table(p, f"params.panels[{i}]")
         names = [str(x).replace("-", "_") for x in p.get("runs", [])]
@@ -484,16 +493,14 @@ def curves(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> R
                               key=f"params.panels[{i}].runs", fix=f"labels: {', '.join(labels)}")
         curves_ = [(by_label[n].spec.legend or n, by_label[n].returns) for n in names]
         panels.append((str(p.get("title", "")), curves_))
-        for n in names:
-            s = by_label[n].spec
-            if s.observer and s.takeover < 1.0:
-                marks.append(s.takeover * s.trials)
+        marks.append(sorted({s.takeover * s.trials for s in (by_label[n].spec for n in names)
+                             if s.observer and s.takeover < 1.0}))
     from simlab.visitlab.figures import plot_curve_panels
 
     fig = plot_curve_panels(panels, ctx.out / "curves.png",
                             ylabel=str(params.get("ylabel", "reward per trial")),
                             title=f"{params.get('title', '')} ({specs[0].seeds} seeds)".strip(),
-                            marks=sorted(set(marks)))
+                            marks=marks)
     notes = [_cache_note(runs), "Runs: " + "; ".join(
         f"{s.label} = {s.agent} on {s.task} ({s.variant}), {s.trials:,} trials"
         + (f", a Q-learner watching it takes over at {s.takeover:.0%}" if s.observer else "")
@@ -516,9 +523,9 @@ def nav_heatmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     the cells outside the goal room from which the greedy policy of a seed's Q reaches
     the goal room within one trial, worst goal / mean over goals and seeds);
     ``min_inside_minus_outside`` (per goal, mean ``max_a Q`` inside the goal room minus
-    outside, seed-averaged Q; the worst goal); ``mean_corr_vstar`` (correlation of
+    outside, averaged over seeds; the worst goal); ``mean_corr_vstar`` (correlation of
     ``max_a Q`` with the optimal V* over the cells, mean over goals and seeds).
-    Figure: ``heatmaps.png`` (seed-averaged Q).
+    Figure: ``heatmaps.png`` (``max_a Q`` averaged over seeds).
     """
     from simlab.visitlab.figures import plot_nav_heatmaps
     from simlab.visitlab.passive import nav_optimal_q
@@ -544,15 +551,15 @@ def nav_heatmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
             block = q[g * n:(g + 1) * n]
             success[i, j] = greedy_success(nxt, labels, block, g, horizon)
             corr[i, j] = _corr(block.max(axis=1), qstar[g * n:(g + 1) * n].max(axis=1))
-    q_mean = run.q.mean(axis=0)
+    values = run.q.max(axis=2).mean(axis=0)  # mean over seeds of max_a Q
     gaps = []
     for g in lay.goal_labels:
-        v = q_mean[g * n:(g + 1) * n].max(axis=1)
+        v = values[g * n:(g + 1) * n]
         inside = labels == g
         gaps.append(float(v[inside].mean() - v[~inside].mean()))
-    fig = plot_nav_heatmaps(lay, q_mean, ctx.out / "heatmaps.png",
-                            title=f"{spec.agent}: max_a Q per goal room ({spec.seeds} seeds, "
-                                  f"{spec.trials:,} trials, mean Q)")
+    fig = plot_nav_heatmaps(lay, values, ctx.out / "heatmaps.png", arrows_q=run.q[0],
+                            title=f"{spec.agent}: max_a Q per goal room (mean of {spec.seeds} "
+                                  f"seeds, {spec.trials:,} trials; arrows: seed 0's greedy move)")
     per_goal = success.mean(axis=0)
     metrics = {"goals": len(lay.goal_labels), "min_greedy_success": float(per_goal.min()),
                "mean_greedy_success": float(success.mean()),
@@ -682,17 +689,18 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
     """The combined architecture (thesis 3.1.1, 4.4): goal rooms reached per trial.
 
     Trains (or reuses) the three modules (:func:`module_specs`), then runs the frozen
-    architecture greedily for ``budget.trials`` trials per seed, and the chance level
-    (the social module replaced by uniformly random actions). Metrics:
+    architecture greedily for ``budget.trials`` trials per seed, epsilon-greedily, and
+    the chance level (the social module replaced by uniformly random actions). Metrics:
     ``goals_per_trial`` (mean over trials and seeds), ``goals_per_trial_seed_std``,
-    ``random_goals_per_trial``, ``trials_with_a_goal`` (fraction),
+    ``egreedy_goals_per_trial`` (the social module epsilon-greedy with its training
+    epsilon), ``random_goals_per_trial``, ``trials_with_a_goal`` (fraction),
     ``nav_direction_optimal`` (fraction of (cell, goal) outside the goal room where the
     navigation module's required direction is an optimal one), the modules' plateaus,
     ``gif_goals``. Figures: ``goals_per_trial.png``, ``episode.gif``.
     """
     from simlab.visitlab.combined import record_episodes, write_episode_gif
     from simlab.visitlab.figures import plot_histograms
-    from simlab.visitlab.training import seed_generators
+    from simlab.visitlab.training import loop_agent_config, seed_generators
 
     specs = module_specs(params, budget)
     n = specs["nav"].seeds
@@ -701,12 +709,17 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
     got = get_runs(ctx, [specs[k] for k in _MODULE_KEYS], desc="modules")
     runs = dict(zip(_MODULE_KEYS, got, strict=True))
     seed = visitlab_seed(ctx.root_seed, 1)
+    social_cfg = loop_agent_config(specs["social"].agent, "social", specs["social"].variant,
+                                   dict(specs["social"].overrides))
+    eps = float(getattr(social_cfg, "epsilon", 0.05))
     jobs = [{"task": task, "modules": _modules(runs, i), "trials": trials, "seed": seed,
-             "index": i, "n_seeds": n, "epsilon": eps} for eps in (0.0, 1.0) for i in range(n)]
+             "index": i, "n_seeds": n, "epsilon": e} for e in (0.0, eps, 1.0) for i in range(n)]
     res = ctx.map(evaluate_job, jobs, desc=f"{ctx.name}: evaluation")
     goals = np.stack([r.goals for r in res[:n]])
-    rand = np.stack([r.goals for r in res[n:]])
-    figures = [plot_histograms([("combined architecture", goals.ravel()),
+    explore = np.stack([r.goals for r in res[n:2 * n]])
+    rand = np.stack([r.goals for r in res[2 * n:]])
+    figures = [plot_histograms([("combined architecture (greedy)", goals.ravel()),
+                                (f"eps-greedy social module ({eps:g})", explore.ravel()),
                                 ("random social actions", rand.ravel())],
                                ctx.out / "goals_per_trial.png", xlabel="goal rooms reached per trial",
                                title=f"{task.max_steps}-step trials, {n} seeds x {trials} trials")]
@@ -717,7 +730,8 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
     figures.append(write_episode_gif(task, pick, ctx.out / "episode.gif", overwrite=True))
     per_seed = goals.mean(axis=1)
     metrics = {"goals_per_trial": float(goals.mean()), "goals_per_trial_seed_std":
-               float(per_seed.std()), "random_goals_per_trial": float(rand.mean()),
+               float(per_seed.std()), "egreedy_goals_per_trial": float(explore.mean()),
+               "random_goals_per_trial": float(rand.mean()),
                "trials_with_a_goal": float((goals > 0).mean()),
                **_module_metrics(runs, task), "gif_goals": pick.goals,
                "trials": trials, "seeds": n, "max_steps": task.max_steps}
@@ -731,7 +745,13 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
              "The GIF is the first evaluation trial of seed 0 in which at least two goal "
              "rooms were reached (the goal room is blue; the caption gives the social "
              "module's action, the delegated go-to-human move after '->', the interaction "
-             "level and the required direction)."]
+             "level and the required direction).",
+             "A greedy social module can loop: in social training action 29 jumped two "
+             "cells ahead of the human's gaze with a random orientation, here it is one "
+             "go-to-human move, which does nothing once the robot stands in the facing "
+             "field; trials_with_a_goal and the eps-greedy evaluation "
+             "(egreedy_goals_per_trial, the module's own exploration rate) show how much "
+             "this costs."]
     details = {"goals_per_seed": per_seed.round(4).tolist(),
                "random_goals_per_seed": rand.mean(axis=1).round(4).tolist()}
     return RunResult(metrics=metrics, figures=figures, notes=notes, details=details)
@@ -885,7 +905,7 @@ def passive_qmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContex
         metrics[f"{L}_visited"] = float((learned != 0).mean())
         metrics.update(curve_metrics(L, r.returns))
         legend = r.spec.legend or L
-        tables.append((legend, q.mean(axis=0)))
+        tables.append((legend, q.max(axis=2).mean(axis=0)))
         series.append((legend, v.ravel(), learned.ravel()))
     figs = [plot_q_maps(lay, tables, int(goal), ctx.out / "qmaps.png",
                         title=f"max_a Q for {lay.room_names[int(goal)]} (mean of "

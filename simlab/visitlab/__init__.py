@@ -15,6 +15,15 @@ A robot must get a simulated human's attention and lead them to goal rooms. Laye
   :func:`~simlab.visitlab.training.train` (``simlab visitlab train``);
 * :mod:`~simlab.visitlab.results` — curves files (npz), Fig. 4.1-style plots,
   summaries;
+* :mod:`~simlab.visitlab.combined` — the combined architecture (thesis Fig. 3.1):
+  required direction from navigation, the social module choosing, action 29 delegated
+  to go-to-human, goal rooms reached per trial, episode GIFs;
+* :mod:`~simlab.visitlab.adaptability` — continued learning with a new human
+  (thesis Fig. 4.7);
+* :mod:`~simlab.visitlab.passive` — the passive model-free observer (IMOL poster) and
+  the optimal navigation values;
+* :mod:`~simlab.visitlab.figures` — the figures of ``simlab reproduce``'s
+  Visit-the-lab results;
 * :mod:`~simlab.visitlab.reference` — the plain per-step Python loop (benchmark
   baseline and cross-check).
 

@@ -39,18 +39,18 @@ def _figure(width: float, height: float):
 
 def plot_curve_panels(panels: Sequence[tuple[str, Sequence[Curve]]], path: str | os.PathLike[str],
                       *, ylabel: str = "reward per trial", title: str = "",
-                      marks: Sequence[float] = (), n_points: int = 100) -> Path:
+                      marks: Sequence[Sequence[float]] = (), n_points: int = 100) -> Path:
     """One panel per ``(title, curves)``: smoothed mean and a band of one standard
-    deviation per curve; vertical dotted lines at the trials in ``marks``."""
+    deviation per curve; ``marks[i]``: trials of panel ``i`` marked by a dotted line."""
     n = max(1, len(panels))
     fig = _figure(4.6 * n, 3.6)
     axes = fig.subplots(1, n, squeeze=False)[0]
-    for ax, (panel_title, curves) in zip(axes, panels, strict=False):
+    for i, (ax, (panel_title, curves)) in enumerate(zip(axes, panels, strict=False)):
         for label, values in curves:
             x, mean, std = smooth_curve(values, n_points)
             (line,) = ax.plot(x, mean, lw=1.6, label=label)
             ax.fill_between(x, mean - std, mean + std, color=line.get_color(), alpha=0.18, lw=0)
-        for m in marks:
+        for m in marks[i] if i < len(marks) else ():
             ax.axvline(m, color="0.4", ls=":", lw=1)
         ax.set_title(panel_title, fontsize=10)
         ax.set_xlabel("trials")
@@ -62,9 +62,9 @@ def plot_curve_panels(panels: Sequence[tuple[str, Sequence[Curve]]], path: str |
     return _save(fig, path)
 
 
-def _value_map(layout: Layout, q: np.ndarray, goal: int) -> np.ndarray:
+def _value_map(layout: Layout, values: np.ndarray, goal: int) -> np.ndarray:
     n = layout.n_cells
-    return q[goal * n:(goal + 1) * n].max(axis=1).reshape(layout.height, layout.width)
+    return values[goal * n:(goal + 1) * n].reshape(layout.height, layout.width)
 
 
 def _draw_walls(ax, layout: Layout) -> None:
@@ -80,30 +80,32 @@ def _goal_outline(ax, layout: Layout, goal: int) -> None:
                extent=(-0.5, layout.width - 0.5, layout.height - 0.5, -0.5), origin="upper")
 
 
-def plot_nav_heatmaps(layout: Layout, q: np.ndarray, path: str | os.PathLike[str], *,
+def plot_nav_heatmaps(layout: Layout, values: np.ndarray, path: str | os.PathLike[str], *,
                       goals: Sequence[int] | None = None, title: str = "",
-                      arrows: bool = True) -> Path:
-    """Thesis Fig. 4.3: ``max_a Q(cell, goal)`` per cell for each goal room (bluer =
-    higher), the goal room outlined in red, the greedy direction as an arrow.
+                      arrows_q: np.ndarray | None = None) -> Path:
+    """Thesis Fig. 4.3: a value per cell for each goal room (bluer = higher), the goal
+    room outlined in red.
 
-    ``q`` is a goal-conditioned navigation table ``(n_labels * n_cells, 25)`` (e.g. the
-    mean over seeds).
+    ``values`` ``(n_labels * n_cells,)`` for the goal-conditioned navigation states
+    (e.g. ``max_a Q`` averaged over seeds); ``arrows_q`` an optional Q table
+    ``(n_labels * n_cells, 25)`` whose greedy direction is drawn as an arrow per cell
+    (moves only, cells with some value, outside the goal room).
     """
     goals = list(layout.goal_labels if goals is None else goals)
     cols = min(3, len(goals))
     rows = -(-len(goals) // cols)
     fig = _figure(3.0 * cols + 0.6, 3.0 * rows + 0.4)
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
-    vmax = float(max(q.max(), 1e-9))
+    vmax = float(max(values.max(), 1e-9))
     im = None
     n = layout.n_cells
     for ax, g in zip(axes, goals, strict=False):
-        im = ax.imshow(_value_map(layout, q, g), cmap="Blues", vmin=0.0, vmax=vmax,
+        im = ax.imshow(_value_map(layout, values, g), cmap="Blues", vmin=0.0, vmax=vmax,
                        interpolation="nearest")
         _draw_walls(ax, layout)
         _goal_outline(ax, layout, g)
-        if arrows:
-            block = q[g * n:(g + 1) * n]
+        if arrows_q is not None:
+            block = arrows_q[g * n:(g + 1) * n]
             best = block[:, :24].argmax(axis=1)
             d = DIR_DELTA[ACTION_DIR[best]]
             rows_i, cols_i = np.divmod(np.arange(n), layout.width)
@@ -124,14 +126,15 @@ def plot_nav_heatmaps(layout: Layout, q: np.ndarray, path: str | os.PathLike[str
 
 def plot_q_maps(layout: Layout, tables: Sequence[tuple[str, np.ndarray]], goal: int,
                 path: str | os.PathLike[str], *, title: str = "") -> Path:
-    """Poster Fig. 5 (top): ``max_a Q`` maps of several agents for one goal room, on a
-    common colour scale (dark blue = high, white = low)."""
+    """Poster Fig. 5 (top): value maps of several agents for one goal room, on a common
+    colour scale (dark blue = high, white = low). ``tables``: ``(label, values)`` with
+    ``values`` ``(n_labels * n_cells,)``, e.g. ``max_a Q`` averaged over seeds."""
     fig = _figure(3.2 * len(tables) + 0.6, 3.4)
     axes = fig.subplots(1, len(tables), squeeze=False)[0]
-    vmax = float(max(max(q.max() for _, q in tables), 1e-9))
+    vmax = float(max(max(v.max() for _, v in tables), 1e-9))
     im = None
-    for ax, (label, q) in zip(axes, tables, strict=True):
-        im = ax.imshow(_value_map(layout, q, goal), cmap="Blues", vmin=0.0, vmax=vmax,
+    for ax, (label, v) in zip(axes, tables, strict=True):
+        im = ax.imshow(_value_map(layout, v, goal), cmap="Blues", vmin=0.0, vmax=vmax,
                        interpolation="nearest")
         _draw_walls(ax, layout)
         _goal_outline(ax, layout, goal)
