@@ -771,6 +771,25 @@ def adapt_job(task: Any, modules: Any, model: dict[str, np.ndarray] | None, agen
     return run.goals
 
 
+def _adaptation_humans(params: Mapping[str, Any], trained: Any) -> dict[str, Any]:
+    """``[params.humans]`` (name -> preset name or table of Human fields), or the thesis's
+    three humans for the training human (:func:`~simlab.visitlab.adaptability.thesis_humans`)."""
+    from simlab.visitlab.adaptability import thesis_humans
+    from simlab.visitlab.humans import human as get_human
+
+    raw = _table(params.get("humans"), "params.humans")
+    if not raw:
+        return thesis_humans(trained)
+    out = {}
+    for name, h in raw.items():
+        if not str(name).replace("_", "").isalnum():
+            raise ConfigError(f"use letters, digits and '_', got {name!r}",
+                              key=f"params.humans.{name}")
+        out[str(name)] = (env_kwargs({"human": dict(h)})["human"] if isinstance(h, Mapping)
+                          else get_human(h))
+    return out
+
+
 @runner("visitlab.adaptability")
 def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> RunResult:
     """Thesis Fig. 4.7: the social module trained with one human continues learning in
@@ -778,16 +797,17 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
 
     The modules are :func:`module_specs` (shared with ``visitlab.combined``); the
     humans :func:`simlab.visitlab.adaptability.thesis_humans` of the social module's
-    human; ``params.carry_model`` a list of booleans (what continues: Q and model, or Q
+    human, or ``[params.humans]`` (name -> preset or table of Human fields; a human
+    named ``same`` is the reference of the ratios); ``params.carry_model`` a list of booleans (what continues: Q and model, or Q
     only; one figure panel each; the first is the one the metrics without suffix
     describe). Metrics per human ``h`` (``same``, ``slower``, ``pointing``) and carry
-    option (suffix ``_q_only`` for Q only): ``h_start`` (mean goals per trial over the
+    option (suffix ``_q_only`` for Q only, ``_model`` for Q and model, on the options
+    after the first): ``h_start`` (mean goals per trial over the
     first 10 % of trials), ``h_final`` (last 20 %), ``h_trials_to_90pct`` (first trial at
     which the smoothed curve reaches 90 % of ``h_final``), and the ratios
     ``pointing_over_same`` and ``slower_over_same`` of the final levels. Figure:
     ``adaptability.png``.
     """
-    from simlab.visitlab.adaptability import thesis_humans
     from simlab.visitlab.figures import plot_curve_panels
     from simlab.visitlab.training import loop_agent_config
 
@@ -800,7 +820,7 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
         raise ConfigError(f"expected a list of distinct booleans, got {carry!r}",
                           key="params.carry_model")
     base_task = _combined_task(params, specs)
-    humans = thesis_humans(base_task.human)
+    humans = _adaptation_humans(params, base_task.human)
     got = get_runs(ctx, [specs[k] for k in _MODULE_KEYS], desc="modules")
     runs = dict(zip(_MODULE_KEYS, got, strict=True))
     s = specs["social"]
@@ -836,12 +856,13 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
             metrics[f"{name}_start{suffix}"] = start
             metrics[f"{name}_final{suffix}"] = final
             metrics[f"{name}_trials_to_90pct{suffix}"] = int(x[hit[0]]) if hit.size else None
-            panel.append((legends[name], g))
+            panel.append((legends.get(name, humans[name].name), g))
             details["curves"][f"{name}{suffix}"] = _curve_details(name, g)
-        same = metrics[f"same_final{suffix}"]
-        for name in ("pointing", "slower"):
-            metrics[f"{name}_over_same{suffix}"] = (metrics[f"{name}_final{suffix}"] / same
-                                                   if same > 0 else None)
+        same = metrics.get(f"same_final{suffix}")
+        for name in humans:
+            if same is not None and name != "same":
+                metrics[f"{name}_over_same{suffix}"] = (metrics[f"{name}_final{suffix}"] / same
+                                                       if same > 0 else None)
         title = ("Q table and model carried over" if c
                  else "Q table only (model rebuilt from the new human)")
         panels.append((title, panel))
@@ -850,11 +871,13 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
                             title=f"Continued learning with a new human ({n} seeds, "
                                   f"{base_task.max_steps}-step trials)", n_points=min(50, trials))
     metrics.update({"trials": trials, "seeds": n})
+    trained = env_kwargs(s.env).get("human", "easy")
+    described = "; ".join(f"{name}: '{h.name}' (s_H {h.speed_probs}, P_H {h.pointing_need:g})"
+                          for name, h in humans.items())
     notes = [_cache_note(got),
-             f"Training human: '{humans['same'].name}' (s_H {humans['same'].speed_probs}); "
-             f"2x slower: s_H {humans['slower'].speed_probs}; pointing need: P_H = 1. "
-             f"The social agent ({s.agent}) continues with its own settings; navigation and "
-             "go-to-human modules are frozen (greedy)."]
+             f"Social module trained with '{getattr(trained, 'name', trained)}'; continued with "
+             f"{described}. The social agent ({s.agent}) continues with its own settings; the "
+             "navigation and go-to-human modules are frozen (greedy)."]
     return RunResult(metrics=metrics, figures=[fig], notes=notes, details=details)
 
 

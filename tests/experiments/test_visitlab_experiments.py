@@ -153,3 +153,38 @@ def test_ray_backend_gives_the_same_visitlab_metrics(nav_pair, tmp_path):
     assert entry["backend"].startswith("ray")
     assert any("built" in n for n in entry["notes"])  # trained on Ray, not read from a cache
     assert entry["metrics"] == nav_pair.entry("fig4_2_nav_mb_comparison")["metrics"]
+
+
+MODULES = {
+    "variant": "thesis",
+    "combined": {"max_steps": 12},
+    "nav": {"agent": "rmax", "env": {"start": "random", "goal": "random"}},
+    "gotohuman": {"agent": "mb-egreedy", "env": {"episode": "random"}},
+    "social": {"agent": "mb-egreedy",
+               "env": {"human": {"speed_probs": [0.0, 1.0, 0.0], "name": "fast"}}},
+}
+TINY = {"seeds": 2, "nav_trials": 20, "gth_trials": 10, "social_trials": 30, "trials": 4}
+
+
+def test_adaptability_runs_the_named_humans_on_the_shared_modules(tmp_path):
+    from simlab.experiments.visitlab import adaptability, combined
+
+    ctx = _ctx(tmp_path, "combined")
+    res = combined(dict(MODULES), dict(TINY), ctx)
+    assert res.metrics["trials"] == 4 and res.metrics["max_steps"] == 12
+    assert (ctx.out / "episode.gif").is_file()
+    params = {**MODULES, "carry_model": [True, False],
+              "humans": {"same": {"speed_probs": [0.0, 1.0, 0.0], "name": "fast"},
+                         "hard": "hard"}}
+    ctx2 = _ctx(tmp_path, "adapt")
+    res2 = adaptability(params, dict(TINY), ctx2)
+    m = res2.metrics
+    assert {"same_final", "hard_final", "hard_over_same", "hard_final_q_only"} <= set(m)
+    assert "pointing_final" not in m
+    assert any("3 reused from the shared cache" in n for n in res2.notes)  # the modules
+    with pytest.raises(ConfigError) as e:
+        adaptability({**params, "carry_model": [True, True]}, dict(TINY), ctx2)
+    assert e.value.key == "params.carry_model"
+    with pytest.raises(ConfigError) as e:
+        combined({**MODULES, "combined": {"colour": 1}}, dict(TINY), ctx)
+    assert e.value.key == "params.combined"
