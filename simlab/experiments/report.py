@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from simlab.experiments.spec import FAIL, NOT_CHECKED, PASS, _num
+from simlab.experiments.spec import FAIL, METRIC_OPS, NOT_CHECKED, PASS, _num
 
 
 def _cell(text: Any) -> str:
@@ -76,6 +76,8 @@ def render_results(header: Mapping[str, Any], entries: Sequence[Mapping[str, Any
         for i, c in enumerate(checks):
             first = title if i == 0 else "″"
             ours = _num(c["ours"]) if c["ours"] is not None else "—"
+            if c.get("op") in METRIC_OPS and c["status"] != NOT_CHECKED:
+                ours = _cell(c["detail"])  # our value and the other metric's bound
             lines.append(f"| {first} | {budget} | {_cell(c['thesis'])} | "
                          f"`{_cell(c['check'])}` | {ours} | {_status_word(c['status'])} |")
     lines += ["", "## Wall time per experiment", "",

@@ -157,7 +157,8 @@ def _run_one(spec: ExperimentSpec, budget: str, out: Path, executor: Any, seed: 
         for c in spec.checks:
             o = c.evaluate(result.metrics, budget)
             checks.append({"metric": c.metric, "check": c.describe(), "thesis": c.thesis,
-                           "status": o.status, "ours": o.ours, "detail": o.detail})
+                           "op": c.op, "status": o.status, "ours": o.ours,
+                           "detail": o.detail})
         entry.update(status="ok", metrics=dict(result.metrics), checks=checks, figures=figures,
                      notes=list(result.notes))
         details = dict(result.details)

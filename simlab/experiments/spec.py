@@ -102,8 +102,7 @@ class Check:
                 return CheckOutcome(FAIL, ours, f"the metric {self.value!r} has no value")
             bound = self.factor * other
             ok = ours > bound if self.op == "greater_than_metric" else ours < bound
-            return CheckOutcome(PASS if ok else FAIL, ours,
-                                f"{_num(ours)} vs {self.describe().split()[-1]} = {_num(bound)}")
+            return CheckOutcome(PASS if ok else FAIL, ours, f"{_num(ours)} vs {_num(bound)}")
         ok = _compare(self.op, ours, self.value, self.tol, self.rel_tol)
         return CheckOutcome(PASS if ok else FAIL, ours, f"{_num(ours)}")
 

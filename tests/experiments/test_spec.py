@@ -190,7 +190,8 @@ def test_number_operators(check, x, status):
 
 def test_metric_operators_with_factor():
     c = _c("greater_than_metric", "base", factor=5.0)
-    assert c.evaluate({"m": 10.1, "base": 2.0}, "full").status == PASS
+    out = c.evaluate({"m": 10.1, "base": 2.0}, "full")
+    assert out.status == PASS and out.ours == 10.1 and out.detail == "10.1 vs 10"
     assert c.evaluate({"m": 10.0, "base": 2.0}, "full").status == FAIL
     assert c.evaluate({"m": 10.0, "base": None}, "full").status == FAIL
     assert c.describe() == "m > 5 × base"
@@ -208,3 +209,19 @@ def test_missing_or_empty_metrics_fail_and_budgets_are_respected():
     out = full_only.evaluate({"m": -1.0}, "quick")
     assert out.status == NOT_CHECKED and out.ours == -1.0
     assert full_only.evaluate({"m": -1.0}, "full").status == FAIL
+
+
+def test_results_table_shows_both_sides_of_a_metric_comparison():
+    from simlab.experiments.report import render_results
+
+    c = Check(metric="rate", op="greater_than_metric", value="random", thesis="beats random",
+              factor=5.0)
+    o = c.evaluate({"rate": 12.0, "random": 3.0}, "full")
+    entry = {"name": "x", "title": "T", "reference": "Fig. 1", "claim": "C", "runner": "a.b",
+             "budget": "full", "status": "ok", "metrics": {"rate": 12.0, "random": 3.0},
+             "checks": [{"metric": "rate", "check": c.describe(), "thesis": c.thesis,
+                         "op": c.op, "status": o.status, "ours": o.ours, "detail": o.detail}],
+             "figures": [], "notes": []}
+    md = render_results({"seed": 0}, [entry])
+    row = next(line for line in md.splitlines() if "beats random" in line)
+    assert "`rate > 5 × random`" in row and "| 12 vs 15 |" in row and "**FAIL**" in row
