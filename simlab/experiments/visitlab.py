@@ -59,6 +59,9 @@ the plateau), ``L_trials_to_<x>`` for every ``params.thresholds`` value ``x`` (f
 at which the smoothed curve reaches ``x``; no value if never), and
 ``L_<name>`` for every ``params.windows`` entry ``name = [lo, hi]`` (mean reward over the
 trials ``[lo * trials, hi * trials)``).
+
+Every runner appends ``params.notes`` (a list of sentences, e.g. why our simulation
+differs from the thesis where a check fails) to the notes of ``results.md``.
 """
 
 from __future__ import annotations
@@ -218,6 +221,15 @@ def parse_run(raw: Any, where: str, params: Mapping[str, Any], budget: Mapping[s
                    observer=observer,
                    takeover=_fraction(run.get("takeover", 0.5), f"{where}.takeover"),
                    keep_model=keep_model, legend=str(run.get("legend", "")))
+
+
+def param_notes(params: Mapping[str, Any]) -> list[str]:
+    """``params.notes``: sentences the TOML adds to the result (e.g. why our simulation
+    differs from the thesis), a list of strings."""
+    raw = params.get("notes", [])
+    if not isinstance(raw, list) or not all(isinstance(n, str) and n.strip() for n in raw):
+        raise ConfigError(f"expected a list of sentences, got {raw!r}", key="params.notes")
+    return [n.strip() for n in raw]
 
 
 # --------------------------------------------------------------------------- shared runs
@@ -506,9 +518,8 @@ def curves(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> R
         + (f", a Q-learner watching it takes over at {s.takeover:.0%}" if s.observer else "")
         + (f", {json.dumps(dict(s.overrides))}" if s.overrides else "")
         + (f", env {json.dumps(dict(s.env))}" if s.env else "") for s in specs) + "."]
-    for note in params.get("notes", []):
-        notes.append(str(note))
-    return RunResult(metrics=metrics, figures=[fig], notes=notes, details=details)
+    return RunResult(metrics=metrics, figures=[fig], notes=notes + param_notes(params),
+                     details=details)
 
 
 # --------------------------------------------------------------------------- Fig. 4.3
@@ -573,7 +584,8 @@ def nav_heatmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     details = {"greedy_success_per_goal": per_goal.round(4).tolist(),
                "inside_minus_outside": [round(g, 4) for g in gaps],
                "corr_vstar_per_goal": np.nanmean(corr, axis=0).round(4).tolist()}
-    return RunResult(metrics=metrics, figures=[fig], notes=notes, details=details)
+    return RunResult(metrics=metrics, figures=[fig], notes=notes + param_notes(params),
+                     details=details)
 
 
 def greedy_success(nxt: np.ndarray, labels: np.ndarray, q: np.ndarray, goal: int,
@@ -754,7 +766,8 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
              "this costs."]
     details = {"goals_per_seed": per_seed.round(4).tolist(),
                "random_goals_per_seed": rand.mean(axis=1).round(4).tolist()}
-    return RunResult(metrics=metrics, figures=figures, notes=notes, details=details)
+    return RunResult(metrics=metrics, figures=figures, notes=notes + param_notes(params),
+                     details=details)
 
 
 # --------------------------------------------------------------------------- Fig. 4.7
@@ -878,7 +891,8 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
              f"Social module trained with '{getattr(trained, 'name', trained)}'; continued with "
              f"{described}. The social agent ({s.agent}) continues with its own settings; the "
              "navigation and go-to-human modules are frozen (greedy)."]
-    return RunResult(metrics=metrics, figures=[fig], notes=notes, details=details)
+    return RunResult(metrics=metrics, figures=[fig], notes=notes + param_notes(params),
+                     details=details)
 
 
 # --------------------------------------------------------------------------- poster Fig. 5
@@ -937,4 +951,4 @@ def passive_qmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContex
                             title=f"learned values vs V*(s), all goal rooms, {specs[0].seeds} runs")]
     notes = [_cache_note(runs), "Observers watch for the whole run (take-over at 100 %), so their "
              "Q tables hold only what the actor's exploration showed them."]
-    return RunResult(metrics=metrics, figures=figs, notes=notes)
+    return RunResult(metrics=metrics, figures=figs, notes=notes + param_notes(params))
