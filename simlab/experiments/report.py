@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from simlab.experiments.spec import FAIL, METRIC_OPS, NOT_CHECKED, PASS, _num
+from simlab.experiments.spec import FAIL, METRIC_OPS, NOT_CHECKED, PASS, format_number
 
 
 def _cell(text: Any) -> str:
@@ -75,7 +75,7 @@ def render_results(header: Mapping[str, Any], entries: Sequence[Mapping[str, Any
                          f"see below | — |")
         for i, c in enumerate(checks):
             first = title if i == 0 else "″"
-            ours = _num(c["ours"]) if c["ours"] is not None else "—"
+            ours = format_number(c["ours"]) if c["ours"] is not None else "—"
             if c.get("op") in METRIC_OPS and c["status"] != NOT_CHECKED:
                 ours = _cell(c["detail"])  # our value and the other metric's bound
             lines.append(f"| {first} | {budget} | {_cell(c['thesis'])} | "
@@ -99,7 +99,7 @@ def render_results(header: Mapping[str, Any], entries: Sequence[Mapping[str, Any
         metrics = e.get("metrics", {})
         if metrics:
             lines += ["", "| Metric | Value |", "|---|---|"]
-            lines += [f"| {_cell(k)} | {_num(v) if v is not None else '—'} |"
+            lines += [f"| {_cell(k)} | {format_number(v) if v is not None else '—'} |"
                       for k, v in metrics.items()]
         for c in e.get("checks", []):
             if c["status"] == FAIL:

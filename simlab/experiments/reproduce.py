@@ -261,12 +261,12 @@ def reproduce(
 def _write_tables(out: Path, header: dict[str, Any], previous: dict[str, dict[str, Any]],
                   done: list[dict[str, Any]]) -> None:
     from simlab.experiments.report import render_results
-    from simlab.experiments.spec import _natural_key
+    from simlab.experiments.spec import natural_key
 
     merged = dict(previous)
     for e in done:
         merged[e["name"]] = e
-    entries = sorted(merged.values(), key=lambda e: _natural_key(e["name"]))
+    entries = sorted(merged.values(), key=lambda e: natural_key(e["name"]))
     header = {**header, "written": _now()}
     atomic_write_json(out / RESULTS_JSON, {**header, "experiments": entries})
     atomic_write_text(out / RESULTS_MD, render_results(header, entries))

@@ -72,19 +72,20 @@ class Check:
         """The check in symbols, e.g. ``fast_minus_slow_bits > 0``."""
         if self.op == "between":
             lo, hi = self.value
-            return f"{_num(lo)} <= {self.metric} <= {_num(hi)}"
+            return f"{format_number(lo)} <= {self.metric} <= {format_number(hi)}"
         if self.op == "approx":
             tol = []
             if self.tol:
-                tol.append(f"± {_num(self.tol)}")
+                tol.append(f"± {format_number(self.tol)}")
             if self.rel_tol:
                 tol.append(f"± {self.rel_tol:.0%}")
-            return f"{self.metric} ≈ {_num(self.value)} ({' or '.join(tol)})"
+            return f"{self.metric} ≈ {format_number(self.value)} ({' or '.join(tol)})"
         if self.op in METRIC_OPS:
             sym = ">" if self.op == "greater_than_metric" else "<"
-            other = self.value if self.factor == 1.0 else f"{_num(self.factor)} × {self.value}"
+            other = (self.value if self.factor == 1.0
+                     else f"{format_number(self.factor)} × {self.value}")
             return f"{self.metric} {sym} {other}"
-        return f"{self.metric} {self.op} {_num(self.value)}"
+        return f"{self.metric} {self.op} {format_number(self.value)}"
 
     def evaluate(self, metrics: Mapping[str, Any], budget: str) -> CheckOutcome:
         """Compare ``metrics[self.metric]`` with the check at ``budget``."""
@@ -102,9 +103,10 @@ class Check:
                 return CheckOutcome(FAIL, ours, f"the metric {self.value!r} has no value")
             bound = self.factor * other
             ok = ours > bound if self.op == "greater_than_metric" else ours < bound
-            return CheckOutcome(PASS if ok else FAIL, ours, f"{_num(ours)} vs {_num(bound)}")
+            return CheckOutcome(PASS if ok else FAIL, ours,
+                                f"{format_number(ours)} vs {format_number(bound)}")
         ok = _compare(self.op, ours, self.value, self.tol, self.rel_tol)
-        return CheckOutcome(PASS if ok else FAIL, ours, f"{_num(ours)}")
+        return CheckOutcome(PASS if ok else FAIL, ours, f"{format_number(ours)}")
 
 
 def _compare(op: str, x: float, v: Any, tol: float, rel_tol: float) -> bool:
@@ -134,7 +136,7 @@ def _as_float(v: Any) -> float | None:
         return None
 
 
-def _num(v: Any) -> str:
+def format_number(v: Any) -> str:
     """A number for people: integers as such, otherwise 4 significant digits."""
     if isinstance(v, bool) or v is None or isinstance(v, str):
         return str(v)
@@ -360,10 +362,10 @@ def discover_experiments(source: str | os.PathLike[str] | Sequence[str | os.Path
             raise ConfigError(f"name {s.name!r} is also used by {seen[s.name]}", path=s.path,
                               key="name")
         seen[s.name] = s.path
-    return sorted(specs, key=lambda s: _natural_key(s.name))
+    return sorted(specs, key=lambda s: natural_key(s.name))
 
 
-def _natural_key(name: str) -> list[Any]:
+def natural_key(name: str) -> list[Any]:
     """``fig4_10`` after ``fig4_9``: digit runs compare as numbers."""
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
 
