@@ -493,7 +493,7 @@ def curves(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> R
         metrics.update(curve_metrics(r.spec.label, r.returns, thresholds, windows))
         details["curves"][r.spec.label] = _curve_details(r.spec.label, r.returns)
     metrics["seeds"] = specs[0].seeds
-    panels_raw = params.get("panels") or [{"title": params.get("title", ""), "runs": labels}]
+    panels_raw = params.get("panels") or [{"title": "", "runs": labels}]
     panels = []
     marks: list[list[float]] = []
     for i, p in enumerate(panels_raw):

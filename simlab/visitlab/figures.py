@@ -190,6 +190,9 @@ def plot_histograms(series: Sequence[tuple[str, np.ndarray]], path: str | os.Pat
         counts, _ = np.histogram(values, bins=bins)
         ax.bar(np.arange(top + 1) - 0.4 + (i + 0.5) * width, counts / max(1, values.size),
                width=width, label=f"{label} (mean {values.mean():.2f})")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel(xlabel)
     ax.set_ylabel("fraction of trials")
     ax.grid(alpha=0.3, axis="y")
