@@ -45,8 +45,14 @@ social table ``(2560, 30)``; the go-to-human table ``(320, 25)``.
 
 Everything per step runs in one numba loop (:func:`combined_chunk`), which also serves
 the continued learning of the adaptability study and the episode recorder
-(:func:`record_episode`, :func:`write_episode_gif`: the thesis's Section 4.4
+(:func:`record_episodes`, :func:`write_episode_gif`: the thesis's Section 4.4
 sequence, the robot approaching, HELLO, COME, leading, the goal changing).
+
+Note for developers: :func:`combined_chunk` is compiled with ``cache=True`` and calls
+the kernels of :mod:`simlab.visitlab.dynamics` and the agent steps of
+:mod:`simlab.visitlab.training`; numba does not track dependencies between files, so
+after editing those delete the numba cache files (``simlab/visitlab/__pycache__/*.nbi``,
+``*.nbc``).
 """
 
 from __future__ import annotations
