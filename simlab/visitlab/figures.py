@@ -149,13 +149,14 @@ def plot_q_maps(layout: Layout, tables: Sequence[tuple[str, np.ndarray]], goal: 
 
 
 def plot_q_vs_vstar(series: Sequence[tuple[str, np.ndarray, np.ndarray]],
-                    path: str | os.PathLike[str], *, title: str = "") -> Path:
+                    path: str | os.PathLike[str], *, title: str = "",
+                    max_points: int = 4000) -> Path:
     """Poster Fig. 5 (bottom): learned ``max_a Q(s)`` against the optimal ``V*(s)``.
 
     ``series``: ``(label, v_star (k,), v_learned (k,))`` per agent (all states, goals and
-    runs pooled). Per distinct value of V* (the possible values of the deterministic
-    task), the median and the 10-90 % range of the learned values; the diagonal is a
-    perfect estimate.
+    runs pooled). The points (at most ``max_points``, an even stride through them), and
+    per distinct value of V* (the possible values of the deterministic task) the median
+    and the 10-90 % range of the learned values; the diagonal is a perfect estimate.
     """
     fig = _figure(3.4 * len(series) + 0.4, 3.4)
     axes = fig.subplots(1, len(series), squeeze=False, sharey=True)[0]
@@ -166,6 +167,8 @@ def plot_q_vs_vstar(series: Sequence[tuple[str, np.ndarray, np.ndarray]],
         med = np.array([np.median(learned[key == x]) for x in levels])
         lo = np.array([np.quantile(learned[key == x], 0.1) for x in levels])
         hi = np.array([np.quantile(learned[key == x], 0.9) for x in levels])
+        step = max(1, learned.size // max_points)
+        ax.scatter(v_star[::step], learned[::step], s=3, alpha=0.15, color="0.35", lw=0)
         ax.fill_between(levels, lo, hi, alpha=0.25, lw=0, step="mid")
         ax.plot(levels, med, marker="o", ms=2.5, lw=1.2)
         ax.plot([0, top], [0, top], color="k", ls="--", lw=0.8)
