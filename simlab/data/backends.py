@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 from simlab.data.walkers import PartJob, PartResult, WalkerCache, run_part
 from simlab.errors import ConfigError
+from simlab.raycluster import check_address, connect_ray
 
 BACKENDS = ("local", "ray")
 
@@ -85,27 +86,8 @@ class RayBackend:
     """
 
     def __init__(self, address: str | None = None) -> None:
-        try:
-            import ray
-        except ModuleNotFoundError:
-            raise ConfigError(
-                "the ray backend needs Ray", key="backend",
-                fix='pip install "simlab[ray]", or use --backend local',
-            ) from None
-        self._ray = ray
-        self._owns_runtime = False
-        if address is not None:
-            if ray.is_initialized():
-                raise ConfigError(
-                    "Ray is already initialized in this process; cannot connect to "
-                    f"{address!r}", key="address", fix="omit --address to reuse it",
-                )
-            ray.init(address=address)
-            self._owns_runtime = True
-        elif not ray.is_initialized():
-            ray.init(include_dashboard=False)
-            self._owns_runtime = True
-        self._remote = ray.remote(num_cpus=1)(run_part)
+        self._ray, self._owns_runtime = connect_ray(address)
+        self._remote = self._ray.remote(num_cpus=1)(run_part)
 
     def submit(self, job: PartJob) -> Any:
         return self._remote.remote(job)
@@ -125,10 +107,8 @@ def make_backend(name: str, workers: int, address: str | None = None) -> Backend
     ``local`` with one worker runs in this process; with more it uses a process pool of
     ``workers`` processes (one arena per process).
     """
+    check_address(name, address)
     if name == "local":
-        if address is not None:
-            raise ConfigError("--address applies to the ray backend only", key="address",
-                              fix="add --backend ray or drop --address")
         return InProcessBackend() if workers == 1 else ProcessPoolBackend(workers)
     if name == "ray":
         return RayBackend(address)

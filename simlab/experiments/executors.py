@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from simlab.errors import ConfigError
+from simlab.raycluster import check_address, connect_ray
 
 BACKENDS = ("local", "ray")
 
@@ -101,24 +102,9 @@ class RayExecutor:
     name = "ray"
 
     def __init__(self, address: str | None = None) -> None:
-        try:
-            import ray
-        except ModuleNotFoundError:
-            raise ConfigError("the ray backend needs Ray", key="backend",
-                              fix='pip install "simlab[ray]", or use --backend local') from None
-        self._ray = ray
-        self._owns = False
-        if address is not None:
-            if ray.is_initialized():
-                raise ConfigError(f"Ray is already initialized here; cannot connect to "
-                                  f"{address!r}", key="address", fix="omit --address")
-            ray.init(address=address)
-            self._owns = True
-        elif not ray.is_initialized():
-            ray.init(include_dashboard=False)
-            self._owns = True
-        self._remote = ray.remote(num_cpus=1)(_call)
-        self.workers = int(ray.cluster_resources().get("CPU", 1))
+        self._ray, self._owns = connect_ray(address)
+        self._remote = self._ray.remote(num_cpus=1)(_call)
+        self.workers = int(self._ray.cluster_resources().get("CPU", 1))
 
     def map(self, fn: Callable[..., Any], kwargs_list: Sequence[dict[str, Any]], *,
             desc: str | None = None, progress: bool = False) -> list[Any]:
@@ -153,10 +139,8 @@ Executor = LocalExecutor | RayExecutor
 def make_executor(backend: str = "local", *, workers: int | None = None,
                   address: str | None = None) -> Executor:
     """The executor of ``backend`` (``"local"`` or ``"ray"``)."""
+    check_address(backend, address)
     if backend == "local":
-        if address is not None:
-            raise ConfigError("--address applies to the ray backend only", key="address",
-                              fix="add --backend ray or drop --address")
         return LocalExecutor(workers)
     if backend == "ray":
         if workers is not None:
