@@ -8,51 +8,61 @@ import pytest
 
 from simlab.cli import main
 from simlab.errors import ConfigError
-from simlab.pipeline import STAGES, PipelineConfig, pipeline
+from simlab.pipeline import STAGES, pipeline
+from simlab.stages import PhysicsSettings
 
 TINY = ["--map-minutes", "2", "--hours", "0.3", "--workers", "1", "--episodes", "60",
         "--runs", "1", "--replay-hours", "0.05", "--pose-source", "truth", "--no-video",
         "--no-progress"]
 
 
+def _state(out):
+    return json.loads((out / "pipeline.json").read_text())
+
+
 def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["pipeline", "--out", str(out), *TINY]) == 0
     log = capsys.readouterr().out
-    assert all(f"{name}:" in log for name in STAGES)
-    state = json.loads((out / "pipeline.json").read_text())
+    assert all(f"{name}:" in log for name in STAGES) and "report.md" in log
+    state = _state(out)
     assert list(state["stages"]) == list(STAGES)
-    assert state["stages"]["states"]["states"] == 41
-    replay = state["stages"]["replay"]
-    assert replay["reward_rate_per_hour"] >= 0
+    assert all(rec["built"] for rec in state["stages"].values())
+    assert state["stages"]["states"]["n_states"] == 41
+    assert state["stages"]["replay"]["reward_rate_per_hour"] >= 0
     report = (out / "report.md").read_text()
     for needle in ("Markov states", "random-walk transitions", "mean transition entropy",
                    "states/states.png", "mdp/mdp_entropy.png", "replay/cumulative_reward.png"):
         assert needle in report
     for rel in ("map/map.yaml", "states/states.json", "mdp/mdp.npz", "qtables/q_C.npz",
-                "replay/replay.json", "replay/cumulative_reward.png", "states/states_visits.png"):
-        assert (out / rel).is_file(), rel
+                "replay/replay.json", "replay/cumulative_reward.png", "dataset/data",
+                "figures/states_visits.png"):
+        assert (out / rel).exists(), rel
 
-    # a second run into the same folder is refused; --resume skips every finished stage
+    # a second run into the same folder is refused; --resume reuses every stage
     assert main(["pipeline", "--out", str(out), *TINY]) == 2
     assert "--resume" in capsys.readouterr().err
-    before = (out / "mdp" / "mdp.npz").stat().st_mtime_ns
+    mdp_before = (out / "mdp" / "mdp.npz").stat().st_mtime_ns
     assert main(["pipeline", "--out", str(out), "--resume", *TINY]) == 0
-    assert capsys.readouterr().out.count("done earlier, skipped") == len(STAGES)
-    assert (out / "mdp" / "mdp.npz").stat().st_mtime_ns == before
-    # resuming with other settings would mix two experiments
+    assert capsys.readouterr().out.count("(reused)") == len(STAGES)
+    assert (out / "mdp" / "mdp.npz").stat().st_mtime_ns == mdp_before
+
+    # changing the walk's length rebuilds the walk and what depends on it, not the map
     changed = [*TINY]
     changed[changed.index("--hours") + 1] = "0.4"
-    assert main(["pipeline", "--out", str(out), "--resume", *changed]) == 2
-    assert "hours" in capsys.readouterr().err
+    assert main(["pipeline", "--out", str(out), "--resume", *changed]) == 0
+    built = {name: rec["built"] for name, rec in _state(out)["stages"].items()}
+    assert built == {"map": False, "states": False, "dataset": True, "mdp": True,
+                     "train": True, "replay": True}
+    assert _state(out)["stages"]["dataset"]["simulated_hours"] == pytest.approx(0.4, rel=0.05)
 
 
 def test_pipeline_settings_are_validated(tmp_path):
     with pytest.raises(ConfigError, match="hours: expected a number > 0"):
-        PipelineConfig(hours=0)
+        PhysicsSettings.create(hours=0)
     with pytest.raises(ConfigError, match="pose_source"):
-        PipelineConfig(pose_source="gps")
-    with pytest.raises(ConfigError, match="unexpected keyword"):
+        PhysicsSettings.create(pose_source="gps")
+    with pytest.raises(ConfigError, match=r"unknown physics setting.*hourz"):
         pipeline("table", tmp_path / "x", log=None, hourz=1)
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("user data")

@@ -11,13 +11,13 @@ import pytest
 
 from simlab.errors import ConfigError
 from simlab.experiments.physics import linearity_r2, paired_entropy_difference
-from simlab.experiments.physics_chain import (
+from simlab.experiments.spec import discover_experiments
+from simlab.stages import (
     MARKER,
     PhysicsChain,
     PhysicsSettings,
     chain_seed,
 )
-from simlab.experiments.spec import discover_experiments
 
 PHYSICS = ("fig4_8_entropy", "fig4_9_empirical_training", "fig4_10_replay")
 
@@ -79,7 +79,7 @@ def test_stage_cache_builds_once_and_rebuilds_an_interrupted_stage(tmp_path):
 
 
 def test_stage_cache_is_rebuilt_when_the_code_changes(tmp_path, monkeypatch):
-    import simlab.experiments.physics_chain as pc
+    import simlab.stages as pc
 
     def build(d):
         return {}

@@ -1,15 +1,17 @@
-"""The physics chain of Figs. 4.8-4.10, built once per output folder and shared.
+"""The stages of the physics half, built once per settings and shared: the physics chain.
 
-The three physics experiments need the same intermediate products: an occupancy map,
-Voronoi states, a random-walk dataset, the empirical MDP and the Q-tables trained on
-it. :class:`PhysicsChain` builds each of them with the library function that owns the
-stage (:func:`simlab.mapping.build_map`, :func:`discretize.voronoi.discretize_map`,
+``simlab pipeline`` and the physics experiments of ``simlab reproduce`` (Figs. 4.8-4.10)
+need the same intermediate products: an occupancy map, Voronoi states, a random-walk
+dataset, the empirical MDP, the Q-tables trained on it and a closed-loop replay.
+:class:`PhysicsChain` builds each of them with the library function that owns the stage
+(:func:`simlab.mapping.build_map`, :func:`discretize.voronoi.discretize_map`,
 :func:`simlab.data.collect.collect`, :func:`simlab.data.estimate.estimate`,
-:func:`simlab.training.train.train`) into ``DIR/_cache/physics/<stage>-<key>/`` where
-``key`` hashes the stage's settings, its parent stage's key, the root seed and the
-simlab version. So Fig. 4.9 reuses the 10-hour dataset Fig. 4.8 collected when their
-settings agree (the three TOMLs keep them equal; a test checks it), and a second
-``simlab reproduce`` into the same folder reuses the whole chain.
+:func:`simlab.training.train.train`, :func:`simlab.replay.replay.replay`) into
+``<cache>/physics/<stage>-<key>/`` where ``key`` hashes the stage's settings, its parent
+stage's key, the root seed and the simlab version. So Fig. 4.9 reuses the 10-hour dataset
+Fig. 4.8 collected when their settings agree (the three TOMLs keep them equal; a test
+checks it), a second ``simlab reproduce`` into the same folder reuses the whole chain, and
+``simlab pipeline --resume`` continues where an interrupted run stopped.
 
 The key also holds :func:`code_fingerprint`, a hash of the source of every package the
 chain runs (physics, mapping, discretizer, data, agents, training, envs) and of the
@@ -109,6 +111,22 @@ class PhysicsSettings:
                                       fix=f"known: {', '.join(names)}")
                 values[k] = v
                 where[k] = f"{table}.{k}"
+        return cls._validated(values, where)
+
+    @classmethod
+    def create(cls, **values: Any) -> PhysicsSettings:
+        """Settings from keyword values (defaults for the rest), validated like a TOML's;
+        errors name the setting (``hours: expected a number > 0``)."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(values) - names
+        if unknown:
+            raise ConfigError(f"unknown physics setting(s) {sorted(unknown)}",
+                              key="settings", fix=f"known: {', '.join(sorted(names))}")
+        return cls._validated(dict(values), {})
+
+    @classmethod
+    def _validated(cls, values: dict[str, Any], where: dict[str, str]) -> PhysicsSettings:
+        names = {f.name: f for f in dataclasses.fields(cls)}
         defaults = cls()
         for name in names:
             v = values.get(name, getattr(defaults, name))
@@ -140,7 +158,8 @@ _FINGERPRINT: list[str] = []
 def code_fingerprint() -> str:
     """sha256 (16 hex digits) of the files the physics chain's results depend on: the
     ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.mapping``, ``discretize``,
-    ``simlab.agents``, ``simlab.training``, ``simlab.envs`` and the robot and arena assets.
+    ``simlab.agents``, ``simlab.training``, ``simlab.envs``, ``simlab.replay``,
+    ``simlab.localization`` and the robot and arena assets.
     Computed once per process."""
     if _FINGERPRINT:
         return _FINGERPRINT[0]
@@ -150,7 +169,8 @@ def code_fingerprint() -> str:
 
     pkg = Path(simlab.__file__).resolve().parent
     roots = [pkg / "physics", pkg / "data", pkg / "mapping.py", pkg / "agents",
-             pkg / "training", pkg / "envs", Path(discretize.__file__).resolve().parent,
+             pkg / "training", pkg / "envs", pkg / "replay", pkg / "localization",
+             Path(discretize.__file__).resolve().parent,
              asset_dir("robots"), asset_dir("arenas")]
     h = hashlib.sha256()
     for root in roots:
@@ -336,3 +356,28 @@ class PhysicsChain:
         return self.cached_stage("train", {"parent": parent.key, "agent": s.agent,
                                            "episodes": s.episodes, "runs": s.runs,
                                            "horizon": s.horizon, "seed": seed}, build)
+
+    def replay(self, i: int) -> Stage:
+        """Chain seed ``i``'s closed-loop replay of its Q-tables in physics, with the random
+        policy as baseline (``replay.json``, ``cumulative_reward.png``, ``replay.gif`` when
+        ``video``; see :func:`simlab.replay.replay.replay`)."""
+        s = self.s
+        q, mdp, states = self.qtables(i), self.mdp(i), self.states()
+        map_yaml = self.map().path / "map.yaml"
+        seed = chain_seed(self.root_seed, "replay", i)
+
+        def build(d: Path) -> dict[str, Any]:
+            from simlab.replay.replay import replay
+
+            res = replay(s.arena, states.path / "states.json", q.path, hours=s.replay_hours,
+                         pose_source=s.pose_source, seed=seed, out=d, map=map_yaml,
+                         video=s.video, progress=self.progress, overwrite=True,
+                         mdp=mdp.path / "mdp.npz")
+            keys = ("reward_rate_per_hour", "random_rate_per_hour", "predicted_rate_per_hour",
+                    "position_error_mean_m")
+            return {k: res.summary[k] for k in keys if k in res.summary}
+
+        return self.cached_stage("replay", {"parent": q.key, "mdp": mdp.key, "seed": seed,
+                                            "hours": s.replay_hours,
+                                            "pose_source": s.pose_source, "video": s.video},
+                                 build)
