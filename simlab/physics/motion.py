@@ -48,23 +48,11 @@ from enum import IntEnum
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.directions import Direction
 from simlab.errors import ConfigError
 from simlab.physics.lidar import LidarScan
 from simlab.physics.robot import wrap_angle
 from simlab.physics.world import World
-
-
-class Direction(IntEnum):
-    """Map-frame directions in the thesis order (UP = +y)."""
-
-    UP = 0
-    DOWN = 1
-    LEFT = 2
-    RIGHT = 3
-    UP_LEFT = 4
-    UP_RIGHT = 5
-    DOWN_LEFT = 6
-    DOWN_RIGHT = 7
 
 
 class Speed(IntEnum):

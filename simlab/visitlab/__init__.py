@@ -32,7 +32,8 @@ Nothing here knows about PyBullet.
 
 from __future__ import annotations
 
-from simlab.visitlab.actions import Action, Direction, move_action
+from simlab.directions import Direction
+from simlab.visitlab.actions import Action, move_action
 from simlab.visitlab.grid import Layout, gridworld, lab_layout, make_layout, paper_layout
 from simlab.visitlab.humans import PRESETS, Human, human
 from simlab.visitlab.perception import PAPER_PERCEPTION, THESIS_PERCEPTION, Perception

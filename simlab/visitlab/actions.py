@@ -34,19 +34,6 @@ from enum import IntEnum
 import numpy as np
 
 
-class Direction(IntEnum):
-    """The eight grid directions, in the thesis order (Fig. 2.5)."""
-
-    UP = 0
-    DOWN = 1
-    LEFT = 2
-    RIGHT = 3
-    UP_LEFT = 4
-    UP_RIGHT = 5
-    DOWN_LEFT = 6
-    DOWN_RIGHT = 7
-
-
 class Action(IntEnum):
     """Robot actions 0-29 (navigation 0-24, social 25-28, option 29)."""
 
