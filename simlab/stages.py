@@ -56,12 +56,13 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import fcntl
+import functools
 import hashlib
 import json
 import math
 import shutil
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -152,26 +153,10 @@ class PhysicsSettings:
         return cls(**{k: values[k] for k in names})
 
 
-_FINGERPRINT: list[str] = []
-
-
-def code_fingerprint() -> str:
-    """sha256 (16 hex digits) of the files the physics chain's results depend on: the
-    ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.mapping``, ``discretize``,
-    ``simlab.agents``, ``simlab.training``, ``simlab.envs``, ``simlab.replay``,
-    ``simlab.localization`` and the robot and arena assets.
-    Computed once per process."""
-    if _FINGERPRINT:
-        return _FINGERPRINT[0]
-    import discretize
-    import simlab
-    from simlab.assets import asset_dir
-
-    pkg = Path(simlab.__file__).resolve().parent
-    roots = [pkg / "physics", pkg / "data", pkg / "mapping.py", pkg / "agents",
-             pkg / "training", pkg / "envs", pkg / "replay", pkg / "localization",
-             Path(discretize.__file__).resolve().parent,
-             asset_dir("robots"), asset_dir("arenas")]
+def source_fingerprint(roots: Iterable[Path]) -> str:
+    """sha256 (16 hex digits) of the source under ``roots`` (files, or folders searched for
+    ``*.py``, ``*.urdf`` and ``*.toml``): names relative to each root's parent, and bytes.
+    A cached result keyed on it is never reused after the code it depends on changed."""
     h = hashlib.sha256()
     for root in roots:
         files = [root] if root.is_file() else sorted(
@@ -179,8 +164,33 @@ def code_fingerprint() -> str:
         for f in files:
             h.update(f"{root.name}/{f.relative_to(root.parent).as_posix()}\0".encode())
             h.update(f.read_bytes())
-    _FINGERPRINT.append(h.hexdigest()[:16])
-    return _FINGERPRINT[0]
+    return h.hexdigest()[:16]
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """:func:`source_fingerprint` of what the physics chain's results depend on: the
+    ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.mapping``, ``discretize``,
+    ``simlab.agents``, ``simlab.training``, ``simlab.envs``, ``simlab.replay``,
+    ``simlab.localization`` and the robot and arena assets. Computed once per process."""
+    import discretize
+    import simlab
+    from simlab.assets import asset_dir
+
+    pkg = Path(simlab.__file__).resolve().parent
+    return source_fingerprint([
+        pkg / "physics", pkg / "data", pkg / "mapping.py", pkg / "agents", pkg / "training",
+        pkg / "envs", pkg / "replay", pkg / "localization",
+        Path(discretize.__file__).resolve().parent, asset_dir("robots"), asset_dir("arenas")])
+
+
+def stage_key(stage: str, key: Mapping[str, Any], fingerprint: str) -> tuple[str, dict[str, Any]]:
+    """``(digest, full key)`` of a cached stage: ``key`` plus the stage name, the simlab
+    version and the ``fingerprint`` of the code it runs (16 hex digits of sha256)."""
+    from simlab import __version__
+
+    full = {"stage": stage, "simlab": __version__, "code": fingerprint, **key}
+    return hashlib.sha256(json.dumps(full, sort_keys=True).encode()).hexdigest()[:16], full
 
 
 def chain_seed(root_seed: int, stage: str, i: int) -> int:
@@ -191,7 +201,9 @@ def chain_seed(root_seed: int, stage: str, i: int) -> int:
 
 
 @contextlib.contextmanager
-def _locked(path: Path) -> Iterator[None]:
+def file_lock(path: Path) -> Iterator[None]:
+    """Hold an exclusive ``flock`` on ``path`` (created if needed) for the block: two
+    processes never build the same cached stage at once."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "a") as fh:
         fcntl.flock(fh, fcntl.LOCK_EX)
@@ -238,15 +250,12 @@ class PhysicsChain:
                      build: Callable[[Path], dict[str, Any]]) -> Stage:
         """The folder of ``stage`` for ``key``: found complete in the cache, or made by
         ``build(folder) -> summary`` (JSON-ready numbers recorded in ``_stage.json``)."""
-        from simlab import __version__
-
-        full_key = {"stage": stage, "simlab": __version__, "code": code_fingerprint(), **key}
-        digest = hashlib.sha256(json.dumps(full_key, sort_keys=True).encode()).hexdigest()[:16]
+        digest, full_key = stage_key(stage, key, code_fingerprint())
         d = self.root / f"{stage}-{digest}"
         if d.name in self._built:
             return self._built[d.name]
         marker = d / MARKER
-        with _locked(self.root / f".{stage}-{digest}.lock"):
+        with file_lock(self.root / f".{stage}-{digest}.lock"):
             if marker.exists():
                 rec = json.loads(marker.read_text())
                 st = Stage(d, digest, rec["summary"], False, 0.0)

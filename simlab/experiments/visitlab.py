@@ -66,14 +66,12 @@ differs from the thesis where a check fails) to the notes of ``results.md``.
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
-import hashlib
+import functools
 import json
 import math
 import shutil
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -84,6 +82,7 @@ from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.io import atomic_write, atomic_write_json
+from simlab.stages import file_lock, source_fingerprint, stage_key
 
 #: First element of the spawn key of every Visit-the-lab stream ("VISL" in ASCII).
 VISITLAB_SPAWN_KEY = 0x5649534C
@@ -235,7 +234,6 @@ def param_notes(params: Mapping[str, Any]) -> list[str]:
 # --------------------------------------------------------------------------- shared runs
 
 
-_FINGERPRINT: list[str] = []
 
 
 #: The modules a training run's numbers depend on (besides ``simlab.agents``).
@@ -243,23 +241,17 @@ _RUN_SOURCES = ("actions", "grid", "perception", "humans", "dynamics", "envs", "
                 "passive")
 
 
+@functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """sha256 (16 hex digits) of the source a training run depends on: the Visit-the-lab
-    simulation and training loops (:data:`_RUN_SOURCES`) and every module of
-    ``simlab.agents``. Figures, the combined architecture and these runners are not part
-    of it (they do not change a run's numbers)."""
-    if not _FINGERPRINT:
-        import simlab
+    """:func:`~simlab.stages.source_fingerprint` of the source a training run depends on:
+    the Visit-the-lab simulation and training loops (:data:`_RUN_SOURCES`) and every
+    module of ``simlab.agents``. Figures, the combined architecture and these runners are
+    not part of it (they do not change a run's numbers)."""
+    import simlab
 
-        pkg = Path(simlab.__file__).resolve().parent
-        files = [pkg / "visitlab" / f"{name}.py" for name in _RUN_SOURCES]
-        files += sorted((pkg / "agents").glob("*.py"))
-        h = hashlib.sha256()
-        for f in files:
-            h.update(f"{f.parent.name}/{f.name}\0".encode())
-            h.update(f.read_bytes())
-        _FINGERPRINT.append(h.hexdigest()[:16])
-    return _FINGERPRINT[0]
+    pkg = Path(simlab.__file__).resolve().parent
+    files = [pkg / "visitlab" / f"{name}.py" for name in _RUN_SOURCES]
+    return source_fingerprint([*files, pkg / "agents"])
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,23 +274,8 @@ class RunData:
             return {k: data[k] for k in data.files}
 
 
-@contextlib.contextmanager
-def _locked(path: Path) -> Iterator[None]:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
-
-
 def _stage_dir(ctx: RunContext, kind: str, key: Mapping[str, Any]) -> tuple[Path, dict]:
-    from simlab import __version__
-
-    full = {"stage": kind, "simlab": __version__, "code": code_fingerprint(),
-            "root_seed": int(ctx.root_seed), **key}
-    digest = hashlib.sha256(json.dumps(full, sort_keys=True).encode()).hexdigest()[:16]
+    digest, full = stage_key(kind, {"root_seed": int(ctx.root_seed), **key}, code_fingerprint())
     return ctx.cache / "visitlab" / f"{kind}-{digest}", full
 
 
@@ -372,7 +349,7 @@ def get_runs(ctx: RunContext, specs: Sequence[RunSpec], desc: str = "training ru
 
 
 def _write_run(d: Path, spec: RunSpec, full: dict, seeds: list[Any], wall: float) -> None:
-    with _locked(d.parent / f".{d.name}.lock"):
+    with file_lock(d.parent / f".{d.name}.lock"):
         if (d / _MARKER).exists():
             return
         if d.exists():  # an interrupted build
