@@ -8,8 +8,7 @@ own them, so this module is cheap to import.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from simlab.lazy import lazy_exports
 
 #: Function name -> "module:attribute".
 _FUNCTIONS: dict[str, str] = {
@@ -26,17 +25,4 @@ _FUNCTIONS: dict[str, str] = {
     "reproduce": "simlab.experiments.reproduce:reproduce",
 }
 
-__all__ = sorted(_FUNCTIONS)
-
-
-def __getattr__(name: str) -> Any:
-    try:
-        target = _FUNCTIONS[name]
-    except KeyError:
-        raise AttributeError(f"module 'simlab.commands' has no attribute {name!r}") from None
-    module_name, attr = target.split(":")
-    return getattr(importlib.import_module(module_name), attr)
-
-
-def __dir__() -> list[str]:
-    return __all__
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _FUNCTIONS)

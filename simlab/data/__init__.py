@@ -25,8 +25,7 @@ re-exported here because their names are those of their modules.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from simlab.lazy import lazy_exports
 
 _LAZY: dict[str, str] = {
     "CollectResult": "simlab.data.collect",
@@ -41,16 +40,4 @@ _LAZY: dict[str, str] = {
     "export_minari": "simlab.data.minari_export",
 }
 
-__all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    try:
-        module = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'simlab.data' has no attribute {name!r}") from None
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return __all__
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _LAZY)

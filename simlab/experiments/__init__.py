@@ -125,8 +125,7 @@ experiment failed to run (and, with ``--strict``, when a check FAILed).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from simlab.lazy import lazy_exports
 
 _LAZY: dict[str, str] = {
     "RunContext": "simlab.experiments.context",
@@ -140,16 +139,4 @@ _LAZY: dict[str, str] = {
     "ReproduceResult": "simlab.experiments.reproduce",
 }
 
-__all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    try:
-        module = _LAZY[name]
-    except KeyError:
-        raise AttributeError(f"module 'simlab.experiments' has no attribute {name!r}") from None
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return __all__
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _LAZY)
