@@ -99,29 +99,39 @@ class Lidar:
         self.spec = spec or LidarSpec()
         self.offset = np.asarray(offset, dtype=float)
         a = self.spec.angles
+        a.setflags(write=False)  # shared by every full scan
+        self._angles = a
         self._dirs = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)  # sensor frame
-        self._span = self.spec.range_max - self.spec.range_min
 
     def scan(self, link_pos: NDArray[np.float64], link_rot: NDArray[np.float64],
              pose: NDArray[np.float64], rng: np.random.Generator | None,
-             stamp: float = 0.0, beams: NDArray[np.int64] | None = None) -> LidarScan:
+             stamp: float = 0.0, beams: NDArray[np.int64] | None = None,
+             reach: float | None = None) -> LidarScan:
         """Cast the beams from the base-link frame (``link_pos`` (3,), ``link_rot`` (3, 3)).
 
         ``pose`` is recorded in the scan; ``rng`` draws the range noise (no noise if None).
         ``beams`` selects a subset of beam indices (all by default): the returned scan then
-        holds only those beams, as if read out of a full scan.
+        holds only those beams, as if read out of a full scan. ``reach`` (m, at most
+        ``range_max``) shortens the rays for consumers that only look near the robot (the
+        obstacle detector): surfaces farther than ``reach`` then read ``inf``. Bullet's ray
+        test costs about 3x less for a 0.4 m ray than for a 3.5 m one in the table arena.
+        The noise draws do not depend on ``reach``, so the generator stream is unchanged.
         """
         spec = self.spec
+        far = spec.range_max if reach is None else min(float(reach), spec.range_max)
+        if not far > spec.range_min:
+            raise ValueError(f"reach must exceed range_min = {spec.range_min} m, got {reach}")
         origin = link_pos + link_rot @ self.offset
         local = self._dirs if beams is None else self._dirs[beams]
-        angles = spec.angles if beams is None else spec.angles[beams]
+        angles = self._angles if beams is None else self._angles[beams]
         dirs = local @ link_rot.T
         starts = origin + spec.range_min * dirs
-        ends = origin + spec.range_max * dirs
-        results = self._ray_batch(starts.tolist(), ends.tolist())
+        ends = origin + far * dirs
+        # PyBullet reads (n, 3) float arrays directly (faster than via nested lists).
+        results = self._ray_batch(starts, ends)
         hit_ids = np.fromiter((h[0] for h in results), dtype=np.int64, count=len(results))
         frac = np.fromiter((h[2] for h in results), dtype=np.float64, count=len(results))
-        ranges = spec.range_min + frac * self._span
+        ranges = spec.range_min + frac * (far - spec.range_min)
         if rng is not None and spec.noise_sigma > 0:
             ranges = ranges + rng.normal(0.0, spec.noise_sigma, size=ranges.shape)
         miss = (hit_ids < 0) | (ranges < spec.range_min) | (ranges > spec.range_max)

@@ -176,16 +176,24 @@ class WheelOdometry:
     def __init__(self, spec: RobotSpec, pose: NDArray[np.float64], angles: tuple[float, float]):
         self._r = spec.wheel_radius
         self._b = spec.wheel_separation
-        self.pose = np.array(pose, dtype=float)
+        x, y, th = (float(v) for v in pose)
+        self._pose = (x, y, th)
         self._last = angles
 
-    def update(self, angles: tuple[float, float]) -> NDArray[np.float64]:
+    @property
+    def pose(self) -> NDArray[np.float64]:
+        """The integrated pose ``(x, y, yaw)`` (a new array)."""
+        return np.array(self._pose)
+
+    def integrate(self, angles: tuple[float, float]) -> None:
+        """Integrate the wheel rotations since the previous sample (plain floats: this runs
+        at every command change)."""
         dl = (angles[0] - self._last[0]) * self._r
         dr = (angles[1] - self._last[1]) * self._r
         self._last = angles
         ds = 0.5 * (dl + dr)
         dth = (dr - dl) / self._b
-        x, y, th = self.pose
+        x, y, th = self._pose
         if abs(dth) < 1e-9:
             x += ds * math.cos(th)
             y += ds * math.sin(th)
@@ -193,8 +201,12 @@ class WheelOdometry:
             rad = ds / dth
             x += rad * (math.sin(th + dth) - math.sin(th))
             y -= rad * (math.cos(th + dth) - math.cos(th))
-        self.pose = np.array([x, y, wrap_angle(th + dth)])
-        return self.pose.copy()
+        self._pose = (x, y, wrap_angle(th + dth))
+
+    def update(self, angles: tuple[float, float]) -> NDArray[np.float64]:
+        """Integrate up to ``angles`` and return the pose."""
+        self.integrate(angles)
+        return np.array(self._pose)
 
 
 class DiffDrive:
@@ -222,6 +234,8 @@ class DiffDrive:
         self.commanded = (0.0, 0.0)
         self._set_motors = client.setJointMotorControlArray  # bound once (hot path)
         self._joint_states = client.getJointStates
+        self._half = 0.5 * spec.wheel_separation
+        self._forces = [spec.wheel_torque_limit] * 2
         self._odometry = WheelOdometry(spec, pose, self.wheel_angles())
 
     def saturate(self, v: float, w: float) -> tuple[float, float]:
@@ -241,13 +255,12 @@ class DiffDrive:
         v, w = self.saturate(v, w)
         if (v, w) == self.commanded:
             return v, w
-        self._odometry.update(self.wheel_angles())
-        half = 0.5 * self.spec.wheel_separation
-        r = self.spec.wheel_radius
+        self._odometry.integrate(self.wheel_angles())
+        half, r = self._half, self.spec.wheel_radius
         self._set_motors(
             self.body, self._joints, pybullet.VELOCITY_CONTROL,
             targetVelocities=[(v - w * half) / r, (v + w * half) / r],
-            forces=[self.spec.wheel_torque_limit] * 2,
+            forces=self._forces,
         )
         self.commanded = (v, w)
         return v, w

@@ -216,6 +216,12 @@ class World:
                   + 2.0 * (qy * qz - qx * qw) * oz)
         return np.array([x, y, math.atan2(r10, r00)])
 
+    def yaw(self) -> float:
+        """True heading (rad) of the base: ``pose()[2]`` without the position (the heading
+        controllers read it at every control tick)."""
+        _, (qx, qy, qz, qw) = self._get_base(self.body)
+        return math.atan2(2.0 * (qx * qy + qz * qw), 1.0 - 2.0 * (qy * qy + qz * qz))
+
     def tilt(self) -> float:
         """Angle (rad) between the robot's up axis and the vertical (0 when upright)."""
         _, rot = self._link_frame()
@@ -228,7 +234,7 @@ class World:
     def velocity(self) -> tuple[float, float]:
         """Forward speed (m/s, along the heading) and yaw rate (rad/s) of the base."""
         lin, ang = self._get_velocity(self.body)
-        yaw = self.pose()[2]
+        yaw = self.yaw()
         return lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw), ang[2]
 
     def set_pose(self, pose: NDArray[np.float64] | tuple[float, float, float]) -> None:
@@ -245,11 +251,12 @@ class World:
         return self.drive.odometry()
 
     def scan(self, rng: np.random.Generator | None,
-             beams: NDArray[np.int64] | None = None) -> LidarScan:
+             beams: NDArray[np.int64] | None = None, reach: float | None = None) -> LidarScan:
         """One LIDAR scan at the current state (noise from ``rng``; none if ``rng`` is None).
 
-        ``beams`` restricts the cast to a subset of beam indices (see :meth:`Lidar.scan`).
+        ``beams`` restricts the cast to a subset of beam indices and ``reach`` shortens the
+        rays (see :meth:`Lidar.scan`).
         """
         pos, rot = self._link_frame()
         pose = np.array([pos[0], pos[1], math.atan2(rot[1, 0], rot[0, 0])])
-        return self.lidar.scan(pos, rot, pose, rng, stamp=self.time, beams=beams)
+        return self.lidar.scan(pos, rot, pose, rng, stamp=self.time, beams=beams, reach=reach)

@@ -72,3 +72,18 @@ def test_range_min_hides_nearby_objects_and_points_are_in_world_frame():
         # every return lies on the wall square |x| = 0.75 or |y| = 0.75
         on_wall = np.isclose(np.maximum(np.abs(pts[:, 0]), np.abs(pts[:, 1])), 0.75, atol=2e-3)
         assert on_wall.all()
+
+
+def test_short_reach_reads_inf_beyond_it_and_keeps_the_noise_stream():
+    with World("table") as world:
+        world.reset((0.45, 0.0, 0.0))  # sensor ~0.27 m from the +x wall, >1 m from -x
+        full = world.scan(np.random.default_rng(3))
+        short = world.scan(np.random.default_rng(3), reach=0.6)
+        exact = world.scan(None).ranges
+        near = exact < 0.6 - 0.05
+        far = exact > 0.6 + 0.05
+        assert near.sum() > 20 and far.sum() > 200
+        np.testing.assert_allclose(short.ranges[near], full.ranges[near], atol=1e-9)
+        assert np.all(np.isinf(short.ranges[far]))
+        with pytest.raises(ValueError, match="reach"):
+            world.scan(None, reach=0.1)  # not beyond range_min
