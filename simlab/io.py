@@ -7,6 +7,7 @@ existing outputs are not replaced unless the caller asks for it.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
 import tempfile
@@ -72,3 +73,31 @@ def ensure_new(path: str | os.PathLike[str], *, overwrite: bool = False, what: s
             fix="choose another path or pass --overwrite",
         )
     return path
+
+
+@contextlib.contextmanager
+def exclusive_directory(path: str | os.PathLike[str], *, what: str = "output directory",
+                        fix: str = "wait for the other run to finish, or choose another --out"
+                        ) -> Iterator[Path]:
+    """Create ``path`` if needed and hold an exclusive, non-blocking ``flock`` on it.
+
+    Two runs writing into one directory (two ``simlab collect`` started on the same
+    ``--out``) would interleave their parts and manifests; the second one stops with a
+    :class:`ConfigError` instead. The lock lives on the directory itself (no lock file is
+    left behind) and is released when the block ends or the process dies.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{what} exists and is not a directory", path=path,
+                          fix="choose another --out")
+    path.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ConfigError(f"another process is writing to this {what}", path=path,
+                              fix=fix) from None
+        yield path
+    finally:
+        os.close(fd)  # closing the descriptor releases the lock

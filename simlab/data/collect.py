@@ -66,6 +66,7 @@ from simlab.data.walkers import (
     check_pose_source,
 )
 from simlab.errors import ConfigError
+from simlab.io import exclusive_directory
 
 #: Default transitions per part: small enough that a crash loses little, large enough
 #: that per-part overheads (world rebuild, file, manifest) stay negligible.
@@ -411,85 +412,87 @@ def collect(
         "states_file": None if not isinstance(states, str | os.PathLike) else str(states),
     }
     manifest = _jsonable(manifest)
-    manifest = _prepare_directory(out, manifest, resume)
-    wstates = _worker_states(manifest, workers, per_worker, out)
-    orphans = _orphans(out, manifest)
+    # One run per directory: a second collect on the same --out stops here.
+    with exclusive_directory(out, what="dataset directory"):
+        manifest = _prepare_directory(out, manifest, resume)
+        wstates = _worker_states(manifest, workers, per_worker, out)
+        orphans = _orphans(out, manifest)
 
-    key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
-                         sort_keys=True) + repr(params) + repr(pose_source_options)
-    spec = WalkSpec(
-        key=hashlib.sha256(key_src.encode()).hexdigest(),
-        simulator=simulator,
-        arena=arena_cfg,
-        params=params,
-        pose_source=pose_source,
-        pose_source_options=dict(pose_source_options or {}),
-    )
+        key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
+                             sort_keys=True) + repr(params) + repr(pose_source_options)
+        spec = WalkSpec(
+            key=hashlib.sha256(key_src.encode()).hexdigest(),
+            simulator=simulator,
+            arena=arena_cfg,
+            params=params,
+            pose_source=pose_source,
+            pose_source_options=dict(pose_source_options or {}),
+        )
 
-    def job_for(w: int) -> PartJob:
-        st = wstates[w]
-        return PartJob(spec=spec, seed=int(seed), worker=w, part=st.next_part, t0=st.t,
-                       pose0=st.pose, part_size=int(part_size), remaining=st.remaining,
-                       t_budget=t_budget)
+        def job_for(w: int) -> PartJob:
+            st = wstates[w]
+            return PartJob(spec=spec, seed=int(seed), worker=w, part=st.next_part, t0=st.t,
+                           pose0=st.pose, part_size=int(part_size), remaining=st.remaining,
+                           t_budget=t_budget)
 
-    done_rows = sum(int(e["rows"]) for e in manifest["parts"])
-    bar = _Progress(progress, transitions=transitions, hours=hours, done_rows=done_rows,
-                    done_seconds=sum(st.t for st in wstates))
-    written = 0
-    peak_rss = 0.0
-    cpu = [0.0] * workers
-    pending = [w for w in range(workers) if not wstates[w].done]
-    if pending:
-        runner = make_backend(backend, len(pending), address)
-        try:
-            handles = {runner.submit(job_for(w)): w for w in pending}
-            while handles:
-                for handle, result in runner.wait(list(handles)):
-                    del handles[handle]
-                    w = result.worker
-                    st = wstates[w]
-                    table = _part_table(result, st.step, disc, pose_source, schema)
-                    entry = write_part(out, w, result.part, table, disc.content_hash())
-                    orphans.discard(entry["file"])
-                    entry.update(t_end=result.t_end, pose_end=list(result.pose_end),
-                                 final=result.final)
-                    manifest["parts"].append(entry)
-                    manifest["parts"].sort(key=lambda e: (e["worker"], e["part"]))
-                    st.next_part += 1
-                    st.step += result.rows
-                    sim_delta = result.t_end - st.t
-                    st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
-                    if st.remaining is not None:
-                        st.remaining -= result.rows
-                    manifest["complete"] = all(s.done for s in wstates)
-                    write_manifest(out, manifest)
-                    written += 1
-                    peak_rss = max(peak_rss, result.peak_rss_mb)
-                    cpu[w] += result.cpu_seconds
-                    bar.update(result.rows, sim_delta)
-                    if not st.done:
-                        handles[runner.submit(job_for(w))] = w
-        finally:
-            runner.close()
+        done_rows = sum(int(e["rows"]) for e in manifest["parts"])
+        bar = _Progress(progress, transitions=transitions, hours=hours, done_rows=done_rows,
+                        done_seconds=sum(st.t for st in wstates))
+        written = 0
+        peak_rss = 0.0
+        cpu = [0.0] * workers
+        pending = [w for w in range(workers) if not wstates[w].done]
+        if pending:
+            runner = make_backend(backend, len(pending), address)
+            try:
+                handles = {runner.submit(job_for(w)): w for w in pending}
+                while handles:
+                    for handle, result in runner.wait(list(handles)):
+                        del handles[handle]
+                        w = result.worker
+                        st = wstates[w]
+                        table = _part_table(result, st.step, disc, pose_source, schema)
+                        entry = write_part(out, w, result.part, table, disc.content_hash())
+                        orphans.discard(entry["file"])
+                        entry.update(t_end=result.t_end, pose_end=list(result.pose_end),
+                                     final=result.final)
+                        manifest["parts"].append(entry)
+                        manifest["parts"].sort(key=lambda e: (e["worker"], e["part"]))
+                        st.next_part += 1
+                        st.step += result.rows
+                        sim_delta = result.t_end - st.t
+                        st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
+                        if st.remaining is not None:
+                            st.remaining -= result.rows
+                        manifest["complete"] = all(s.done for s in wstates)
+                        write_manifest(out, manifest)
+                        written += 1
+                        peak_rss = max(peak_rss, result.peak_rss_mb)
+                        cpu[w] += result.cpu_seconds
+                        bar.update(result.rows, sim_delta)
+                        if not st.done:
+                            handles[runner.submit(job_for(w))] = w
+            finally:
+                runner.close()
+                bar.close()
+        else:
             bar.close()
-    else:
-        bar.close()
-        if not manifest["complete"]:
-            manifest["complete"] = True
-            write_manifest(out, manifest)
-    for name in orphans:  # left by a run killed at a point this run never reached
-        (out / name).unlink(missing_ok=True)
-    return CollectResult(
-        directory=out,
-        transitions=sum(int(e["rows"]) for e in manifest["parts"]),
-        parts=len(manifest["parts"]),
-        parts_written=written,
-        simulated_seconds=float(sum(st.t for st in wstates)),
-        wall_seconds=time.perf_counter() - wall0,
-        peak_worker_rss_mb=peak_rss,
-        complete=bool(manifest["complete"]),
-        worker_cpu_seconds=tuple(cpu),
-    )
+            if not manifest["complete"]:
+                manifest["complete"] = True
+                write_manifest(out, manifest)
+        for name in orphans:  # left by a run killed at a point this run never reached
+            (out / name).unlink(missing_ok=True)
+        return CollectResult(
+            directory=out,
+            transitions=sum(int(e["rows"]) for e in manifest["parts"]),
+            parts=len(manifest["parts"]),
+            parts_written=written,
+            simulated_seconds=float(sum(st.t for st in wstates)),
+            wall_seconds=time.perf_counter() - wall0,
+            peak_worker_rss_mb=peak_rss,
+            complete=bool(manifest["complete"]),
+            worker_cpu_seconds=tuple(cpu),
+        )
 
 
 class _Progress:

@@ -16,6 +16,7 @@ from simlab.data.manifest import read_manifest, write_manifest
 from simlab.data.schema import MANIFEST_NAME, TRUTH_COLUMNS, part_name
 from simlab.data.walkers import KinematicParams
 from simlab.errors import ConfigError, DataError
+from simlab.io import exclusive_directory
 
 Collect = Callable[..., CollectResult]
 
@@ -189,6 +190,20 @@ def test_non_empty_directory_without_resume_is_refused(tmp_path: Path,
     with pytest.raises(ConfigError):
         collect_kinematic(other)
     assert (other / "notes.txt").read_text() == "mine"
+
+
+def test_a_second_collect_into_a_directory_in_use_is_refused(
+        tmp_path: Path, collect_kinematic: Collect) -> None:
+    out = tmp_path / "busy"
+    with exclusive_directory(out):  # stands in for another collect still running there
+        with pytest.raises(ConfigError, match="another process is writing") as exc:
+            collect_kinematic(out)
+        assert str(out) in str(exc.value)
+        with pytest.raises(ConfigError, match="another process is writing"):
+            collect_kinematic(out, resume=True)
+        assert os.listdir(out) == []  # nothing written by the refused runs
+    collect_kinematic(out)  # free again once the first run has ended
+    assert read_manifest(out)["complete"]
 
 
 @pytest.mark.parametrize(("change", "field"), [
