@@ -7,7 +7,6 @@ existing outputs are not replaced unless the caller asks for it.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import os
 import tempfile
@@ -86,6 +85,8 @@ def exclusive_directory(path: str | os.PathLike[str], *, what: str = "output dir
     :class:`ConfigError` instead. The lock lives on the directory itself (no lock file is
     left behind) and is released when the block ends or the process dies.
     """
+    import fcntl  # POSIX only; imported here so that simlab.io itself imports anywhere
+
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ConfigError(f"{what} exists and is not a directory", path=path,
