@@ -112,6 +112,14 @@ class _VisitLabEnv(gym.Env):
         """A copy of the kernel world-state array (see :mod:`simlab.visitlab.dynamics`)."""
         return self._st.copy()
 
+    def _percepts(self) -> tuple:
+        """The robot's percepts of the human now (level, distance, angle, human sees robot,
+        human looks at robot, robot looks at human); envs with a human only."""
+        st = self._st
+        return percepts(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
+                        st[dyn.S_ROBOT], st[dyn.S_ROBOT_ORI], st[dyn.S_HUMAN],
+                        st[dyn.S_HUMAN_ORI])
+
     def _positions(self) -> dict[str, Any]:
         st = self._st
         out: dict[str, Any] = {
@@ -282,9 +290,7 @@ class SocialEnv(_VisitLabEnv):
     def _info(self) -> dict[str, Any]:
         st = self._st
         info = self._positions()
-        level, dist, angle, sees, looks, r_looks = percepts(
-            self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
-            st[dyn.S_ROBOT], st[dyn.S_ROBOT_ORI], st[dyn.S_HUMAN], st[dyn.S_HUMAN_ORI])
+        level, dist, angle, sees, looks, r_looks = self._percepts()
         engaged = int(st[dyn.S_ENGAGED])
         info.update(
             interaction=engaged if engaged >= 5 else int(level),
@@ -401,9 +407,7 @@ class GoToHumanEnv(_VisitLabEnv):
     def _info(self) -> dict[str, Any]:
         st = self._st
         info = self._positions()
-        _, dist, angle, sees, looks, r_looks = percepts(
-            self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
-            st[dyn.S_ROBOT], st[dyn.S_ROBOT_ORI], st[dyn.S_HUMAN], st[dyn.S_HUMAN_ORI])
+        _, dist, angle, sees, looks, r_looks = self._percepts()
         info.update(distance_class=int(dist), angle=int(angle), h_sees_r=bool(sees),
                     h_looks_at_r=bool(looks), r_looks_at_h=bool(r_looks),
                     in_facing_field=bool(looks) and 1 <= dist <= 3,
