@@ -207,13 +207,10 @@ def _is_stray_temp(name: str) -> bool:
 
 
 def _prepare_directory(out: Path, manifest: dict[str, Any], resume: bool) -> dict[str, Any]:
-    """Create ``out`` with a fresh manifest, or load and check it for a resume."""
-    if out.exists() and not out.is_dir():
-        raise ConfigError("output exists and is not a directory", path=out,
-                          fix="choose another --out")
-    entries = sorted(os.listdir(out)) if out.is_dir() else []
+    """Give the directory ``out`` (existing, locked by the caller) a fresh manifest, or load
+    and check its manifest for a resume."""
+    entries = sorted(os.listdir(out))
     if not entries:
-        out.mkdir(parents=True, exist_ok=True)
         write_manifest(out, manifest)
         return manifest
     if not resume:

@@ -192,6 +192,16 @@ def test_non_empty_directory_without_resume_is_refused(tmp_path: Path,
     assert (other / "notes.txt").read_text() == "mine"
 
 
+def test_an_output_that_is_a_file_is_refused_and_kept(tmp_path: Path,
+                                                     collect_kinematic: Collect) -> None:
+    out = tmp_path / "ds"
+    out.write_text("mine")
+    with pytest.raises(ConfigError, match="not a directory") as exc:
+        collect_kinematic(out)
+    assert str(out) in str(exc.value)
+    assert out.read_text() == "mine"
+
+
 def test_a_second_collect_into_a_directory_in_use_is_refused(
         tmp_path: Path, collect_kinematic: Collect) -> None:
     out = tmp_path / "busy"
