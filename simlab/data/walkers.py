@@ -43,15 +43,9 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.actions import HEADINGS
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError
-
-#: Headings (rad, map frame) of the 8 directions in the thesis order
-#: UP, DOWN, LEFT, RIGHT, UP_LEFT, UP_RIGHT, DOWN_LEFT, DOWN_RIGHT (UP = +y).
-DIRECTION_HEADINGS = np.array(
-    [math.pi / 2, -math.pi / 2, math.pi, 0.0,
-     3 * math.pi / 4, math.pi / 4, -3 * math.pi / 4, -math.pi / 4]
-)
 
 #: Pose source name -> "module:factory". A factory is called as
 #: ``factory(world, **options)`` in the worker and returns a :class:`PoseSource`.
@@ -304,7 +298,7 @@ class KinematicWalker:
 
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
         p = self.params
-        heading = float(DIRECTION_HEADINGS[action % 8])
+        heading = float(HEADINGS[action % 8])
         speed = p.fast_speed if action >= 8 else p.slow_speed
         distance = speed * p.drive_time
         # Both noise draws happen on every step so the stream does not depend on blocking.

@@ -48,6 +48,7 @@ from enum import IntEnum
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.actions import HEADINGS
 from simlab.directions import Direction
 from simlab.errors import ConfigError
 from simlab.physics.lidar import LidarScan
@@ -62,13 +63,6 @@ class Speed(IntEnum):
 
 N_DIRECTIONS = len(Direction)
 N_ACTIONS = N_DIRECTIONS * len(Speed)
-
-#: Heading (rad, counter-clockwise from +x) of each :class:`Direction`.
-HEADINGS: NDArray[np.float64] = np.array(
-    [math.pi / 2, -math.pi / 2, math.pi, 0.0, 3 * math.pi / 4, math.pi / 4,
-     -3 * math.pi / 4, -math.pi / 4]
-)
-
 
 def action_index(speed: Speed | int, direction: Direction | int) -> int:
     """Action index of a (speed, direction) pair: ``speed * 8 + direction``."""

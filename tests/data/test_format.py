@@ -194,10 +194,3 @@ def test_dataset_object_exposes_manifest_facts(kinematic_dataset: Path) -> None:
     assert ds.n_states == 25 and ds.n_actions == 16
     assert ds.centres.shape == (25, 2)
     assert ds.discretizer_hash == read_manifest(kinematic_dataset)["discretizer"]["hash"]
-
-
-def test_kinematic_headings_match_the_physics_primitives() -> None:
-    from simlab.data.walkers import DIRECTION_HEADINGS
-    from simlab.physics.motion import HEADINGS
-
-    np.testing.assert_array_equal(DIRECTION_HEADINGS, HEADINGS)
