@@ -8,14 +8,16 @@ Each subcommand lives in its own module ``simlab/cli/<name>.py`` defining
 * ``run(args) -> int | None`` — calls the library function (the same one exposed
   in :mod:`simlab.commands`) and prints a short summary.
 
-Library code raises; this module alone turns :class:`~simlab.errors.SimlabError`
-(and the file errors people cause: missing files, permissions) into one line on
-stderr and exit code 2.
+Library code raises; this module alone turns :class:`~simlab.errors.SimlabError`,
+the operating system's errors (missing files, permissions, a full disk, a read-only
+file system, an ``--out`` that is a file) and running out of memory into one line on
+stderr and exit code 2; Ctrl-C is ``simlab X: interrupted`` and exit code 130.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import sys
 from collections.abc import Sequence
@@ -65,6 +67,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: errno -> what to do about it, for the one-line message of an OSError.
+_OS_FIXES: dict[int, str] = {
+    errno.ENOSPC: "free some space and run again; finished outputs were not replaced",
+    errno.EDQUOT: "free some space and run again; finished outputs were not replaced",
+    errno.EROFS: "choose an --out on a writable file system",
+    errno.EACCES: "check the permissions or choose another path",
+    errno.EPERM: "check the permissions or choose another path",
+    errno.EEXIST: "choose another path, or remove the file in the way",
+    errno.ENOTDIR: "a parent of this path is a file: choose another path",
+    errno.EISDIR: "expected a file here, found a directory",
+    errno.ENOENT: "check the path",
+    errno.ENAMETOOLONG: "choose a shorter path",
+}
+
+
+def describe_os_error(exc: OSError) -> str:
+    """One line for an operating-system error: what failed, on which file, and the fix."""
+    what = exc.strerror or exc.__class__.__name__
+    files = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
+    line = f"{what}: {' -> '.join(files)}" if files else what
+    fix = _OS_FIXES.get(exc.errno or -1)
+    return f"{line} ({fix})" if fix else line
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -76,8 +102,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SimlabError as exc:
         print(f"simlab {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as exc:
-        print(f"simlab {args.command}: error: {exc}", file=sys.stderr)
+    except OSError as exc:
+        print(f"simlab {args.command}: error: {describe_os_error(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"simlab {args.command}: error: out of memory (ask for less: fewer hours, "
+              "trials, states or a coarser grid)", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"simlab {args.command}: interrupted", file=sys.stderr)

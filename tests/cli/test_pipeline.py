@@ -29,7 +29,12 @@ def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
     assert list(state["stages"]) == list(STAGES)
     assert all(rec["built"] for rec in state["stages"].values())
     assert state["stages"]["states"]["n_states"] == 41
-    assert state["stages"]["replay"]["reward_rate_per_hour"] >= 0
+    # the stage record carries the replay's own rate: rewards over robot hours
+    replay_result = json.loads((out / "replay" / "replay.json").read_text())["result"]
+    hours = replay_result["robot_seconds"] / 3600.0
+    assert hours > 0 and replay_result["transitions"] > 0
+    assert state["stages"]["replay"]["reward_rate_per_hour"] == pytest.approx(
+        replay_result["rewards"] / hours)
     report = (out / "report.md").read_text()
     for needle in ("Markov states", "random-walk transitions", "mean transition entropy",
                    "states/states.png", "mdp/mdp_entropy.png", "replay/cumulative_reward.png"):

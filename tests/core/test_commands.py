@@ -20,3 +20,53 @@ def test_every_subcommand_is_registered_in_the_parser():
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
     assert set(sub.choices) == set(SUBCOMMANDS)
+
+
+def _failing_run(exc):
+    def run(args):
+        raise exc
+    return run
+
+
+def test_os_errors_become_one_line_and_exit_2(monkeypatch, capsys):
+    import errno
+
+    import simlab.cli as cli
+
+    cases = [
+        (OSError(errno.ENOSPC, "No space left on device", "/data/out/q.npz"),
+         "No space left on device: /data/out/q.npz (free some space"),
+        (OSError(errno.EROFS, "Read-only file system", "/ro/x"), "writable file system"),
+        (FileExistsError(errno.EEXIST, "File exists", "/tmp/out"), "File exists: /tmp/out"),
+        (MemoryError(), "out of memory"),
+    ]
+    for exc, expected in cases:
+        real = cli.build_parser
+
+        def parser_with_failing_drive(real=real, exc=exc):
+            p = real()
+            sub = next(a for a in p._actions if a.dest == "command")
+            sub.choices["drive"].set_defaults(_run=_failing_run(exc))
+            return p
+
+        monkeypatch.setattr(cli, "build_parser", parser_with_failing_drive)
+        assert cli.main(["drive"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("simlab drive: error: ") and expected in err, err
+        assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_interrupt_is_exit_130(monkeypatch, capsys):
+    import simlab.cli as cli
+
+    real = cli.build_parser
+
+    def parser():
+        p = real()
+        sub = next(a for a in p._actions if a.dest == "command")
+        sub.choices["drive"].set_defaults(_run=_failing_run(KeyboardInterrupt()))
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    assert cli.main(["drive"]) == 130
+    assert capsys.readouterr().err == "simlab drive: interrupted\n"
