@@ -126,13 +126,17 @@ class World:
         self.floor = c.createMultiBody(0, plane)
         c.changeDynamics(self.floor, -1, lateralFriction=FLOOR_FRICTION)
         hx, hy = a.size[0] / 2, a.size[1] / 2
+        cx, cy = a.center
         t, h = a.wall_thickness, a.wall_height
         walls = [  # (centre x, centre y, half x, half y)
-            (-hx - t / 2, 0.0, t / 2, hy + t),
-            (hx + t / 2, 0.0, t / 2, hy + t),
-            (0.0, -hy - t / 2, hx + t, t / 2),
-            (0.0, hy + t / 2, hx + t, t / 2),
+            (cx - hx - t / 2, cy, t / 2, hy + t),
+            (cx + hx + t / 2, cy, t / 2, hy + t),
+            (cx, cy - hy - t / 2, hx + t, t / 2),
+            (cx, cy + hy + t / 2, hx + t, t / 2),
         ]
+        if a.map_walls is not None:  # the merged wall boxes of a map-built arena
+            walls += [((x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2)
+                      for x0, y0, x1, y1 in a.map_walls.boxes]
         self.static_bodies = [self.floor]
         for x, y, ex, ey in walls:
             shape = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[ex, ey, h / 2])
