@@ -223,6 +223,7 @@ class PhysicsWalker:
         if self._pose_noise:
             # One noisy reading per pose: a transition starts where the previous one's
             # reading ended (as on the real robot); drawn from the pose-source Generator.
+            # A part starts with a fresh reading (parts are computed on their own).
             assert self._noise_rng is not None
             if self._last_pose is None:
                 self._last_pose = self._noisy_pose(np.asarray(before, dtype=np.float64),
