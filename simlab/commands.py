@@ -14,6 +14,7 @@ from simlab.lazy import lazy_exports
 _FUNCTIONS: dict[str, str] = {
     "drive": "simlab.physics.drive:drive",
     "map": "simlab.mapping:build_map",
+    "arena_from_map": "simlab.physics.map_arena:arena_from_map",
     "discretize": "discretize.voronoi:discretize_map",
     "collect": "simlab.data.collect:collect",
     "estimate": "simlab.data.estimate:estimate",

@@ -28,6 +28,7 @@ from simlab.errors import SimlabError
 SUBCOMMANDS: dict[str, str] = {
     "drive": "drive",
     "map": "map",
+    "arena-from-map": "arena",
     "discretize": "discretize",
     "collect": "collect",
     "estimate": "estimate",

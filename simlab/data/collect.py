@@ -353,6 +353,10 @@ def collect(
         simulator: ``"physics"`` (PyBullet) or ``"kinematic"`` (physics-free point robot
             for dry runs; see :class:`~simlab.data.walkers.KinematicWalker`).
         params: ``PrimitiveParams`` (physics) or ``KinematicParams``; default values if None.
+            Recorded complete in ``manifest["parameters"]["primitive"]``
+            (``PrimitiveParams.from_json`` or
+            :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
+            ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
         pose_source_options: keyword arguments for the pose source factory.
         progress: show a tqdm bar with transitions/s and simulated hours per wall second.
 
@@ -371,6 +375,10 @@ def collect(
     arena_cfg = load_arena_config(arena)
     disc = load_discretizer(states)
     params = _default_params(simulator) if params is None else params
+    if isinstance(params, str | os.PathLike):  # a [primitives] TOML file
+        from simlab.physics.motion import PrimitiveParams
+
+        params = PrimitiveParams.from_toml(params)
     from simlab import __version__
 
     per_worker = None if transitions is None else _split_transitions(int(transitions), workers)
@@ -384,7 +392,7 @@ def collect(
         "seconds_per_worker": t_budget,
         "transitions_per_worker": per_worker,
         "part_size": int(part_size),
-        "primitive": params,
+        "primitive": params.to_json() if hasattr(params, "to_json") else params,
         "pose_source_options": pose_source_options or {},
     })
     centres = np.asarray(disc.centres, dtype=np.float64)
@@ -424,6 +432,7 @@ def collect(
             params=params,
             pose_source=pose_source,
             pose_source_options=dict(pose_source_options or {}),
+            discretizer=disc if getattr(params, "mode", "fixed") == "until_state_change" else None,
         )
 
         def job_for(w: int) -> PartJob:

@@ -184,12 +184,20 @@ class PhysicsWalker:
     """The PyBullet world running :func:`simlab.physics.motion.execute_primitive`."""
 
     def __init__(self, arena: Any, params: Any, pose_source: str,
-                 pose_source_options: dict[str, Any]) -> None:
-        from simlab.physics.motion import execute_primitive
+                 pose_source_options: dict[str, Any], discretizer: Any = None) -> None:
+        from simlab.physics.motion import execute_primitive, noisy_pose
         from simlab.physics.world import World
 
         self._execute = execute_primitive
+        self._noisy_pose = noisy_pose
         self.params = params
+        self._state_of = None
+        if discretizer is not None:
+            state_of = discretizer.state_of
+            self._state_of = lambda xy: int(np.asarray(state_of(np.asarray(xy)[None, :2]))[0])
+        self._pose_noise = bool(params.pose_noise_xy or params.pose_noise_yaw)
+        self._noise_rng: np.random.Generator | None = None
+        self._last_pose: NDArray[np.float64] | None = None
         self.decision_latency = float(params.decision_latency)
         self.world = World(arena, gui=False)
         try:
@@ -204,11 +212,26 @@ class PhysicsWalker:
     def reset(self, pose: NDArray[np.float64] | None, source_rng: np.random.Generator) -> None:
         self.world.reset(pose=None if pose is None else np.asarray(pose, dtype=np.float64))
         self.source.reset(self.world, source_rng)
+        self._noise_rng = source_rng
+        self._last_pose = None
 
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
         res = self._execute(self.world, action, rng, self.params, on_scan=self._on_scan,
-                            scan_beams=getattr(self.source, "scan_beams", None))
+                            scan_beams=getattr(self.source, "scan_beams", None),
+                            state_of=self._state_of)
         before, after = self.source.poses(res)
+        if self._pose_noise:
+            # One noisy reading per pose: a transition starts where the previous one's
+            # reading ended (as on the real robot); drawn from the pose-source Generator.
+            # A part starts with a fresh reading (parts are computed on their own).
+            assert self._noise_rng is not None
+            if self._last_pose is None:
+                self._last_pose = self._noisy_pose(np.asarray(before, dtype=np.float64),
+                                                   self.params, self._noise_rng)
+            before = self._last_pose
+            after = self._noisy_pose(np.asarray(after, dtype=np.float64), self.params,
+                                     self._noise_rng)
+            self._last_pose = after
         return StepOutcome(
             blocked=bool(res.blocked),
             duration=float(res.duration),
@@ -350,6 +373,8 @@ class WalkSpec:
         params: ``PrimitiveParams`` (physics) or :class:`KinematicParams`.
         pose_source: ``truth``, ``odometry`` or ``mcl``.
         pose_source_options: keyword arguments of the pose-source factory.
+        discretizer: the states' discretizer, given to the primitives when they need
+            ``state_of`` (``mode = "until_state_change"``); None otherwise.
     """
 
     key: str
@@ -358,12 +383,14 @@ class WalkSpec:
     params: Any
     pose_source: str = "truth"
     pose_source_options: dict[str, Any] = field(default_factory=dict, hash=False)
+    discretizer: Any = field(default=None, compare=False, hash=False)
 
 
 def build_walker(spec: WalkSpec) -> Walker:
     """Instantiate the walker of ``spec`` (a PyBullet world for ``physics``)."""
     if spec.simulator == "physics":
-        return PhysicsWalker(spec.arena, spec.params, spec.pose_source, spec.pose_source_options)
+        return PhysicsWalker(spec.arena, spec.params, spec.pose_source, spec.pose_source_options,
+                             spec.discretizer)
     if spec.simulator == "kinematic":
         return KinematicWalker(spec.arena, spec.params, spec.pose_source)
     raise ConfigError(f"unknown simulator {spec.simulator!r}", key="simulator",

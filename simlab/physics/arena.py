@@ -33,6 +33,21 @@ File format (``arenas/table.toml`` is the reference)::
     radius = 0.06                     # cylinder only (m)
     height = 0.3                      # m
 
+An arena may instead be built from a map_server map (``map.yaml`` + image, e.g. made by
+GMapping on the real robot): replace ``[floor]`` by::
+
+    [map]
+    yaml = "lab/map.yaml"             # relative to the TOML file
+    unknown_as_wall = false           # optional: unknown pixels become walls too
+    occupied_min = 65                 # optional: occupancy (%) from which a pixel is a wall
+
+The arena then keeps the map's frame (no centring): start pose, goals and obstacles are
+in map coordinates and used unchanged. Walls are extruded (``[walls] height``) from the
+occupied pixels, merged into few axis-aligned boxes (:func:`merge_rectangles`); the free
+area is the bounding box of the map's known pixels (plus one pixel), closed by perimeter
+walls of ``[walls] thickness``. ``[start] clearance`` (m, default 0.09: half the Burger's
+width) is the radius of the disc around the start position that must be free of walls.
+
 Every problem raises :class:`~simlab.errors.ConfigError` naming the file and the key.
 """
 
@@ -41,7 +56,7 @@ from __future__ import annotations
 import hashlib
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -95,6 +110,81 @@ class Obstacle:
         return (np.abs(u) <= self.size[0] / 2) & (np.abs(v) <= self.size[1] / 2)
 
 
+def merge_rectangles(mask: NDArray[np.bool_]) -> list[tuple[int, int, int, int]]:
+    """Cover the True pixels of ``mask`` (H, W) exactly by few disjoint rectangles.
+
+    Greedy: scan rows top to bottom; at the first uncovered True pixel grow a run to the
+    right, then grow it down while the whole run stays True and uncovered. Returns
+    ``(row0, col0, row1, col1)`` half-open pixel ranges. Exact (the union is the mask), not
+    minimal; wall lines of a map become one box per straight segment.
+    """
+    todo = np.array(mask, dtype=bool, copy=True)
+    h, w = todo.shape
+    out: list[tuple[int, int, int, int]] = []
+    for r in range(h):
+        row = todo[r]
+        c = 0
+        while True:
+            hits = np.flatnonzero(row[c:])
+            if hits.size == 0:
+                break
+            c0 = c + int(hits[0])
+            gaps = np.flatnonzero(~row[c0:])
+            c1 = c0 + (int(gaps[0]) if gaps.size else w - c0)
+            r1 = r + 1
+            while r1 < h and todo[r1, c0:c1].all():
+                r1 += 1
+            todo[r:r1, c0:c1] = False
+            out.append((r, c0, r1, c1))
+            c = c1
+            if c >= w:
+                break
+    return out
+
+
+@dataclass(frozen=True)
+class MapWalls:
+    """Walls extruded from a map_server map, in the map's frame (metres).
+
+    ``walls`` (H, W) bool, row 0 the top (largest y), the pixels that are walls (occupied,
+    and unknown if ``unknown_as_wall``); ``resolution`` m/pixel; ``origin_xy`` the lower-left
+    corner of pixel (H-1, 0); ``boxes`` the merged walls as ``(x_min, y_min, x_max, y_max)``.
+    """
+
+    yaml: str
+    resolution: float
+    origin_xy: tuple[float, float]
+    walls: NDArray[np.bool_] = field(compare=False, repr=False)
+    boxes: tuple[tuple[float, float, float, float], ...] = field(repr=False)
+    unknown_as_wall: bool = False
+
+    @classmethod
+    def from_mask(cls, yaml: str, walls: NDArray[np.bool_], resolution: float,
+                  origin_xy: tuple[float, float], unknown_as_wall: bool) -> MapWalls:
+        walls = np.array(walls, dtype=bool)
+        walls.setflags(write=False)
+        h = walls.shape[0]
+        ox, oy = origin_xy
+        boxes = tuple(
+            (ox + c0 * resolution, oy + (h - r1) * resolution,
+             ox + c1 * resolution, oy + (h - r0) * resolution)
+            for r0, c0, r1, c1 in merge_rectangles(walls)
+        )
+        return cls(yaml, float(resolution), (float(ox), float(oy)), walls, boxes,
+                   bool(unknown_as_wall))
+
+    def contains(self, xy: ArrayLike) -> NDArray[np.bool_]:
+        """Whether points ``xy`` (..., 2) lie on a wall pixel (False off the map)."""
+        p = np.asarray(xy, dtype=float)
+        h, w = self.walls.shape
+        col = np.floor((p[..., 0] - self.origin_xy[0]) / self.resolution).astype(np.int64)
+        row = h - 1 - np.floor((p[..., 1] - self.origin_xy[1]) / self.resolution).astype(np.int64)
+        ok = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+        out = np.zeros(p.shape[:-1], dtype=bool)
+        out[ok] = self.walls[row[ok], col[ok]]
+        return out
+
+
 @dataclass(frozen=True)
 class ArenaConfig:
     """A validated arena. Build with :func:`load_arena`."""
@@ -109,12 +199,16 @@ class ArenaConfig:
     description: str = ""
     source: str | None = None
     source_sha256: str | None = None
+    center: tuple[float, float] = (0.0, 0.0)
+    map_walls: MapWalls | None = None
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
-        """``(x_min, y_min, x_max, y_max)`` of the inner free area (m)."""
+        """``(x_min, y_min, x_max, y_max)`` of the inner free area (m); centred on
+        ``center`` (the origin, except for an arena built from a map)."""
         hx, hy = self.size[0] / 2, self.size[1] / 2
-        return (-hx, -hy, hx, hy)
+        cx, cy = self.center
+        return (cx - hx, cy - hy, cx + hx, cy + hy)
 
     @property
     def goal_names(self) -> tuple[str, ...]:
@@ -138,6 +232,8 @@ class ArenaConfig:
         out = (p[..., 0] < x0) | (p[..., 0] > x1) | (p[..., 1] < y0) | (p[..., 1] > y1)
         for ob in self.obstacles:
             out |= ob.contains(p)
+        if self.map_walls is not None:
+            out |= self.map_walls.contains(p)
         return out
 
     def rasterize(
@@ -161,7 +257,11 @@ class ArenaConfig:
 # Loading and validation
 # --------------------------------------------------------------------------------------
 
-_TOP_KEYS = {"name", "description", "floor", "walls", "start", "goals", "obstacles"}
+_TOP_KEYS = {"name", "description", "floor", "map", "walls", "start", "goals", "obstacles"}
+
+#: Default radius (m) of the disc around a map arena's start position that must be free of
+#: walls: half the TurtleBot3 Burger's width (0.178 m).
+START_CLEARANCE = 0.09
 
 
 class _Checker:
@@ -243,6 +343,56 @@ def load_arena(name_or_path: str | Path) -> ArenaConfig:
     return _parse(data, path, hashlib.sha256(raw).hexdigest())
 
 
+def _parse_map(c: _Checker, data: dict[str, Any], path: Path
+               ) -> tuple[tuple[float, float], tuple[float, float], MapWalls, str]:
+    """The ``[map]`` table: (size, centre, walls, sha256 of the map's YAML and image)."""
+    from discretize.gridmap import UNKNOWN
+    from discretize.mapio import read_map, read_map_yaml
+
+    table = c.table(data, "map", {"yaml", "unknown_as_wall", "occupied_min"})
+    yaml_path = path.parent / c.string(table, "map", "yaml")
+    unknown_as_wall = table.get("unknown_as_wall", False)
+    if not isinstance(unknown_as_wall, bool):
+        raise c.fail("map.unknown_as_wall", f"expected true or false, got {unknown_as_wall!r}")
+    occupied_min = c.number(table, "map", "occupied_min", default=65.0)
+    if not 0 < occupied_min <= 100:
+        raise c.fail("map.occupied_min", f"expected a percentage in (0, 100], got {occupied_min}")
+    if not yaml_path.is_file():
+        raise c.fail("map.yaml", f"map file {str(yaml_path)!r} not found",
+                     fix="the path is relative to the arena TOML's directory")
+    grid = read_map(yaml_path)
+    if abs(grid.origin[2]) > 1e-9:
+        raise c.fail("map.yaml", f"the map's origin yaw is {grid.origin[2]} rad; only "
+                     "unrotated maps (yaw 0) can be extruded", fix="re-save the map with yaw 0")
+    occ = grid.occupancy
+    known = occ != UNKNOWN
+    if not known.any():
+        raise c.fail("map.yaml", "the map has no known pixel")
+    walls = occ >= occupied_min
+    if unknown_as_wall:
+        walls = walls | ~known
+    # Crop to the known part plus one pixel (the frame is kept: only the extent shrinks).
+    rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
+    h, w = occ.shape
+    r0, r1 = max(0, rows[0] - 1), min(h, rows[-1] + 2)
+    c0, c1 = max(0, cols[0] - 1), min(w, cols[-1] + 2)
+    res = grid.resolution
+    ox, oy = float(grid.origin[0] + c0 * res), float(grid.origin[1] + (h - r1) * res)
+    mw = MapWalls.from_mask(str(yaml_path), walls[r0:r1, c0:c1], res, (ox, oy), unknown_as_wall)
+    size = (float((c1 - c0) * res), float((r1 - r0) * res))
+    center = (ox + size[0] / 2, oy + size[1] / 2)
+    digest = hashlib.sha256(yaml_path.read_bytes())
+    digest.update(read_map_yaml(yaml_path).image.read_bytes())
+    return size, center, mw, digest.hexdigest()
+
+
+def _fmt_bounds(size: tuple[float, ...], center: tuple[float, float]) -> str:
+    if center == (0.0, 0.0):
+        return str(size)
+    return (f"x {center[0] - size[0] / 2:.3f}..{center[0] + size[0] / 2:.3f}, "
+            f"y {center[1] - size[1] / 2:.3f}..{center[1] + size[1] / 2:.3f}")
+
+
 def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
     c = _Checker(path)
     unknown = set(data) - _TOP_KEYS
@@ -254,8 +404,17 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
     if not isinstance(description, str):
         raise c.fail("description", "expected a string")
 
-    floor = c.table(data, "floor", {"size"})
-    size = c.vector(floor, "floor", "size", 2, positive=True)
+    map_walls: MapWalls | None = None
+    center = (0.0, 0.0)
+    if ("floor" in data) == ("map" in data):
+        raise c.fail("floor", "give exactly one of [floor] (a rectangle) or [map] (a "
+                     "map_server map)")
+    if "map" in data:
+        size, center, map_walls, map_sha = _parse_map(c, data, path)
+        sha = hashlib.sha256((sha + map_sha).encode()).hexdigest()
+    else:
+        floor = c.table(data, "floor", {"size"})
+        size = c.vector(floor, "floor", "size", 2, positive=True)
 
     walls = c.table(data, "walls", {"height", "thickness"})
     wall_height = c.number(walls, "walls", "height", positive=True)
@@ -265,12 +424,16 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
                      fix="use e.g. 0.25")
     wall_thickness = c.number(walls, "walls", "thickness", positive=True)
 
-    start_t = c.table(data, "start", {"pose"})
+    start_t = c.table(data, "start", {"pose", "clearance"})
     sx, sy, syaw_deg = c.vector(start_t, "start", "pose", 3)
     start = (sx, sy, math.radians(syaw_deg))
+    clearance = c.number(start_t, "start", "clearance", default=START_CLEARANCE)
+    if clearance < 0:
+        raise c.fail("start.clearance", f"expected a number >= 0, got {clearance}")
 
     hx, hy = size[0] / 2, size[1] / 2
-    inside = lambda x, y: -hx < x < hx and -hy < y < hy  # noqa: E731
+    inside = lambda x, y: (-hx < x - center[0] < hx  # noqa: E731
+                           and -hy < y - center[1] < hy)
 
     goals_raw = data.get("goals")
     if not isinstance(goals_raw, list) or not goals_raw:
@@ -291,7 +454,8 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
         seen.add(gname)
         gx, gy = c.vector(g, key, "center", 2)
         if not inside(gx, gy):
-            raise c.fail(f"{key}.center", f"({gx}, {gy}) is outside the floor {size}")
+            raise c.fail(f"{key}.center", f"({gx}, {gy}) is outside the floor "
+                         f"{_fmt_bounds(size, center)}")
         goals.append(GoalArea(gname, gx, gy, c.number(g, key, "radius", positive=True)))
 
     obstacles = []
@@ -315,7 +479,8 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
                          fix=f"allowed: {sorted(allowed)}")
         ox, oy = c.vector(o, key, "center", 2)
         if not inside(ox, oy):
-            raise c.fail(f"{key}.center", f"({ox}, {oy}) is outside the floor {size}")
+            raise c.fail(f"{key}.center", f"({ox}, {oy}) is outside the floor "
+                         f"{_fmt_bounds(size, center)}")
         height = c.number(o, key, "height", positive=True)
         if kind == "box":
             bsize = c.vector(o, key, "size", 2, positive=True)
@@ -338,10 +503,24 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
         description=description,
         source=str(path),
         source_sha256=sha,
+        center=center,
+        map_walls=map_walls,
     )
     if arena.occupied(np.array(start[:2])):
-        raise c.fail("start.pose", f"start position {start[:2]} is inside an obstacle")
+        raise c.fail("start.pose", f"start position {start[:2]} is inside an obstacle or wall")
+    if map_walls is not None:
+        ang = np.linspace(0.0, 2 * math.pi, 48, endpoint=False)
+        rad = np.linspace(0.0, clearance, 6)[1:, None]
+        disc = np.stack([sx + rad * np.cos(ang), sy + rad * np.sin(ang)], axis=-1)
+        hit = disc[arena.occupied(disc)]
+        if hit.size:
+            raise c.fail("start.pose", f"the robot at {start[:2]} would overlap a wall (e.g. at "
+                         f"({hit[0][0]:.3f}, {hit[0][1]:.3f})) within {clearance} m",
+                         fix="move the start into free space (map coordinates), or lower "
+                             "[start] clearance")
     for i, g in enumerate(arena.goals):
         if any(ob.contains(np.array([g.x, g.y])) for ob in arena.obstacles):
             raise c.fail(f"goals[{i}].center", f"goal {g.name!r} centre is inside an obstacle")
+        if map_walls is not None and map_walls.contains(np.array([g.x, g.y])):
+            raise c.fail(f"goals[{i}].center", f"goal {g.name!r} centre is on a wall pixel")
     return arena

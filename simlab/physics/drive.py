@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,15 +51,28 @@ def drive(
     gui: bool = False,
     png: str | Path | None = None,
     overwrite: bool = False,
-    params: PrimitiveParams | None = None,
+    params: PrimitiveParams | str | Path | None = None,
     progress: bool = True,
+    states: Any = None,
 ) -> DriveSummary:
-    """Execute ``steps`` uniformly random primitives; optionally save a top-down PNG."""
+    """Execute ``steps`` uniformly random primitives; optionally save a top-down PNG.
+
+    ``params``: PrimitiveParams or a ``[primitives]`` TOML file (default: built-in).
+    ``states``: a states file or discretizer, required by ``mode = "until_state_change"``.
+    """
     if steps < 0:
         raise ValueError(f"steps must be >= 0, got {steps}")
     if png is not None:
         ensure_new(png, overwrite=overwrite, what="PNG output")
+    if isinstance(params, str | Path):
+        params = PrimitiveParams.from_toml(params)
     params = params or PrimitiveParams()
+    state_of = None
+    if params.mode == "until_state_change":
+        from simlab.data.inputs import load_discretizer
+
+        disc = load_discretizer(states)
+        state_of = lambda xy: int(np.asarray(disc.state_of(np.asarray(xy)[None, :2]))[0])  # noqa: E731
     policy_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
     policy_rng, noise_rng = np.random.default_rng(policy_seq), np.random.default_rng(noise_seq)
     t0 = time.perf_counter()
@@ -67,7 +81,8 @@ def drive(
         blocked = 0
         stepped = 0.0
         for _ in tqdm(range(steps), desc="drive", unit="primitive", disable=not progress):
-            res = execute_primitive(world, int(policy_rng.integers(N_ACTIONS)), noise_rng, params)
+            res = execute_primitive(world, int(policy_rng.integers(N_ACTIONS)), noise_rng, params,
+                                    state_of=state_of)
             trail.append(res.pose_after)
             blocked += res.blocked
             stepped += res.duration

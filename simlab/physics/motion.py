@@ -39,11 +39,16 @@ unless blocked, and braking; measured over a 10-hour walk: 8,423 transitions wit
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
+import os
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 from enum import IntEnum
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -81,6 +86,19 @@ def action_name(action: int) -> str:
     return f"{direction.name}_{speed.name}"
 
 
+#: Primitive modes: ``fixed`` drives for ``drive_time``; ``until_state_change`` drives until
+#: the discretized state changes, the obstacle detector says blocked, or ``max_drive_time``.
+MODES = ("fixed", "until_state_change")
+
+#: Fields that may be 0 (the rest must be > 0, except the strings).
+_ZERO_OK = frozenset({
+    "decision_latency", "detector_margin", "detector_side_margin", "settle_time",
+    "min_turn_rate", "wheel_noise", "wheel_noise_tick", "slip", "pose_noise_xy",
+    "pose_noise_yaw",
+})
+_STRINGS = {"heading_source": ("truth", "odometry"), "mode": MODES}
+
+
 @dataclass(frozen=True)
 class PrimitiveParams:
     """Parameters of the motion primitives (SI units: m, s, rad, Hz).
@@ -88,6 +106,27 @@ class PrimitiveParams:
     ``heading_source`` is the heading the controller steers by: ``"truth"`` stands in for
     the localized (SLAM/AMCL) heading the thesis robot used to execute map-frame
     directions; ``"odometry"`` uses the wheel encoders alone and drifts over time.
+
+    ``mode``: ``"fixed"`` drives for ``drive_time`` (the thesis primitive);
+    ``"until_state_change"`` drives until the discretized state of the robot's true
+    position changes (checked at the ``hold_hz`` control ticks), until the obstacle
+    detector, re-run at every control tick on the same corridor as the initial check
+    (``speed * drive_time + detector_margin`` ahead), says blocked, or until
+    ``max_drive_time`` (s) has been driven (the real robot's moves mostly end in a new cell).
+    It needs the discretizer's ``state_of`` (see :func:`execute_primitive`).
+
+    Noise (all 0 by default: no random draw is made, trajectories are bit-identical to a
+    noise-free build). All draws come from the primitive's ``rng``:
+
+    * ``wheel_noise``: relative standard deviation of each wheel's speed, drawn once per
+      primitive per wheel (gain ``1 + wheel_noise * N(0, 1)``, clipped at 0);
+    * ``wheel_noise_tick``: the same, redrawn at every control tick (turn and drive);
+    * ``slip``: a fraction ``U(0, slip)`` of the commanded translation lost per primitive
+      (both wheel speeds of the drive phase scaled by ``1 - fraction``; the encoders see
+      it, as they would a soft floor; must be < 1);
+    * ``pose_noise_xy`` (m) and ``pose_noise_yaw`` (rad): Gaussian noise added to the
+      poses the pose source reports (and so to the recorded poses and states); applied by
+      the collection walker (:func:`noisy_pose`), not by the primitive.
     """
 
     slow_speed: float = 0.10
@@ -106,31 +145,136 @@ class PrimitiveParams:
     detector_side_margin: float = 0.02
     decision_latency: float = 3.02
     heading_source: str = "truth"
+    mode: str = "fixed"
+    max_drive_time: float = 3.0
+    wheel_noise: float = 0.0
+    wheel_noise_tick: float = 0.0
+    slip: float = 0.0
+    pose_noise_xy: float = 0.0
+    pose_noise_yaw: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if f.name == "heading_source":
-                if value not in ("truth", "odometry"):
-                    raise ConfigError(f"must be 'truth' or 'odometry', got {value!r}",
+            if f.name in _STRINGS:
+                if value not in _STRINGS[f.name]:
+                    choices = " or ".join(repr(v) for v in _STRINGS[f.name])
+                    raise ConfigError(f"must be {choices}, got {value!r}",
                                       key=f"PrimitiveParams.{f.name}")
                 continue
-            if not isinstance(value, int | float) or not math.isfinite(value):
+            if (isinstance(value, bool) or not isinstance(value, int | float)
+                    or not math.isfinite(value)):
                 raise ConfigError(f"must be a finite number, got {value!r}",
                                   key=f"PrimitiveParams.{f.name}")
-            zero_ok = f.name in ("decision_latency", "detector_margin",
-                                 "detector_side_margin", "settle_time", "min_turn_rate")
+            zero_ok = f.name in _ZERO_OK
             if value < 0 or (value == 0 and not zero_ok):
                 raise ConfigError(f"must be {'>= 0' if zero_ok else '> 0'}, got {value!r}",
                                   key=f"PrimitiveParams.{f.name}")
+        if self.slip >= 1.0:
+            raise ConfigError(f"must be < 1 (a fraction of the distance), got {self.slip!r}",
+                              key="PrimitiveParams.slip")
+
+    @property
+    def has_motion_noise(self) -> bool:
+        """Whether the primitive draws actuation noise (wheel noise or slip)."""
+        return bool(self.wheel_noise or self.wheel_noise_tick or self.slip)
 
     def speed_of(self, action: int) -> float:
         """Forward speed (m/s) of an action."""
         return self.fast_speed if decode_action(action)[0] == Speed.FAST else self.slow_speed
 
     def nominal_distance(self, action: int) -> float:
-        """Distance (m) an unblocked action is meant to travel."""
+        """Distance (m) an unblocked ``fixed``-mode action is meant to travel."""
         return self.speed_of(action) * self.drive_time
+
+    # ------------------------------------------------------------------ records
+    def to_json(self) -> dict[str, Any]:
+        """All fields as a JSON-ready dict (what dataset manifests record)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any], *, path: str | os.PathLike[str] | None = None,
+                  where: str = "primitives") -> PrimitiveParams:
+        """Inverse of :meth:`to_json`. Missing fields take their defaults (records written
+        before a field existed); an unknown key raises ConfigError naming it."""
+        if not isinstance(data, dict):
+            raise ConfigError(f"expected a table of primitive parameters, got {data!r}",
+                              path=path, key=where)
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ConfigError(f"unknown primitive parameter(s) {unknown}", path=path,
+                              key=f"{where}.{unknown[0]}", fix=f"allowed: {sorted(known)}")
+        try:
+            return cls(**data)
+        except ConfigError as exc:
+            field_name = (exc.key or "").replace("PrimitiveParams.", "")
+            raise ConfigError(exc.problem, path=path, key=f"{where}.{field_name}",
+                              fix=exc.fix) from None
+
+    @classmethod
+    def from_toml(cls, path: str | os.PathLike[str]) -> PrimitiveParams:
+        """Load the ``[primitives]`` table of a TOML file (other tables are ignored, so a
+        calibration report can carry the table beside its own)."""
+        p = Path(path)
+        try:
+            data = tomllib.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ConfigError("file not found", path=p, key="--primitives") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"not valid TOML: {exc}", path=p) from None
+        if "primitives" not in data:
+            raise ConfigError("missing table", path=p, key="primitives",
+                              fix="put the settings under a [primitives] table")
+        return cls.from_json(data["primitives"], path=p)
+
+    def replace(self, **changes: Any) -> PrimitiveParams:
+        """A copy with ``changes`` (validated); ``None`` values are ignored (CLI flags)."""
+        return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+    def toml_text(self) -> str:
+        """The parameters as a ``[primitives]`` TOML table (round-trips by :meth:`from_toml`)."""
+        lines = ["[primitives]"]
+        for name, value in self.to_json().items():
+            lines.append(f"{name} = " + (f'"{value}"' if isinstance(value, str) else repr(value)))
+        return "\n".join(lines) + "\n"
+
+
+def primitive_params_from_record(record: dict[str, Any] | None) -> PrimitiveParams | None:
+    """The :class:`PrimitiveParams` a dataset was collected with, or None if not recorded.
+
+    ``record`` may be a dataset manifest (``record["parameters"]["primitive"]``), its
+    ``parameters`` dict, a dict with a ``primitive`` or ``primitives`` key, or the primitive
+    dict itself. Returns None when there is no record, or when it was made by the
+    kinematic simulator (whose parameters are not primitive parameters).
+    """
+    if not isinstance(record, dict):
+        return None
+    if record.get("simulator") == "kinematic":
+        return None
+    node: Any = record
+    if isinstance(node.get("parameters"), dict):
+        node = node["parameters"]
+    for key in ("primitive", "primitives"):
+        if key in node:
+            node = node[key]
+            break
+    if not isinstance(node, dict) or "slow_speed" not in node or "turn_decel" not in node:
+        return None  # absent, or KinematicParams (no turn_decel)
+    return PrimitiveParams.from_json(node, where="primitive")
+
+
+def noisy_pose(pose: NDArray[np.float64], params: PrimitiveParams,
+               rng: np.random.Generator) -> NDArray[np.float64]:
+    """``pose`` (3,) plus the pose-source noise of ``params`` (no draw when it is 0)."""
+    if not (params.pose_noise_xy or params.pose_noise_yaw):
+        return pose
+    z = rng.standard_normal(3)
+    out = np.array(pose, dtype=np.float64)
+    out[0] += params.pose_noise_xy * z[0]
+    out[1] += params.pose_noise_xy * z[1]
+    out[2] = float(wrap_angle(out[2] + params.pose_noise_yaw * z[2]))
+    return out
 
 
 @dataclass(frozen=True)
@@ -140,7 +284,10 @@ class PrimitiveResult:
     ``duration`` is the simulated time stepped (s), without the decision latency;
     ``heading_error`` the final heading error (rad) after the rotation; ``scan`` the scan
     the obstacle detector used (its cone of beams, cast only as far as the corridor:
-    farther surfaces read ``inf``).
+    farther surfaces read ``inf``). ``stop_reason`` says why the translation ended:
+    ``"blocked"`` (never started), ``"fixed"`` (``drive_time`` elapsed), or in
+    ``until_state_change`` mode ``"state_change"``, ``"detector"`` (blocked while driving)
+    or ``"timeout"``; ``drive_duration`` is the time driven (s).
     """
 
     action: int
@@ -152,6 +299,8 @@ class PrimitiveResult:
     duration: float
     heading_error: float
     scan: LidarScan
+    stop_reason: str = "fixed"
+    drive_duration: float = 0.0
 
 
 #: Speeds below which the robot counts as at rest (m/s, rad/s).
@@ -239,37 +388,50 @@ class ScanStepper:
                 self.next_scan += self.period
 
 
-def execute_primitive(
-    world: World,
-    action: int,
-    rng: np.random.Generator,
-    params: PrimitiveParams | None = None,
-    on_scan: ScanCallback | None = None,
-    scan_beams: NDArray[np.int64] | None = None,
-) -> PrimitiveResult:
-    """Run one primitive (rotate, check, drive, brake) in ``world``; see the module doc.
+StateOf = Callable[[NDArray[np.float64]], int]
 
-    ``rng`` draws the LIDAR noise. ``on_scan(scan, odometry_pose)`` is called at the LIDAR
-    rate while the primitive runs, if given, with scans of the ``scan_beams`` beam indices
-    (None: all 360).
-    """
-    p = params or PrimitiveParams()
-    _speed, direction = decode_action(action)
-    target = float(HEADINGS[direction])
+
+class _ActuationNoise:
+    """Wheel-speed gains of one primitive (see :class:`PrimitiveParams`); no draw when the
+    noise parameters are 0, so a noise-free primitive consumes nothing from ``rng``."""
+
+    def __init__(self, p: PrimitiveParams, rng: np.random.Generator, drive: Any) -> None:
+        self.p, self.rng, self.drive = p, rng, drive
+        self.base = (1.0, 1.0)
+        self.slip = 1.0
+        if p.wheel_noise:
+            z = rng.standard_normal(2)
+            self.base = (1.0 + p.wheel_noise * z[0], 1.0 + p.wheel_noise * z[1])
+        if p.slip:
+            self.slip = 1.0 - p.slip * float(rng.random())
+        self.driving = False
+
+    def tick(self) -> None:
+        """Apply the gains for the next control period (redrawing the per-tick part)."""
+        if not self.p.has_motion_noise:
+            return
+        gl, gr = self.base
+        if self.p.wheel_noise_tick:
+            z = self.rng.standard_normal(2)
+            gl, gr = gl * (1.0 + self.p.wheel_noise_tick * z[0]), gr * (
+                1.0 + self.p.wheel_noise_tick * z[1])
+        k = self.slip if self.driving else 1.0
+        self.drive.set_wheel_gains(gl * k, gr * k)
+
+    def clear(self) -> None:
+        if self.p.has_motion_noise:
+            self.drive.set_wheel_gains(1.0, 1.0)
+
+
+def _rotate(world: World, stepper: ScanStepper, p: PrimitiveParams, target: float,
+            heading: Callable[[], float], noise: _ActuationNoise) -> float:
+    """Turn in place to ``target`` (rad); returns the final true heading error (rad)."""
     drive = world.drive
-    stepper = ScanStepper(world, rng, on_scan, scan_beams)
-    t0 = world.time
-    pose_before = world.pose()
-    odom_before = world.odometry()
-
-    def heading() -> float:
-        return world.yaw() if p.heading_source == "truth" else float(world.odometry()[2])
-
-    # 1. Rotate: open loop at w_max for the bulk, then a closed-loop approach.
     w_max = world.robot_spec.w_max
     err = float(wrap_angle(target - heading()))
     bulk = abs(err) - 0.25
-    if bulk > 0:
+    if bulk > 0:  # open loop at w_max for the bulk, then a closed-loop approach
+        noise.tick()
         drive.command(0.0, math.copysign(w_max, err))
         stepper.advance(bulk / w_max)
         err = float(wrap_angle(target - heading()))
@@ -279,19 +441,21 @@ def execute_primitive(
         rate = max(p.min_turn_rate, math.sqrt(2.0 * p.turn_decel * abs(err)))
         # Never command more than the remaining angle over one control period.
         rate = min(rate, w_max, abs(err) / fine_dt)
+        noise.tick()
         drive.command(0.0, math.copysign(rate, err))
         stepper.advance(fine_dt)
         err = float(wrap_angle(target - heading()))
     drive.command(0.0, 0.0)
     stepper.advance(p.settle_time / 2)
-    heading_error = float(wrap_angle(target - world.yaw()))
+    return float(wrap_angle(target - world.yaw()))
 
-    # 2. Obstacle check on a fresh scan of the cone ahead: only the beams that can see the
-    # swept corridor are cast (the others cannot block; this cuts the check's cost by 2/3),
-    # and only as far as the corridor's farthest corner plus ten noise sigmas (a shorter
-    # ray test is ~3x cheaper; anything beyond cannot read as inside the corridor).
-    v = p.speed_of(action)
-    distance = v * p.drive_time
+
+def _detector(world: World, p: PrimitiveParams, rng: np.random.Generator,
+              distance: float) -> tuple[bool, LidarScan]:
+    """The obstacle check on a fresh scan of the cone ahead: only the beams that can see the
+    swept corridor are cast (the others cannot block; this cuts the check's cost by 2/3),
+    and only as far as the corridor's farthest corner plus ten noise sigmas (a shorter ray
+    test is ~3x cheaper; anything beyond cannot read as inside the corridor)."""
     spec, lidar = world.robot_spec, world.lidar_spec
     corridor = max(p.slow_speed, p.fast_speed) * p.drive_time + p.detector_margin
     beams = detector_beams(lidar.n_beams, lidar.range_min, spec.lidar_offset[0], spec.footprint,
@@ -300,22 +464,105 @@ def execute_primitive(
     reach = (math.hypot(x_max + corridor - spec.lidar_offset[0], y_max + p.detector_side_margin)
              + 10.0 * lidar.noise_sigma + 0.01)
     scan = world.scan(rng, beams=beams, reach=max(reach, lidar.range_min + 0.01))
-    blocked = corridor_blocked(scan, distance, world.robot_spec.footprint,
-                               p.detector_margin, p.detector_side_margin)
+    blocked = corridor_blocked(scan, distance, spec.footprint, p.detector_margin,
+                               p.detector_side_margin)
+    return blocked, scan
+
+
+def _drive(world: World, stepper: ScanStepper, p: PrimitiveParams, v: float, target: float,
+           heading: Callable[[], float], noise: _ActuationNoise,
+           until: Callable[[], str | None] | None) -> tuple[str, float]:
+    """Drive straight at ``v`` holding ``target`` with control ticks at ``hold_hz``.
+
+    ``until`` (until_state_change mode) is asked after every tick and returns a stop reason
+    or None; the drive then lasts at most ``max_drive_time``, else ``drive_time``.
+    Returns (stop reason, time driven in s).
+    """
+    drive = world.drive
+    hold_dt = 1.0 / p.hold_hz
+    noise.driving = True
+    total = p.drive_time if until is None else p.max_drive_time
+    remaining = total
+    reason = "fixed" if until is None else "timeout"
+    while remaining > 1e-9:
+        dt = min(hold_dt, remaining)
+        noise.tick()
+        drive.command(v, p.hold_gain * float(wrap_angle(target - heading())))
+        stepper.advance(dt)
+        remaining -= dt
+        if until is not None:
+            stop = until()
+            if stop is not None:
+                reason = stop
+                break
+    noise.driving = False
+    return reason, total - max(remaining, 0.0)
+
+
+def execute_primitive(
+    world: World,
+    action: int,
+    rng: np.random.Generator,
+    params: PrimitiveParams | None = None,
+    on_scan: ScanCallback | None = None,
+    scan_beams: NDArray[np.int64] | None = None,
+    *,
+    state_of: StateOf | None = None,
+) -> PrimitiveResult:
+    """Run one primitive (rotate, check, drive, brake) in ``world``; see the module doc.
+
+    ``rng`` draws the LIDAR noise and the actuation noise of ``params``.
+    ``on_scan(scan, odometry_pose)`` is called at the LIDAR rate while the primitive runs,
+    if given, with scans of the ``scan_beams`` beam indices (None: all 360).
+    ``state_of(xy (2,)) -> int`` (the discretizer's state of a position, m) is required by
+    ``mode = "until_state_change"``; it is applied to the true position at the control
+    ticks (a stand-in for the localized pose the real robot checks).
+    """
+    p = params or PrimitiveParams()
+    if p.mode == "until_state_change" and state_of is None:
+        raise ConfigError("mode 'until_state_change' needs the discretizer's state_of",
+                          key="PrimitiveParams.mode",
+                          fix="pass state_of=... (collect passes its states' discretizer)")
+    _speed, direction = decode_action(action)
+    target = float(HEADINGS[direction])
+    drive = world.drive
+    stepper = ScanStepper(world, rng, on_scan, scan_beams)
+    t0 = world.time
+    pose_before = world.pose()
+    odom_before = world.odometry()
+    noise = _ActuationNoise(p, rng, drive)
+
+    def heading() -> float:
+        return world.yaw() if p.heading_source == "truth" else float(world.odometry()[2])
+
+    # 1. Rotate.
+    heading_error = _rotate(world, stepper, p, target, heading, noise)
+
+    # 2. Obstacle check on the corridor of a nominal drive.
+    v = p.speed_of(action)
+    distance = v * p.drive_time
+    blocked, scan = _detector(world, p, rng, distance)
 
     # 3. Drive straight with a heading hold.
+    reason, driven = "blocked", 0.0
     if not blocked:
-        hold_dt = 1.0 / p.hold_hz
-        remaining = p.drive_time
-        while remaining > 1e-9:
-            dt = min(hold_dt, remaining)
-            drive.command(v, p.hold_gain * float(wrap_angle(target - heading())))
-            stepper.advance(dt)
-            remaining -= dt
+        until = None
+        if p.mode == "until_state_change":
+            s0 = int(state_of(pose_before[:2]))  # type: ignore[misc]
+
+            def until() -> str | None:
+                if int(state_of(world.pose()[:2])) != s0:  # type: ignore[misc]
+                    return "state_change"
+                if _detector(world, p, rng, distance)[0]:
+                    return "detector"
+                return None
+
+        reason, driven = _drive(world, stepper, p, v, target, heading, noise, until)
 
     # 4. Brake until at rest. "At rest" allows the few mm/s of creep that PyBullet's
     # iterative solver leaves on velocity motors held at zero with 5 iterations (it shrinks
     # with more iterations, at 2-4x the cost per step); over a settle it moves < 1 mm.
+    noise.clear()
     drive.command(0.0, 0.0)
     stepper.advance(p.settle_time)
     deadline = world.time + p.settle_timeout
@@ -335,4 +582,6 @@ def execute_primitive(
         duration=world.time - t0,
         heading_error=heading_error,
         scan=scan,
+        stop_reason=reason,
+        drive_duration=driven,
     )

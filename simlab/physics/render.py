@@ -65,6 +65,10 @@ class TopDown:
                       WALL, -1)
         if floor:
             cv2.rectangle(self.image, tuple(self.px([x0, y1])), tuple(self.px([x1, y0])), FLOOR, -1)
+        if a.map_walls is not None:
+            for bx0, by0, bx1, by1 in a.map_walls.boxes:
+                cv2.rectangle(self.image, tuple(self.px([bx0, by1])),
+                              tuple(self.px([bx1, by0])), WALL, -1)
         if goals:
             self.draw_goals(active_goal)
         for ob in a.obstacles:

@@ -236,7 +236,19 @@ class DiffDrive:
         self._joint_states = client.getJointStates
         self._half = 0.5 * spec.wheel_separation
         self._forces = [spec.wheel_torque_limit] * 2
+        self._gains = (1.0, 1.0)
         self._odometry = WheelOdometry(spec, pose, self.wheel_angles())
+
+    def set_wheel_gains(self, left: float, right: float) -> None:
+        """Scale the wheel speeds the motors are given (actuation noise, slip): the motors
+        turn at ``gain * commanded``. (1, 1) is exact; the current command is re-sent."""
+        gains = (max(0.0, float(left)), max(0.0, float(right)))
+        if gains == self._gains:
+            return
+        self._gains = gains
+        v, w = self.commanded
+        self.commanded = (math.nan, math.nan)  # force the re-send
+        self.command(v, w)
 
     def saturate(self, v: float, w: float) -> tuple[float, float]:
         """Clip (v, w) to the robot limits and the wheel speed limit; returns what is applied."""
@@ -257,9 +269,12 @@ class DiffDrive:
             return v, w
         self._odometry.integrate(self.wheel_angles())
         half, r = self._half, self.spec.wheel_radius
+        targets = [(v - w * half) / r, (v + w * half) / r]
+        if self._gains != (1.0, 1.0):
+            targets = [targets[0] * self._gains[0], targets[1] * self._gains[1]]
         self._set_motors(
             self.body, self._joints, pybullet.VELOCITY_CONTROL,
-            targetVelocities=[(v - w * half) / r, (v + w * half) / r],
+            targetVelocities=targets,
             forces=self._forces,
         )
         self.commanded = (v, w)

@@ -133,3 +133,68 @@ def test_ray_backend_gives_the_local_data(tmp_path: Path, table_states_file: Pat
     m_local, m_ray = (json.loads((tmp_path / d / "_manifest.json").read_text())
                       for d in ("local", "ray"))
     assert [e["sha256"] for e in m_local["parts"]] == [e["sha256"] for e in m_ray["parts"]]
+
+
+def _room_arena(tmp_path: Path) -> Path:
+    """A 2 x 1.5 m room as a map_server map (origin (5, -2): the map frame is not centred)
+    with a 0.3 m box in it, and its arena TOML."""
+    from discretize.gridmap import OccupancyMap
+    from discretize.mapio import write_map
+
+    res = 0.05
+    occ = np.full((40, 50), -1, dtype=np.int8)  # 2.5 x 2 m canvas
+    occ[3:37, 3:47] = 100
+    occ[5:35, 5:45] = 0  # free x in [5.25, 7.25), y in [-1.75, -0.25)
+    occ[12:18, 30:36] = 100
+    write_map(tmp_path / "room.yaml", OccupancyMap(occ, res, (5.0, -2.0, 0.0)))
+    toml = tmp_path / "room.toml"
+    toml.write_text('name = "room"\n[map]\nyaml = "room.yaml"\n[walls]\nheight = 0.25\n'
+                    'thickness = 0.05\n[start]\npose = [5.7, -1.2, 90.0]\n'
+                    '[[goals]]\nname = "g"\ncenter = [6.8, -0.6]\nradius = 0.15\n')
+    return toml
+
+
+def test_collect_on_a_map_arena_keeps_the_robot_in_free_space(tmp_path: Path) -> None:
+    from simlab.physics.arena import load_arena
+
+    arena = load_arena(_room_arena(tmp_path))
+    xs, ys = np.meshgrid(np.linspace(5.5, 7.0, 4), np.linspace(-1.5, -0.5, 3))
+    disc = Discretizer(centres=np.c_[xs.ravel(), ys.ravel()])
+    out = tmp_path / "walk"
+    collect(arena, disc, out=out, transitions=60, seed=2, part_size=30, progress=False)
+    cols = _columns(out)
+    assert len(cols["a"]) == 60
+    assert (cols["x"][0], cols["y"][0]) == pytest.approx((5.7, -1.2), abs=1e-3)  # map frame
+    ends = np.c_[cols["x_next"], cols["y_next"]]
+    assert not arena.occupied(ends).any()
+    np.testing.assert_array_equal(cols["s_next"], disc.state_of(ends))
+    assert np.hypot(*(ends - [5.7, -1.2]).T).max() > 0.1  # it did move
+    assert read_manifest(out)["arena"]["bounds"] == pytest.approx([5.1, -1.9, 7.4, -0.1])
+
+
+def test_collect_with_candidate_parameters_is_deterministic_and_recorded(
+        tmp_path: Path, table_states_file: Path) -> None:
+    """The calibration engineer's call: noise fields and the until-state-change mode."""
+    from simlab.physics.motion import primitive_params_from_record
+
+    params = PrimitiveParams(mode="until_state_change", max_drive_time=2.0, wheel_noise=0.1,
+                             wheel_noise_tick=0.05, slip=0.2, pose_noise_xy=0.01,
+                             pose_noise_yaw=0.02, decision_latency=1.0)
+    runs = []
+    for name in ("a", "b"):
+        collect("table", table_states_file, out=tmp_path / name, transitions=40,
+                params=params, seed=5, workers=1, part_size=20, progress=False)
+        runs.append(_columns(tmp_path / name))
+    for key in runs[0]:
+        np.testing.assert_array_equal(runs[0][key], runs[1][key])
+    manifest = read_manifest(tmp_path / "a")
+    assert primitive_params_from_record(manifest) == params
+    assert PrimitiveParams.from_json(manifest["parameters"]["primitive"]) == params
+    cols = runs[0]
+    # one pose reading per pose: a transition starts where the previous reading ended
+    # (within a part; a part starts with a fresh reading, from its own Generator)
+    inner = cols["part"][1:] == cols["part"][:-1]
+    np.testing.assert_array_equal(cols["x"][1:][inner], cols["x_next"][:-1][inner])
+    assert np.any(cols["x"][1:][~inner] != cols["x_next"][:-1][~inner])
+    moved = ~cols["blocked"]
+    assert np.mean(cols["s"][moved] != cols["s_next"][moved]) > 0.5
