@@ -5,15 +5,19 @@ from __future__ import annotations
 import simlab.commands as commands
 from simlab.cli import SUBCOMMANDS, build_parser
 
-#: CLI name -> function name where they differ.
-FUNCTION_OF = {"export-minari": "export_minari", "visitlab": "visitlab_train"}
+#: CLI name -> function name where it is not the name with "-" as "_".
+FUNCTION_OF = {"visitlab": "visitlab_train"}
+
+
+def _function_name(cli_name: str) -> str:
+    return FUNCTION_OF.get(cli_name, cli_name.replace("-", "_"))
 
 
 def test_every_subcommand_has_a_python_function():
     for name in SUBCOMMANDS:
-        function = getattr(commands, FUNCTION_OF.get(name, name))
+        function = getattr(commands, _function_name(name))
         assert callable(function), name
-    assert set(dir(commands)) >= {FUNCTION_OF.get(n, n) for n in SUBCOMMANDS}
+    assert set(dir(commands)) >= {_function_name(n) for n in SUBCOMMANDS}
 
 
 def test_every_subcommand_is_registered_in_the_parser():
