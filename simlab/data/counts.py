@@ -116,8 +116,7 @@ class CountTable:
         return int(self.counts.shape[1])
 
 
-def _whole(value: Any, path: Path, where: str, column: str) -> int:
-    key = f"{where}: {column}"
+def _whole(value: Any, path: Path, key: str) -> int:
 
     def bad() -> CountsFileError:
         return _bad(path, key, f"expected a whole number, got {value!r}")
@@ -153,7 +152,12 @@ def _check_columns(path: Path, names: list[str] | set[str], where: str) -> None:
         raise _bad(path, where, f"missing column(s) {missing}")
 
 
-Rows = list[tuple[str, dict[str, Any]]]
+#: ``(row label, {column: value}, {column: label of the value in the file})``.
+Rows = list[tuple[str, dict[str, Any], dict[str, str]]]
+
+
+def _labels(where: str) -> dict[str, str]:
+    return {c: f"{where}: {c}" for c in COLUMNS}
 
 
 def _read_csv(path: Path, text: str) -> Rows:
@@ -166,7 +170,7 @@ def _read_csv(path: Path, text: str) -> Rows:
         clean = {k.strip(): v for k, v in row.items() if k is not None}
         if None in row or any(v is None for v in clean.values()):
             raise _bad(path, f"line {reader.line_num}", "expected 4 values")
-        rows.append((f"line {reader.line_num}", clean))
+        rows.append((f"line {reader.line_num}", clean, _labels(f"line {reader.line_num}")))
     return rows
 
 
@@ -192,7 +196,9 @@ def _read_isir(path: Path, doc: dict[str, Any]) -> Rows:
         for j, tr in enumerate(transitions):
             w = f"{where}.transitions[{j}]"
             a, s2, n = (_field(path, tr, f, w) for f in _ISIR_TRANSITION_FIELDS)
-            rows.append((w, {"s": s, "a": a, "s_next": s2, "count": n}))
+            labels = {"s": f"{where}.state", "a": f"{w}.action", "s_next": f"{w}.state",
+                      "count": f"{w}.prob"}
+            rows.append((w, {"s": s, "a": a, "s_next": s2, "count": n}, labels))
     return rows
 
 
@@ -207,7 +213,7 @@ def _read_json(path: Path, text: str) -> tuple[Rows, str, dict[str, Any]]:
             if not isinstance(item, dict):
                 raise _bad(path, f"row {i}", "expected an object with s, a, s_next, count")
             _check_columns(path, set(item), f"row {i}")
-            rows.append((f"row {i}", item))
+            rows.append((f"row {i}", item, _labels(f"row {i}")))
         return rows, "json-rows", {}
     if not isinstance(doc, dict):
         raise _bad(path, "", "expected a list of objects or an object of columns")
@@ -222,7 +228,7 @@ def _read_json(path: Path, text: str) -> tuple[Rows, str, dict[str, Any]]:
     if not all(isinstance(c, list) for c in cols) or len({len(c) for c in cols}) != 1:
         raise _bad(path, "", "s, a, s_next and count must be lists of equal length")
     for i in range(len(cols[0])):
-        rows.append((f"row {i}", {c: doc[c][i] for c in COLUMNS}))
+        rows.append((f"row {i}", {c: doc[c][i] for c in COLUMNS}, _labels(f"row {i}")))
     return rows, "json-columns", {}
 
 
@@ -288,23 +294,23 @@ def load_counts(
     if not raw:
         raise _bad(path, "", "no rows")
     values = np.empty((len(raw), 4), dtype=np.int64)
-    for i, (where, row) in enumerate(raw):
+    for i, (_, row, labels) in enumerate(raw):
         for j, col in enumerate(COLUMNS):
-            values[i, j] = _whole(row[col], path, where, col)
+            values[i, j] = _whole(row[col], path, labels[col])
     s, a, s_next, count = values.T
     bad = np.flatnonzero(count < 0)
     if bad.size:
-        raise _bad(path, f"{raw[bad[0]][0]}: count", f"negative count {count[bad[0]]}")
+        raise _bad(path, raw[bad[0]][2]["count"], f"negative count {count[bad[0]]}")
     for name, col in (("s", s), ("s_next", s_next), ("a", a)):
         neg = np.flatnonzero(col < 0)
         if neg.size:
-            raise _bad(path, f"{raw[neg[0]][0]}: {name}", f"negative index {col[neg[0]]}")
+            raise _bad(path, raw[neg[0]][2][name], f"negative index {col[neg[0]]}")
     for name, col in (("a", a),) if n_states is None else (
             ("s", s), ("s_next", s_next), ("a", a)):
         upper = n_actions if name == "a" else int(n_states)  # type: ignore[arg-type]
         over = np.flatnonzero(col >= upper)
         if over.size:
-            raise _bad(path, f"{raw[over[0]][0]}: {name}",
+            raise _bad(path, raw[over[0]][2][name],
                        f"index {col[over[0]]} out of range 0..{upper - 1}",
                        fix="--n-actions 8 for an 8-action robot" if name == "a" else None)
     S = int(max(s.max(), s_next.max())) + 1 if n_states is None else int(n_states)
