@@ -16,6 +16,7 @@ _FUNCTIONS: dict[str, str] = {
     "map": "simlab.mapping:build_map",
     "discretize": "discretize.voronoi:discretize_map",
     "collect": "simlab.data.collect:collect",
+    "import_log": "simlab.data.poselog:import_log",
     "estimate": "simlab.data.estimate:estimate",
     "export_minari": "simlab.data.minari_export:export_minari",
     "train": "simlab.training.train:train",

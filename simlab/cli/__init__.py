@@ -28,6 +28,7 @@ SUBCOMMANDS: dict[str, str] = {
     "map": "map",
     "discretize": "discretize",
     "collect": "collect",
+    "import-log": "import_log",
     "estimate": "estimate",
     "export-minari": "export_minari",
     "train": "train",
