@@ -396,29 +396,21 @@ class Discretizer:
         source: str | os.PathLike[str] | None = None,
     ) -> Discretizer:
         """Wrap given centres ``(N, 2)`` (metres). With ``grid``, each centre must lie
-        inside the map on a pixel that is not occupied (catches wrong frames or units)."""
+        inside the map on a free pixel (catches wrong frames, units or a flipped image):
+        every centre that does not is listed (:mod:`discretize.mapcheck`)."""
         centres = np.asarray(centres, dtype=np.float64)
         if len(np.unique(centres, axis=0)) != len(centres):
             raise ConfigError("two centres coincide", path=source)
         map_hash = None
         if grid is not None:
-            rc = grid.world_to_pixel(centres)
-            inside = grid.in_bounds(rc)
-            if not inside.all():
-                k = int(np.argmin(inside))
+            from discretize.mapcheck import check_points
+
+            check = check_points(grid, centres, what="centre")
+            if not check.ok:
                 raise ConfigError(
-                    f"centre {k} at ({centres[k, 0]:g}, {centres[k, 1]:g}) lies outside the map",
-                    path=source,
-                    fix="centres must be in the map frame, in metres",
-                )
-            occ = grid.occupancy[rc[:, 0], rc[:, 1]]
-            bad = occ > 0
-            if bad.any():
-                k = int(np.argmax(bad))
-                raise ConfigError(
-                    f"centre {k} at ({centres[k, 0]:g}, {centres[k, 1]:g}) lies on an occupied pixel",
-                    path=source,
-                    fix="centres must be in the map frame, in metres",
+                    check.message(), path=source,
+                    fix=None if check.flip_suggested else
+                    "centres must be in the map frame, in metres, on free pixels",
                 )
             map_hash = grid.content_hash()
         params: dict[str, Any] = {"numbering": "file-order"}
@@ -507,15 +499,16 @@ def read_centres_table(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.nda
             if not v.is_integer():
                 raise ConfigError(f"id {v:g} is not a whole number", path=path,
                                   key=f"line {lines[k]}")
+        seen: set[float] = set()
+        for k, v in enumerate(ids):
+            if v in seen:
+                raise ConfigError(f"id {v:g} appears twice", path=path, key=f"line {lines[k]}",
+                                  fix="number the states 0..N-1, each once")
+            seen.add(v)
         order = np.argsort(ids, kind="stable")
-        expected = np.arange(len(ids))
-        if not np.array_equal(ids[order], expected):
-            _, first, counts = np.unique(ids, return_index=True, return_counts=True)
-            dup = first[counts > 1]
-            problem = (f"id {ids[dup[0]]:g} appears twice" if dup.size else
-                       f"ids must be 0..{len(ids) - 1}, got {ids.min():g}..{ids.max():g}")
-            raise ConfigError(problem, path=path, key=f"line {lines[int(dup[0])]}" if dup.size
-                              else "id", fix="number the states 0..N-1, each once")
+        if not np.array_equal(ids[order], np.arange(len(ids))):
+            raise ConfigError(f"ids must be 0..{len(ids) - 1}, got {ids.min():g}..{ids.max():g}",
+                              path=path, key="id", fix="number the states 0..N-1, each once")
         centres, theta = centres[order], None if theta is None else theta[order]
     return centres, theta
 
@@ -563,6 +556,7 @@ def discretize_map(
     dataset: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
     progress: bool = True,
+    flip_y: bool = False,
 ) -> DiscretizeResult:
     """``simlab discretize``: place states on a map and save them (and a figure).
 
@@ -572,7 +566,8 @@ def discretize_map(
         states: number of centres (default 41 unless ``radius`` or ``centres``).
         radius: cell-radius rule instead of a count (metres).
         robot_radius: erosion radius (metres).
-        centres: text file of ``x y`` lines to use instead of placing centres.
+        centres: text file of ``x y`` or ``id x y theta`` lines to use instead of placing
+            centres.
         renumber: renumber file centres row-major (default: keep file order).
         component: ``"largest"`` or ``"all"`` free regions.
         png: also draw the Fig. 3.5-style figure there.
@@ -580,6 +575,7 @@ def discretize_map(
             figure by visits per state (needs ``png``).
         overwrite: replace existing outputs.
         progress: show progress bars.
+        flip_y: flip the map image vertically (an image stored bottom row first).
     Every input is checked and every output path is checked (exists?) before any
     file is written; the outputs are written atomically.
     """
@@ -594,7 +590,7 @@ def discretize_map(
             raise ConfigError("the figure and the states file would be the same file", path=out)
     if dataset is not None and png_path is None:
         raise ConfigError("--dataset colours the figure; give --png too", key="dataset")
-    grid = read_map(map)
+    grid = read_map(map, flip_y=flip_y)
     if centres is not None:
         if states is not None or radius is not None:
             raise ConfigError("give --centres or --states/--radius, not both", key="centres")
