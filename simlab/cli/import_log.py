@@ -34,6 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed-split", type=float, default=d.speed_split, metavar="M/S",
                         help="16 actions: faster mean translation = fast primitive "
                         f"(default {d.speed_split})")
+    parser.add_argument("--map", default=None, metavar="YAML",
+                        help="map_server map to check the poses against (default: no check)")
+    parser.add_argument("--flip-y", action="store_true",
+                        help="flip the --map image vertically (stored bottom row first)")
     parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")
 
 
@@ -46,10 +50,13 @@ def run(args: argparse.Namespace) -> int:
                             join_gap=args.join_gap, speed_split=args.speed_split)
     res = import_log(args.log, states=args.states, out=args.out, n_actions=args.n_actions,
                      convention=args.convention, use_cell_column=args.use_cell_column,
-                     segment=segment, overwrite=args.overwrite)
+                     segment=segment, overwrite=args.overwrite, map=args.map,
+                     flip_y=args.flip_y)
     per_action = np.bincount(res.actions, minlength=res.action_set.n_actions)
     print(f"{res.samples} samples -> {res.decisions} decisions ({res.blocked} blocked), "
           f"{res.action_set.describe()}, states from the {res.state_source}")
     print("decisions per action: " + " ".join(str(int(n)) for n in per_action))
+    if args.map is not None:
+        print(f"{res.off_map} pose samples off the map's free pixels")
     print(f"wrote {res.out}")
     return 0

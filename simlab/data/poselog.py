@@ -277,6 +277,7 @@ class ImportLogResult:
     actions: NDArray[np.int64]
     action_set: ActionSet
     state_source: str
+    off_map: int = 0
 
 
 def _log_states(log: PoseLog, dec: Decisions, disc: Any, use_cell_column: bool
@@ -292,6 +293,23 @@ def _log_states(log: PoseLog, dec: Decisions, disc: Any, use_cell_column: bool
     return log.cell[dec.start], log.cell[dec.end], "cell column of the log"
 
 
+#: Largest share of pose samples allowed off the map's free pixels (see :func:`import_log`).
+MAX_OFF_MAP_FRACTION = 0.05
+
+
+def _check_poses(log: PoseLog, map_path: str | os.PathLike[str], flip_y: bool) -> int:
+    """Number of samples off free pixels; ConfigError (listing them) above the limit."""
+    from discretize.mapcheck import check_points
+    from discretize.mapio import read_map
+
+    check = check_points(read_map(map_path, flip_y=flip_y), log.xy, what="pose sample")
+    if check.bad.size > MAX_OFF_MAP_FRACTION * len(log.xy) or check.flip_suggested:
+        raise ConfigError(check.message(), path=log.path, key="poses",
+                          fix=None if check.flip_suggested else
+                          "poses must be in the map's frame, in metres")
+    return int(check.bad.size)
+
+
 def import_log(
     log: str | os.PathLike[str],
     *,
@@ -302,6 +320,8 @@ def import_log(
     use_cell_column: bool = False,
     segment: SegmentParams | None = None,
     overwrite: bool = False,
+    map: str | os.PathLike[str] | None = None,
+    flip_y: bool = False,
 ) -> ImportLogResult:
     """``simlab import-log``: a pose log -> a simlab dataset (pose source ``log``).
 
@@ -314,6 +334,11 @@ def import_log(
         use_cell_column: states from the log's ``cell`` column instead of the centres.
         segment: thresholds (:class:`SegmentParams`).
         overwrite: replace a dataset in ``out``.
+        map: map_server YAML to check the poses against (optional). Every sample off
+            free pixels is counted; more than :data:`MAX_OFF_MAP_FRACTION` of them is
+            refused, listing them (and suggesting ``--flip-y`` when the flipped image
+            frees most); fewer are recorded in the provenance (SLAM poses brush walls).
+        flip_y: flip the map image vertically first.
     """
     from discretize.voronoi import load_states
     from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
@@ -327,6 +352,7 @@ def import_log(
         raise ConfigError("no motion found in the log (nothing turns or moves faster than "
                           "the thresholds)", path=plog.path, fix="check the units or lower "
                           "--move-speed / --turn-rate")
+    off_map = 0 if map is None else _check_poses(plog, map, flip_y)
     s, s2, source = _log_states(plog, dec, disc, use_cell_column)
     actions = decision_actions(dec, aset, segment)
     pose = np.column_stack([plog.xy, plog.yaw])
@@ -338,10 +364,12 @@ def import_log(
         provenance={"importer": "simlab import-log", "log": str(plog.path),
                     "states": str(states) if isinstance(states, str | os.PathLike) else None,
                     "samples": len(plog.t), "state_source": source,
+                    "map": None if map is None else str(map), "flip_y": bool(flip_y),
+                    "samples_off_free_map": off_map,
                     "segmentation": asdict(segment)},
         arena={"name": Path(log).stem, "file": None, "bounds": None, "goals": []},
         parameters={"importer": "pose-log"})
     res = write_dataset(out, walk, info, overwrite=overwrite)
     return ImportLogResult(out=res.out, samples=len(plog.t), decisions=len(dec),
                            blocked=int(dec.blocked.sum()), actions=actions, action_set=aset,
-                           state_source=source)
+                           state_source=source, off_map=off_map)

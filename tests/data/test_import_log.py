@@ -267,3 +267,30 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path: Path, capsys: pytest.Capture
     err = capsys.readouterr().err
     assert code == 2 and message in err and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_poses_are_checked_against_a_map_and_a_flipped_image_is_spotted(
+        tmp_path: Path) -> None:
+    from discretize.gridmap import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+    from discretize.mapio import write_map
+
+    samples, _ = _simulate(PLAN, np.random.default_rng(4))  # x 1.5..2.1 m, y 0.9..1.5 m
+    occ = np.full((60, 40), UNKNOWN, dtype=np.int8)  # 0.1 m pixels, 4 x 6 m
+    occ[30:60, :] = OCCUPIED
+    occ[31:59, 1:39] = FREE  # the lower half of the image is the lab: y 0.1..2.9 m
+    right = tmp_path / "right.yaml"
+    write_map(right, OccupancyMap(occupancy=occ, resolution=0.1))
+    flipped = tmp_path / "flipped.yaml"
+    write_map(flipped, OccupancyMap(occupancy=occ[::-1], resolution=0.1))
+    log = _write_log(tmp_path / "run.log", samples)
+    states = _centres_file(tmp_path / "centres.txt")
+    res = import_log(log, states=states, out=tmp_path / "a", map=right)
+    assert res.off_map == 0
+    with pytest.raises(ConfigError) as exc:
+        import_log(log, states=states, out=tmp_path / "b", map=flipped)
+    text = str(exc.value)
+    assert f"{len(samples)} of {len(samples)} pose samples are not on free pixels" in text
+    assert "pose sample 0 " in text and "--flip-y" in text
+    assert not (tmp_path / "b").exists()
+    res = import_log(log, states=states, out=tmp_path / "c", map=flipped, flip_y=True)
+    assert res.off_map == 0 and open_dataset(tmp_path / "c").manifest["provenance"]["flip_y"]
