@@ -214,7 +214,8 @@ def open_dataset(
     """Read a dataset directory: its manifest and all listed parts as one table.
 
     Args:
-        directory: a directory written by :func:`simlab.data.collect.collect`.
+        directory: a directory written by :func:`simlab.data.collect.collect` or
+            :func:`simlab.data.writer.write_dataset` (e.g. ``simlab import-log``).
         validate: check every part (SHA-256, rows, schema, discretizer tag, index
             ranges) and refuse ``part-*.parquet`` files the manifest does not list.
         expected_discretizer: if given, the content hash the dataset's discretizer must
