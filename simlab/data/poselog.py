@@ -230,6 +230,8 @@ def segment_decisions(t: Any, xy: Any, yaw: Any,
     if xy.shape != (len(t), 2) or yaw.shape != t.shape:
         raise ConfigError(f"expected t (N,), xy (N, 2), yaw (N,); got {t.shape}, {xy.shape}, "
                           f"{yaw.shape}", key="poses")
+    if np.any(np.diff(t) <= 0) or not (np.all(np.isfinite(xy)) and np.all(np.isfinite(yaw))):
+        raise ConfigError("times must increase strictly and poses be finite", key="poses")
     found: list[list[int]] = []  # [start, end, move_start or -1]
     for label, first, last in _runs(interval_labels(t, xy, yaw, params)):
         if label == _TURN:

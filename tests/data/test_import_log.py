@@ -194,6 +194,13 @@ def test_bad_logs_name_file_and_line(tmp_path: Path, text: str, message: str) ->
     assert str(path) in str(exc.value)
 
 
+def test_segmentation_refuses_bad_arrays() -> None:
+    with pytest.raises(ConfigError, match="increase strictly"):
+        segment_decisions([0.0, 1.0, 1.0], np.zeros((3, 2)), np.zeros(3))
+    with pytest.raises(ConfigError, match=r"xy \(N, 2\)"):
+        segment_decisions([0.0, 1.0], np.zeros((3, 2)), np.zeros(2))
+
+
 def test_segment_params_are_validated() -> None:
     with pytest.raises(ConfigError, match="move_speed"):
         SegmentParams(move_speed=-1.0)
