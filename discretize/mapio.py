@@ -321,8 +321,13 @@ def image_to_occupancy(
     return occ
 
 
-def read_map(path: str | os.PathLike[str]) -> OccupancyMap:
+def read_map(path: str | os.PathLike[str], *, flip_y: bool = False) -> OccupancyMap:
     """Load a map_server map (``map.yaml`` and its image) as an :class:`OccupancyMap`.
+
+    ``flip_y`` flips the image vertically before use, for images stored bottom row first
+    (some GMapping exports; :mod:`discretize.mapcheck` suggests it when centres or poses
+    land on walls but would be free on the flipped image). ``origin`` keeps its meaning
+    (the lower-left corner of the flipped image).
 
     Raises :class:`ConfigError` (bad YAML, keys, thresholds, missing image) or
     :class:`DataError` (unreadable or inconsistent image), naming the file.
@@ -343,6 +348,8 @@ def read_map(path: str | os.PathLike[str]) -> OccupancyMap:
         free_thresh=meta.free_thresh,
         mode=meta.mode,
     )
+    if flip_y:
+        occ = occ[::-1]
     return OccupancyMap(occupancy=occ, resolution=meta.resolution, origin=meta.origin)
 
 

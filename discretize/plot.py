@@ -1,7 +1,7 @@
 """Figure of a discretized map, after thesis Fig. 3.5.
 
-The map (occupied black, free white, unknown grey), the Voronoi cells restricted to
-the free space (boundaries drawn where the nearest-centre label of neighbouring
+The map (occupied black, free white, unknown grey; the axes cropped to the known part),
+the Voronoi cells restricted to the free space (boundaries drawn where the nearest-centre label of neighbouring
 pixels changes), the eroded free space's edge (dashed), the centres with their state
 numbers, and, when visit counts are given, each cell coloured by ``log10(visits)``
 (the thesis legend; unvisited cells hatched grey).
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from discretize.gridmap import OccupancyMap
+from discretize.gridmap import UNKNOWN, OccupancyMap
 from discretize.voronoi import DEFAULT_ROBOT_RADIUS, Discretizer, eroded_free_mask
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, ensure_new
@@ -63,6 +63,32 @@ def _local_xy(grid: OccupancyMap, xy: np.ndarray) -> np.ndarray:
     return np.stack([x, y], axis=-1)
 
 
+def known_bounds(grid: OccupancyMap, points: np.ndarray | None = None, margin_px: int = 5
+                 ) -> tuple[float, float, float, float]:
+    """``(x_min, x_max, y_min, y_max)`` (m, the figure's map-frame axes) of the known
+    (not unknown) pixels, grown to hold ``points`` (already in figure coordinates) and
+    ``margin_px`` pixels of margin; the whole image when nothing is known.
+
+    A GMapping map is mostly unknown grey around the lab; figures crop to this box.
+    """
+    known = grid.occupancy != UNKNOWN
+    h, w = grid.shape
+    res = grid.resolution
+    if known.any():
+        rows = np.flatnonzero(known.any(axis=1))
+        cols = np.flatnonzero(known.any(axis=0))
+        r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    else:
+        r0, r1, c0, c1 = 0, h, 0, w
+    x0, y0 = grid.origin[0], grid.origin[1]
+    box = [x0 + c0 * res, x0 + c1 * res, y0 + (h - r1) * res, y0 + (h - r0) * res]
+    if points is not None and len(points):
+        box = [min(box[0], float(points[:, 0].min())), max(box[1], float(points[:, 0].max())),
+               min(box[2], float(points[:, 1].min())), max(box[3], float(points[:, 1].max()))]
+    m = margin_px * res
+    return (box[0] - m, box[1] + m, box[2] - m, box[3] + m)
+
+
 def draw_states(
     ax,
     grid: OccupancyMap,
@@ -71,8 +97,13 @@ def draw_states(
     *,
     robot_radius: float | None = DEFAULT_ROBOT_RADIUS,
     numbers: bool = True,
+    crop: bool = True,
 ):
-    """Draw the figure into matplotlib axes ``ax``; returns the colour-mapped image (or None)."""
+    """Draw the figure into matplotlib axes ``ax``; returns the colour-mapped image (or None).
+
+    ``crop`` limits the axes to the known part of the map (and the centres):
+    :func:`known_bounds`.
+    """
     import matplotlib as mpl
     from matplotlib.colors import Normalize
 
@@ -139,6 +170,10 @@ def draw_states(
                 color="black",
                 fontweight="bold",
             )
+    if crop:
+        x_min, x_max, y_min, y_max = known_bounds(grid, pts)
+        ax.set_xlim(x_min, x_max)
+        ax.set_ylim(y_min, y_max)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal")

@@ -20,7 +20,8 @@ Here:
    ``N = max(1, round(area / (pi r^2)))``, then the same placement. Each final
    centre is snapped to the nearest eroded free pixel centre, so every centre lies
    in eroded free space. Everything is deterministic (no random numbers).
-   Centres can instead come from a text file of ``x y`` lines (a real robot's).
+   Centres can instead come from a text file of ``x y`` or ``id x y theta`` lines
+   (a real robot's; see :func:`read_centres_table`).
 3. **Numbering** row-major from the top-left: centres sorted by y (top first) are
    cut into rows greedily: a row starts at the highest remaining centre and holds
    every remaining centre at most ``row_tolerance`` below it (default half the
@@ -395,29 +396,21 @@ class Discretizer:
         source: str | os.PathLike[str] | None = None,
     ) -> Discretizer:
         """Wrap given centres ``(N, 2)`` (metres). With ``grid``, each centre must lie
-        inside the map on a pixel that is not occupied (catches wrong frames or units)."""
+        inside the map on a free pixel (catches wrong frames, units or a flipped image):
+        every centre that does not is listed (:mod:`discretize.mapcheck`)."""
         centres = np.asarray(centres, dtype=np.float64)
         if len(np.unique(centres, axis=0)) != len(centres):
             raise ConfigError("two centres coincide", path=source)
         map_hash = None
         if grid is not None:
-            rc = grid.world_to_pixel(centres)
-            inside = grid.in_bounds(rc)
-            if not inside.all():
-                k = int(np.argmin(inside))
+            from discretize.mapcheck import check_points
+
+            check = check_points(grid, centres, what="centre")
+            if not check.ok:
                 raise ConfigError(
-                    f"centre {k} at ({centres[k, 0]:g}, {centres[k, 1]:g}) lies outside the map",
-                    path=source,
-                    fix="centres must be in the map frame, in metres",
-                )
-            occ = grid.occupancy[rc[:, 0], rc[:, 1]]
-            bad = occ > 0
-            if bad.any():
-                k = int(np.argmax(bad))
-                raise ConfigError(
-                    f"centre {k} at ({centres[k, 0]:g}, {centres[k, 1]:g}) lies on an occupied pixel",
-                    path=source,
-                    fix="centres must be in the map frame, in metres",
+                    check.message(), path=source,
+                    fix=None if check.flip_suggested else
+                    "centres must be in the map frame, in metres, on free pixels",
                 )
             map_hash = grid.content_hash()
         params: dict[str, Any] = {"numbering": "file-order"}
@@ -430,11 +423,33 @@ class Discretizer:
         return cls(centres=centres, map_hash=map_hash, method="file", params=params)
 
 
-def load_centres_txt(path: str | os.PathLike[str]) -> np.ndarray:
-    """Read centres ``(N, 2)`` from a text file of ``x y`` lines (metres).
+_CENTRE_COLUMNS = {2: ("x", "y"), 4: ("id", "x", "y", "theta")}
+_CENTRE_NAMES = {"id": "id", "x": "x", "y": "y", "theta": "theta", "yaw": "theta"}
 
-    Blank lines and ``#`` comments are skipped; commas may separate the numbers.
-    Raises :class:`ConfigError` naming the file and line for anything else.
+
+def _centre_header(tokens: list[str], path: Path, lineno: int) -> tuple[str, ...] | None:
+    """Column names if ``tokens`` is a header line (no number in it), else None."""
+    try:
+        [float(tok) for tok in tokens]
+        return None
+    except ValueError:
+        pass
+    names = tuple(_CENTRE_NAMES.get(tok.lower(), "") for tok in tokens)
+    if "" in names or not {"x", "y"} <= set(names) or len(set(names)) != len(names):
+        raise ConfigError(f"header {' '.join(tokens)!r}: expected columns 'x y' or "
+                          "'id x y theta'", path=path, key=f"line {lineno}")
+    return names
+
+
+def read_centres_table(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray | None]:
+    """Read a centres text file: ``(centres (N, 2) m, theta (N,) rad or None)``.
+
+    Two layouts, told apart by an optional header line (``x y`` or ``id x y theta``;
+    ``yaw`` is accepted for ``theta``) or else by the column count: ``x y`` lines, or
+    ``id x y theta`` lines (the ISIR export). With ids, the ids define the state
+    numbering: they must be whole numbers ``0..N-1``, each once, and the rows are
+    returned sorted by id. Blank lines and ``#`` comments are skipped; commas may
+    separate the numbers. Raises :class:`ConfigError` naming the file and line.
     """
     path = Path(path)
     if not path.is_file():
@@ -443,27 +458,77 @@ def load_centres_txt(path: str | os.PathLike[str]) -> np.ndarray:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise ConfigError("not a text file", path=path) from None
-    rows: list[tuple[float, float]] = []
+    names: tuple[str, ...] | None = None
+    rows: list[list[float]] = []
+    lines: list[int] = []
     for lineno, line in enumerate(text.splitlines(), start=1):
         body = line.split("#", 1)[0].replace(",", " ").split()
         if not body:
             continue
-        if len(body) != 2:
-            raise ConfigError(
-                f"expected two numbers 'x y', got {line.strip()!r}", path=path, key=f"line {lineno}"
-            )
+        if names is None and not rows:
+            names = _centre_header(body, path, lineno)
+            if names is not None:
+                continue
+        if names is None:
+            names = _CENTRE_COLUMNS.get(len(body))
+            if names is None:
+                raise ConfigError(f"expected 'x y' or 'id x y theta' (2 or 4 numbers), got "
+                                  f"{line.strip()!r}", path=path, key=f"line {lineno}")
+        if len(body) != len(names):
+            raise ConfigError(f"expected {len(names)} numbers '{' '.join(names)}', got "
+                              f"{line.strip()!r}", path=path, key=f"line {lineno}")
         try:
-            x, y = float(body[0]), float(body[1])
+            values = [float(tok) for tok in body]
         except ValueError:
-            raise ConfigError(
-                f"expected two numbers 'x y', got {line.strip()!r}", path=path, key=f"line {lineno}"
-            ) from None
-        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ConfigError(f"expected numbers '{' '.join(names)}', got {line.strip()!r}",
+                              path=path, key=f"line {lineno}") from None
+        if not all(math.isfinite(v) for v in values):
             raise ConfigError("coordinates must be finite", path=path, key=f"line {lineno}")
-        rows.append((x, y))
-    if not rows:
-        raise ConfigError("no centres in the file", path=path, fix="write one 'x y' line per centre")
-    return np.asarray(rows, dtype=np.float64)
+        rows.append(values)
+        lines.append(lineno)
+    if not rows or names is None:
+        raise ConfigError("no centres in the file", path=path,
+                          fix="write one 'x y' (or 'id x y theta') line per centre")
+    data = np.asarray(rows, dtype=np.float64)
+    col = {name: data[:, k] for k, name in enumerate(names)}
+    centres = np.column_stack([col["x"], col["y"]])
+    theta = col.get("theta")
+    if "id" in col:
+        ids = col["id"]
+        for k, v in enumerate(ids):
+            if not v.is_integer():
+                raise ConfigError(f"id {v:g} is not a whole number", path=path,
+                                  key=f"line {lines[k]}")
+        seen: set[float] = set()
+        for k, v in enumerate(ids):
+            if v in seen:
+                raise ConfigError(f"id {v:g} appears twice", path=path, key=f"line {lines[k]}",
+                                  fix="number the states 0..N-1, each once")
+            seen.add(v)
+        order = np.argsort(ids, kind="stable")
+        if not np.array_equal(ids[order], np.arange(len(ids))):
+            raise ConfigError(f"ids must be 0..{len(ids) - 1}, got {ids.min():g}..{ids.max():g}",
+                              path=path, key="id", fix="number the states 0..N-1, each once")
+        centres, theta = centres[order], None if theta is None else theta[order]
+    return centres, theta
+
+
+def load_centres_txt(path: str | os.PathLike[str]) -> np.ndarray:
+    """Centres ``(N, 2)`` (metres) of a centres text file (see :func:`read_centres_table`:
+    ``x y`` or ``id x y theta`` lines; with ids, in id order)."""
+    return read_centres_table(path)[0]
+
+
+def load_states(path: str | os.PathLike[str]) -> Discretizer:
+    """A discretizer from a states file: ``simlab discretize`` JSON (``.json`` or content
+    starting with ``{``) or a centres text file (file order / ids = state numbers)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("states file not found", path=path)
+    head = path.read_bytes()[:4096].lstrip()
+    if path.suffix.lower() == ".json" or head.startswith(b"{"):
+        return Discretizer.load(path)
+    return Discretizer.from_centres(load_centres_txt(path), source=path)
 
 
 # ------------------------------------------------------------------- command
@@ -491,6 +556,7 @@ def discretize_map(
     dataset: str | os.PathLike[str] | None = None,
     overwrite: bool = False,
     progress: bool = True,
+    flip_y: bool = False,
 ) -> DiscretizeResult:
     """``simlab discretize``: place states on a map and save them (and a figure).
 
@@ -500,7 +566,8 @@ def discretize_map(
         states: number of centres (default 41 unless ``radius`` or ``centres``).
         radius: cell-radius rule instead of a count (metres).
         robot_radius: erosion radius (metres).
-        centres: text file of ``x y`` lines to use instead of placing centres.
+        centres: text file of ``x y`` or ``id x y theta`` lines to use instead of placing
+            centres.
         renumber: renumber file centres row-major (default: keep file order).
         component: ``"largest"`` or ``"all"`` free regions.
         png: also draw the Fig. 3.5-style figure there.
@@ -508,6 +575,7 @@ def discretize_map(
             figure by visits per state (needs ``png``).
         overwrite: replace existing outputs.
         progress: show progress bars.
+        flip_y: flip the map image vertically (an image stored bottom row first).
     Every input is checked and every output path is checked (exists?) before any
     file is written; the outputs are written atomically.
     """
@@ -522,7 +590,7 @@ def discretize_map(
             raise ConfigError("the figure and the states file would be the same file", path=out)
     if dataset is not None and png_path is None:
         raise ConfigError("--dataset colours the figure; give --png too", key="dataset")
-    grid = read_map(map)
+    grid = read_map(map, flip_y=flip_y)
     if centres is not None:
         if states is not None or radius is not None:
             raise ConfigError("give --centres or --states/--radius, not both", key="centres")

@@ -17,6 +17,7 @@ _FUNCTIONS: dict[str, str] = {
     "arena_from_map": "simlab.physics.map_arena:arena_from_map",
     "discretize": "discretize.voronoi:discretize_map",
     "collect": "simlab.data.collect:collect",
+    "import_log": "simlab.data.poselog:import_log",
     "estimate": "simlab.data.estimate:estimate",
     "export_minari": "simlab.data.minari_export:export_minari",
     "train": "simlab.training.train:train",

@@ -31,6 +31,7 @@ SUBCOMMANDS: dict[str, str] = {
     "arena-from-map": "arena",
     "discretize": "discretize",
     "collect": "collect",
+    "import-log": "import_log",
     "estimate": "estimate",
     "export-minari": "export_minari",
     "train": "train",

@@ -25,7 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--centres",
         default=None,
         metavar="TXT",
-        help="use these centres (text file, one 'x y' line per state, metres)",
+        help="use these centres (text file, one 'x y' or 'id x y theta' line per state, "
+        "metres; ids number the states)",
     )
     parser.add_argument(
         "--renumber",
@@ -43,6 +44,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--all-components",
         action="store_true",
         help="keep every free region, not only the largest",
+    )
+    parser.add_argument(
+        "--flip-y",
+        action="store_true",
+        help="flip the map image vertically (images stored bottom row first; default off)",
     )
     parser.add_argument("--png", default=None, metavar="PNG", help="also draw the states figure")
     parser.add_argument(
@@ -71,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         dataset=args.dataset,
         overwrite=args.overwrite,
         progress=not args.no_progress,
+        flip_y=args.flip_y,
     )
     disc = result.discretizer
     line = f"{disc.n_states} states ({disc.method}) -> {result.out}"

@@ -19,6 +19,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.data.manifest import file_sha256, manifest_path, read_manifest
 from simlab.data.schema import N_ACTIONS, parse_part_name, part_name
 from simlab.errors import DataError
@@ -81,9 +82,14 @@ class TransitionDataset:
         return int(self.manifest["discretizer"]["n_states"])
 
     @property
+    def action_set(self) -> ActionSet:
+        """What action ``a`` means: the manifest's ``action_set`` (:data:`SIMLAB16` if absent)."""
+        return manifest_action_set(self.manifest, where=str(manifest_path(self.directory)))
+
+    @property
     def n_actions(self) -> int:
-        """Number of actions A (16 motion primitives)."""
-        return int(self.manifest.get("parameters", {}).get("n_actions", N_ACTIONS))
+        """Number of actions A (8 or 16), from :attr:`action_set`."""
+        return self.action_set.n_actions
 
     @property
     def centres(self) -> np.ndarray:
@@ -98,6 +104,21 @@ class TransitionDataset:
     def column(self, name: str) -> np.ndarray:
         """One column as a numpy array."""
         return self.table.column(name).to_numpy()
+
+
+def manifest_action_set(manifest: Mapping[str, Any], *, where: str = "manifest") -> ActionSet:
+    """The action set of a dataset manifest.
+
+    The top-level ``action_set`` record wins; manifests written before it existed are
+    :data:`SIMLAB16` (their ``parameters.n_actions`` is 16), and an ``n_actions`` other
+    than 16 without a record is refused (its numbering is unknown).
+    """
+    if manifest.get("action_set") is None:
+        n = int(manifest.get("parameters", {}).get("n_actions", N_ACTIONS))
+        return SIMLAB16 if n == 16 else action_set_from_metadata(None, n, where=where)
+    record = manifest["action_set"]
+    n = record.get("n_actions", N_ACTIONS) if isinstance(record, Mapping) else N_ACTIONS
+    return action_set_from_metadata(manifest, int(n), where=where)
 
 
 def _expected_fields(manifest: Mapping[str, Any]) -> dict[str, str]:
@@ -175,7 +196,7 @@ def validate_part(
     table = _read_part(path)
     if table.num_rows != entry["rows"]:
         raise DataError(f"{path}: {table.num_rows} rows, the manifest says {entry['rows']}")
-    n_actions = int(manifest["parameters"].get("n_actions", N_ACTIONS))
+    n_actions = manifest_action_set(manifest, where=str(manifest_path(directory))).n_actions
     _check_values(path, table, entry, int(manifest["discretizer"]["n_states"]), n_actions)
     return table.replace_schema_metadata(None)
 
@@ -193,7 +214,8 @@ def open_dataset(
     """Read a dataset directory: its manifest and all listed parts as one table.
 
     Args:
-        directory: a directory written by :func:`simlab.data.collect.collect`.
+        directory: a directory written by :func:`simlab.data.collect.collect` or
+            :func:`simlab.data.writer.write_dataset` (e.g. ``simlab import-log``).
         validate: check every part (SHA-256, rows, schema, discretizer tag, index
             ranges) and refuse ``part-*.parquet`` files the manifest does not list.
         expected_discretizer: if given, the content hash the dataset's discretizer must

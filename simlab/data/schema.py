@@ -29,8 +29,9 @@ s, a, s_next     int32       Markov state before, action 0-15, Markov state afte
 x, y, yaw        float64     pose before (m, m, rad), from the dataset's pose source
 x_next, ...      float64     pose after (m, m, rad), from the pose source
 blocked          bool        the obstacle detector skipped the translation
-pose_source      dictionary  ``truth`` / ``odometry`` / ``mcl``
-x_true, ...      float64     ground-truth poses, only when the pose source is not truth
+pose_source      dictionary  ``truth`` / ``odometry`` / ``mcl`` / ``log``
+x_true, ...      float64     ground-truth poses, only for the simulated pose sources
+                             ``odometry`` and ``mcl`` (a real robot's ``log`` has none)
 ===============  ==========  ========================================================
 """
 
@@ -48,6 +49,12 @@ FORMAT_NAME = "simlab.transitions"
 MANIFEST_NAME = "_manifest.json"
 #: Number of motion primitives (SPEC A4): index = speed * 8 + direction.
 N_ACTIONS = 16
+
+#: Every pose source a dataset may record: the simulator's three, and ``log`` for poses
+#: imported from a real robot's log (no ground truth exists for those).
+POSE_SOURCE_NAMES = ("truth", "odometry", "mcl", "log")
+#: Pose sources whose datasets carry no ``*_true`` columns.
+NO_TRUTH_SOURCES = ("truth", "log")
 
 POSE_COLUMNS = ("x", "y", "yaw", "x_next", "y_next", "yaw_next")
 TRUTH_COLUMNS = ("x_true", "y_true", "yaw_true", "x_next_true", "y_next_true", "yaw_next_true")
@@ -69,7 +76,10 @@ def parse_part_name(name: str) -> tuple[int, int] | None:
 
 
 def transition_schema(pose_source: str) -> pa.Schema:
-    """Arrow schema of a part for the given pose source (truth columns if not ``truth``)."""
+    """Arrow schema of a part for the given pose source.
+
+    The ``*_true`` columns are there unless the pose source is ``truth`` or ``log``.
+    """
     fields = [
         pa.field("worker", pa.int32(), nullable=False),
         pa.field("part", pa.int32(), nullable=False),
@@ -85,7 +95,7 @@ def transition_schema(pose_source: str) -> pa.Schema:
         pa.field("blocked", pa.bool_(), nullable=False),
         pa.field("pose_source", pa.dictionary(pa.int32(), pa.string()), nullable=False),
     ]
-    if pose_source != "truth":
+    if pose_source not in NO_TRUTH_SOURCES:
         fields += [pa.field(name, pa.float64(), nullable=False) for name in TRUTH_COLUMNS]
     return pa.schema(fields)
 

@@ -1,0 +1,377 @@
+"""A real robot's pose log -> decisions (transitions) -> a simlab dataset.
+
+**Log format.** Whitespace-separated text, one sample per line, ``#`` starts a comment::
+
+    # t x y yaw [cell [n_cells]]
+    0.0   1.20 0.40 0.00   7 38
+    0.5   1.20 0.40 0.00   7 38
+
+``t`` seconds (strictly increasing), ``x y`` metres and ``yaw`` radians in the map frame,
+optionally the robot's own state number ``cell`` and the number of states ``n_cells``.
+Every line has the same number of columns (4, 5 or 6). There is **no action column**: the
+actions are inferred from the motion (about 2 Hz is enough).
+
+**Segmentation** (:func:`segment_decisions`, a pure function of arrays so that other
+importers, e.g. of ROS bags, reuse it). Each interval between two samples is labelled
+
+* ``move`` when the robot translates faster than ``move_speed`` (m/s);
+* otherwise ``turn`` when it rotates faster than ``turn_rate`` (rad/s);
+* otherwise ``idle``.
+
+A simlab-like primitive turns in place to its heading, then drives straight (or skips
+the drive when blocked). So: every run of ``turn`` intervals starts a decision; a run of
+``move`` intervals that follows a turn (directly or after an idle gap of at most
+``join_gap`` s) ends that turn's decision; any other ``move`` run starts (and ends) a
+decision of its own — a move not preceded by a rotation (the robot already faced the
+heading). A decision without ``move`` is **blocked** (rotation without translation).
+
+Limits stated, not hidden: a blocked attempt that needs no rotation leaves no trace in a
+pose log and cannot be recovered; two decisions with no idle sample between them and no
+rotation merge into one; a decision's start and end are known to one sample interval.
+
+**Action** (:func:`decision_actions`): the heading octant of the decision's translation
+(from the sample where the move starts to the last one), or of the final yaw when
+blocked, numbered in the declared :class:`~simlab.actions.ActionSet` (``ccw-east`` for the
+ISIR logs). With 16 actions the speed is ``fast`` when the mean translation speed exceeds
+``speed_split`` (m/s); blocked decisions are taken as slow (the log cannot tell).
+
+**States**: from the log's ``cell`` column (option) or the nearest centre of the states
+file. :func:`import_log` writes the dataset with :func:`simlab.data.writer.write_dataset`
+(pose source ``log``); ``simlab import-log`` is its command line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.actions import ActionSet, parse_action_set
+from simlab.errors import ConfigError
+
+_MOVE, _TURN, _IDLE = 2, 1, 0
+
+
+@dataclass(frozen=True)
+class PoseLog:
+    """Samples of a pose log, ``N`` rows.
+
+    Attributes:
+        t: ``(N,)`` s, strictly increasing.
+        xy: ``(N, 2)`` m. yaw: ``(N,)`` rad.
+        cell: ``(N,)`` int64 state numbers of the log, or None.
+        n_cells: the log's number of states (None when absent; checked constant).
+        path: the file.
+    """
+
+    t: NDArray[np.float64]
+    xy: NDArray[np.float64]
+    yaw: NDArray[np.float64]
+    cell: NDArray[np.int64] | None
+    n_cells: int | None
+    path: Path | None = None
+
+
+def _number(token: str, path: Path, lineno: int, column: str, whole: bool) -> float:
+    try:
+        value = float(token)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or (whole and not value.is_integer()):
+        kind = "a whole number" if whole else "a finite number"
+        raise ConfigError(f"expected {kind}, got {token!r}", path=path,
+                          key=f"line {lineno}: {column}")
+    return value
+
+
+def read_pose_log(path: str | os.PathLike[str]) -> PoseLog:
+    """Read a pose log (see the module docstring). Raises ConfigError naming file and line."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError("pose log not found", path=path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"byte {exc.start}: not UTF-8 text", path=path) from None
+    names = ("t", "x", "y", "yaw", "cell", "n_cells")
+    rows: list[list[float]] = []
+    width = None
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        tokens = line.split("#", 1)[0].split()
+        if not tokens:
+            continue
+        if width is None:
+            width = len(tokens)
+            if width not in (4, 5, 6):
+                raise ConfigError(f"expected 4 to 6 columns 't x y yaw [cell [n_cells]]', got "
+                                  f"{width}", path=path, key=f"line {lineno}")
+        if len(tokens) != width:
+            raise ConfigError(f"expected {width} columns like the first line, got "
+                              f"{len(tokens)}", path=path, key=f"line {lineno}")
+        rows.append([_number(tok, path, lineno, names[j], whole=j >= 4)
+                     for j, tok in enumerate(tokens)])
+    if len(rows) < 2:
+        raise ConfigError(f"{len(rows)} sample(s); a log needs at least 2", path=path)
+    data = np.asarray(rows, dtype=np.float64)
+    t = data[:, 0]
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        raise ConfigError(f"time does not increase at sample {back[0] + 2} ({t[back[0]]:g} -> "
+                          f"{t[back[0] + 1]:g})", path=path, key="t")
+    cell = data[:, 4].astype(np.int64) if width >= 5 else None  # type: ignore[operator]
+    n_cells = None
+    if width == 6:
+        values = np.unique(data[:, 5])
+        if len(values) != 1:
+            raise ConfigError(f"n_cells changes within the log ({values[:4].tolist()})",
+                              path=path, key="n_cells")
+        n_cells = int(values[0])
+        if cell is not None and (cell.min() < 0 or cell.max() >= n_cells):
+            raise ConfigError(f"cell values {cell.min()}..{cell.max()} outside 0..{n_cells - 1}",
+                              path=path, key="cell")
+    return PoseLog(t=t, xy=data[:, 1:3].copy(), yaw=data[:, 3].copy(), cell=cell,
+                   n_cells=n_cells, path=path)
+
+
+@dataclass(frozen=True)
+class SegmentParams:
+    """Thresholds of :func:`segment_decisions`.
+
+    Attributes:
+        move_speed: m/s; an interval faster than this translates (default 0.04, well
+            below simlab's slow 0.10 m/s and above ~1 cm of pose noise at 2 Hz).
+        turn_rate: rad/s; an interval not translating but turning faster than this is a
+            rotation (default 0.3).
+        join_gap: s; longest idle gap between a rotation and the move that completes its
+            decision (default 1.0: two samples at 2 Hz).
+        speed_split: m/s; 16-action sets only: faster mean translation = fast primitive
+            (default 0.16, between simlab's 0.10 and 0.22).
+    """
+
+    move_speed: float = 0.04
+    turn_rate: float = 0.3
+    join_gap: float = 1.0
+    speed_split: float = 0.16
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ConfigError(f"expected a number >= 0, got {value!r}", key=name)
+        if self.move_speed <= 0 or self.turn_rate <= 0:
+            raise ConfigError("move_speed and turn_rate must be > 0", key="segment")
+
+
+@dataclass(frozen=True)
+class Decisions:
+    """Decisions found in a pose sequence, ``K`` rows, as sample indices.
+
+    Attributes:
+        start: ``(K,)`` sample before the decision's first motion.
+        end: ``(K,)`` sample after its last motion.
+        move_start: ``(K,)`` sample where the translation starts (``end`` if blocked).
+        blocked: ``(K,)`` bool, no translation.
+        heading: ``(K,)`` rad, direction of the translation (final yaw if blocked).
+        speed: ``(K,)`` m/s, mean translation speed (0 if blocked).
+    """
+
+    start: NDArray[np.int64]
+    end: NDArray[np.int64]
+    move_start: NDArray[np.int64]
+    blocked: NDArray[np.bool_]
+    heading: NDArray[np.float64]
+    speed: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+
+def wrap_angle(a: Any) -> NDArray[np.float64]:
+    """Angles wrapped to ``[-pi, pi)`` (rad)."""
+    return (np.asarray(a, dtype=np.float64) + math.pi) % (2 * math.pi) - math.pi
+
+
+def interval_labels(t: Any, xy: Any, yaw: Any, params: SegmentParams) -> NDArray[np.int8]:
+    """``(N-1,)`` label of each sample interval: 2 move, 1 turn, 0 idle."""
+    t = np.asarray(t, dtype=np.float64)
+    dt = np.diff(t)
+    speed = np.linalg.norm(np.diff(np.asarray(xy, dtype=np.float64), axis=0), axis=1) / dt
+    rate = np.abs(wrap_angle(np.diff(np.asarray(yaw, dtype=np.float64)))) / dt
+    return np.where(speed > params.move_speed, _MOVE,
+                    np.where(rate > params.turn_rate, _TURN, _IDLE)).astype(np.int8)
+
+
+def _runs(labels: NDArray[np.int8]) -> list[tuple[int, int, int]]:
+    """``(label, first sample, last sample)`` of each run of equal interval labels."""
+    if labels.size == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(labels)) + 1
+    starts = np.concatenate([[0], cuts])
+    stops = np.concatenate([cuts, [labels.size]])
+    return [(int(labels[a]), int(a), int(b)) for a, b in zip(starts, stops, strict=True)]
+
+
+def segment_decisions(t: Any, xy: Any, yaw: Any,
+                      params: SegmentParams | None = None) -> Decisions:
+    """Cut a pose sequence into decisions (rules in the module docstring).
+
+    Args:
+        t: ``(N,)`` s, strictly increasing. xy: ``(N, 2)`` m. yaw: ``(N,)`` rad.
+        params: thresholds (defaults of :class:`SegmentParams`).
+    """
+    params = SegmentParams() if params is None else params
+    t = np.asarray(t, dtype=np.float64)
+    xy = np.asarray(xy, dtype=np.float64)
+    yaw = np.asarray(yaw, dtype=np.float64)
+    if xy.shape != (len(t), 2) or yaw.shape != t.shape:
+        raise ConfigError(f"expected t (N,), xy (N, 2), yaw (N,); got {t.shape}, {xy.shape}, "
+                          f"{yaw.shape}", key="poses")
+    if np.any(np.diff(t) <= 0) or not (np.all(np.isfinite(xy)) and np.all(np.isfinite(yaw))):
+        raise ConfigError("times must increase strictly and poses be finite", key="poses")
+    found: list[list[int]] = []  # [start, end, move_start or -1]
+    for label, first, last in _runs(interval_labels(t, xy, yaw, params)):
+        if label == _TURN:
+            found.append([first, last, -1])
+        elif label == _MOVE:
+            prev = found[-1] if found else None
+            if prev is not None and prev[2] < 0 and t[first] - t[prev[1]] <= params.join_gap:
+                prev[1], prev[2] = last, first
+            else:
+                found.append([first, last, first])
+    arr = np.asarray(found, dtype=np.int64).reshape(-1, 3)
+    start, end, move = arr[:, 0], arr[:, 1], arr[:, 2]
+    blocked = move < 0
+    move = np.where(blocked, end, move)
+    delta = xy[end] - xy[move]
+    heading = np.where(blocked, yaw[end], np.arctan2(delta[:, 1], delta[:, 0]))
+    span = np.where(blocked, 1.0, t[end] - t[move])
+    speed = np.where(blocked, 0.0, np.linalg.norm(delta, axis=1) / span)
+    return Decisions(start=start, end=end, move_start=move, blocked=blocked,
+                     heading=wrap_angle(heading), speed=speed)
+
+
+def decision_actions(decisions: Decisions, action_set: ActionSet,
+                     params: SegmentParams | None = None) -> NDArray[np.int64]:
+    """``(K,)`` action of each decision in ``action_set``: nearest heading octant (and, for
+    16 actions, the speed class by ``params.speed_split``)."""
+    params = SegmentParams() if params is None else params
+    headings = action_set.headings()
+    gap = np.abs(wrap_angle(decisions.heading[:, None] - headings[None, :]))
+    if action_set.n_actions == 16:
+        fast = (decisions.speed > params.speed_split) & ~decisions.blocked
+        gap[:, :8] += np.where(fast, 10.0, 0.0)[:, None]
+        gap[:, 8:] += np.where(fast, 0.0, 10.0)[:, None]
+    return np.argmin(gap, axis=1).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class ImportLogResult:
+    """What :func:`import_log` found and wrote."""
+
+    out: Path
+    samples: int
+    decisions: int
+    blocked: int
+    actions: NDArray[np.int64]
+    action_set: ActionSet
+    state_source: str
+    off_map: int = 0
+
+
+def _log_states(log: PoseLog, dec: Decisions, disc: Any, use_cell_column: bool
+                ) -> tuple[Any, Any, str]:
+    if not use_cell_column:
+        return None, None, "nearest centre of the states file"
+    if log.cell is None:
+        raise ConfigError("--use-cell-column: the log has no cell column (t x y yaw only)",
+                          path=log.path, key="cell")
+    if log.n_cells is not None and log.n_cells != int(disc.n_states):
+        raise ConfigError(f"the log has {log.n_cells} cells, the states file "
+                          f"{disc.n_states} states", path=log.path, key="n_cells")
+    return log.cell[dec.start], log.cell[dec.end], "cell column of the log"
+
+
+#: Largest share of pose samples allowed off the map's free pixels (see :func:`import_log`).
+MAX_OFF_MAP_FRACTION = 0.05
+
+
+def _check_poses(log: PoseLog, map_path: str | os.PathLike[str], flip_y: bool) -> int:
+    """Number of samples off free pixels; ConfigError (listing them) above the limit."""
+    from discretize.mapcheck import check_points
+    from discretize.mapio import read_map
+
+    check = check_points(read_map(map_path, flip_y=flip_y), log.xy, what="pose sample")
+    if check.bad.size > MAX_OFF_MAP_FRACTION * len(log.xy) or check.flip_suggested:
+        raise ConfigError(check.message(), path=log.path, key="poses",
+                          fix=None if check.flip_suggested else
+                          "poses must be in the map's frame, in metres")
+    return int(check.bad.size)
+
+
+def import_log(
+    log: str | os.PathLike[str],
+    *,
+    states: Any,
+    out: str | os.PathLike[str],
+    n_actions: int = 8,
+    convention: str = "ccw-east",
+    use_cell_column: bool = False,
+    segment: SegmentParams | None = None,
+    overwrite: bool = False,
+    map: str | os.PathLike[str] | None = None,
+    flip_y: bool = False,
+) -> ImportLogResult:
+    """``simlab import-log``: a pose log -> a simlab dataset (pose source ``log``).
+
+    Args:
+        log: pose-log text file (module docstring).
+        states: states file (``simlab discretize`` JSON, or centres text ``x y`` /
+            ``id x y theta``) or a discretizer object.
+        out: dataset directory to write.
+        n_actions: 8 or 16. convention: ``simlab``, ``ccw-east`` or 8 numbers.
+        use_cell_column: states from the log's ``cell`` column instead of the centres.
+        segment: thresholds (:class:`SegmentParams`).
+        overwrite: replace a dataset in ``out``.
+        map: map_server YAML to check the poses against (optional). Every sample off
+            free pixels is counted; more than :data:`MAX_OFF_MAP_FRACTION` of them is
+            refused, listing them (and suggesting ``--flip-y`` when the flipped image
+            frees most); fewer are recorded in the provenance (SLAM poses brush walls).
+        flip_y: flip the map image vertically first.
+    """
+    from discretize.voronoi import load_states
+    from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
+
+    aset = parse_action_set(n_actions, convention)
+    segment = SegmentParams() if segment is None else segment
+    disc = load_states(states) if isinstance(states, str | os.PathLike) else states
+    plog = read_pose_log(log)
+    dec = segment_decisions(plog.t, plog.xy, plog.yaw, segment)
+    if len(dec) == 0:
+        raise ConfigError("no motion found in the log (nothing turns or moves faster than "
+                          "the thresholds)", path=plog.path, fix="check the units or lower "
+                          "--move-speed / --turn-rate")
+    off_map = 0 if map is None else _check_poses(plog, map, flip_y)
+    s, s2, source = _log_states(plog, dec, disc, use_cell_column)
+    actions = decision_actions(dec, aset, segment)
+    pose = np.column_stack([plog.xy, plog.yaw])
+    walk = TransitionArrays(t=plog.t[dec.start], a=actions, pose=pose[dec.start],
+                            pose_next=pose[dec.end], blocked=dec.blocked,
+                            duration=plog.t[dec.end] - plog.t[dec.start], s=s, s_next=s2)
+    info = DatasetInfo(
+        discretizer=disc, action_set=aset, pose_source="log",
+        provenance={"importer": "simlab import-log", "log": str(plog.path),
+                    "states": str(states) if isinstance(states, str | os.PathLike) else None,
+                    "samples": len(plog.t), "state_source": source,
+                    "map": None if map is None else str(map), "flip_y": bool(flip_y),
+                    "samples_off_free_map": off_map,
+                    "segmentation": asdict(segment)},
+        arena={"name": Path(log).stem, "file": None, "bounds": None, "goals": []},
+        parameters={"importer": "pose-log"})
+    res = write_dataset(out, walk, info, overwrite=overwrite)
+    return ImportLogResult(out=res.out, samples=len(plog.t), decisions=len(dec),
+                           blocked=int(dec.blocked.sum()), actions=actions, action_set=aset,
+                           state_source=source, off_map=off_map)

@@ -1,0 +1,313 @@
+"""Public writer of simlab transition datasets, for data that did not come from ``collect``.
+
+Anyone holding per-transition arrays (a real robot's pose log, a ROS bag, another
+simulator) can make a dataset that :func:`~simlab.data.dataset.open_dataset`, ``simlab
+estimate`` and the rest read exactly like a collected one::
+
+    from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
+
+    walk = TransitionArrays(t=t, a=a, pose=pose, pose_next=pose_next, blocked=blocked,
+                            duration=duration)            # s, s_next: from the centres
+    write_dataset("data/lab", walk, DatasetInfo(discretizer="states/lab.json",
+                  action_set=parse_action_set(8, "ccw-east"), pose_source="log",
+                  provenance={"log": "run3.txt", "robot": "turtlebot3 #2"}))
+
+Layout and columns are those of :mod:`simlab.data.schema`. Each :class:`TransitionArrays`
+is one independent walk (a ``worker``); it is cut into parts of ``part_size`` rows, every
+part written atomically (temporary name, fsync, rename), and the manifest — which is what
+makes the directory a dataset — is written **last**, so an interrupted write never looks
+like a complete dataset. The manifest holds the :class:`~simlab.actions.ActionSet` as
+``action_set``, the pose source, the discretizer (hash, centres) and the caller's free-form
+``provenance``.
+
+Decisions: a writer run produces a complete dataset (``complete: true``) and cannot be
+resumed (there is nothing to re-run); ``seed`` is recorded as given (0 by default: data
+that was not simulated has none). An existing non-empty directory is refused unless
+``overwrite``; with it the old manifest is removed first, then the old parts, so a crash
+midway leaves a directory no reader accepts rather than a mixture of two datasets.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from simlab.actions import SIMLAB16, ActionSet
+from simlab.data.dataset import write_part
+from simlab.data.inputs import load_discretizer
+from simlab.data.manifest import manifest_path, new_manifest, write_manifest
+from simlab.data.schema import (
+    NO_TRUTH_SOURCES,
+    POSE_SOURCE_NAMES,
+    TRUTH_COLUMNS,
+    parse_part_name,
+    schema_to_json,
+    transition_schema,
+)
+from simlab.errors import ConfigError
+from simlab.io import exclusive_directory
+
+#: Rows per part file unless told otherwise.
+DEFAULT_PART_SIZE = 10_000
+
+
+def _array(value: Any, name: str, dtype: Any, n: int | None, width: int | None = None
+           ) -> np.ndarray:
+    arr = np.asarray(value, dtype=dtype)
+    shape = (n,) if width is None else (n, width)
+    if arr.ndim != len(shape) or (width is not None and arr.shape[1] != width) or (
+            n is not None and arr.shape[0] != n):
+        raise ConfigError(f"expected shape {tuple('N' if d is None else d for d in shape)}, "
+                          f"got {arr.shape}", key=f"transitions.{name}")
+    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        raise ConfigError("values must be finite", key=f"transitions.{name}")
+    return arr
+
+
+@dataclass(frozen=True)
+class TransitionArrays:
+    """One walk's transitions, ``N`` rows, validated and copied on construction.
+
+    Attributes:
+        t: ``(N,)`` s, time when each transition (decision) starts, non-decreasing.
+        a: ``(N,)`` int, action index in the dataset's action set.
+        pose: ``(N, 3)`` ``x, y, yaw`` before (m, m, rad, map frame).
+        pose_next: ``(N, 3)`` pose after.
+        blocked: ``(N,)`` bool, the translation was not executed.
+        duration: ``(N,)`` s, how long the transition took (>= 0).
+        s, s_next: ``(N,)`` int Markov states; None: nearest centre of the poses.
+        truth, truth_next: ``(N, 3)`` ground-truth poses; required for the simulated pose
+            sources ``odometry`` and ``mcl``, refused for ``truth`` and ``log``.
+    """
+
+    t: Any
+    a: Any
+    pose: Any
+    pose_next: Any
+    blocked: Any
+    duration: Any
+    s: Any = None
+    s_next: Any = None
+    truth: Any = None
+    truth_next: Any = None
+
+    def __post_init__(self) -> None:
+        t = _array(self.t, "t", np.float64, None)
+        n = len(t)
+        fix = object.__setattr__
+        fix(self, "t", t)
+        fix(self, "a", _array(self.a, "a", np.int64, n))
+        for name in ("pose", "pose_next", "truth", "truth_next"):
+            if getattr(self, name) is not None:
+                fix(self, name, _array(getattr(self, name), name, np.float64, n, 3))
+        fix(self, "blocked", _array(self.blocked, "blocked", bool, n))
+        fix(self, "duration", _array(self.duration, "duration", np.float64, n))
+        for name in ("s", "s_next"):
+            if getattr(self, name) is not None:
+                fix(self, name, _array(getattr(self, name), name, np.int64, n))
+        if (self.truth is None) != (self.truth_next is None):
+            raise ConfigError("give both truth and truth_next, or neither", key="transitions")
+        if n and np.any(np.diff(t) < 0):
+            raise ConfigError("times must not decrease", key="transitions.t")
+        if np.any(self.duration < 0):
+            raise ConfigError("durations must be >= 0", key="transitions.duration")
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True)
+class DatasetInfo:
+    """What a dataset is about (everything of the manifest except the transitions).
+
+    Attributes:
+        discretizer: states file (``simlab discretize`` JSON) or a discretizer object
+            (``state_of``, ``n_states``, ``centres``, ``content_hash()``).
+        action_set: meaning of the action column (stored as ``action_set``).
+        pose_source: one of :data:`~simlab.data.schema.POSE_SOURCE_NAMES`.
+        provenance: free-form JSON-able record (files, robot, operator, ...).
+        arena: ``arena`` record: ``name`` and optionally ``bounds`` ``[xmin, xmax, ymin,
+            ymax]`` (m) and ``goals`` (as collect writes them).
+        robot: ``robot`` record (free-form).
+        simulator: what produced the motion (``real`` for a real robot).
+        parameters: extra ``parameters`` entries (free-form, JSON-able).
+        seed: recorded seed (0 when nothing was random).
+    """
+
+    discretizer: Any
+    action_set: ActionSet = SIMLAB16
+    pose_source: str = "log"
+    provenance: Mapping[str, Any] = field(default_factory=dict)
+    arena: Mapping[str, Any] = field(default_factory=lambda: {"name": "real"})
+    robot: Mapping[str, Any] = field(default_factory=dict)
+    simulator: str = "real"
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.pose_source not in POSE_SOURCE_NAMES:
+            raise ConfigError(f"unknown pose source {self.pose_source!r}", key="pose_source",
+                              fix=f"choose one of {', '.join(POSE_SOURCE_NAMES)}")
+        if not isinstance(self.action_set, ActionSet):
+            raise ConfigError("expected an ActionSet (simlab.actions)", key="action_set")
+        if "name" not in self.arena:
+            raise ConfigError("the arena record needs a 'name'", key="arena")
+
+
+@dataclass(frozen=True)
+class WriteResult:
+    """What :func:`write_dataset` wrote: the directory, its manifest, the row count."""
+
+    out: Path
+    manifest: dict[str, Any]
+    rows: int
+
+
+def _states(walk: TransitionArrays, disc: Any, n_states: int, n_actions: int, w: int
+            ) -> tuple[np.ndarray, np.ndarray]:
+    s = disc.state_of(walk.pose[:, :2]) if walk.s is None else walk.s
+    s2 = disc.state_of(walk.pose_next[:, :2]) if walk.s_next is None else walk.s_next
+    for name, col, upper in (("s", s, n_states), ("s_next", s2, n_states), ("a", walk.a,
+                                                                             n_actions)):
+        if len(col) and (col.min() < 0 or col.max() >= upper):
+            raise ConfigError(f"values outside 0..{upper - 1} (min {col.min()}, max "
+                              f"{col.max()})", key=f"walk {w}: {name}")
+    return np.asarray(s, dtype=np.int32), np.asarray(s2, dtype=np.int32)
+
+
+def _part_table(walk: TransitionArrays, rows: slice, w: int, p: int, states: tuple[
+        np.ndarray, np.ndarray], pose_source: str, schema: pa.Schema) -> pa.Table:
+    n = len(walk.t[rows])
+    data: dict[str, Any] = {
+        "worker": np.full(n, w, dtype=np.int32), "part": np.full(n, p, dtype=np.int32),
+        "step": np.arange(rows.start, rows.start + n, dtype=np.int64),
+        "t": walk.t[rows], "duration": walk.duration[rows],
+        "s": states[0][rows], "a": walk.a[rows].astype(np.int32), "s_next": states[1][rows],
+        "blocked": walk.blocked[rows],
+        "pose_source": pa.DictionaryArray.from_arrays(pa.array(np.zeros(n, dtype=np.int32)),
+                                                      pa.array([pose_source])),
+    }
+    for k, name in enumerate(("x", "y", "yaw")):
+        data[name] = walk.pose[rows, k]
+        data[f"{name}_next"] = walk.pose_next[rows, k]
+    if pose_source not in NO_TRUTH_SOURCES:
+        for k, name in enumerate(TRUTH_COLUMNS):
+            src = walk.truth if k < 3 else walk.truth_next
+            data[name] = src[rows, k % 3]  # type: ignore[index]
+    arrays = [data[f.name] if isinstance(data[f.name], pa.Array)
+              else pa.array(data[f.name], type=f.type) for f in schema]
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
+def _clear(out: Path, overwrite: bool) -> None:
+    entries = [p for p in out.iterdir() if not p.name.startswith(".")]
+    if not entries:
+        return
+    if not overwrite:
+        raise ConfigError("output directory is not empty", path=out,
+                          fix="choose another --out or pass --overwrite")
+    foreign = [p.name for p in entries
+               if p.name != manifest_path(out).name and parse_part_name(p.name) is None]
+    if foreign:
+        raise ConfigError(f"directory holds files that are not a dataset's ({foreign[0]}, ...);"
+                          " not replacing it", path=out, fix="choose another --out")
+    manifest_path(out).unlink(missing_ok=True)
+    for p in entries:
+        p.unlink(missing_ok=True)
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def write_dataset(
+    out: str | os.PathLike[str],
+    walks: TransitionArrays | Sequence[TransitionArrays],
+    info: DatasetInfo,
+    *,
+    part_size: int = DEFAULT_PART_SIZE,
+    overwrite: bool = False,
+) -> WriteResult:
+    """Write a simlab transition dataset (Parquet parts + ``_manifest.json``) into ``out``.
+
+    Args:
+        out: dataset directory (created; must be empty unless ``overwrite``).
+        walks: one walk, or several (worker ``w`` = ``walks[w]``).
+        info: manifest content (discretizer, action set, pose source, provenance...).
+        part_size: rows per part file (>= 1).
+        overwrite: replace a dataset already in ``out``.
+
+    Returns:
+        :class:`WriteResult`. Read it back with :func:`simlab.data.dataset.open_dataset`.
+
+    Raises:
+        ConfigError: bad arrays (naming the field), states or actions out of range,
+            a non-empty ``out`` without ``overwrite``. Nothing is written then.
+    """
+    from simlab import __version__
+
+    walks = [walks] if isinstance(walks, TransitionArrays) else list(walks)
+    if not walks or not all(isinstance(w, TransitionArrays) for w in walks):
+        raise ConfigError("expected one or more TransitionArrays", key="walks")
+    if isinstance(part_size, bool) or int(part_size) != part_size or part_size < 1:
+        raise ConfigError(f"expected a whole number >= 1, got {part_size!r}", key="part_size")
+    truth_needed = info.pose_source not in NO_TRUTH_SOURCES
+    for w, walk in enumerate(walks):
+        if truth_needed != (walk.truth is not None):
+            raise ConfigError(f"pose source {info.pose_source!r} "
+                              f"{'needs' if truth_needed else 'takes no'} truth poses",
+                              key=f"walk {w}: truth")
+    disc = load_discretizer(info.discretizer)
+    n_states, aset = int(disc.n_states), info.action_set
+    states = [_states(walk, disc, n_states, aset.n_actions, w) for w, walk in enumerate(walks)]
+    schema = transition_schema(info.pose_source)
+    manifest = new_manifest(
+        simlab_version=__version__, arena=info.arena, robot=info.robot,
+        simulator=info.simulator, pose_source=info.pose_source,
+        discretizer={"hash": disc.content_hash(), "n_states": n_states,
+                     "centres": np.asarray(disc.centres, dtype=np.float64).tolist()},
+        seed=int(info.seed), workers=len(walks),
+        parameters={**dict(info.parameters), "n_actions": aset.n_actions,
+                    "part_size": int(part_size)},
+        schema=schema_to_json(schema))
+    manifest["action_set"] = aset.to_json()
+    manifest["provenance"] = dict(info.provenance)
+    manifest["writer"] = "simlab.data.writer"
+    out = Path(out)
+    with exclusive_directory(out, what="dataset directory"):
+        _clear(out, overwrite)
+        for w, walk in enumerate(walks):
+            n = len(walk)
+            starts = range(0, n, int(part_size)) if n else []
+            for p, start in enumerate(starts):
+                rows = slice(start, min(n, start + int(part_size)))
+                table = _part_table(walk, rows, w, p, states[w], info.pose_source, schema)
+                entry = write_part(out, w, p, table, disc.content_hash())
+                last = rows.stop - 1
+                entry.update(t_end=float(walk.t[last] + walk.duration[last]),
+                             pose_end=[float(v) for v in walk.pose_next[last]],
+                             final=rows.stop == n)
+                manifest["parts"].append(entry)
+        manifest["complete"] = True
+        manifest = _jsonable(manifest)
+        write_manifest(out, manifest)
+    return WriteResult(out=out, manifest=manifest, rows=sum(len(w) for w in walks))

@@ -1,0 +1,303 @@
+"""Pose logs: decisions and actions recovered exactly from a synthetic log of known ones."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from discretize.voronoi import Discretizer
+from simlab import commands
+from simlab.actions import parse_action_set
+from simlab.cli import main
+from simlab.data.dataset import open_dataset
+from simlab.data.poselog import (
+    SegmentParams,
+    decision_actions,
+    import_log,
+    read_pose_log,
+    segment_decisions,
+)
+from simlab.errors import ConfigError
+
+CCW = parse_action_set(8, "ccw-east")
+CENTRES = np.array([[x, y] for y in (2.0, 1.0, 0.0) for x in (0.0, 1.0, 2.0, 3.0)])
+
+
+def _simulate(plan, rng, *, noise=(0.003, 0.01), rate=2.0, speed=0.15, drive=2.0,
+              idle=3.0, w=1.5):
+    """Log of a robot executing ``plan`` = [(ccw-east action, blocked)], sampled at ``rate``.
+
+    Each decision: ``idle`` s at rest, turn in place at ``w`` rad/s the short way to the
+    action's heading (no turn when already facing it), then drive ``drive`` s at ``speed``
+    unless blocked. Returns (samples (N, 4) t x y yaw with noise, true decisions as
+    (t_start, t_end, action, blocked, turned)).
+    """
+    dt = 0.005
+    x, y, yaw, t = 1.5, 1.0, 0.0, 0.0
+    trace = [(t, x, y, yaw)]
+    truth = []
+
+    def step(vx: float, vy: float, wz: float, n: int) -> None:
+        nonlocal x, y, yaw, t
+        for _ in range(n):
+            x, y, yaw, t = x + vx * dt, y + vy * dt, yaw + wz * dt, t + dt
+            trace.append((t, x, y, yaw))
+
+    for action, blocked in plan:
+        step(0, 0, 0, round(idle / dt))
+        t0 = t
+        goal = CCW.heading(action)
+        turn = (goal - yaw + math.pi) % (2 * math.pi) - math.pi
+        if abs(turn) > 1e-9:
+            n = round(abs(turn) / w / dt)
+            step(0, 0, turn / (n * dt), n)
+            yaw = goal
+        if not blocked:
+            step(speed * math.cos(goal), speed * math.sin(goal), 0, round(drive / dt))
+        truth.append((t0, t, action, blocked, abs(turn) > 1e-9))
+    step(0, 0, 0, round(idle / dt))
+    trace = np.asarray(trace)
+    # sample at `rate` Hz with a phase that does not line up with the motions
+    times = np.arange(0.13, trace[-1, 0], 1.0 / rate)
+    idx = np.searchsorted(trace[:, 0], times)
+    samples = trace[idx].copy()
+    samples[:, 1:3] += rng.normal(0, noise[0], (len(idx), 2))
+    samples[:, 3] = (samples[:, 3] + rng.normal(0, noise[1], len(idx)) + math.pi) % (
+        2 * math.pi) - math.pi
+    return samples, truth
+
+
+PLAN = [(0, False), (0, False), (2, False), (5, True), (5, False), (3, False), (7, True),
+        (1, False), (6, False), (6, False), (4, True), (2, False), (4, False), (0, False),
+        (3, True), (7, False)]
+
+
+def test_synthetic_log_is_segmented_exactly() -> None:
+    samples, truth = _simulate(PLAN, np.random.default_rng(0))
+    t, xy, yaw = samples[:, 0], samples[:, 1:3], samples[:, 3]
+    dec = segment_decisions(t, xy, yaw)
+    assert len(dec) == len(PLAN)
+    assert dec.blocked.tolist() == [b for _, b in PLAN]
+    assert decision_actions(dec, CCW).tolist() == [a for a, _ in PLAN]
+    # boundaries within one sample interval of the truth
+    for k, (t0, t1, *_rest) in enumerate(truth):
+        assert abs(t[dec.start[k]] - t0) <= 0.5 + 1e-9
+        assert abs(t[dec.end[k]] - t1) <= 0.5 + 1e-9
+    # decisions that needed no turn (repeated headings) start with the move
+    no_turn = [k for k, tr in enumerate(truth) if not tr[4]]
+    assert no_turn and all(dec.move_start[k] == dec.start[k] for k in no_turn)
+
+
+def test_same_motion_in_simlab_convention_gives_the_remapped_actions() -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(1))
+    dec = segment_decisions(samples[:, 0], samples[:, 1:3], samples[:, 3])
+    simlab8 = parse_action_set(8, "simlab")
+    expected = [simlab8.from_primitive(CCW.to_primitive(a)) for a, _ in PLAN]
+    assert decision_actions(dec, simlab8).tolist() == expected
+
+
+def test_sixteen_actions_take_the_speed_from_the_motion() -> None:
+    plan = [(0, False), (2, False), (4, True), (6, False)]
+    slow, _ = _simulate(plan, np.random.default_rng(2), speed=0.10)
+    fast, _ = _simulate(plan, np.random.default_rng(2), speed=0.22)
+    aset = parse_action_set(16, "ccw-east")
+    for samples, offset in ((slow, 0), (fast, 8)):
+        dec = segment_decisions(samples[:, 0], samples[:, 1:3], samples[:, 3])
+        got = decision_actions(dec, aset).tolist()
+        assert got == [a if b else a + offset for a, b in plan]
+
+
+def test_noise_below_thresholds_makes_no_decisions() -> None:
+    rng = np.random.default_rng(3)
+    t = np.arange(100) * 0.5
+    xy = 1.0 + rng.normal(0, 0.003, (100, 2))
+    yaw = rng.normal(0, 0.01, 100)
+    assert len(segment_decisions(t, xy, yaw)) == 0
+
+
+def _write_log(path: Path, samples: np.ndarray, cells: np.ndarray | None = None,
+               n_cells: int | None = None) -> Path:
+    lines = ["# t x y yaw cell n_cells", ""]
+    for k, (t, x, y, yaw) in enumerate(samples):
+        extra = "" if cells is None else f" {cells[k]}" + ("" if n_cells is None
+                                                           else f" {n_cells}")
+        lines.append(f"{t:.3f} {x:.4f} {y:.4f} {yaw:.4f}{extra}  # sample {k}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _centres_file(path: Path) -> Path:
+    # id x y theta, ids shuffled: the ids, not the line order, number the states
+    order = np.random.default_rng(9).permutation(len(CENTRES))
+    path.write_text("id x y theta\n" + "".join(
+        f"{i} {CENTRES[i, 0]} {CENTRES[i, 1]} 0.0\n" for i in order))
+    return path
+
+
+def test_import_log_writes_a_dataset(tmp_path: Path) -> None:
+    samples, truth = _simulate(PLAN, np.random.default_rng(4))
+    log = _write_log(tmp_path / "run.log", samples)
+    res = import_log(log, states=_centres_file(tmp_path / "centres.txt"), out=tmp_path / "ds")
+    assert res.decisions == len(PLAN) and res.blocked == sum(b for _, b in PLAN)
+    ds = open_dataset(tmp_path / "ds")
+    assert ds.action_set == CCW and ds.n_actions == 8 and ds.n_states == len(CENTRES)
+    assert ds.manifest["pose_source"] == "log" and ds.manifest["provenance"]["log"] == str(log)
+    assert ds.column("a").tolist() == [a for a, _ in PLAN]
+    assert ds.column("blocked").tolist() == [b for _, b in PLAN]
+    disc = Discretizer(centres=CENTRES)
+    xy = np.column_stack([ds.column("x"), ds.column("y")])
+    np.testing.assert_array_equal(ds.column("s"), disc.state_of(xy))
+    np.testing.assert_allclose(ds.column("t"), [tr[0] for tr in truth], atol=0.5 + 1e-9)
+    blocked = ds.column("blocked")
+    moved = np.hypot(ds.column("x_next") - ds.column("x"), ds.column("y_next") - ds.column("y"))
+    assert np.all(moved[~blocked] > 0.25) and np.all(moved[blocked] < 0.03)
+
+
+def test_import_log_can_take_states_from_the_cell_column(tmp_path: Path) -> None:
+    samples, _ = _simulate(PLAN[:5], np.random.default_rng(5))
+    cells = np.arange(len(samples)) % len(CENTRES)
+    log = _write_log(tmp_path / "run.log", samples, cells, len(CENTRES))
+    states = _centres_file(tmp_path / "centres.txt")
+    import_log(log, states=states, out=tmp_path / "ds", use_cell_column=True)
+    ds = open_dataset(tmp_path / "ds")
+    dec = segment_decisions(samples[:, 0], samples[:, 1:3], samples[:, 3])
+    assert ds.column("s").tolist() == cells[dec.start].tolist()
+    assert ds.column("s_next").tolist() == cells[dec.end].tolist()
+    wrong = _write_log(tmp_path / "wrong.log", samples, cells, 40)
+    with pytest.raises(ConfigError, match="40 cells, the states file 12 states"):
+        import_log(wrong, states=states, out=tmp_path / "ds2", use_cell_column=True)
+    plain = _write_log(tmp_path / "plain.log", samples)
+    with pytest.raises(ConfigError, match="no cell column"):
+        import_log(plain, states=states, out=tmp_path / "ds3", use_cell_column=True)
+    assert not (tmp_path / "ds2").exists() and not (tmp_path / "ds3").exists()
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("0 0 0 0\n1 0 0\n", "line 2: expected 4 columns"),
+    ("0 0 0 0\n1 0 x 0\n", "line 2: y: expected a finite number, got 'x'"),
+    ("0 0 0 0 1.5\n1 0 0 0 1\n", "line 1: cell: expected a whole number"),
+    ("0 0 0\n", "line 1: expected 4 to 6 columns"),
+    ("# only a comment\n0 0 0 0\n", "1 sample"),
+    ("0 0 0 0\n0 1 0 0\n", "time does not increase at sample 2"),
+    ("0 0 0 0 3 4\n1 0 0 0 3 5\n", "n_cells changes"),
+    ("0 0 0 0 4 4\n1 0 0 0 3 4\n", r"cell values 3\.\.4 outside 0\.\.3"),
+])
+def test_bad_logs_name_file_and_line(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "bad.log"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message) as exc:
+        read_pose_log(path)
+    assert str(path) in str(exc.value)
+
+
+def test_segmentation_refuses_bad_arrays() -> None:
+    with pytest.raises(ConfigError, match="increase strictly"):
+        segment_decisions([0.0, 1.0, 1.0], np.zeros((3, 2)), np.zeros(3))
+    with pytest.raises(ConfigError, match=r"xy \(N, 2\)"):
+        segment_decisions([0.0, 1.0], np.zeros((3, 2)), np.zeros(2))
+
+
+def test_segment_params_are_validated() -> None:
+    with pytest.raises(ConfigError, match="move_speed"):
+        SegmentParams(move_speed=-1.0)
+    with pytest.raises(ConfigError, match="must be > 0"):
+        SegmentParams(turn_rate=0.0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_random_plans_are_recovered_exactly(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    plan, heading = [], 0
+    for _ in range(30):
+        a, blocked = int(rng.integers(8)), bool(rng.random() < 0.25)
+        if blocked and a == heading:  # a blocked attempt without a turn leaves no trace
+            a = (a + 1) % 8
+        plan.append((a, blocked))
+        heading = a
+    samples, _ = _simulate(plan, rng)
+    dec = segment_decisions(samples[:, 0], samples[:, 1:3], samples[:, 3])
+    assert decision_actions(dec, CCW).tolist() == [a for a, _ in plan]
+    assert dec.blocked.tolist() == [b for _, b in plan]
+
+
+# ----------------------------------------------------------------- command line
+def _states(tmp_path: Path) -> Path:
+    path = tmp_path / "centres.txt"
+    path.write_text("".join(f"{x} {y}\n" for x, y in CENTRES))
+    return path
+
+
+def test_cli_imports_a_log(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(7))
+    log = _write_log(tmp_path / "run.log", samples)
+    out = tmp_path / "ds"
+    argv = ["import-log", str(log), "--states", str(_states(tmp_path)), "--out", str(out),
+            "--n-actions", "8", "--convention", "ccw-east"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert f"{len(PLAN)} decisions ({sum(b for _, b in PLAN)} blocked)" in text
+    ds = open_dataset(out)
+    assert ds.column("a").tolist() == [a for a, _ in PLAN]
+    manifest = (out / "_manifest.json").read_bytes()
+    assert main(argv) == 2  # no --overwrite: refused, dataset untouched
+    assert "not empty" in capsys.readouterr().err
+    assert (out / "_manifest.json").read_bytes() == manifest
+    assert main([*argv, "--overwrite", "--convention", "simlab"]) == 0
+    assert json.loads((out / "_manifest.json").read_text())["action_set"]["convention"] == \
+        "simlab"
+
+
+def test_python_function_is_registered() -> None:
+    from simlab.data.poselog import import_log
+
+    assert commands.import_log is import_log
+
+
+@pytest.mark.parametrize(("log_text", "extra", "message"), [
+    ("0 0 0 0\n1 0 0\n", [], "line 2: expected 4 columns"),
+    ("0 0 0 0\n1 0.5 0 0\n2 1.0 0 0\n", ["--use-cell-column"], "no cell column"),
+    ("0 0 0 0\n1 0 0 0\n", [], "no motion found"),
+    ("0 0 0 0\n1 0.5 0 0\n", ["--convention", "north-first"], "unknown direction convention"),
+])
+def test_cli_bad_input_is_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                          log_text: str, extra: list[str],
+                                          message: str) -> None:
+    log = tmp_path / "run.log"
+    log.write_text(log_text)
+    out = tmp_path / "ds"
+    code = main(["import-log", str(log), "--states", str(_states(tmp_path)), "--out",
+                 str(out), *extra])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_poses_are_checked_against_a_map_and_a_flipped_image_is_spotted(
+        tmp_path: Path) -> None:
+    from discretize.gridmap import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+    from discretize.mapio import write_map
+
+    samples, _ = _simulate(PLAN, np.random.default_rng(4))  # x 1.5..2.1 m, y 0.9..1.5 m
+    occ = np.full((60, 40), UNKNOWN, dtype=np.int8)  # 0.1 m pixels, 4 x 6 m
+    occ[30:60, :] = OCCUPIED
+    occ[31:59, 1:39] = FREE  # the lower half of the image is the lab: y 0.1..2.9 m
+    right = tmp_path / "right.yaml"
+    write_map(right, OccupancyMap(occupancy=occ, resolution=0.1))
+    flipped = tmp_path / "flipped.yaml"
+    write_map(flipped, OccupancyMap(occupancy=occ[::-1], resolution=0.1))
+    log = _write_log(tmp_path / "run.log", samples)
+    states = _centres_file(tmp_path / "centres.txt")
+    res = import_log(log, states=states, out=tmp_path / "a", map=right)
+    assert res.off_map == 0
+    with pytest.raises(ConfigError) as exc:
+        import_log(log, states=states, out=tmp_path / "b", map=flipped)
+    text = str(exc.value)
+    assert f"{len(samples)} of {len(samples)} pose samples are not on free pixels" in text
+    assert "pose sample 0 " in text and "--flip-y" in text
+    assert not (tmp_path / "b").exists()
+    res = import_log(log, states=states, out=tmp_path / "c", map=flipped, flip_y=True)
+    assert res.off_map == 0 and open_dataset(tmp_path / "c").manifest["provenance"]["flip_y"]
