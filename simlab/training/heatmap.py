@@ -182,8 +182,8 @@ def plot_q_heatmap(
         ys = np.linspace(extent[3], extent[2], labels.shape[0])
         ax.contour(xs, ys, inside, levels=[0.5], colors="crimson", linewidths=2, zorder=4)
     if arrows and action_set is not None:
-        best, d = arrow_vectors(Qv, action_set)
-        learned = Qv.max(axis=1) > Qv.min(axis=1)
+        _, d = arrow_vectors(Qv, action_set)
+        learned = Qv.max(axis=1) > np.where(np.isfinite(Qv), Qv, np.inf).min(axis=1)
         spacing = np.sqrt((extent[1] - extent[0]) * (extent[3] - extent[2]) / max(len(centres), 1))
         d = d * spacing
         sel = learned
