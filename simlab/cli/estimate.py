@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "PERM, the simlab direction of each of yours (default simlab)")
     parser.add_argument("--speed", choices=("slow", "fast"), default="slow",
                         help="which primitive speed an 8-action robot's single speed is "
-                             "(default slow)")
+                             "(default slow; ignored for 16 actions)")
     parser.add_argument("--unvisited", choices=("mask", "self-loop"), default="mask",
                         help="unvisited (s, a): mask = planners never choose them (default); "
                              "self-loop = the old rule, a free stay")
@@ -46,7 +46,9 @@ def run(args: argparse.Namespace) -> int:
     explicit = (args.n_actions is not None or args.convention != "simlab"
                 or args.speed != "slow")
     if args.counts is not None:
-        action_set = parse_action_set(args.n_actions or 16, args.convention, args.speed)
+        n = args.n_actions or 16
+        # a 16-action set has both speeds: --speed only describes an 8-action robot
+        action_set = parse_action_set(n, args.convention, args.speed if n == 8 else "slow")
     elif explicit:
         raise ConfigError("--n-actions/--convention/--speed describe a --counts table; a "
                           "dataset records its own action set", key="n_actions",
