@@ -240,6 +240,7 @@ def test_train_cli_goal_states_start_states_and_task(small_mdp_file, tmp_path, c
                  "--start-states", "0,1", "--episodes", "20", "--runs", "1", "--out", str(out),
                  "--no-plots", "--no-progress"]) == 0
     Q, meta = load_q_table(out / "q_s3_4.npz")
+    assert Q.shape == (12, 16)
     assert meta["goal"] == "s3+4" and meta["task"] == {
         "mode": "per-step", "goal_states": [3, 4], "start_states": [0, 1]}
     assert meta["action_set"]["n_actions"] == 16 and meta["unvisited"] == "mask"
