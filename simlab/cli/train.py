@@ -29,7 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--agent", default="vi-softmax", help=f"agent name ({_AGENTS}); default vi-softmax"
     )
-    parser.add_argument("--goals", default="all", help="'all' or comma-separated goal names")
+    parser.add_argument("--goals", default="all",
+                        help="'all' or comma-separated goal names (default all)")
     parser.add_argument(
         "--episodes", type=int, default=2000, help="episodes per run (default 2000)"
     )
@@ -62,21 +63,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--map", dest="occupancy_map", default=None, help="map.yaml drawn under the heat maps"
     )
+    parser.add_argument(
+        "--goal-states", default=None,
+        help="train one goal made of these state ids, e.g. 18 or 18,19 (named s18, s18+19); "
+        "no arena needed (default: the MDP's named goals)",
+    )
+    parser.add_argument(
+        "--start-states", default=None,
+        help="start states drawn uniformly, e.g. 0,32 (default: all states, or --start)",
+    )
+    parser.add_argument(
+        "--task", choices=("per-step", "episodic"), default="per-step",
+        help="per-step: +1 per step arriving in the goal, fixed-length episodes (thesis; "
+        "default); episodic: +1 on arrival, then restart from the start states (real robot)",
+    )
+    parser.add_argument(
+        "--unvisited", choices=("mask", "self-loop"), default=None,
+        help="unvisited (s, a): mask = never chosen, self-loop = the old free stay "
+        "(default: the rule stored in the MDP, mask for old files)",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
-    from simlab.commands import train
+    import sys
+    import warnings
 
-    summary = train(
-        args.mdp, agent=args.agent, goals=args.goals, episodes=args.episodes, runs=args.runs,
-        seed=args.seed, out=args.out, horizon=args.horizon, start=args.start,
-        params=dict(args.param), bounds=args.bounds, arena=args.arena,
-        occupancy_map=args.occupancy_map, plots=not args.no_plots, overwrite=args.overwrite,
-        progress=not args.no_progress,
-    )  # fmt: skip
+    from simlab.commands import train
+    from simlab.training.train import TrainTask
+
+    task = TrainTask(mode=args.task, goal_states=args.goal_states,
+                     start_states=args.start_states, unvisited=args.unvisited)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        summary = _train(train, args, task)
+    for w in caught:
+        print(f"warning: {w.message}", file=sys.stderr)
     print(
         f"{summary.agent}: {len(summary.goals)} goal(s) x {args.runs} runs x "
         f"{args.episodes} episodes in {summary.seconds:.1f} s -> {summary.out}"
@@ -88,3 +112,13 @@ def run(args: argparse.Namespace) -> int:
             f"  ({ratio})  greedy {g.greedy_return:6.2f}"
         )
     return 0
+
+
+def _train(train: Any, args: argparse.Namespace, task: Any) -> Any:
+    return train(
+        args.mdp, agent=args.agent, goals=args.goals, episodes=args.episodes, runs=args.runs,
+        seed=args.seed, out=args.out, horizon=args.horizon, start=args.start,
+        params=dict(args.param), bounds=args.bounds, arena=args.arena,
+        occupancy_map=args.occupancy_map, plots=not args.no_plots, overwrite=args.overwrite,
+        progress=not args.no_progress, task=task,
+    )  # fmt: skip

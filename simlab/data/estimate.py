@@ -8,6 +8,19 @@ an untried action as "nothing happens" (agents that want optimism, e.g. R-max, u
 the reward of the physics task, r = 1 when s' lies in the goal area
 (:meth:`EmpiricalMDP.rewards`; 0 for unvisited pairs).
 
+**Unvisited pairs for planners** (issue 12): the self-loop keeps T a distribution, but a
+planner must not read "never tried" as "a free stay". The rule stored in the model's
+metadata (``meta_json``: ``{"unvisited": "mask" | "self-loop", "action_set": {...}}``)
+says what consumers do with ``visited == False``: ``mask`` (the default) means training
+and replay only choose among visited actions of a state (``valid = visited``; a state with
+no visited action keeps all of them); ``self-loop`` is the old rule, the self-loop taken
+at face value. T itself is the same under both rules (so old results stay bit-identical).
+
+**Action sets**: the model records its :class:`~simlab.actions.ActionSet` (number of
+actions, direction numbering, speed of an 8-action set), from the dataset or from the
+``--n-actions/--convention/--speed`` of a count table; files without it are simlab's 16
+primitives.
+
 Entropy (thesis Fig. 4.8): ``H(s, a) = -sum_s' T log2 T`` in bits, 0 for unvisited
 pairs; the mean per action is taken over the visited pairs of that action (NaN if it
 has none), and the slow / fast means are the means of the 8 per-action values of
@@ -18,6 +31,7 @@ biased low (no Miller-Madow correction), which is why coverage is reported with 
 from __future__ import annotations
 
 import itertools
+import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from simlab.actions import SIMLAB16, ActionSet, parse_action_set
 from simlab.data.inputs import load_arena_config, load_discretizer
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError
@@ -33,6 +48,28 @@ from simlab.io import atomic_write, atomic_write_json, ensure_new
 
 #: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
 HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)
+
+#: Rules for unvisited (s, a) pairs (see the module docstring); the first is the default.
+UNVISITED_RULES = ("mask", "self-loop")
+
+
+def check_unvisited_rule(rule: str, *, key: str = "unvisited") -> str:
+    """``rule`` if it is one of :data:`UNVISITED_RULES`, else :class:`ConfigError`."""
+    if rule not in UNVISITED_RULES:
+        raise ConfigError(f"unknown rule {rule!r}", key=key,
+                          fix="use 'mask' (default) or 'self-loop'")
+    return rule
+
+
+def valid_actions(visited: ArrayLike) -> NDArray[np.bool_]:
+    """``(S, A)`` bool actions a planner may choose under the ``mask`` rule.
+
+    ``visited``, except that a state with no visited action keeps all of them (nothing is
+    known there, and every state needs at least one action).
+    """
+    v = np.array(visited, dtype=bool)
+    v[~v.any(axis=1)] = True
+    return v
 
 
 # --------------------------------------------------------------------------------------
@@ -244,6 +281,8 @@ def estimate(
     n_actions: int = N_ACTIONS,
     plot: bool = True,
     overwrite: bool = False,
+    action_set: ActionSet | None = None,
+    unvisited: str = "mask",
 ) -> EstimateResult:
     """Estimate the empirical MDP of a dataset directory or an external count table.
 
@@ -258,22 +297,30 @@ def estimate(
         states: states file or discretizer: S and the centres for a count table; for a
             dataset, its hash must equal the manifest's (else DataError).
         n_states: S for a count table without ``states`` (default: largest index + 1).
-        n_actions: A for a count table (16 motion primitives).
+        n_actions: A for a count table (16 motion primitives) when ``action_set`` is None
+            (then simlab's numbering; 8 actions means the slow speed).
         plot: write the mean-entropy-per-action bar plot (thesis Fig. 4.8).
         overwrite: replace existing output files.
+        action_set: what the action indices mean. A count table takes it as given; a
+            dataset carries its own (``TransitionDataset.action_set``, SIMLAB16 for
+            datasets without one) and a different ``action_set`` is refused.
+        unvisited: rule for unvisited (s, a), ``mask`` (default) or ``self-loop``,
+            stored in the model's metadata (module docstring).
 
     Returns:
         :class:`EstimateResult`. The npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
         ``visited`` (S, A) bool, ``entropy`` (S, A) bits, ``mean_entropy`` (A,) bits and,
         when the centres are known, ``centres`` (S, 2) m; with goals also
         ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool and ``R`` (G, S, A);
-        with a known arena ``bounds`` (4,) ``x_min, y_min, x_max, y_max`` m.
+        with a known arena ``bounds`` (4,) ``x_min, y_min, x_max, y_max`` m; and
+        ``meta_json`` (JSON: ``action_set``, ``unvisited``).
     """
     from simlab.data.goals import goal_state_masks, goals_from_manifest
 
     if (dataset is None) == (counts is None):
         raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
                           key="source")
+    check_unvisited_rule(unvisited)
     npz_path, summary_path, plot_path = output_paths(out)
     if dataset is not None and _inside(npz_path, Path(dataset)):
         raise ConfigError(
@@ -302,6 +349,16 @@ def estimate(
         ds = open_dataset(dataset, validate=True,
                           expected_discretizer=None if disc is None else disc.content_hash())
         S, A = ds.n_states, ds.n_actions
+        ds_actions = getattr(ds, "action_set", None) or SIMLAB16
+        if action_set is not None and action_set != ds_actions:
+            raise ConfigError(
+                f"the dataset records {ds_actions.describe()}, not {action_set.describe()}",
+                path=dataset, key="action_set",
+                fix="leave --n-actions/--convention/--speed out for a dataset")
+        action_set = ds_actions
+        if action_set.n_actions != A:
+            raise ConfigError(f"the dataset has {A} actions but records "
+                              f"{action_set.describe()}", path=dataset, key="action_set")
         a_col = ds.column("a")
         c = count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A)
         centres = ds.centres
@@ -335,6 +392,9 @@ def estimate(
                 key="n_states",
             )
         S_given = disc.n_states if disc is not None else n_states
+        if action_set is None:
+            action_set = SIMLAB16 if int(n_actions) == 16 else parse_action_set(n_actions)
+        n_actions = action_set.n_actions
         table = load_counts(counts, n_states=S_given, n_actions=n_actions)  # type: ignore[arg-type]
         c = table.counts
         if disc is not None:
@@ -349,12 +409,15 @@ def estimate(
         }
 
     mdp = empirical_mdp(c)
+    n_masked = int((~valid_actions(mdp.visited)).sum()) if unvisited == "mask" else 0
+    meta = {"action_set": action_set.to_json(), "unvisited": unvisited}
     arrays: dict[str, Any] = {
         "counts": mdp.counts,
         "T": mdp.T,
         "visited": mdp.visited,
         "entropy": mdp.entropy,
         "mean_entropy": mdp.mean_entropy,
+        "meta_json": np.array(json.dumps(meta)),
     }
     goal_info = None
     if bounds is not None:
@@ -381,7 +444,13 @@ def estimate(
             "overall_mean_visited": float(mdp.entropy[mdp.visited].mean())
             if mdp.visited.any() else None,
         },
-        "unvisited_rule": "self-loop T[s, a, s] = 1, flagged visited[s, a] = False",
+        "action_set": action_set.to_json(),
+        "unvisited": unvisited,
+        "unvisited_rule": (
+            "T[s, a, s] = 1, flagged visited[s, a] = False; "
+            + ("planners choose only visited actions (mask)" if unvisited == "mask"
+               else "planners may choose them as a free stay (self-loop)")),
+        "masked_pairs": n_masked,
     })
     if blocked_by_action is not None:
         summary["blocked_fraction_per_action"] = _floats(blocked_by_action)

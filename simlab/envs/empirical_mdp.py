@@ -5,8 +5,11 @@ Env card
 * **Built from** an ``mdp.npz`` (written by ``simlab estimate``) or arrays, and a
   goal (name from the file's ``goal_names``, index, or an explicit (S,) mask).
 * **Observation** ``Discrete(S)``: the Markov state (Voronoi cell index).
-* **Action** ``Discrete(A)``: for the table arena the 16 motion primitives
-  (``speed * 8 + direction``).
+* **Action** ``Discrete(A)``: what action ``a`` does is the MDP's ``action_set``
+  (:class:`~simlab.actions.ActionSet`; simlab's 16 primitives ``speed * 8 + direction``
+  for the table arena, 8 actions for a real robot's data). ``env.action_set`` and
+  ``env.valid_actions`` ((S, A) bool, the ``mask`` rule for unvisited pairs; None when every
+  action is allowed) tell an agent which actions mean what and which were never tried.
 * **Dynamics** ``s' ~ T[s, a, :]`` drawn with ``self.np_random``.
 * **Reward** 1.0 when the state reached ``s'`` is in the goal area, else 0.0 (the
   thesis's +1 per step inside the goal area; the start state earns nothing).
@@ -21,7 +24,10 @@ The npz arrays (see :func:`load_mdp`): ``T`` (S, A, S) float64, rows summing to 
 (S, A) float64 bits (optional, kept for reports); ``centres`` (S, 2) float64
 metres, ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool (needed to pick a
 goal by name); ``bounds`` (4,) ``x_min, y_min, x_max, y_max`` metres (optional, for plots; the
-convention of :attr:`simlab.physics.arena.ArenaConfig.bounds`).
+convention of :attr:`simlab.physics.arena.ArenaConfig.bounds`); ``meta_json`` (optional):
+``action_set`` (absent: simlab's 16 primitives; for another number of actions unknown, None,
+which training accepts and heat-map arrows and replay refuse)
+and ``unvisited`` (``mask``, the default also for files without it, or ``self-loop``).
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from simlab.actions import ActionSet, action_set_from_metadata
 from simlab.errors import ConfigError
 
 __all__ = ["EmpiricalMDP", "EmpiricalMDPEnv", "load_mdp", "mdp_from_arrays"]
@@ -64,6 +71,10 @@ class EmpiricalMDP:
     """(S, A) float64 entropy of T(s, a, .) in bits, if known."""
     source: str | None = None
     """File the MDP was read from (for messages)."""
+    action_set: ActionSet | None = None
+    """What each action index means (None only for MDPs built from bare arrays)."""
+    unvisited: str = "mask"
+    """Rule for unvisited (s, a): ``mask`` (planners never choose them) or ``self-loop``."""
     cdf: np.ndarray = field(init=False, repr=False)
     """(S, A, S) cumulative sums of T along s' (for sampling)."""
 
@@ -79,6 +90,26 @@ class EmpiricalMDP:
     @property
     def n_actions(self) -> int:
         return int(self.T.shape[1])
+
+    @property
+    def valid(self) -> np.ndarray | None:
+        """(S, A) bool actions a planner may choose, or None when all are allowed.
+
+        Under the ``mask`` rule the visited pairs (a state with no visited action keeps
+        all of them); None under ``self-loop``, without ``visited``/``counts``, or when
+        every pair was visited (so fully covered data trains exactly as before).
+        """
+        from simlab.data.estimate import valid_actions
+
+        if self.unvisited != "mask":
+            return None
+        visited = self.visited
+        if visited is None and self.counts is not None:
+            visited = self.counts.sum(axis=2) > 0
+        if visited is None:
+            return None
+        v = valid_actions(visited)
+        return None if v.all() else v
 
     def goal_index(self, goal: str | int) -> int:
         """Index of a goal given by name or index; :class:`ConfigError` lists the valid ones."""
@@ -129,8 +160,13 @@ def mdp_from_arrays(
     visited: np.ndarray | None = None,
     entropy: np.ndarray | None = None,
     source: str | os.PathLike[str] | None = None,
+    action_set: ActionSet | None = None,
+    unvisited: str = "mask",
 ) -> EmpiricalMDP:
     """Validate arrays and build an :class:`EmpiricalMDP`.
+
+    ``action_set`` must have A actions (default: simlab's 16 primitives when A is 16, else
+    None); ``unvisited`` is ``mask`` or ``self-loop`` (see :attr:`EmpiricalMDP.valid`).
 
     Raises :class:`ConfigError` naming ``source`` and the array: T not
     (S, A, S), negative or non-finite entries, rows not summing to 1, goal
@@ -179,6 +215,14 @@ def mdp_from_arrays(
                              ("entropy", entropy, (S, A))):  # fmt: skip
         if arr is not None and np.shape(arr) != shape:
             raise ConfigError(f"expected shape {shape}, got {np.shape(arr)}", path=path, key=name)
+    from simlab.data.estimate import check_unvisited_rule
+
+    check_unvisited_rule(unvisited)
+    if action_set is None and A == 16:
+        action_set = action_set_from_metadata(None, A, where=path or "mdp")
+    if action_set is not None and action_set.n_actions != A:
+        raise ConfigError(f"action_set says {action_set.n_actions} actions, T has {A}",
+                          path=path, key="action_set")
     return EmpiricalMDP(
         T=_readonly(T),
         goal_names=names,
@@ -189,6 +233,8 @@ def mdp_from_arrays(
         visited=_readonly(visited),
         entropy=_readonly(entropy),
         source=path,
+        action_set=action_set,
+        unvisited=unvisited,
     )
 
 
@@ -200,10 +246,12 @@ def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
     """
     from simlab.agents.storage import load_npz
 
-    arrays, _ = load_npz(path, ("T",))
+    arrays, meta = load_npz(path, ("T",))
     path = Path(path)
+    T = arrays["T"]
+    n_actions = int(T.shape[1]) if T.ndim == 3 else 16
     return mdp_from_arrays(
-        arrays["T"],
+        T,
         goal_names=arrays.get("goal_names"),
         goal_masks=arrays.get("goal_masks"),
         centres=arrays.get("centres"),
@@ -212,6 +260,9 @@ def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
         visited=arrays.get("visited"),
         entropy=arrays.get("entropy"),
         source=path,
+        action_set=(action_set_from_metadata(meta, n_actions, where=str(path))
+                    if meta.get("action_set") is not None or n_actions == 16 else None),
+        unvisited=str(meta.get("unvisited", "mask")),
     )
 
 
@@ -267,6 +318,8 @@ class EmpiricalMDPEnv(gym.Env):
         self.render_mode = render_mode
         self.observation_space = spaces.Discrete(S)
         self.action_space = spaces.Discrete(A)
+        self.action_set = self.mdp.action_set
+        self.valid_actions = self.mdp.valid
         self._set_goal(goal, goal_mask)
         self._state = 0
         self._t = 0

@@ -2,10 +2,13 @@
 
 Card
 ----
-* **Actions** ``Discrete(16)``: the thesis's motion primitives, index = speed * 8 +
-  direction (UP, DOWN, LEFT, RIGHT, UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT in the map
-  frame; slow 0.10 m/s or fast 0.22 m/s for 0.5 s), each preceded by the LIDAR obstacle
-  check (see :mod:`simlab.physics.motion`).
+* **Actions** ``Discrete(action_set.n_actions)``: by default (``action_set`` SIMLAB16)
+  the thesis's 16 motion primitives, index = speed * 8 + direction (UP, DOWN, LEFT, RIGHT,
+  UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT in the map frame; slow 0.10 m/s or fast
+  0.22 m/s for 0.5 s), each preceded by the LIDAR obstacle check (see
+  :mod:`simlab.physics.motion`). Another :class:`~simlab.actions.ActionSet` (e.g. a real
+  robot's 8 actions numbered counter-clockwise from East) renumbers them: action ``a``
+  executes the primitive ``action_set.to_primitive(a)``; ``info["primitive"]`` says which.
 * **Observation** ``Dict(pose=Box(3), lidar=Box(360))``: the true pose (x, y in metres,
   yaw in radians) after the primitive, and a full 360-beam LIDAR scan (metres, ``inf`` for
   no return).
@@ -23,14 +26,16 @@ Card
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from simlab.actions import SIMLAB16, ActionSet
 from simlab.physics.arena import ArenaConfig
-from simlab.physics.motion import N_ACTIONS, PrimitiveParams, execute_primitive
+from simlab.physics.motion import PrimitiveParams, execute_primitive
 from simlab.physics.render import render_topdown
 from simlab.physics.world import World
 
@@ -47,6 +52,7 @@ class TableArenaEnv(gym.Env):
         params: PrimitiveParams | None = None,
         render_mode: str | None = None,
         physics_hz: float = 200.0,
+        action_set: ActionSet | Mapping[str, Any] | None = None,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, "
@@ -68,7 +74,14 @@ class TableArenaEnv(gym.Env):
                                np.array([x1, y1, math.pi], dtype=np.float32), dtype=np.float32),
             "lidar": spaces.Box(0.0, np.inf, shape=(n,), dtype=np.float32),
         })
-        self.action_space = spaces.Discrete(N_ACTIONS)
+        if isinstance(action_set, Mapping):  # the JSON record, e.g. from a Q-table's metadata
+            action_set = ActionSet.from_json(action_set)
+        self.action_set = SIMLAB16 if action_set is None else action_set
+        if not isinstance(self.action_set, ActionSet):
+            raise ValueError(f"action_set must be an ActionSet or its JSON record, "
+                             f"got {action_set!r}")
+        self._primitives = self.action_set.primitives()
+        self.action_space = spaces.Discrete(self.action_set.n_actions)
         self.goal = self.arena.goals[0]
         self._steps = 0
         self._time = 0.0
@@ -98,8 +111,10 @@ class TableArenaEnv(gym.Env):
 
     def step(self, action):
         if not self.action_space.contains(action):
-            raise ValueError(f"action must be an int in 0..{N_ACTIONS - 1}, got {action!r}")
-        res = execute_primitive(self.world, int(action), self.np_random, self.params)
+            raise ValueError(f"action must be an int in 0..{self.action_space.n - 1}, "
+                             f"got {action!r}")
+        primitive = int(self._primitives[int(action)])
+        res = execute_primitive(self.world, primitive, self.np_random, self.params)
         self._steps += 1
         self._time += res.duration + self.params.decision_latency
         self._trail.append(res.pose_after)
@@ -107,7 +122,7 @@ class TableArenaEnv(gym.Env):
         reward = float(self.goal.contains(res.pose_after[:2]))
         truncated = self._steps >= self.max_steps
         info = {"blocked": res.blocked, "duration": res.duration, "time": self._time,
-                "goal": self.goal.name, "odometry": res.odom_after}
+                "goal": self.goal.name, "odometry": res.odom_after, "primitive": primitive}
         return obs, reward, False, truncated, info
 
     def render(self):

@@ -1,13 +1,18 @@
 """The replay's inputs, checked against each other before the robot moves.
 
 * **Q-tables**: one ``q_<goal>.npz`` per goal of the arena in a directory (the files
-  ``simlab train`` writes; read with :func:`simlab.agents.storage.load_q_table`), or a
-  mapping ``goal -> Q``. Each must be ``(S, 16)``: S the states of the discretizer, 16
-  the motion primitives. A goal without a file, a wrong shape or non-finite values raise
-  :class:`~simlab.errors.ConfigError` naming the file.
+  ``simlab train`` writes; read with :func:`simlab.agents.storage.load_npz`), or a
+  mapping ``goal -> Q``. Each must be ``(S, A)``: S the states of the discretizer, A the
+  actions of their **action set** (issue 12: ``action_set`` in the metadata; 16 simlab
+  primitives for files without one; an 8-action table without one is refused). All goals
+  must share one action set. A saved ``valid`` (S, A) mask (unvisited pairs) travels with
+  them: the replay never executes a masked action. A goal without a file, a wrong shape,
+  non-finite values or disagreeing action sets raise :class:`~simlab.errors.ConfigError`
+  naming the file.
 * **The empirical MDP** (for the predicted rate): the ``mdp.npz`` given, or the one the
-  Q-tables record in their metadata (``mdp``). Its ``T`` must be ``(S, 16, S)``, its
-  centres (if stored) those of the discretizer and its goals those of the arena.
+  Q-tables record in their metadata (``mdp``). Its ``T`` must be ``(S, A, S)`` with the
+  Q-tables' action set, its centres (if stored) those of the discretizer and its goals
+  those of the arena.
 * **Goal masks**: from the arena's goals and the discretizer's centres with the
   estimator's rule (:func:`simlab.data.goals.goal_state_masks`).
 """
@@ -25,9 +30,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.errors import ConfigError
 
-#: Number of motion primitives (SPEC A4).
+#: Number of simlab motion primitives (SPEC A4).
 N_ACTIONS = 16
 
 
@@ -43,7 +49,9 @@ class QTables:
     """Per-goal Q-tables in the arena's goal order.
 
     ``Q`` ``(G, S, A)`` float64; ``names`` the goal names; ``files`` the file of each
-    (None for tables passed in memory); ``metadata`` the JSON metadata of each file.
+    (None for tables passed in memory); ``metadata`` the JSON metadata of each file;
+    ``action_set`` what their A actions mean; ``valid`` ``(G, S, A)`` bool actions the
+    policy may choose (None: all).
     """
 
     Q: NDArray[np.float64]
@@ -51,16 +59,22 @@ class QTables:
     files: tuple[str | None, ...]
     metadata: tuple[dict[str, Any], ...]
     source: str | None
+    action_set: ActionSet = SIMLAB16
+    valid: NDArray[np.bool_] | None = None
 
 
 def load_qtables(qtables: str | os.PathLike[str] | Mapping[str, Any], goal_names: tuple[str, ...],
-                 n_states: int, states_source: str | None = None) -> QTables:
-    """Load and check the Q-table of every goal in ``goal_names`` (see the module doc)."""
-    from simlab.agents.storage import load_q_table
+                 n_states: int, states_source: str | None = None, *,
+                 action_set: ActionSet | None = None) -> QTables:
+    """Load and check the Q-table of every goal in ``goal_names`` (see the module doc).
 
-    expected = (n_states, N_ACTIONS)
+    ``action_set`` is required for in-memory tables of other than 16 actions; for files it
+    must agree with their metadata when given.
+    """
+    from simlab.agents.storage import load_npz, load_q_table
+
     where = f" of {states_source}" if states_source else ""
-    tables, files, metas = [], [], []
+    tables, files, metas, valids = [], [], [], []
     if isinstance(qtables, Mapping):
         source = None
         for g in goal_names:
@@ -69,7 +83,8 @@ def load_qtables(qtables: str | os.PathLike[str] | Mapping[str, Any], goal_names
                                   fix=f"give one per goal: {', '.join(goal_names)}")
             tables.append(np.asarray(qtables[g], dtype=np.float64))
             files.append(None)
-            metas.append({})
+            metas.append({} if action_set is None else {"action_set": action_set.to_json()})
+            valids.append(None)
     else:
         directory = Path(qtables)
         source = str(directory)
@@ -87,21 +102,53 @@ def load_qtables(qtables: str | os.PathLike[str] | Mapping[str, Any], goal_names
                         f"{', '.join(present) or 'no q_*.npz file'}",
                 )
             Q, meta = load_q_table(path)
+            arrays, _ = load_npz(path)
             tables.append(Q)
             files.append(str(path))
             metas.append(meta)
-    for g, Q, f in zip(goal_names, tables, files, strict=True):
+            valids.append(arrays.get("valid"))
+    aset = _common_action_set(goal_names, tables, files, metas, action_set)
+    expected = (n_states, aset.n_actions)
+    for g, Q, f, v in zip(goal_names, tables, files, valids, strict=True):
         if Q.shape != expected:
             raise ConfigError(
                 f"Q-table of goal {g!r} has shape {Q.shape}, expected {expected}: "
-                f"{n_states} states{where} x {N_ACTIONS} motion primitives",
+                f"{n_states} states{where} x {aset.describe()}",
                 path=f, key="Q",
                 fix="train on an MDP estimated with the same states file",
             )
         if not np.all(np.isfinite(Q)):
             raise ConfigError(f"Q-table of goal {g!r} has NaN or infinite values", path=f, key="Q")
+        if v is not None and (v.shape != expected or v.dtype != bool):
+            raise ConfigError(f"expected a {expected} bool mask, got {v.dtype} {v.shape}",
+                              path=f, key="valid")
+    valid = None
+    if any(v is not None for v in valids):
+        valid = np.stack([np.ones(expected, dtype=bool) if v is None else v for v in valids])
     return QTables(Q=np.stack(tables), names=tuple(goal_names), files=tuple(files),
-                   metadata=tuple(metas), source=source)
+                   metadata=tuple(metas), source=source, action_set=aset, valid=valid)
+
+
+def _common_action_set(goal_names: tuple[str, ...], tables: list[Any], files: list[Any],
+                       metas: list[dict[str, Any]], given: ActionSet | None) -> ActionSet:
+    """The one action set of all the Q-tables (ConfigError naming the file that differs)."""
+    found: ActionSet | None = None
+    for g, Q, f, meta in zip(goal_names, tables, files, metas, strict=True):
+        n = int(Q.shape[1]) if Q.ndim == 2 else 0
+        if n not in (8, 16):
+            raise ConfigError(f"Q-table of goal {g!r} has {n} actions; the robot has 8 or 16",
+                              path=f, key="Q", fix="train on an MDP of the robot's actions")
+        aset = given if (f is None and given is not None) else action_set_from_metadata(
+            meta, n, where=f or f"Q-table of goal {g!r}")
+        if given is not None and aset != given:
+            raise ConfigError(f"Q-table of goal {g!r} has {aset.describe()}, expected "
+                              f"{given.describe()}", path=f, key="action_set")
+        if found is not None and aset != found:
+            raise ConfigError(f"Q-table of goal {g!r} has {aset.describe()}, the others "
+                              f"{found.describe()}", path=f, key="action_set",
+                              fix="train all goals on the same MDP")
+        found = aset
+    return found if found is not None else (given or SIMLAB16)
 
 
 def discover_mdp(qtables: QTables) -> str | None:
@@ -135,20 +182,32 @@ class ModelInputs:
     dataset_seconds_per_transition: float | None
     dataset: str | None = None
     primitive_params: dict[str, Any] | None = None
+    action_set: ActionSet = SIMLAB16
+    valid: NDArray[np.bool_] | None = None
 
 
 def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
-               goal_masks: NDArray[np.bool_]) -> ModelInputs:
+               goal_masks: NDArray[np.bool_], *,
+               action_set: ActionSet | None = None) -> ModelInputs:
     """Load an ``mdp.npz`` (or an :class:`~simlab.envs.empirical_mdp.EmpiricalMDP`) and
-    check it against the discretizer and the arena's goals."""
+    check it against the discretizer, the arena's goals and (when given) the Q-tables'
+    ``action_set``."""
     from simlab.envs.empirical_mdp import EmpiricalMDP, load_mdp
 
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
     src = None if m.source is None else str(m.source)
     S = discretizer.n_states
-    if m.T.shape != (S, N_ACTIONS, S):
+    if m.action_set is None:
+        raise ConfigError(f"{m.n_actions} actions and no action_set record", path=src,
+                          key="action_set", fix="re-estimate it with --n-actions and --convention")
+    if action_set is not None and m.action_set != action_set:
         raise ConfigError(
-            f"T has shape {m.T.shape}, expected ({S}, {N_ACTIONS}, {S}) for the states file",
+            f"the MDP has {m.action_set.describe()}, the Q-tables {action_set.describe()}",
+            path=src, key="action_set", fix="replay the Q-tables trained on this MDP")
+    A = m.action_set.n_actions
+    if m.T.shape != (S, A, S):
+        raise ConfigError(
+            f"T has shape {m.T.shape}, expected ({S}, {A}, {S}) for the states file",
             path=src, key="T", fix="estimate the MDP with the same states file",
         )
     if m.centres is not None and not np.allclose(m.centres, discretizer.centres, atol=1e-9):
@@ -193,7 +252,7 @@ def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
                     break
     return ModelInputs(T=np.asarray(m.T, dtype=np.float64), source=src,
                        dataset_seconds_per_transition=pace, dataset=dataset,
-                       primitive_params=primitive)
+                       primitive_params=primitive, action_set=m.action_set, valid=m.valid)
 
 
 def _read_json(path: Path) -> dict[str, Any] | None:

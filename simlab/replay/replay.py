@@ -10,10 +10,12 @@ hours (Fig. 4.10):
    simulator; ``odometry``: the wheel encoders, which drift; ``mcl``: the LIDAR particle
    filter of :mod:`simlab.localization` on the occupancy map, started at the known start
    pose), turns it into a Markov state with the discretizer, and picks
-   ``argmax_a Q_goal(s, a)`` (ties broken at random; ``policy="random"`` picks uniformly
-   among the 16 actions);
-3. it executes the motion primitive in physics; the obstacle detector is part of the
-   primitive (a blocked primitive rotates but does not translate);
+   ``argmax_a Q_goal(s, a)`` over the **valid** actions (ties broken at random;
+   ``policy="random"`` picks uniformly among all the robot's actions);
+3. it executes the motion primitive of that action, ``action_set.to_primitive(a)`` (the
+   Q-tables' :class:`~simlab.actions.ActionSet`: 16 simlab primitives, or e.g. a real
+   robot's 8 actions numbered counter-clockwise from East), in physics; the obstacle
+   detector is part of the primitive (a blocked primitive rotates but does not translate);
 4. the robot clock advances by the primitive's stepped duration plus the decision latency
    (idle, not stepped);
 5. if the state reached (from the pose source, as the real robot only knows its
@@ -50,6 +52,11 @@ Decisions where the thesis is silent:
   ``baseline_hours`` (default: the same duration) runs in a second world with its own
   seed stream and the truth pose source (a random policy ignores the pose; only the
   bookkeeping of rewards uses it).
+* **masked actions** (issue 12): the Q-tables' saved ``valid`` mask (or, for Q-tables
+  without one and not trained with the ``self-loop`` rule, the MDP's) is never violated by
+  the greedy choice, the blocked-retry fallback or the loop watchdog; only ``epsilon``
+  exploration and the random baseline draw among all actions (as the prediction models).
+  Q-tables whose action set differs from the MDP's are refused.
 * **primitive parameters**: the robot must drive the primitives the model was estimated
   from, so by default the replay uses those recorded in the MDP's dataset manifest
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
@@ -174,11 +181,19 @@ class ReplayResult:
 
 
 def greedy_action(q: NDArray[np.float64], rng: np.random.Generator,
-                  excluded: NDArray[np.bool_] | None = None, tie_tolerance: float = 1e-9) -> int:
-    """``argmax_a q[a]`` over the actions not ``excluded``, ties (within ``tie_tolerance *
-    max(1, |max|)``, the rule of :func:`simlab.replay.prediction.greedy_ties`) broken
-    uniformly with ``rng``."""
+                  excluded: NDArray[np.bool_] | None = None, tie_tolerance: float = 1e-9, *,
+                  valid: NDArray[np.bool_] | None = None) -> int:
+    """``argmax_a q[a]`` over the ``valid`` actions (None: all; a state with none valid keeps
+    all) not ``excluded`` (ignored when it would exclude every valid action), ties (within
+    ``tie_tolerance * max(1, |max|)``, the rule of
+    :func:`simlab.replay.prediction.greedy_ties`) broken uniformly with ``rng``."""
     q = np.asarray(q, dtype=np.float64)
+    if valid is not None and valid.any() and not valid.all():
+        q = np.where(valid, q, -np.inf)
+        if excluded is not None:
+            excluded = excluded & valid
+            if excluded.sum() == valid.sum():
+                excluded = None
     if excluded is not None and excluded.any() and not excluded.all():
         q = np.where(excluded, -np.inf, q)
     best = float(q.max())
@@ -186,6 +201,18 @@ def greedy_action(q: NDArray[np.float64], rng: np.random.Generator,
     if ties.size == 1:
         return int(ties[0])
     return int(ties[rng.integers(0, ties.size)])
+
+
+def _escape_action(a: int, valid: NDArray[np.bool_] | None, n_actions: int,
+                   rng: np.random.Generator) -> int:
+    """A uniformly random action other than ``a`` (among the valid ones when there are
+    others; without a mask the same draw as before the mask existed)."""
+    if valid is None or valid.all():
+        return int((a + 1 + rng.integers(0, n_actions - 1)) % n_actions)
+    others = np.flatnonzero(valid & (np.arange(n_actions) != a))
+    if others.size == 0:
+        return a
+    return int(others[rng.integers(0, others.size)])
 
 
 def _recurs(history: list[tuple[float, float, int]], pose: NDArray[np.float64], action: int,
@@ -275,14 +302,20 @@ class _RunSpec:
     escape_radius: float
     epsilon: float
     frame_stride: int
+    primitives: NDArray[np.int64] = field(default_factory=lambda: np.arange(16))
+    """simlab primitive executed by each action of the action set, ``(A,)``."""
+    valid: NDArray[np.bool_] | None = None
+    """``(G, S, A)`` actions the greedy policy may choose (None: all)."""
 
 
 def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) -> RunOutcome:
     """Drive one replay (see the module docstring); ``seqs`` = (policy, noise, localization,
     goals) seed sequences."""
     from simlab.localization.tracker import MCLTracker
-    from simlab.physics.motion import N_ACTIONS, execute_primitive
+    from simlab.physics.motion import execute_primitive
     from simlab.physics.world import World
+
+    n_actions = len(spec.primitives)
 
     policy_rng, noise_rng, loc_rng, goal_rng = (np.random.default_rng(s) for s in seqs)
     params = spec.params
@@ -318,7 +351,7 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
         goal = int(goal_rng.integers(0, G))
         est = pose_now()
         s = int(disc.state_of(est[:2]))
-        excluded = np.zeros(N_ACTIONS, dtype=bool)
+        excluded = np.zeros(n_actions, dtype=bool)
         history: list[tuple[float, float, int]] = []  # decisions of the goal episode
         retries = returns = rewards = escapes = 0
         idle = 0.0
@@ -326,18 +359,19 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
         while robot_time < spec.budget:
             if spec.policy == "random" or (spec.epsilon > 0 and
                                            policy_rng.random() < spec.epsilon):
-                a = int(policy_rng.integers(0, N_ACTIONS))
+                a = int(policy_rng.integers(0, n_actions))
             else:
+                allowed = None if spec.valid is None else spec.valid[goal, s]
                 a = greedy_action(spec.Q[goal, s], policy_rng,  # type: ignore[index]
-                                  excluded if spec.retry_blocked else None)
+                                  excluded if spec.retry_blocked else None, valid=allowed)
                 retries += int(excluded.any())
                 if spec.escape_radius > 0 and _recurs(history, est, a, spec.escape_radius):
-                    a = int((a + 1 + policy_rng.integers(0, N_ACTIONS - 1)) % N_ACTIONS)
+                    a = _escape_action(a, allowed, n_actions, policy_rng)
                     escapes += 1
             history.append((est[0], est[1], a))
             truth_before = world.pose()
-            res = execute_primitive(world, a, noise_rng, params, on_scan=on_scan,
-                                    scan_beams=scan_beams)
+            res = execute_primitive(world, int(spec.primitives[a]), noise_rng, params,
+                                    on_scan=on_scan, scan_beams=scan_beams)
             est_after = pose_now(res.odom_after)
             s_next = int(disc.state_of(est_after[:2]))
             reward = int(spec.goal_masks[goal, s_next])
@@ -524,6 +558,7 @@ def replay(
     params: Any = None,
     mcl_params: Any = None,
     max_frames: int = 150,
+    action_set: Any = None,
 ) -> ReplayResult:
     """Replay the Q-tables in physics for ``hours`` of robot time (see the module doc).
 
@@ -531,7 +566,8 @@ def replay(
         arena: built-in arena name, ``.toml`` path or ``ArenaConfig``.
         states: states file of ``simlab discretize`` (JSON) or a discretizer.
         qtables: the ``simlab train`` output directory (``q_<goal>.npz`` per goal) or a
-            mapping ``goal -> Q (S, 16)``; may be None for ``policy="random"``.
+            mapping ``goal -> Q (S, A)`` (A = 16, or ``action_set``'s); may be None for
+            ``policy="random"``.
         hours: robot time (driving + idle latency) to replay.
         pose_source: ``"truth"``, ``"odometry"`` or ``"mcl"``.
         seed: root seed (see the module docstring).
@@ -556,6 +592,8 @@ def replay(
             MDP's dataset when known, else the default values).
         mcl_params: :class:`~simlab.localization.filter.MCLParams` (default values).
         max_frames: at most this many video frames (evenly spread over the replay).
+        action_set: :class:`~simlab.actions.ActionSet` of in-memory Q-tables (files record
+            theirs; given, it must agree).
 
     Returns:
         :class:`ReplayResult`. Raises :class:`ConfigError` for bad input (naming the file):
@@ -606,9 +644,13 @@ def replay(
     if qtables is None and policy == "greedy":
         raise ConfigError("a greedy replay needs Q-tables", key="qtables",
                           fix="pass --qtables DIR (the output of `simlab train`) or --random")
-    qt = None if qtables is None else load_qtables(qtables, goal_names, disc.n_states, states_src)
+    qt = None if qtables is None else load_qtables(qtables, goal_names, disc.n_states, states_src,
+                                                   action_set=action_set)
     mdp_source = mdp if mdp is not None else (None if qt is None else discover_mdp(qt))
-    model = None if mdp_source is None else load_model(mdp_source, disc, goal_names, goal_masks)
+    model = None if mdp_source is None else load_model(
+        mdp_source, disc, goal_names, goal_masks,
+        action_set=None if qt is None else qt.action_set)
+    action_set, valid = _actions_and_mask(qt, model)
     grid, map_check = load_map_for_arena(map, arena_cfg)
     params, params_source = primitive_params_for(model, params)
     if pose_source == "odometry" and params.heading_source != "odometry":
@@ -643,7 +685,7 @@ def replay(
                     budget=budget, params=params, mcl_field=field_, mcl_params=mcl_params,
                     return_to_start=return_to_start, retry_blocked=retry_blocked,
                     escape_radius=escape_radius, epsilon=epsilon,
-                    frame_stride=stride)
+                    frame_stride=stride, primitives=action_set.primitives(), valid=valid)
     from tqdm.auto import tqdm
 
     with tqdm(total=hours, desc=f"replay {policy} ({pose_source})", unit="robot-h",
@@ -680,6 +722,8 @@ def replay(
         "goal_names": list(goal_names),
         "goal_states": {g: [int(s) for s in np.flatnonzero(m)]
                         for g, m in zip(goal_names, goal_masks, strict=True)},
+        "action_set": action_set.to_json(),
+        "masked_pairs": None if valid is None else int((~valid).sum()),
         "policy": policy,
         "pose_source": pose_source,
         "seed": int(seed),
@@ -707,9 +751,14 @@ def replay(
         prediction = {"mdp": model.source, "start_state": start_state,
                       "pace_source": "dataset" if model.dataset_seconds_per_transition
                       else "replay (the dataset's pace is unknown)"}
-        pols = {"random": np.repeat(uniform_policy_matrix(S, 16)[None], G, axis=0)}
+        A = action_set.n_actions
+        pols = {"random": np.repeat(uniform_policy_matrix(S, A)[None], G, axis=0)}
         if qt is not None:
-            greedy = np.stack([greedy_policy_matrix(q) for q in qt.Q])
+            from simlab.training.heatmap import masked_q
+
+            greedy = np.stack([greedy_policy_matrix(masked_q(q, None if valid is None
+                                                               else valid[i]))
+                               for i, q in enumerate(qt.Q)])
             pols["greedy"] = (1.0 - epsilon) * greedy + epsilon * pols["random"]
         for name, pol in pols.items():
             if pace is None:
@@ -744,6 +793,36 @@ def replay(
         _write_video(files, run, arena_cfg, disc, qt, goal_names, grid, max_frames)
     atomic_write_json(files["summary"], summary)
     return ReplayResult(summary=summary, run=run, baseline=baseline, files=files)
+
+
+def _qt_valid(qt: Any) -> NDArray[np.bool_] | None:
+    return qt.valid if not _trained_self_loop(qt) else None
+
+
+def _trained_self_loop(qt: Any) -> bool:
+    return any(m.get("unvisited") == "self-loop" for m in qt.metadata)
+
+
+def _actions_and_mask(qt: Any, model: Any) -> tuple[Any, NDArray[np.bool_] | None]:
+    """The action set of the replay and the ``(G, S, A)`` mask of its greedy choices.
+
+    The Q-tables' set (else the MDP's, else simlab's 16). The mask: the Q-tables' saved
+    ``valid``; for Q-tables without one (older files) the MDP's ``valid`` repeated per
+    goal; none for Q-tables trained under the ``self-loop`` rule.
+    """
+    from simlab.actions import SIMLAB16
+
+    if qt is not None:
+        action_set = qt.action_set
+    else:
+        action_set = SIMLAB16 if model is None else model.action_set
+    if qt is None or _trained_self_loop(qt):
+        return action_set, None
+    if qt.valid is not None:
+        return action_set, qt.valid
+    if model is not None and model.valid is not None:
+        return action_set, np.repeat(model.valid[None], qt.Q.shape[0], axis=0)
+    return action_set, None
 
 
 def _comparison(summary: dict[str, Any], policy: str) -> dict[str, Any]:
@@ -840,7 +919,8 @@ def _write_video(files: dict[str, Path], run: RunOutcome, arena: Any, disc: Any,
     from simlab.replay.video import ReplayCanvas, write_video
 
     canvas = ReplayCanvas(arena, load_robot_spec(), disc.centres, None if qt is None else qt.Q,
-                          goal_names, grid)
+                          goal_names, grid, action_set=None if qt is None else qt.action_set,
+                          valid=None if qt is None else _qt_valid(qt))
     trail = np.vstack([run.log.truth_before[:1], run.log.truth_after]) if run.log.n else \
         np.asarray(arena.start, dtype=np.float64)[None]
     records = run.frames

@@ -5,7 +5,8 @@ Each frame shows, on the arena drawn by :class:`simlab.physics.render.TopDown`:
 * the heat map of ``max_a Q(s, a)`` of the **current goal** over the Voronoi cells
   (cells rasterised with :func:`simlab.training.heatmap.rasterize_cells`, colours
   normalised per goal), the cell boundaries and an arrow per cell for
-  ``argmax_a Q(s, a)`` (direction ``a % 8``, longer for fast actions);
+  ``argmax_a Q(s, a)`` over the valid actions (direction from the Q-tables' action set,
+  longer for fast actions);
 * the occupancy map's occupied cells (dark), so the map can be compared with the
   arena's true walls and obstacles (brown/grey);
 * the current goal area (bold circle) and the other goals (thin circles);
@@ -76,8 +77,13 @@ class ReplayCanvas:
 
     def __init__(self, arena: Any, spec: Any, centres: NDArray[np.float64],
                  Q: NDArray[np.float64] | None, goal_names: Sequence[str], grid: Any = None,
-                 pixels_per_metre: float = 200.0, trail_length: int = 30) -> None:
+                 pixels_per_metre: float = 200.0, trail_length: int = 30, *,
+                 action_set: Any = None, valid: NDArray[np.bool_] | None = None) -> None:
+        from simlab.actions import SIMLAB16
         from simlab.training.heatmap import ARROW_DIRECTIONS, rasterize_cells
+
+        self.action_set = SIMLAB16 if action_set is None else action_set
+        self.valid = None if valid is None else np.asarray(valid, dtype=bool)
 
         self.arena, self.spec = arena, spec
         self.goal_names = tuple(goal_names)
@@ -108,6 +114,12 @@ class ReplayCanvas:
         self._arrows = ARROW_DIRECTIONS
         self._backgrounds: dict[int, NDArray[np.uint8]] = {}
 
+    def _q(self, goal: int) -> NDArray[np.float64]:
+        """Q of ``goal`` with masked actions at -inf."""
+        from simlab.training.heatmap import masked_q
+
+        return masked_q(self.Q[goal], None if self.valid is None else self.valid[goal])
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.labels.shape[0] + HEADER_PX, self.labels.shape[1]
@@ -122,7 +134,7 @@ class ReplayCanvas:
         canvas.draw_arena(goals=False)
         img = canvas.image
         if self.Q is not None:
-            v = self.Q[goal].max(axis=1)
+            v = self._q(goal).max(axis=1)
             lo, hi = float(v.min()), float(v.max())
             norm = (v - lo) / (hi - lo) if hi > lo else np.zeros_like(v)
             lut = (matplotlib.colormaps["viridis"](np.linspace(0, 1, 256))[:, :3] * 255)
@@ -132,13 +144,14 @@ class ReplayCanvas:
         img[self.edges] = CELL_EDGE
         img[self.map_occupied] = MAP_OCCUPIED
         if self.Q is not None:
-            q = self.Q[goal]
+            q = self._q(goal)
             for s, c in enumerate(self.centres):
-                if np.ptp(q[s]) <= 0:
+                row = q[s][np.isfinite(q[s])]
+                if np.ptp(row) <= 0:
                     continue  # nothing learned in this state
                 a = int(np.argmax(q[s]))
-                length = 0.04 if a < 8 else 0.07
-                tip = c + length * self._arrows[a % 8]
+                length = 0.04 if self.action_set.speed_index(a) == 0 else 0.07
+                tip = c + length * self._arrows[int(self.action_set.direction(a))]
                 cv2.arrowedLine(img, tuple(canvas.px(c)), tuple(canvas.px(tip)), ARROW, 1,
                                 cv2.LINE_AA, tipLength=0.35)
         canvas.draw_goals(self.goal_names[goal] if self.goal_names else None, labels=True)

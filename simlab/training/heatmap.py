@@ -22,11 +22,14 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from simlab.actions import SIMLAB16, ActionSet
 from simlab.errors import ConfigError
 
 __all__ = [
     "ARROW_DIRECTIONS",
+    "arrow_vectors",
     "bounds_from_centres",
+    "masked_q",
     "plot_q_heatmap",
     "rasterize_cells",
     "save_heatmap_grid",
@@ -78,6 +81,33 @@ def rasterize_cells(
     return labels.reshape(H, W).astype(np.int64), (x0, x1, y0, y1)
 
 
+def masked_q(Q: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
+    """``Q`` (S, A) with invalid actions at ``-inf`` (rows with no valid action unchanged)."""
+    Q = np.asarray(Q, dtype=float)
+    if valid is None:
+        return Q
+    v = np.asarray(valid, dtype=bool)
+    if v.shape != Q.shape:
+        raise ConfigError(f"expected {Q.shape} bool, got {v.shape}", key="valid")
+    v = v | ~v.any(axis=1, keepdims=True)
+    return np.where(v, Q, -np.inf)
+
+
+def arrow_vectors(Q: np.ndarray, action_set: ActionSet) -> tuple[np.ndarray, np.ndarray]:
+    """``(argmax (S,), arrows (S, 2))``: the greedy action of each state and its arrow.
+
+    The arrow is the unit vector of the action's map-frame direction times its relative
+    length ``0.15 + 0.3 * (1 + speed) / n_speeds`` (speed 0 slow, 1 fast; one speed for an
+    8-action set), in units of the cell spacing.
+    """
+    best = np.asarray(Q).argmax(axis=1)
+    n_speeds = 2 if action_set.n_actions == 16 else 1
+    dirs = np.array([int(action_set.direction(a)) for a in best], dtype=np.int64)
+    speed = np.array([action_set.speed_index(a) for a in best]) if n_speeds == 2 else 0
+    length = 0.15 + 0.3 * (1 + speed) / n_speeds
+    return best, ARROW_DIRECTIONS[dirs] * np.reshape(length, (-1, 1))
+
+
 def _check_inputs(centres: np.ndarray, Q: np.ndarray, goal_mask: np.ndarray | None) -> None:
     if centres.ndim != 2 or centres.shape[1] != 2:
         raise ConfigError(f"expected (S, 2) metres, got shape {centres.shape}", key="centres")
@@ -115,6 +145,8 @@ def plot_q_heatmap(
     resolution: float | None = None,
     arrows: bool = True,
     colorbar: bool = True,
+    action_set: ActionSet | None = None,
+    valid: np.ndarray | None = None,
 ):
     """Draw the heat map of ``Q`` (S, A) over the cells of ``centres`` (S, 2) on ``ax``.
 
@@ -123,10 +155,16 @@ def plot_q_heatmap(
     centres = np.asarray(centres, dtype=float)
     Q = np.asarray(Q, dtype=float)
     _check_inputs(centres, Q, goal_mask)
+    if action_set is None and Q.shape[1] == SIMLAB16.n_actions:
+        action_set = SIMLAB16
+    if action_set is not None and action_set.n_actions != Q.shape[1]:
+        raise ConfigError(f"Q has {Q.shape[1]} actions but the action set "
+                          f"{action_set.describe()}", key="action_set")
+    Qv = masked_q(Q, valid)
     if bounds is None:
         bounds = bounds_from_centres(centres)
     labels, extent = rasterize_cells(centres, bounds, resolution)
-    V = Q.max(axis=1)
+    V = Qv.max(axis=1)
     if background is not None:
         _draw_background(ax, background)
     img = ax.imshow(V[labels], cmap=cmap, origin="upper", extent=extent, vmin=vmin, vmax=vmax,
@@ -143,13 +181,11 @@ def plot_q_heatmap(
         xs = np.linspace(extent[0], extent[1], labels.shape[1])
         ys = np.linspace(extent[3], extent[2], labels.shape[0])
         ax.contour(xs, ys, inside, levels=[0.5], colors="crimson", linewidths=2, zorder=4)
-    if arrows and Q.shape[1] % 8 == 0:
-        best = Q.argmax(axis=1)
-        learned = Q.max(axis=1) > Q.min(axis=1)
-        n_speeds = Q.shape[1] // 8
+    if arrows and action_set is not None:
+        _, d = arrow_vectors(Qv, action_set)
+        learned = Qv.max(axis=1) > np.where(np.isfinite(Qv), Qv, np.inf).min(axis=1)
         spacing = np.sqrt((extent[1] - extent[0]) * (extent[3] - extent[2]) / max(len(centres), 1))
-        length = spacing * (0.15 + 0.3 * (1 + best // 8) / n_speeds)
-        d = ARROW_DIRECTIONS[best % 8] * length[:, None]
+        d = d * spacing
         sel = learned
         ax.quiver(centres[sel, 0], centres[sel, 1], d[sel, 0], d[sel, 1], angles="xy",
                   scale_units="xy", scale=1, color="darkorange", width=0.006, zorder=5,
@@ -207,6 +243,8 @@ def save_heatmap_grid(
     *,
     background: Any = None,
     suptitle: str | None = None,
+    action_set: ActionSet | None = None,
+    valid: np.ndarray | None = None,
 ) -> None:
     """Save one figure with a heat map per goal (3 columns; a 3 x 3 grid for 9 goals).
 
@@ -220,15 +258,16 @@ def save_heatmap_grid(
     n = len(Qs)
     if not (n == len(goal_masks) == len(names)) or n == 0:
         raise ConfigError("need one Q, goal mask and name per goal", key="Qs")
-    vmin = min(float(np.max(Q, axis=1).min()) for Q in Qs)
-    vmax = max(float(np.max(Q, axis=1).max()) for Q in Qs)
+    vmin = min(float(np.max(masked_q(Q, valid), axis=1).min()) for Q in Qs)
+    vmax = max(float(np.max(masked_q(Q, valid), axis=1).max()) for Q in Qs)
     cols = min(3, n)
     rows = -(-n // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.4 * rows), squeeze=False)
     img = None
     for ax, Q, mask, name in zip(axes.flat, Qs, goal_masks, names, strict=False):
         img = plot_q_heatmap(ax, centres, Q, bounds, mask, background=background, title=name,
-                             vmin=vmin, vmax=vmax, colorbar=False)  # fmt: skip
+                             vmin=vmin, vmax=vmax, colorbar=False, action_set=action_set,
+                             valid=valid)  # fmt: skip
         ax.set_xlabel("")
         ax.set_ylabel("")
     for ax in list(axes.flat)[n:]:

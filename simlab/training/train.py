@@ -22,6 +22,30 @@ state uniform unless ``start`` is given) on the fused njit path of
 * ``heatmap_<goal>.png`` and ``heatmaps.png`` (all goals, 3 x 3 for 9) — when the
   MDP file has ``centres``.
 
+Issue 12 (decisions where the issue was open):
+
+* **Unvisited (s, a)**: under the MDP's ``mask`` rule (the default; ``TrainTask.unvisited``
+  overrides it) training passes ``valid = visited`` ((S, A) bool; a state with no visited
+  action keeps all) to the harness, so agents and planners never choose an untried action,
+  and warns with the number of masked pairs. ``self-loop`` is the old rule. With full
+  coverage nothing is masked and ``valid=None`` is passed: results are bit-identical.
+  The Q-tables store ``valid`` (array) and the rule (metadata); their greedy policy
+  (heat-map arrows, replay) is taken over valid actions only.
+* **Goals as state ids**: ``TrainTask.goal_states`` = (18, 19) trains one goal made of
+  those states, named ``s18+19`` (file ``q_s18_19.npz``), without any arena.
+  ``start_states`` draws the start state uniformly among the listed states.
+* **Task mode**: ``per-step`` (+1 for every step that arrives in the goal, the
+  episode runs ``horizon`` steps: thesis) or ``episodic`` (+1 on arrival, the episode ends
+  there and the next starts from the start states: the real robot's protocol; the goal
+  states are ``terminal`` for the harness; ``horizon`` caps an episode).
+* The MDP's ``action_set`` is copied into every Q-table's metadata.
+
+The harness calls that get ``valid=``/``terminal=`` (only when not None) are
+:func:`~simlab.training.harness.train_runs` and :func:`~simlab.training.harness.evaluate_q`,
+through :func:`_harness_kwargs`: a harness without these keywords (before the agent-core
+update) trains unmasked with a warning (the greedy outputs are still masked) and refuses
+the episodic task.
+
 Seeding: goal ``g`` (its index in the file's goal list) uses
 ``SeedSequence(seed, spawn_key=(g,))``, so training one goal alone gives the same
 numbers as training it among all goals.
@@ -30,9 +54,11 @@ numbers as training it among all goals.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import os
 import re
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -42,7 +68,63 @@ import numpy as np
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_json, ensure_new
 
-__all__ = ["GoalSummary", "TrainSummary", "resolve_goals", "train"]
+__all__ = ["TASK_MODES", "GoalSummary", "TrainSummary", "TrainTask", "resolve_goals", "train"]
+
+#: Task modes of :class:`TrainTask` (the first is the default).
+TASK_MODES = ("per-step", "episodic")
+
+
+def _state_list(value: Any, key: str) -> tuple[int, ...] | None:
+    if value is None:
+        return None
+    if isinstance(value, str):
+        parts = [p.strip() for p in value.split(",") if p.strip()]
+    elif isinstance(value, int | np.integer):
+        parts = [value]
+    else:
+        parts = list(value)
+    try:
+        states = tuple(int(p) for p in parts)
+    except (TypeError, ValueError):
+        raise ConfigError(f"expected state ids such as 18,19, got {value!r}", key=key) from None
+    if not states:
+        raise ConfigError("no state given", key=key, fix="e.g. 18 or 18,19")
+    if len(set(states)) != len(states):
+        raise ConfigError(f"state listed twice in {list(states)}", key=key)
+    return states
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainTask:
+    """What the agent is asked to do (issue 12; see the module docstring).
+
+    Attributes:
+        mode: ``per-step`` (default, +1 per step arriving in the goal) or ``episodic``
+            (+1 on arrival, then restart from the start states).
+        goal_states: state ids of one goal area (instead of the MDP's named goals).
+        start_states: start states, drawn uniformly (default: all states).
+        unvisited: ``mask`` or ``self-loop`` to override the MDP's rule (None: the MDP's).
+    """
+
+    mode: str = "per-step"
+    goal_states: tuple[int, ...] | None = None
+    start_states: tuple[int, ...] | None = None
+    unvisited: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.mode not in TASK_MODES:
+            raise ConfigError(f"unknown task {self.mode!r}", key="task",
+                              fix="use 'per-step' or 'episodic'")
+        object.__setattr__(self, "goal_states", _state_list(self.goal_states, "goal_states"))
+        object.__setattr__(self, "start_states", _state_list(self.start_states, "start_states"))
+        if self.unvisited is not None and self.unvisited not in ("mask", "self-loop"):
+            raise ConfigError(f"unknown rule {self.unvisited!r}", key="unvisited",
+                              fix="use 'mask' or 'self-loop'")
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"mode": self.mode,
+                "goal_states": None if self.goal_states is None else list(self.goal_states),
+                "start_states": None if self.start_states is None else list(self.start_states)}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,6 +208,57 @@ def _bounds(mdp: Any, bounds: Sequence[float] | None, arena: Any) -> tuple[float
     return None if mdp.bounds is None else tuple(mdp.bounds)
 
 
+def _harness_kwargs(fn: Any, *, valid: np.ndarray | None,
+                    terminal: np.ndarray | None) -> dict[str, Any]:
+    """The ``valid=``/``terminal=`` keywords ``fn`` accepts (only those not None).
+
+    The adapter to the harness's masks and terminal states: a harness without ``terminal``
+    cannot run the episodic task (ConfigError); one without ``valid`` trains unmasked with
+    a warning.
+    """
+    accepted = inspect.signature(fn).parameters
+    kwargs: dict[str, Any] = {}
+    if terminal is not None:
+        if "terminal" not in accepted:
+            raise ConfigError(f"{fn.__name__} of this simlab cannot end episodes on arrival",
+                              key="task", fix="use --task per-step, or update simlab")
+        kwargs["terminal"] = terminal
+    if valid is not None:
+        if "valid" in accepted:
+            kwargs["valid"] = valid
+        else:
+            warnings.warn(f"{fn.__name__} of this simlab cannot mask actions: it ignores the "
+                          "unvisited-pair mask (the saved greedy policies still respect it)",
+                          stacklevel=3)
+    return kwargs
+
+
+def _apply_task(m: Any, task: TrainTask, start: int | None) -> tuple[Any, Any]:
+    """The MDP with the task's goal and unvisited rule, and the start distribution."""
+    S = m.n_states
+    for key, states in (("goal_states", task.goal_states), ("start_states", task.start_states)):
+        bad = [s for s in states or () if not 0 <= s < S]
+        if bad:
+            raise ConfigError(f"states {bad} not in [0, {S})", path=m.source, key=key)
+    changes: dict[str, Any] = {}
+    if task.unvisited is not None:
+        changes["unvisited"] = task.unvisited
+    if task.goal_states is not None:
+        mask = np.zeros((1, S), dtype=bool)
+        mask[0, list(task.goal_states)] = True
+        name = "s" + "+".join(str(s) for s in task.goal_states)
+        changes.update(goal_names=(name,), goal_masks=mask)
+    if changes:
+        m = dataclasses.replace(m, **changes)
+    if task.start_states is None:
+        return m, start
+    if start is not None:
+        raise ConfigError("give either start or start_states", key="start_states")
+    p0 = np.zeros(S)
+    p0[list(task.start_states)] = 1.0 / len(task.start_states)
+    return m, p0
+
+
 def train(
     mdp: str | os.PathLike[str] | Any,
     agent: str = "vi-softmax",
@@ -144,6 +277,7 @@ def train(
     plots: bool = True,
     overwrite: bool = False,
     progress: bool = True,
+    task: TrainTask | None = None,
 ) -> TrainSummary:
     """Train ``agent`` on the empirical MDP ``mdp`` for each goal; write results to ``out``.
 
@@ -170,6 +304,9 @@ def train(
         Output directory (created); ``None`` writes nothing and only returns.
     plots, overwrite, progress:
         Write PNGs; replace existing outputs; show a progress bar.
+    task:
+        :class:`TrainTask`: task mode, goal/start states, unvisited rule (default:
+        per-step, the MDP's goals and rule).
     """
     from tqdm.auto import tqdm
 
@@ -179,12 +316,20 @@ def train(
 
     t0 = time.perf_counter()
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
+    task = TrainTask() if task is None else task
+    if task.goal_states is not None and goals not in (None, "all"):
+        raise ConfigError("give either goals or goal_states", key="goal_states")
+    m, start = _apply_task(m, task, start)
     names = resolve_goals(m, goals)
+    valid = m.valid
+    if valid is not None:
+        warnings.warn(f"{int((~valid).sum())} unvisited (s, a) pairs masked: agents never "
+                      "choose them (unvisited='self-loop' for the old rule)", stacklevel=2)
     from simlab.agents.registry import agent_config
 
     cfg = agent_config(agent, params)  # validates the name and overrides before any work
     gamma = float(cfg.gamma)
-    if start is not None and not (0 <= int(start) < m.n_states):
+    if isinstance(start, int | np.integer) and not (0 <= int(start) < m.n_states):
         raise ConfigError(f"expected a state in [0, {m.n_states}), got {start}", key="start")
     plot_bounds = _bounds(m, bounds, arena) if plots else None
     background = occupancy_map
@@ -217,15 +362,19 @@ def train(
         for g in names:
             gi = m.goal_index(g)
             reward = m.goal_reward(g)
+            terminal = m.goal_mask(g) if task.mode == "episodic" else None
             seq = np.random.SeedSequence(seed, spawn_key=(gi,))
             res = train_runs(
                 m.T, reward, agent, episodes=episodes, runs=runs, seed=seq, horizon=horizon,
                 start=start, overrides=params, on_run_done=lambda: bar.update(1),
+                **_harness_kwargs(train_runs, valid=valid, terminal=terminal),
             )  # fmt: skip
             results[g] = res
             Q_mean = res.Q_runs.mean(axis=0)
             evaluations[g] = evaluate_q(m.T, reward, np.concatenate([res.Q_runs, Q_mean[None]]),
-                                        gamma, horizon, start)  # fmt: skip
+                                        gamma, horizon, start,
+                                        **_harness_kwargs(evaluate_q, valid=valid,
+                                                          terminal=terminal))  # fmt: skip
     finally:
         bar.close()
 
@@ -253,13 +402,29 @@ def train(
     if out is not None:
         _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
                        agent, config, dict(seed=seed, episodes=episodes, runs=runs,
-                                           horizon=horizon, start=start, gamma=gamma),
+                                           horizon=horizon, start=_start_meta(start),
+                                           gamma=gamma, **_task_meta(m, task, valid)),
                        plot_bounds, background, plots)  # fmt: skip
     return TrainSummary(
         agent=agent, config=config, goals=tuple(summaries), rewards=rewards, Q=Qs,
         files={k: str(v) for k, v in files.items()}, seconds=time.perf_counter() - t0,
         out=None if out is None else Path(out),
     )  # fmt: skip
+
+
+def _start_meta(start: Any) -> int | None:
+    """The fixed start state for the metadata (start states are in ``task``)."""
+    return int(start) if isinstance(start, int | np.integer) else None
+
+
+def _task_meta(m: Any, task: TrainTask, valid: np.ndarray | None) -> dict[str, Any]:
+    """The issue-12 metadata of every Q-table: action set, unvisited rule, task."""
+    return {
+        "action_set": None if m.action_set is None else m.action_set.to_json(),
+        "unvisited": m.unvisited,
+        "masked_pairs": 0 if valid is None else int((~valid).sum()),
+        "task": task.as_dict(),
+    }
 
 
 def _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
@@ -273,6 +438,8 @@ def _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_row
         arrays = {"Q_runs": res.Q_runs, "Q_star": evaluations[g].Q_star,
                   "goal_mask": m.goal_mask(g)}  # fmt: skip
         arrays.update(res.extra)
+        if m.valid is not None:
+            arrays["valid"] = m.valid
         meta = {"agent": agent, "config": config, "goal": g, "goal_index": m.goal_index(g),
                 "mdp": source, "Q": "mean over runs of the final Q-tables",
                 "simlab_version": simlab.__version__, **run_meta}  # fmt: skip
@@ -307,10 +474,12 @@ def _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_row
             masks = [m.goal_mask(g) for g in names]
             for g, mask in zip(names, masks, strict=True):
                 save_q_heatmap(files[f"heatmap_{g}"], m.centres, Qs[g], plot_bounds, mask,
-                               background=background, title=f"{agent}: goal {g}")  # fmt: skip
+                               background=background, title=f"{agent}: goal {g}",
+                               action_set=m.action_set, valid=m.valid)  # fmt: skip
             save_heatmap_grid(files["heatmaps"], m.centres, [Qs[g] for g in names], masks, names,
                               plot_bounds, background=background,
-                              suptitle=f"max_a Q(s, a) and argmax arrows, {agent}")  # fmt: skip
+                              suptitle=f"max_a Q(s, a) and argmax arrows, {agent}",
+                              action_set=m.action_set, valid=m.valid)  # fmt: skip
     summary = {
         "agent": agent,
         "config": config,

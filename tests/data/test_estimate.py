@@ -233,3 +233,72 @@ def test_estimate_needs_exactly_one_source(tmp_path: Path, kinematic_dataset: Pa
         estimate(kinematic_dataset, tmp_path / "mdp.npz", counts=tmp_path / "c.csv")
     with pytest.raises(ConfigError, match=r"\.npz"):
         estimate(kinematic_dataset, tmp_path / "mdp.txt")
+
+
+# ------------------------------------------------------------- action sets, unvisited rule
+
+
+def _count_csv(path: Path, rows: list[tuple[int, int, int, int]]) -> Path:
+    path.write_text("s,a,s_next,count\n" + "".join(f"{r[0]},{r[1]},{r[2]},{r[3]}\n"
+                                                   for r in rows))
+    return path
+
+
+def test_estimate_records_the_action_set_and_the_unvisited_rule(tmp_path: Path) -> None:
+    from simlab.actions import parse_action_set
+    from simlab.agents.storage import load_npz
+
+    table = _count_csv(tmp_path / "c.csv", [(0, 0, 1, 3), (0, 2, 0, 1), (1, 7, 0, 2)])
+    aset = parse_action_set(8, "ccw-east")
+    res = estimate(None, tmp_path / "mdp.npz", counts=table, n_states=2, action_set=aset)
+    arrays, meta = load_npz(tmp_path / "mdp.npz", ("T",))
+    assert meta == {"action_set": aset.to_json(), "unvisited": "mask"}
+    assert arrays["T"].shape == (2, 8, 2)
+    summary = res.summary
+    assert summary["action_set"]["convention"] == "ccw-east"
+    # 2 states x 8 actions, 3 visited: 13 masked pairs; no slow/fast split for 8 actions.
+    assert summary["masked_pairs"] == 13
+    assert summary["entropy_bits"]["slow_mean"] is None
+    assert summary["entropy_bits"]["fast_mean"] is None
+    # The old rule on request: nothing masked, recorded.
+    res = estimate(None, tmp_path / "old.npz", counts=table, n_states=2, action_set=aset,
+                   unvisited="self-loop", plot=False)
+    assert load_npz(tmp_path / "old.npz")[1]["unvisited"] == "self-loop"
+    assert res.summary["masked_pairs"] == 0
+    np.testing.assert_array_equal(load_npz(tmp_path / "old.npz")[0]["T"], arrays["T"])
+    with pytest.raises(ConfigError, match="unknown rule"):
+        estimate(None, tmp_path / "x.npz", counts=table, unvisited="stay")
+
+
+def test_estimate_of_a_dataset_takes_its_action_set(tmp_path: Path,
+                                                    kinematic_dataset: Path) -> None:
+    from simlab.actions import SIMLAB16, parse_action_set
+    from simlab.envs.empirical_mdp import load_mdp
+
+    estimate(kinematic_dataset, tmp_path / "mdp.npz", plot=False)
+    m = load_mdp(tmp_path / "mdp.npz")
+    assert m.action_set == SIMLAB16
+    with pytest.raises(ConfigError, match="the dataset records 16 actions"):
+        estimate(kinematic_dataset, tmp_path / "b.npz", plot=False,
+                 action_set=parse_action_set(8, "ccw-east"))
+    assert not (tmp_path / "b.npz").exists()
+
+
+def test_estimate_cli_action_flags(tmp_path: Path, kinematic_dataset: Path, capsys) -> None:
+    from simlab.cli import main
+    from simlab.envs.empirical_mdp import load_mdp
+
+    table = _count_csv(tmp_path / "c.csv", [(0, 0, 1, 3), (1, 4, 0, 2)])
+    out = tmp_path / "m.npz"
+    assert main(["estimate", "--counts", str(table), "--out", str(out), "--n-actions", "8",
+                 "--convention", "3,5,0,4,2,6,1,7", "--speed", "fast", "--no-plot"]) == 0
+    m = load_mdp(out)
+    assert m.action_set.convention == "ccw-east" and m.action_set.speed == "fast"
+    assert m.action_set.to_primitive(0) == 8 + 3  # fast RIGHT
+    assert "14 unvisited (s, a) masked" in capsys.readouterr().out
+    # Action flags describe a count table; on a dataset they are refused (exit 2).
+    assert main(["estimate", str(kinematic_dataset), "--out", str(tmp_path / "d.npz"),
+                 "--convention", "ccw-east"]) == 2
+    assert not (tmp_path / "d.npz").exists()
+    assert main(["estimate", "--counts", str(table), "--out", str(tmp_path / "e.npz"),
+                 "--n-actions", "8", "--convention", "east"]) == 2

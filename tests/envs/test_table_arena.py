@@ -65,3 +65,20 @@ def test_render_and_bad_arguments():
     env.close()
     with pytest.raises(ConfigError, match="unknown goal 'Z'"):
         gym.make("simlab/TableArena-v0", goal="Z")
+
+
+def test_action_set_option_renumbers_the_primitives() -> None:
+    from simlab.actions import parse_action_set
+
+    aset = parse_action_set(8, "ccw-east")
+    env = gym.make("simlab/TableArena-v0", max_steps=3, action_set=aset.to_json()).unwrapped
+    assert env.action_space.n == 8 and env.action_set == aset
+    obs, _ = env.reset(seed=0, options={"pose": (0.0, 0.0, 0.0)})
+    x0, y0 = obs["pose"][:2]
+    obs, _, _, _, info = env.step(2)  # ccw-east 2 = North = simlab UP, slow
+    assert info["primitive"] == 0 and not info["blocked"]
+    dx, dy = obs["pose"][0] - x0, obs["pose"][1] - y0
+    assert dy > 0.03 and abs(dx) < 0.2 * dy
+    with pytest.raises(ValueError):
+        env.step(8)
+    env.close()

@@ -130,3 +130,29 @@ def test_inconsistent_goal_arrays(tmp_path, small_mdp, write_mdp):
     path = write_mdp(tmp_path / "m.npz", small_mdp, goal_masks=np.ones((9, 5), bool))
     with pytest.raises(ConfigError, match=r"goal_masks: expected shape \(G, S\) = \(9, 12\)"):
         load_mdp(path)
+
+
+def test_env_exposes_the_action_set_and_the_mask(tmp_path) -> None:
+    import json
+
+    from simlab.actions import SIMLAB16, parse_action_set
+    from simlab.envs.empirical_mdp import EmpiricalMDPEnv, load_mdp
+
+    T = np.zeros((2, 8, 2))
+    T[:, :, 0] = 1.0
+    visited = np.ones((2, 8), bool)
+    visited[0, 3] = False
+    meta = {"action_set": parse_action_set(8, "ccw-east").to_json(), "unvisited": "mask"}
+    np.savez(tmp_path / "m.npz", T=T, visited=visited, goal_names=np.array(["g"]),
+             goal_masks=np.array([[False, True]]), meta_json=np.array(json.dumps(meta)))
+    env = EmpiricalMDPEnv(tmp_path / "m.npz", goal="g")
+    assert env.action_space.n == 8 and env.action_set.convention == "ccw-east"
+    np.testing.assert_array_equal(env.valid_actions, visited)
+    meta["unvisited"] = "self-loop"
+    np.savez(tmp_path / "s.npz", T=T, visited=visited, meta_json=np.array(json.dumps(meta)))
+    assert load_mdp(tmp_path / "s.npz").valid is None
+    # Old 16-action files: simlab's primitives; other sizes without a record: unknown.
+    np.savez(tmp_path / "o.npz", T=np.full((2, 16, 2), 0.5))
+    assert load_mdp(tmp_path / "o.npz").action_set == SIMLAB16
+    np.savez(tmp_path / "u.npz", T=T)
+    assert load_mdp(tmp_path / "u.npz").action_set is None

@@ -194,3 +194,65 @@ def test_train_heat_maps_over_an_arena_and_a_map_server_map(small_mdp_file, tmp_
     b = train(small_mdp_file, "rmax", "g1", episodes=5, runs=1, out=tmp_path / "a",
               arena="table", progress=False)  # fmt: skip
     assert b.out == tmp_path / "a"
+
+
+def test_heat_map_arrows_follow_the_action_set_and_skip_masked_actions():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.quiver import Quiver
+
+    from simlab.actions import parse_action_set
+    from simlab.training.heatmap import plot_q_heatmap
+
+    ccw = parse_action_set(8, "ccw-east")
+    centres = np.array([[-0.5, -0.5], [0.5, -0.5], [0.0, 0.5]])
+    Q = np.zeros((3, 8))
+    Q[0, 0] = 2.0  # ccw-east 0 = East
+    Q[1, 2] = 3.0  # ccw-east 2 = North
+    Q[2, 4] = 9.0  # West, but masked: the best valid action is South (6)
+    Q[2, 6] = 1.0
+    valid = np.ones((3, 8), dtype=bool)
+    valid[2, 4] = False
+    fig, ax = plt.subplots()
+    img = plot_q_heatmap(ax, centres, Q, (-1, -1, 1, 1), action_set=ccw, valid=valid,
+                         resolution=0.02)
+    labels, _ = rasterize_cells(centres, (-1, -1, 1, 1), 0.02)
+    np.testing.assert_array_equal(img.get_array(), np.array([2.0, 3.0, 1.0])[labels])
+    (quiver,) = [c for c in ax.collections if isinstance(c, Quiver)]
+    assert quiver.U[0] > 0 and quiver.V[0] == 0  # East
+    assert quiver.U[1] == 0 and quiver.V[1] > 0  # North
+    assert quiver.U[2] == 0 and quiver.V[2] < 0  # South, not the masked West
+    plt.close(fig)
+    # 8 actions without an action set: directions unknown, no arrows (not simlab's order).
+    fig, ax = plt.subplots()
+    plot_q_heatmap(ax, centres, Q, (-1, -1, 1, 1), resolution=0.05)
+    assert not [c for c in ax.collections if isinstance(c, Quiver)]
+    with pytest.raises(ConfigError, match="action set"):
+        plot_q_heatmap(ax, centres, np.zeros((3, 16)), action_set=ccw)
+    plt.close(fig)
+
+
+def test_train_cli_goal_states_start_states_and_task(small_mdp_file, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["train", "--mdp", str(small_mdp_file), "--goal-states", "3,4",
+                 "--start-states", "0,1", "--episodes", "20", "--runs", "1", "--out", str(out),
+                 "--no-plots", "--no-progress"]) == 0
+    Q, meta = load_q_table(out / "q_s3_4.npz")
+    assert Q.shape == (12, 16)
+    assert meta["goal"] == "s3+4" and meta["task"] == {
+        "mode": "per-step", "goal_states": [3, 4], "start_states": [0, 1]}
+    assert meta["action_set"]["n_actions"] == 16 and meta["unvisited"] == "mask"
+    with np.load(out / "q_s3_4.npz", allow_pickle=False) as q:
+        assert np.flatnonzero(q["goal_mask"]).tolist() == [3, 4]
+    # Bad state ids, goal names together with goal states, start and start states.
+    assert main(["train", "--mdp", str(small_mdp_file), "--goal-states", "99", "--out",
+                 str(tmp_path / "b"), "--no-progress"]) == 2
+    assert main(["train", "--mdp", str(small_mdp_file), "--goal-states", "3", "--goals", "g1",
+                 "--out", str(tmp_path / "c"), "--no-progress"]) == 2
+    assert main(["train", "--mdp", str(small_mdp_file), "--goal-states", "3", "--start", "0",
+                 "--start-states", "1", "--out", str(tmp_path / "d"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "goal_states" in err and "start_states" in err
+    assert not any((tmp_path / n).exists() for n in "bcd")
