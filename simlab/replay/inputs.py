@@ -273,23 +273,30 @@ def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, s
     ``params`` that differ from the dataset's (other than ``heading_source``) raise
     :class:`ConfigError`.
     """
+    import warnings
     from dataclasses import asdict, fields
 
     from simlab.physics.motion import PrimitiveParams
 
     recorded = None if model is None else model.primitive_params
     if recorded is None:
+        if model is not None and params is None:
+            warnings.warn(
+                "the MDP carries no record of the motion primitives it was estimated from "
+                "(no dataset manifest beside it); replaying with the default primitives — "
+                "pass the real robot's settings (--primitives FILE.toml) if they differ",
+                UserWarning, stacklevel=2)
         return (params if params is not None else PrimitiveParams()), "default"
     names = {f.name for f in fields(PrimitiveParams)}
     if params is None:
-        unknown = sorted(set(recorded) - names)
-        if unknown:
+        try:
+            return PrimitiveParams.from_json(recorded), "dataset"
+        except ConfigError as exc:
             raise ConfigError(
-                f"the dataset's primitive parameters have unknown fields {unknown}",
+                f"the dataset's primitive parameters are not usable: {exc}",
                 path=model.dataset, key="parameters.primitive",  # type: ignore[union-attr]
                 fix="collect the dataset again with this version of simlab",
-            )
-        return PrimitiveParams(**recorded), "dataset"
+            ) from None
     given = asdict(params)
     diff = sorted(k for k in names - {"heading_source"} if k in recorded
                   and given[k] != recorded[k])

@@ -322,6 +322,9 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
     latency = float(params.decision_latency)
     G = spec.goal_masks.shape[0]
     disc = spec.discretizer
+    # The "drive until the state changes" primitives watch the state of the true position.
+    state_of = (None if params.mode != "until_state_change"
+                else lambda xy: int(disc.state_of(np.asarray(xy, dtype=float)[None, :2])[0]))
     rows: dict[str, list[Any]] = {k: [] for k in (
         "t", "duration", "s", "a", "s_next", "goal", "reward", "blocked", "truth_before",
         "truth_after", "est_before", "est_after", "odom_after", "s_true_next")}
@@ -371,7 +374,8 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
             history.append((est[0], est[1], a))
             truth_before = world.pose()
             res = execute_primitive(world, int(spec.primitives[a]), noise_rng, params,
-                                    on_scan=on_scan, scan_beams=scan_beams)
+                                    on_scan=on_scan, scan_beams=scan_beams,
+                                    state_of=state_of)
             est_after = pose_now(res.odom_after)
             s_next = int(disc.state_of(est_after[:2]))
             reward = int(spec.goal_masks[goal, s_next])

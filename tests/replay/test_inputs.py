@@ -89,9 +89,14 @@ def test_primitives_come_from_the_dataset_and_must_match_it(tmp_path) -> None:
     with pytest.raises(ConfigError, match=r"drive_time 0\.5 vs 1\.0"):
         primitive_params_for(model, replace(params, drive_time=0.5))
     unknown = replace(model, primitive_params={**recorded, "warp_drive": 9})
-    with pytest.raises(ConfigError, match="unknown fields"):
+    with pytest.raises(ConfigError, match=r"unknown primitive parameter.*warp_drive"):
         primitive_params_for(unknown, None)
     assert primitive_params_for(None, None)[1] == "default"
+    # an MDP with no record of its primitives: the defaults, with a warning that says so
+    unrecorded = replace(model, primitive_params=None)
+    with pytest.warns(UserWarning, match="no record of the motion primitives"):
+        params, source = primitive_params_for(unrecorded, None)
+    assert source == "default" and params == PrimitiveParams()
 
 
 def test_dataset_pace_is_read_from_the_estimate_summary(chain, tmp_path) -> None:
