@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from simlab.cli.collect import add_primitive_arguments, primitive_params_from_args
+
 HELP = ("replay learned Q-tables in physics with goal switching; cumulative reward vs a "
         "random policy and the MDP-predicted rate (optional top-down GIF)")
 
@@ -43,12 +45,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "episode (default 0.03; 0: off)")
     parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_primitive_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     from simlab.replay.replay import replay
 
     result = replay(
+        params=primitive_params_from_args(args),
         arena=args.arena,
         states=args.states,
         qtables=args.qtables,
@@ -77,8 +81,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"random policy: {c['random_rate_per_hour']:.1f} /h"
               + (f" (learned/random = {ratio:.1f}x)" if ratio else ""))
     if "predicted_rate_per_hour" in c:
-        print(f"MDP-predicted: {c['predicted_rate_per_hour']:.1f} /h "
-              f"(measured/predicted = {c['measured_over_predicted']:.2f})")
+        ratio = c.get("measured_over_predicted")
+        print(f"MDP-predicted: {c['predicted_rate_per_hour']:.1f} /h"
+              + (f" (measured/predicted = {ratio:.2f})" if ratio is not None else
+                 " (measured/predicted: undefined, the MDP predicts no reward)"))
     loc = s["localization"].get("mcl")
     if loc:
         a = loc["at_decisions"]

@@ -39,3 +39,23 @@ def test_cli_missing_states_file(tmp_path, capsys) -> None:
                  "--hours", "0.01", "--out", str(tmp_path / "o"), "--no-progress"])
     assert code == 2
     assert "none.json" in capsys.readouterr().err
+
+
+def test_cli_summary_with_no_predicted_reward_prints_instead_of_crashing(monkeypatch, tmp_path,
+                                                                        capsys) -> None:
+    """An under-trained Q-table makes the MDP predict 0 goals/h: the ratio is undefined (None)."""
+    from types import SimpleNamespace
+
+    import simlab.replay.replay as replay_module
+
+    summary = {
+        "policy": "greedy", "pose_source": "truth",
+        "result": {"rewards": 0, "robot_seconds": 360.0, "transitions": 80,
+                   "rate_per_hour": 0.0, "wall_seconds": 1.0},
+        "comparison": {"predicted_rate_per_hour": 0.0, "measured_over_predicted": None},
+        "localization": {}, "files": {"summary": "replay.json", "plot": "plot.png"},
+    }
+    monkeypatch.setattr(replay_module, "replay", lambda **kw: SimpleNamespace(summary=summary))
+    code = main(["replay", "--states", "s.json", "--out", str(tmp_path / "o"), "--no-progress"])
+    assert code == 0
+    assert "measured/predicted: undefined" in capsys.readouterr().out
