@@ -26,6 +26,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mdp", default=None, metavar="NPZ",
                         help="mdp.npz for the predicted rate (default: the one the Q-tables "
                              "were trained on)")
+    parser.add_argument("--goals", default=None, metavar="NAMES",
+                        help="goals to switch between: arena goal names or state-id goals "
+                             "as train --goal-states names them (s18, s18+19); default: all "
+                             "of the arena's")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
     parser.add_argument("--random", action="store_true",
@@ -53,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
 
     result = replay(
         params=primitive_params_from_args(args),
+        goals=args.goals,
         arena=args.arena,
         states=args.states,
         qtables=args.qtables,

@@ -9,6 +9,7 @@ centre (ties: the lower state index), so that every goal is reachable in the MDP
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from typing import Any, NamedTuple
 
@@ -64,3 +65,57 @@ def goal_state_masks(arena: Any, centres: ArrayLike) -> GoalMasks:
             inside[int(np.argmin(np.hypot(c[:, 0] - x, c[:, 1] - y)))] = True
         masks[i] = inside
     return GoalMasks(names=names, masks=masks)
+
+
+#: A goal made of state ids, as ``simlab train --goal-states 18,19`` names it: ``s18+19``.
+_STATE_GOAL = re.compile(r"^s(\d+(?:\+\d+)*)$")
+
+
+def state_goal_name(states: Iterable[int]) -> str:
+    """The name of the goal made of ``states`` (``(18, 19)`` -> ``"s18+19"``)."""
+    return "s" + "+".join(str(int(s)) for s in states)
+
+
+def is_state_goal(name: str) -> bool:
+    """True for names of state-id goals (``s18``, ``s18+19``)."""
+    return _STATE_GOAL.match(name) is not None
+
+
+def select_goals(masks: GoalMasks, goals: str | Iterable[str] | None, n_states: int) -> GoalMasks:
+    """The goals a run uses: all of ``masks`` (``goals`` None or ``"all"``) or the named ones.
+
+    A name of the form ``s18`` or ``s18+19`` is the goal made of those states (the name
+    ``simlab train --goal-states`` gives its Q-table); it takes precedence over an arena
+    goal of the same name, so a replay rewards exactly what training rewarded. Any other
+    name must be one of ``masks.names``.
+    """
+    from simlab.errors import ConfigError
+
+    if goals is None or goals == "all":
+        return masks
+    names = [g.strip() for g in (goals.split(",") if isinstance(goals, str) else goals)]
+    if not names or any(not g for g in names):
+        raise ConfigError(f"expected goal names, got {goals!r}", key="goals",
+                          fix="e.g. --goals NW,C or --goals s18 (a state-id goal)")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"goal listed twice in {names}", key="goals")
+    known = [str(n) for n in masks.names]
+    rows = []
+    for name in names:
+        m = _STATE_GOAL.match(name)
+        if m is not None:
+            ids = [int(v) for v in m.group(1).split("+")]
+            bad = [s for s in ids if s >= n_states]
+            if bad:
+                raise ConfigError(f"goal {name!r}: states {bad} not in [0, {n_states})",
+                                  key="goals")
+            row = np.zeros(n_states, dtype=bool)
+            row[ids] = True
+        elif name in known:
+            row = np.asarray(masks.masks[known.index(name)], dtype=bool)
+        else:
+            raise ConfigError(f"unknown goal {name!r}", key="goals",
+                              fix=f"the arena's goals are {', '.join(known) or 'none'}; "
+                                  "or name states as s18 / s18+19")
+        rows.append(row)
+    return GoalMasks(np.array(names, dtype=np.str_), np.stack(rows))

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
+from simlab.data.goals import is_state_goal
 from simlab.errors import ConfigError
 
 #: Number of simlab motion primitives (SPEC A4).
@@ -217,13 +218,18 @@ def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
             fix="use the states file the dataset was collected with",
         )
     if m.goal_names:
-        if set(m.goal_names) != set(goal_names):
+        # Every arena goal replayed must be one of the MDP's, covering the same states (a
+        # subset is fine); state-id goals (``s18``, as train --goal-states names them) are
+        # defined by their ids alone.
+        foreign = [g for g in goal_names if g not in m.goal_names and not is_state_goal(g)]
+        if foreign:
             raise ConfigError(
-                f"the MDP's goals {list(m.goal_names)} are not the arena's {list(goal_names)}",
+                f"goals {foreign} are not among the MDP's goals {list(m.goal_names)}",
                 path=src, key="goal_names", fix="estimate with the same arena",
             )
         for i, g in enumerate(goal_names):
-            if not np.array_equal(m.goal_mask(g), goal_masks[i]):
+            if (g in m.goal_names and not is_state_goal(g)
+                    and not np.array_equal(m.goal_mask(g), goal_masks[i])):
                 raise ConfigError(
                     f"goal {g!r} covers other states in the MDP than in the arena",
                     path=src, key="goal_masks", fix="estimate with the same arena and states",

@@ -80,7 +80,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -563,6 +563,7 @@ def replay(
     mcl_params: Any = None,
     max_frames: int = 150,
     action_set: Any = None,
+    goals: str | Sequence[str] | None = None,
 ) -> ReplayResult:
     """Replay the Q-tables in physics for ``hours`` of robot time (see the module doc).
 
@@ -573,6 +574,9 @@ def replay(
             mapping ``goal -> Q (S, A)`` (A = 16, or ``action_set``'s); may be None for
             ``policy="random"``.
         hours: robot time (driving + idle latency) to replay.
+        goals: the goals to switch between: None / ``"all"`` for every arena goal, or
+            names — arena goals, or state-id goals ``s18`` / ``s18+19`` as
+            ``simlab train --goal-states`` names them (:func:`simlab.data.goals.select_goals`).
         pose_source: ``"truth"``, ``"odometry"`` or ``"mcl"``.
         seed: root seed (see the module docstring).
         out: output directory.
@@ -604,7 +608,7 @@ def replay(
         Q-tables of the wrong shape, a goal without a Q-table, an MDP or map of another
         arena or discretizer, missing files, outputs that exist.
     """
-    from simlab.data.goals import goal_state_masks
+    from simlab.data.goals import goal_state_masks, select_goals
     from simlab.data.inputs import load_arena_config, load_discretizer
     from simlab.localization.filter import MCLParams
     from simlab.localization.likelihood import LikelihoodField
@@ -643,7 +647,8 @@ def replay(
     arena_cfg = load_arena_config(arena)
     disc = load_discretizer(states)
     states_src = str(states) if isinstance(states, str | os.PathLike) else None
-    goal_names, goal_masks = goal_state_masks(arena_cfg, disc.centres)
+    goal_names, goal_masks = select_goals(goal_state_masks(arena_cfg, disc.centres), goals,
+                                          disc.n_states)
     goal_names = tuple(str(g) for g in goal_names)
     if qtables is None and policy == "greedy":
         raise ConfigError("a greedy replay needs Q-tables", key="qtables",

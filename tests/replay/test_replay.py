@@ -203,3 +203,21 @@ def test_drive_to_pose_reaches_the_target() -> None:
     assert math.hypot(p[0], p[1]) < 0.03
     assert abs((p[2] - target[2] + math.pi) % (2 * math.pi) - math.pi) < 0.05
     assert 0 < seconds < 60
+
+
+def test_a_subset_of_goals_and_a_state_id_goal(chain, tmp_path) -> None:
+    """--goals: only the named goals are pursued; ``s<id>`` rewards exactly that state."""
+    target = int(np.flatnonzero(chain.goal_masks[chain.goal_names.index("C")])[0])
+    qtables = {"NE": chain.Q["NE"], f"s{target}": chain.Q["C"]}
+    res = replay("table", chain.states, qtables, hours=0.05, pose_source="truth", seed=2,
+                 out=tmp_path / "o", progress=False, mdp=chain.mdp,
+                 goals=["NE", f"s{target}"], baseline_hours=0.0)
+    s = res.summary
+    assert s["goal_names"] == ["NE", f"s{target}"]
+    assert set(s["result"]["goals_reached"]) == {"NE", f"s{target}"}
+    import pyarrow.parquet as pq
+
+    log = pq.read_table(res.files["transitions"]).to_pydict()
+    hits = [(g, s2) for g, s2, r in zip(log["goal"], log["s_next"], log["reward"], strict=True)
+            if r > 0]
+    assert hits and all(s2 == target for g, s2 in hits if g == f"s{target}")
