@@ -66,8 +66,13 @@ def test_model_is_checked_against_states_and_goals(chain) -> None:
     other = Discretizer(centres=chain.discretizer.centres + 0.01)
     with pytest.raises(ConfigError, match="other states"):
         load_model(chain.mdp, other, chain.goal_names, chain.goal_masks)
-    with pytest.raises(ConfigError, match="not the arena's"):
+    with pytest.raises(ConfigError, match=r"goals \['a', 'b'\] are not among the MDP's"):
         load_model(chain.mdp, chain.discretizer, ("a", "b"), chain.goal_masks[:2])
+    # a subset of the MDP's goals, and a state-id goal, are fine
+    i = chain.goal_names.index("C")
+    sub = load_model(chain.mdp, chain.discretizer, ("C", "s0"),
+                     np.stack([chain.goal_masks[i], np.eye(41, dtype=bool)[0]]))
+    assert sub.T.shape == (41, 16, 41)
     masks = chain.goal_masks.copy()
     masks[0] = ~masks[0]
     with pytest.raises(ConfigError, match="covers other states"):
