@@ -155,20 +155,21 @@ def load_space(path: str | os.PathLike[str]) -> ParameterSpace:
 
 
 def default_space(primitives: Sequence[int], simulator: str = "physics") -> ParameterSpace:
-    """The default search: drive time and the speeds the real actions use.
+    """The default search: the drive time, plus what sets blocking (physics) or noise.
 
-    Decision: only the speeds of primitives the real table uses are searched (an 8-action
-    slow table says nothing about ``fast_speed``). Physics adds the obstacle detector's
-    margin (it sets the blocked rate); kinematic adds its two noise levels. The decision
-    latency is not searched: it does not change T, only transitions per hour, and is set
-    in closed form afterwards when the real hours are known.
+    Decision: the speeds are not searched by default. A primitive's length is about
+    ``speed * drive_time``, so T alone cannot tell a faster, shorter move from a slower,
+    longer one (a ridge the optimiser wanders along); the speeds are the robot's published
+    figures, set with ``--primitives``, and can still be searched with ``--space``.
+    ``primitives`` (the real actions' simlab primitives) only decides which drive-time
+    range makes sense: fast-only tables use a shorter one. Physics adds the obstacle
+    detector's margin (it sets the blocked rate); kinematic its two noise levels. The
+    decision latency is not searched: it changes the rate of transitions, not T, and is set
+    in closed form when the real hours are known.
     """
     prims = np.asarray(primitives)
-    specs = [ParamSpec("drive_time", 0.2, 2.0, "log")]
-    if (prims < 8).any():
-        specs.append(ParamSpec("slow_speed", 0.04, 0.22, "log"))
-    if (prims >= 8).any():
-        specs.append(ParamSpec("fast_speed", 0.08, 0.22, "log"))
+    high = 2.0 if (prims < 8).any() else 1.2
+    specs = [ParamSpec("drive_time", 0.2, high, "log")]
     if simulator == "physics":
         specs.append(ParamSpec("detector_margin", 0.0, 0.15))
     else:
