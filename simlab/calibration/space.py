@@ -59,7 +59,8 @@ class ParamSpec:
         """Value at ``u`` in [0, 1] (clipped)."""
         u = min(max(float(u), 0.0), 1.0)
         if self.scale == "log":
-            return float(math.exp(math.log(self.low) + u * math.log(self.high / self.low)))
+            v = math.exp(math.log(self.low) + u * math.log(self.high / self.low))
+            return float(min(max(v, self.low), self.high))  # no rounding past a bound
         return float(self.low + u * (self.high - self.low))
 
     def unit(self, value: float) -> float:
