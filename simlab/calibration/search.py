@@ -17,8 +17,10 @@ the luck of the draw.
 **Optimiser** (derivative-free, seeded): the first candidate is the base record (today's
 defaults, clipped into the space) so the report shows where calibration started; then a
 scrambled Sobol design over the unit cube fills half of the budget; the rest is local
-refinement in rounds of ``workers`` candidates: Gaussian steps around the best point so far,
-their width shrinking by ``shrink`` per round. Candidates of a round run in parallel (one
+refinement in rounds of ``workers`` candidates: the minimum of a quadratic fitted by least
+squares to the candidates nearest the best (it averages the walks' noise over many points),
+then a compass search around the best point so far (``+- step`` along each coordinate, the
+step shrinking by ``shrink`` after a full poll found nothing better). Candidates of a round run in parallel (one
 process each, ``spawn``). The winner is then re-simulated with a fresh seed (``confirm``):
 the distance reported for it is that independent run, free of the selection's luck.
 
@@ -97,6 +99,9 @@ class CalibrationConfig:
         hours_per_candidate: simulated hours of each candidate's walk (> 0).
         candidates: number of candidates evaluated (>= 2), the base record included.
         workers: candidates simulated at once, one process each (1 = in this process).
+            The refinement rounds have this many candidates, so the search is identical
+            for the same (seed, workers), like ``collect``; the initial design is not
+            affected.
         seed: the walks' seed (common to all candidates) and the optimiser's seed.
         simulator: ``"physics"`` or ``"kinematic"`` (physics-free dry runs and tests).
         pose_source: pose source of the walks (``truth``, ``odometry``, ``mcl``).
@@ -297,6 +302,77 @@ def _evaluate(runner: _Runner, points: list[NDArray[np.float64]], stage: str, st
     return out
 
 
+def _quadratic_features(u: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(n, 1 + d + d(d+1)/2)`` features of a full quadratic in the unit coordinates."""
+    d = u.shape[1]
+    cols = [np.ones(len(u))] + [u[:, i] for i in range(d)]
+    cols += [u[:, i] * u[:, j] for i in range(d) for j in range(i, d)]
+    return np.stack(cols, axis=1)
+
+
+def _surrogate_minimum(cands: list[Candidate], rng: np.random.Generator
+                       ) -> NDArray[np.float64] | None:
+    """Minimum of a least-squares quadratic fitted to the candidates nearest the best.
+
+    Averages the walks' noise over many points, which a single best point cannot. Fitted
+    to the ``3 p`` candidates nearest the best (``p`` quadratic terms), minimised over 2,000
+    seeded points of their bounding box; None until there are enough candidates.
+    """
+    u = np.array([c.unit for c in cands])
+    y = np.array([c.distance for c in cands])
+    p = _quadratic_features(u[:1]).shape[1]
+    if len(cands) < p + 2:
+        return None
+    best = u[int(np.argmin(y))]
+    near = np.argsort(np.linalg.norm(u - best, axis=1))[:3 * p]
+    coef, *_ = np.linalg.lstsq(_quadratic_features(u[near]), y[near], rcond=None)
+    lo, hi = u[near].min(axis=0), u[near].max(axis=0)
+    cloud = lo + (hi - lo) * rng.random((2000, u.shape[1]))
+    return cloud[int(np.argmin(_quadratic_features(cloud) @ coef))]
+
+
+class _Poll:
+    """Compass search around the best point, with the surrogate's minimum first.
+
+    Each round takes the surrogate minimum (if new) and then the next of the ``2 d`` poll
+    points ``best +- step e_i`` (in a seeded order). A new best restarts the poll around it;
+    a full poll without improvement multiplies ``step`` by ``shrink``.
+    """
+
+    def __init__(self, step: float, shrink: float, rng: np.random.Generator) -> None:
+        self.step, self.shrink, self.rng = float(step), float(shrink), rng
+        self.centre: NDArray[np.float64] | None = None
+        self.queue: list[NDArray[np.float64]] = []
+
+    def _refill(self, best: NDArray[np.float64]) -> None:
+        if self.centre is not None and np.array_equal(self.centre, best):
+            self.step *= self.shrink  # the whole poll failed: look closer
+        self.centre = best.copy()
+        d = best.size
+        moves = [s * self.step * np.eye(d)[i] for i in range(d) for s in (1.0, -1.0)]
+        order = self.rng.permutation(len(moves))
+        self.queue = [np.clip(best + moves[k], 0.0, 1.0) for k in order]
+
+    def propose(self, cands: list[Candidate], best: NDArray[np.float64],
+                n: int) -> list[NDArray[np.float64]]:
+        if self.centre is None or not np.array_equal(self.centre, best):
+            self.centre = None
+            self._refill(best)
+        seen = [c.unit for c in cands]
+        points: list[NDArray[np.float64]] = []
+        surrogate = _surrogate_minimum(cands, self.rng)
+        if surrogate is not None and not any(np.allclose(surrogate, u, atol=1e-3)
+                                             for u in seen):
+            points.append(surrogate)
+        while len(points) < n:
+            if not self.queue:
+                self._refill(best)
+            q = self.queue.pop(0)
+            if not any(np.allclose(q, u, atol=1e-9) for u in seen + points):
+                points.append(q)
+        return points
+
+
 def _context(real: RealTable, arena: Any, disc: Any, space: ParameterSpace, base: Any,
              config: CalibrationConfig, walk_seed: int) -> dict[str, Any]:
     return {"space": space, "config": config, "arena": arena, "states": disc, "base": base,
@@ -338,16 +414,14 @@ def search(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace, b
             cands += batch
             bar.update(len(batch))
             bar.set_postfix(best=f"{min(c.distance for c in cands):.3f}")
-        step = config.step
+        poll = _Poll(config.step, config.shrink, rng)
         while n_refine > 0:
             best = min(cands, key=lambda c: c.distance)
             n = min(config.workers, n_refine)
-            points = [np.clip(best.unit + step * rng.standard_normal(space.dim), 0.0, 1.0)
-                      for _ in range(n)]
+            points = poll.propose(cands, best.unit, n)
             batch = _evaluate(runner, points, "refine", len(cands), ctx)
             cands += batch
             n_refine -= n
-            step *= config.shrink
             bar.update(n)
             bar.set_postfix(best=f"{min(c.distance for c in cands):.3f}")
     finally:

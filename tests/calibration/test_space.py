@@ -50,7 +50,7 @@ def test_bad_specs_name_the_field(kwargs: dict, match: str) -> None:
 
 def test_unknown_field_is_refused_with_the_list() -> None:
     space = ParameterSpace((ParamSpec("warp_speed", 0.1, 1.0),))
-    with pytest.raises(ConfigError, match="no field 'warp_speed'.*drive_time"):
+    with pytest.raises(ConfigError, match=r"no field 'warp_speed'.*drive_time"):
         space.check_fields(PrimitiveParams())
 
 
@@ -63,7 +63,7 @@ def test_load_space_reads_toml_and_names_the_file(tmp_path: Path) -> None:
     assert space.specs[0].scale == "log"
     bad = tmp_path / "bad.toml"
     bad.write_text("[parameters.drive_time]\nlow = 0.3\n")
-    with pytest.raises(ConfigError, match="bad.toml.*parameters.drive_time"):
+    with pytest.raises(ConfigError, match=r"bad\.toml.*parameters\.drive_time"):
         load_space(bad)
     with pytest.raises(ConfigError, match="not found"):
         load_space(tmp_path / "missing.toml")
