@@ -213,6 +213,24 @@ def simulate_table(job: _Job) -> SimTable:
                     wall_seconds=time.perf_counter() - t0)
 
 
+def simulate_counts(arena: Any, states: Any, params: Any, *, hours: float, seed: int,
+                    action_set: ActionSet, simulator: str = "physics",
+                    pose_source: str = "truth") -> SimTable:
+    """One walk of ``hours`` simulated hours counted in ``action_set`` (in this process).
+
+    What a candidate's evaluation does; also a way to make a synthetic "real" table with
+    hidden parameters (tests, benchmarks).
+    """
+    from simlab.data.inputs import load_arena_config, load_discretizer
+
+    disc = load_discretizer(states)
+    return simulate_table(_Job(index=0, arena=load_arena_config(arena), states=disc,
+                               params=params, hours=float(hours), seed=int(seed),
+                               simulator=simulator, pose_source=pose_source,
+                               primitives=tuple(int(p) for p in action_set.primitives()),
+                               n_states=int(disc.n_states)))
+
+
 @dataclass(frozen=True)
 class Candidate:
     """One evaluated point: ``unit`` ``(d,)`` in the unit cube, ``values`` by name."""

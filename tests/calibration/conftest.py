@@ -10,8 +10,7 @@ import pytest
 
 from discretize.voronoi import Discretizer
 from simlab.actions import ActionSet
-from simlab.calibration.search import RealTable, SimTable, _Job, simulate_table
-from simlab.data.inputs import load_arena_config
+from simlab.calibration.search import RealTable, SimTable, simulate_counts
 
 
 @pytest.fixture(scope="session")
@@ -31,11 +30,8 @@ def lattice9() -> Discretizer:
 def hidden_walk(disc: Any, params: Any, aset: ActionSet, hours: float, seed: int,
                 simulator: str) -> SimTable:
     """The "real" robot: a walk with hidden parameters, counted in ``aset``."""
-    job = _Job(index=0, arena=load_arena_config("table"), states=disc, params=params,
-               hours=hours, seed=seed, simulator=simulator, pose_source="truth",
-               primitives=tuple(int(p) for p in aset.primitives()),
-               n_states=int(disc.n_states))
-    return simulate_table(job)
+    return simulate_counts("table", disc, params, hours=hours, seed=seed, action_set=aset,
+                           simulator=simulator)
 
 
 def write_counts_csv(path: Path, counts: np.ndarray) -> Path:
