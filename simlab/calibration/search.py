@@ -477,9 +477,11 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     """
     from simlab.calibration.space import default_space
     from simlab.data.inputs import load_arena_config, load_discretizer
+    from simlab.data.walkers import check_pose_source
 
     config = CalibrationConfig() if config is None else config
     t0 = time.perf_counter()
+    check_pose_source(config.pose_source, config.simulator)
     arena_cfg = load_arena_config(arena)
     disc = load_discretizer(states)
     if int(disc.n_states) != real.counts.shape[0]:

@@ -81,6 +81,7 @@ def test_existing_outputs_are_not_replaced(inputs, tmp_path, capsys) -> None:
     (("--real", "WIDE"), "out of range"),  # action 12 in a table read as 8 actions
     (("--convention", "clockwise"), "unknown direction convention"),
     (("--candidates", "1"), "calibration.candidates"),
+    (("--pose-source", "mcl"), "pose"),
     (("--space", "SPACE"), "no field 'slip'"),
     (("--primitives", "PRIMS"), "unknown field 'warp'"),
 ])
