@@ -57,6 +57,7 @@ def main() -> None:
     parser.add_argument("--candidates", type=int, default=12)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--objective", default="tv", choices=("tv", "loglik"))
     args = parser.parse_args()
 
     from simlab.actions import parse_action_set
@@ -91,7 +92,7 @@ def main() -> None:
         t_real = time.perf_counter() - t0
         cfg = CalibrationConfig(hours_per_candidate=args.hours_per_candidate,
                                 candidates=args.candidates, workers=args.workers,
-                                seed=args.seed, progress=False)
+                                seed=args.seed, objective=args.objective, progress=False)
         t0 = time.perf_counter()
         res = calibrate(real, args.arena, disc, config=cfg)
         wall = time.perf_counter() - t0
@@ -99,7 +100,7 @@ def main() -> None:
     cpu = [c.sim.wall_seconds for c in res.candidates]
     print(f"arena {args.arena}, {disc.n_states} states, real: {real.source} "
           f"({int(real.counts.sum())} transitions, {aset.describe()}; made in {t_real:.0f} s)")
-    print(f"  calibration wall {wall:.0f} s with {args.workers} workers: {args.candidates} "
+    print(f"  objective {args.objective}; calibration wall {wall:.0f} s with {args.workers} workers: {args.candidates} "
           f"candidates + 1 confirmation x {args.hours_per_candidate:g} h = {n_sim:g} simulated "
           f"h ({n_sim * 3600 / wall:.0f} simulated s per wall s); per candidate "
           f"{min(cpu):.0f}-{max(cpu):.0f} s")

@@ -126,7 +126,8 @@ def report_markdown(result: CalibrationResult) -> str:
         ("states (visited)", f"{r['states']} ({r['states_visited']})",
          f"{s['states']} ({s['states_visited']})"),
         ("transitions", r["transitions"], s["transitions"]),
-        ("hours", _cell(r["hours"], "{:.2f}"), _cell(s["hours"], "{:.2f}")),
+        ("hours (of these transitions)", _cell(r["hours"], "{:.2f}"),
+         _cell(s["hours"], "{:.2f}")),
         ("transitions per hour", _cell(r["transitions_per_hour"], "{:.0f}"),
          _cell(s["transitions_per_hour"], "{:.0f}")),
         ("(s, a) pairs visited", r["pairs_visited"], s["pairs_visited"]),
@@ -141,6 +142,9 @@ def report_markdown(result: CalibrationResult) -> str:
     out.write(f"Real actions: {result.real.action_set.describe()}; simulator "
               f"`{result.config.simulator}`, {result.config.hours_per_candidate:g} h per "
               f"candidate, {len(result.candidates)} candidates, seed {result.config.seed}.\n\n")
+    sim = result.final.sim
+    out.write(f"The simulated walk draws all 16 primitives; the {sim.rows} of its {sim.walk_rows} "
+              "transitions whose primitive is one of the real actions are compared.\n\n")
     out.write("| | real | sim (calibrated) |\n|---|---|---|\n")
     for name, a, b in rows:
         out.write(f"| {name} | {a} | {b} |\n")

@@ -45,6 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--unvisited", default="report", choices=("report", "max"),
                         help="real pairs never simulated: report them (default) or count "
                              "them as distance 1")
+    parser.add_argument("--objective", default="tv", choices=("tv", "loglik"),
+                        help="minimised: visit-weighted TV distance (default) or bits per "
+                             "real transition under the simulated T (better for sparse tables)")
     parser.add_argument("--no-confirm", action="store_true",
                         help="skip re-simulating the winner on a fresh seed")
     parser.add_argument("--seed", type=int, default=0, help="seed of walks and search (default 0)")
@@ -62,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
         hours_per_candidate=args.hours_per_candidate, candidates=args.candidates,
         workers=args.workers, seed=args.seed, simulator=args.simulator,
         pose_source=args.pose_source, n_boot=args.n_boot, unvisited=args.unvisited,
+        objective=args.objective,
         confirm=not args.no_confirm, progress=not args.no_progress,
     )
     done = calibrate_files(args.real, args.states, args.arena, args.out, config=config,

@@ -8,6 +8,7 @@ import pytest
 from simlab.calibration.metrics import (
     argmax_agreement,
     bootstrap_floor,
+    cross_entropy,
     entropy_per_action,
     self_transition_share,
     table_summary,
@@ -110,3 +111,13 @@ def test_entropy_self_share_and_summary() -> None:
     assert summary["blocked_rate"] == pytest.approx(1 / 13)
     assert summary["pairs_visited"] == 4
     assert table_summary(c)["transitions_per_hour"] is None
+
+
+def test_cross_entropy_is_the_real_entropy_for_a_well_sampled_exact_simulator() -> None:
+    real = table({(0, 0, 0): 1, (0, 0, 1): 1, (1, 1, 1): 3})
+    sim = 1000 * real
+    # 2 of 5 transitions cost 1 bit each, the 3 deterministic ones ~0
+    assert cross_entropy(sim, real) == pytest.approx(2 / 5, abs=0.01)
+    # a simulator that never leaves state 0 from (0, 0) pays for the real move to 1
+    worse = table({(0, 0, 0): 2000, (1, 1, 1): 3000, (0, 1, 1): 5})
+    assert cross_entropy(worse, real) > cross_entropy(sim, real) + 0.5
