@@ -6,5 +6,7 @@
 * :mod:`simlab.calibration.search` — candidates simulated with ``collect`` and a seeded
   derivative-free search;
 * :mod:`simlab.calibration.report` — the calibrated ``[primitives]`` TOML, JSON/markdown
-  reports and the figure.
+  reports and the figure;
+* :mod:`simlab.calibration.command` — ``simlab calibrate`` as a function of files
+  (:func:`~simlab.calibration.command.calibrate_files`).
 """
