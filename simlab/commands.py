@@ -22,6 +22,7 @@ _FUNCTIONS: dict[str, str] = {
     "export_minari": "simlab.data.minari_export:export_minari",
     "train": "simlab.training.train:train",
     "replay": "simlab.replay.replay:replay",
+    "calibrate": "simlab.calibration.command:calibrate_files",
     "pipeline": "simlab.pipeline:pipeline",
     "visitlab_train": "simlab.visitlab.training:train",
     "reproduce": "simlab.experiments.reproduce:reproduce",

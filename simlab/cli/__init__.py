@@ -36,6 +36,7 @@ SUBCOMMANDS: dict[str, str] = {
     "export-minari": "export_minari",
     "train": "train",
     "replay": "replay",
+    "calibrate": "calibrate",
     "pipeline": "pipeline",
     "visitlab": "visitlab",
     "reproduce": "reproduce",

@@ -1,0 +1,114 @@
+"""``simlab calibrate`` end to end (kinematic simulator) and its refusals."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simlab.actions import parse_action_set
+from simlab.calibration.command import load_base
+from simlab.cli import main
+from simlab.data.walkers import KinematicParams
+from simlab.errors import ConfigError
+from simlab.physics.motion import PrimitiveParams
+from tests.calibration.conftest import hidden_walk, write_counts_csv
+
+CCW8 = parse_action_set(8, "ccw-east")
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory, lattice9) -> tuple[Path, Path, float]:
+    d = tmp_path_factory.mktemp("cal")
+    states = d / "states.json"
+    lattice9.save(states)
+    sim = hidden_walk(lattice9, KinematicParams(drive_time=0.9), CCW8, 1.0, 4, "kinematic")
+    return write_counts_csv(d / "real.csv", sim.counts), states, sim.hours
+
+
+def argv(real: Path, states: Path, out: Path, *extra: str) -> list[str]:
+    return ["calibrate", "--real", str(real), "--states", str(states), "--out", str(out),
+            "--simulator", "kinematic", "--n-actions", "8", "--convention", "ccw-east",
+            "--hours-per-candidate", "0.5", "--candidates", "3", "--workers", "1",
+            "--n-boot", "20", "--no-progress", *extra]
+
+
+def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, capsys) -> None:
+    real, states, hours = inputs
+    out = tmp_path / "cal"
+    assert main(argv(real, states, out, "--real-hours", f"{hours}")) == 0
+    assert "TV distance" in capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == [
+        "calibration.png", "primitives.toml", "report.json", "report.md"]
+    report = json.loads((out / "report.json").read_text())
+    assert len(report["candidates"]) == 3
+    assert report["real"]["action_set"]["convention"] == "ccw-east"
+    assert report["real"]["transitions"] == int(np.loadtxt(real, delimiter=",",
+                                                           skiprows=1)[:, 3].sum())
+    assert 0.0 <= report["distance"]["distance"] <= 1.0
+    assert report["floor"]["low_2.5"] <= report["floor"]["median"] <= report["floor"]["high_97.5"]
+    params = load_base(out / "primitives.toml", "kinematic")
+    assert params.drive_time == pytest.approx(report["params"]["drive_time"])
+    assert report["decision_latency_fitted"] is True
+    doc = tomllib.loads((out / "primitives.toml").read_text())
+    assert doc["calibration"]["searched"] == ["drive_time", "distance_noise", "heading_noise"]
+    md = (out / "report.md").read_text()
+    assert "| transitions per hour |" in md and "bootstrap sampling floor" in md
+
+
+def refused(args: list[str], capsys) -> str:
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("simlab calibrate: error:")
+    return err
+
+
+def test_existing_outputs_are_not_replaced(inputs, tmp_path, capsys) -> None:
+    real, states, _ = inputs
+    out = tmp_path / "cal"
+    out.mkdir()
+    (out / "report.md").write_text("mine")
+    assert "already exists" in refused(argv(real, states, out), capsys)
+    assert (out / "report.md").read_text() == "mine"
+    assert sorted(p.name for p in out.iterdir()) == ["report.md"]
+
+
+@pytest.mark.parametrize("change, message", [
+    (("--states", "missing.json"), "missing.json"),
+    (("--real", "WIDE"), "out of range"),  # action 12 in a table read as 8 actions
+    (("--convention", "clockwise"), "unknown direction convention"),
+    (("--candidates", "1"), "calibration.candidates"),
+    (("--pose-source", "mcl"), "pose"),
+    (("--space", "SPACE"), "no field 'slip'"),
+    (("--primitives", "PRIMS"), "unknown field 'warp'"),
+])
+def test_bad_input_is_one_line_and_writes_nothing(inputs, tmp_path, capsys, change,
+                                                   message) -> None:
+    real, states, _ = inputs
+    (tmp_path / "space.toml").write_text("[parameters.slip]\nlow = 0.0\nhigh = 0.5\n")
+    (tmp_path / "prims.toml").write_text("[primitives]\nwarp = 9\n")
+    (tmp_path / "wide.csv").write_text("s,a,s_next,count\n0,12,1,3\n")
+    args = argv(real, states, tmp_path / "out")
+    flag, value = change
+    value = {"SPACE": str(tmp_path / "space.toml"), "PRIMS": str(tmp_path / "prims.toml"),
+             "WIDE": str(tmp_path / "wide.csv"),
+             "missing.json": str(tmp_path / "missing.json")}.get(value, value)
+    if flag in args:
+        args[args.index(flag) + 1] = value
+    else:
+        args += [flag, value]
+    assert message in refused(args, capsys)
+    assert not (tmp_path / "out").exists()
+
+
+def test_physics_primitives_file_round_trip(tmp_path) -> None:
+    path = tmp_path / "p.toml"
+    path.write_text("[primitives]\ndrive_time = 0.8\ndetector_margin = 0.02\n[other]\nx = 1\n")
+    p = load_base(path, "physics")
+    assert p == PrimitiveParams(drive_time=0.8, detector_margin=0.02)
+    path.write_text("[primitives]\ndrive_time = -1.0\n")
+    with pytest.raises(ConfigError, match="drive_time"):
+        load_base(path, "physics")

@@ -1,0 +1,123 @@
+"""Calibration metrics against hand-computed values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simlab.calibration.metrics import (
+    argmax_agreement,
+    bootstrap_floor,
+    cross_entropy,
+    entropy_per_action,
+    self_transition_share,
+    table_summary,
+    tv_distance,
+)
+from simlab.errors import ConfigError
+
+
+def table(entries: dict[tuple[int, int, int], int], S: int = 3, A: int = 2) -> np.ndarray:
+    c = np.zeros((S, A, S), dtype=np.int64)
+    for (s, a, s2), n in entries.items():
+        c[s, a, s2] = n
+    return c
+
+
+def test_identical_tables_are_at_distance_zero_and_disjoint_ones_at_one() -> None:
+    real = table({(0, 0, 1): 3, (0, 0, 2): 1, (1, 1, 1): 5})
+    assert tv_distance(real, real).distance == 0.0
+    # same pairs, next states never shared
+    sim = table({(0, 0, 0): 2, (1, 1, 2): 7})
+    assert tv_distance(sim, real).distance == pytest.approx(1.0)
+
+
+def test_distance_is_weighted_by_real_visits() -> None:
+    # pair (0,0): real 3/4 -> 1, 1/4 -> 2; sim all -> 1: TV = 0.25, weight 4
+    # pair (1,1): real all -> 1, sim half -> 0 half -> 1:  TV = 0.5,  weight 2
+    real = table({(0, 0, 1): 3, (0, 0, 2): 1, (1, 1, 1): 2})
+    sim = table({(0, 0, 1): 10, (1, 1, 0): 1, (1, 1, 1): 1})
+    res = tv_distance(sim, real)
+    assert res.distance == pytest.approx((4 * 0.25 + 2 * 0.5) / 6)
+    assert res.per_pair[0, 0] == pytest.approx(0.25)
+    assert np.isnan(res.per_pair[2, 0])
+    assert (res.common, res.real_only, res.sim_only) == (2, 0, 0)
+
+
+def test_pairs_visited_on_one_side_are_reported_or_count_as_one() -> None:
+    real = table({(0, 0, 1): 2, (2, 1, 2): 6})
+    sim = table({(0, 0, 1): 5, (1, 0, 1): 4})
+    res = tv_distance(sim, real)
+    assert res.distance == 0.0
+    assert (res.common, res.real_only, res.sim_only) == (1, 1, 1)
+    assert res.real_weight_uncovered == pytest.approx(6 / 8)
+    assert tv_distance(sim, real, unvisited="max").distance == pytest.approx(6 / 8)
+
+
+def test_bad_tables_are_refused() -> None:
+    with pytest.raises(ConfigError, match="shapes differ"):
+        tv_distance(np.zeros((3, 2, 3)), np.zeros((4, 2, 4)))
+    with pytest.raises(ConfigError, match=">= 0"):
+        tv_distance(-np.ones((2, 1, 2)), np.ones((2, 1, 2)))
+    with pytest.raises(ConfigError, match="unvisited"):
+        tv_distance(np.ones((2, 1, 2)), np.ones((2, 1, 2)), unvisited="drop")
+
+
+def test_floor_of_deterministic_transitions_is_zero() -> None:
+    real = table({(0, 0, 1): 9, (1, 1, 2): 4, (2, 0, 2): 1})
+    floor = bootstrap_floor(real, np.random.default_rng(0), n_boot=50)
+    assert floor.median == floor.low == floor.high == 0.0
+
+
+def test_floor_of_a_fair_pair_matches_the_binomial_expectation() -> None:
+    # n = 2 draws from (1/2, 1/2): (2,0) or (0,2) w.p. 1/2 -> TV 0.5, (1,1) -> TV 0: mean 0.25
+    real = table({(0, 0, 0): 1, (0, 0, 1): 1})
+    floor = bootstrap_floor(real, np.random.default_rng(1), n_boot=4000)
+    assert set(np.unique(floor.samples)) == {0.0, 0.5}
+    assert floor.samples.mean() == pytest.approx(0.25, abs=0.02)
+    assert (floor.low, floor.high) == (0.0, 0.5)
+
+
+def test_floor_is_seeded_and_matched_floor_grows_with_fewer_simulated_visits() -> None:
+    rng = np.random.default_rng(3)
+    real = rng.integers(0, 20, size=(4, 2, 4))
+    a = bootstrap_floor(real, np.random.default_rng(5), n_boot=100)
+    b = bootstrap_floor(real, np.random.default_rng(5), n_boot=100)
+    np.testing.assert_array_equal(a.samples, b.samples)
+    n = real.sum(axis=2)
+    few = bootstrap_floor(real, np.random.default_rng(5), n_boot=300,
+                          other_n=np.maximum(n // 8, 1))
+    assert few.median > a.median
+
+
+def test_argmax_agreement_with_ties() -> None:
+    real = table({(0, 0, 1): 3, (0, 0, 2): 1, (1, 0, 0): 2, (1, 0, 2): 2, (2, 1, 2): 1})
+    sim = table({(0, 0, 2): 5, (1, 0, 2): 1, (2, 1, 2): 4, (2, 0, 0): 1})
+    # (0,0) disagrees, (1,0) tie {0,2} meets {2}, (2,1) agrees; (2,0) is sim-only
+    assert argmax_agreement(sim, real) == pytest.approx(2 / 3)
+    assert np.isnan(argmax_agreement(table({(0, 0, 0): 1}), table({(1, 1, 1): 1})))
+
+
+def test_entropy_self_share_and_summary() -> None:
+    c = table({(0, 0, 0): 1, (0, 0, 1): 1, (0, 0, 2): 1, (1, 0, 0): 1, (1, 0, 1): 1,
+               (1, 0, 2): 1, (2, 0, 2): 3}, A=3)
+    c[0, 1, 0] = 4  # action 1: one pair, deterministic
+    ent = entropy_per_action(c)
+    assert ent[0] == pytest.approx((np.log2(3) * 2 + 0) / 3)
+    assert ent[1] == 0.0 and np.isnan(ent[2])
+    assert self_transition_share(c) == pytest.approx((1 + 1 + 3 + 4) / 13)
+    summary = table_summary(c, hours=2.0, blocked=1)
+    assert summary["transitions_per_hour"] == 6.5
+    assert summary["blocked_rate"] == pytest.approx(1 / 13)
+    assert summary["pairs_visited"] == 4
+    assert table_summary(c)["transitions_per_hour"] is None
+
+
+def test_cross_entropy_is_the_real_entropy_for_a_well_sampled_exact_simulator() -> None:
+    real = table({(0, 0, 0): 1, (0, 0, 1): 1, (1, 1, 1): 3})
+    sim = 1000 * real
+    # 2 of 5 transitions cost 1 bit each, the 3 deterministic ones ~0
+    assert cross_entropy(sim, real) == pytest.approx(2 / 5, abs=0.01)
+    # a simulator that never leaves state 0 from (0, 0) pays for the real move to 1
+    worse = table({(0, 0, 0): 2000, (1, 1, 1): 3000, (0, 1, 1): 5})
+    assert cross_entropy(worse, real) > cross_entropy(sim, real) + 0.5

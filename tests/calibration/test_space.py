@@ -1,0 +1,76 @@
+"""Parameter spaces: scales, validation, TOML."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simlab.calibration.space import (
+    ParameterSpace,
+    ParamSpec,
+    default_space,
+    load_space,
+)
+from simlab.errors import ConfigError
+from simlab.physics.motion import PrimitiveParams
+
+
+def test_log_and_linear_scales_round_trip() -> None:
+    log = ParamSpec("drive_time", 0.1, 10.0, "log")
+    assert log.value(0.5) == pytest.approx(1.0)
+    lin = ParamSpec("detector_margin", 0.0, 0.2)
+    assert lin.value(0.25) == pytest.approx(0.05)
+    for spec in (log, lin):
+        for u in (0.0, 0.3, 1.0):
+            assert spec.unit(spec.value(u)) == pytest.approx(u)
+        assert spec.value(2.0) == spec.high  # clipped
+
+
+def test_apply_replaces_only_the_searched_fields() -> None:
+    space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),
+                            ParamSpec("detector_margin", 0.0, 0.1)))
+    p = space.apply(PrimitiveParams(), np.array([1.0, 0.5]))
+    assert (p.drive_time, p.detector_margin) == (pytest.approx(2.0), pytest.approx(0.05))
+    assert p.slow_speed == PrimitiveParams().slow_speed
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(low=1.0, high=1.0), "must be <"),
+    (dict(low=0.0, high=1.0, scale="log"), "low > 0"),
+    (dict(low=0.0, high=1.0, scale="cubic"), "scale"),
+    (dict(low="a", high=1.0), "finite number"),
+])
+def test_bad_specs_name_the_field(kwargs: dict, match: str) -> None:
+    with pytest.raises(ConfigError, match=match) as info:
+        ParamSpec("drive_time", **kwargs)
+    assert "parameters.drive_time" in str(info.value)
+
+
+def test_unknown_field_is_refused_with_the_list() -> None:
+    space = ParameterSpace((ParamSpec("warp_speed", 0.1, 1.0),))
+    with pytest.raises(ConfigError, match=r"no field 'warp_speed'.*drive_time"):
+        space.check_fields(PrimitiveParams())
+
+
+def test_load_space_reads_toml_and_names_the_file(tmp_path: Path) -> None:
+    good = tmp_path / "space.toml"
+    good.write_text('[parameters.drive_time]\nlow = 0.3\nhigh = 1.5\nscale = "log"\n'
+                    "[parameters.detector_margin]\nlow = 0.0\nhigh = 0.1\n")
+    space = load_space(good)
+    assert space.names == ("drive_time", "detector_margin")
+    assert space.specs[0].scale == "log"
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[parameters.drive_time]\nlow = 0.3\n")
+    with pytest.raises(ConfigError, match=r"bad\.toml.*parameters\.drive_time"):
+        load_space(bad)
+    with pytest.raises(ConfigError, match="not found"):
+        load_space(tmp_path / "missing.toml")
+
+
+def test_default_space_never_searches_speeds() -> None:
+    phys = default_space(np.arange(16), "physics")
+    assert phys.names == ("drive_time", "detector_margin")
+    kin = default_space(np.arange(8), "kinematic")
+    assert kin.names == ("drive_time", "distance_noise", "heading_noise")
