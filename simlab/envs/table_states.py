@@ -12,6 +12,9 @@ with three lines of Gymnasium code::
     s, _ = env.reset(seed=0)
     while True: s, r, term, trunc, _ = env.step(int(Q[s].argmax())); ...
 
+* **States** ``states``: a states file (``simlab discretize`` JSON or centres text), a
+  :class:`~discretize.voronoi.Discretizer`, or the centres (S, 2) in metres in state
+  order (JSON-able, as a Minari env spec records them).
 * **Observation** ``Discrete(S)``: the Voronoi state (nearest centre, see
   :mod:`discretize.voronoi`) of the pose after the primitive; the pose source is the
   simulator's truth (``pose_source="truth"``) or the wheel odometry (``"odometry"``).
@@ -52,7 +55,14 @@ def _discretizer(states: Any) -> Any:
         return states
     if isinstance(states, str | os.PathLike):
         return load_states(states)
-    raise ConfigError(f"expected a states file path or a Discretizer, got {states!r}",
+    if isinstance(states, list | tuple | np.ndarray):  # centres (S, 2) m, in state order
+        centres = np.asarray(states, dtype=np.float64)
+        if centres.ndim != 2 or centres.shape[1] != 2 or len(centres) == 0:
+            raise ConfigError(f"expected centres of shape (S, 2), got {centres.shape}",
+                              key="states")
+        return Discretizer.from_centres(centres)
+    raise ConfigError(f"expected a states file, centres (S, 2) or a Discretizer, got "
+                      f"{type(states).__name__}",
                       key="states", fix="pass the states.json written by simlab discretize")
 
 
