@@ -278,8 +278,8 @@ def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 
     return path
 
 
-def _stamp(header: Any) -> float:
-    return header.stamp.sec + header.stamp.nanosec * 1e-9
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
 
 
 def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
@@ -290,9 +290,9 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     The pose comes from ``pose_topic`` (``PoseWithCovarianceStamped``, ``PoseStamped`` or
     ``Odometry``); by default ``/amcl_pose`` when the bag has it, else ``/odom``.
     ``/odom`` fills ``odom`` when it is not the pose topic and has the same stamps. Scans
-    are taken when every pose sample has one with the same stamp (else ``scans`` is None);
-    the state and goal topics likewise. Times are seconds since ``t0`` (default: the first
-    pose stamp). :class:`DataError` names the bag and topic when the pose is missing.
+    are taken when every pose sample has one with the same stamp (exact nanoseconds; else
+    ``scans`` is None); the state and goal topics likewise (by bag time). Times are seconds
+    since ``t0`` (s; default: the first pose stamp). :class:`DataError` names the bag and topic when the pose is missing.
     """
     rb, ts, _ = _rosbags()
     path = Path(path)
@@ -325,9 +325,9 @@ def _pose_of(msg: Any) -> tuple[float, float, float]:
 
 def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str | None,
                 action_topic: str | None, t0: float | None) -> BagTrajectory:
-    msgs = sorted(topics[pose_topic], key=lambda e: _stamp(e[1].header))
-    stamps = np.array([_stamp(m.header) for _, m, _ in msgs])
-    t0 = float(stamps[0]) if t0 is None else float(t0)
+    msgs = sorted(topics[pose_topic], key=lambda e: _stamp_ns(e[1].header))
+    stamps = [_stamp_ns(m.header) for _, m, _ in msgs]  # int ns (exact keys)
+    t0_ns = stamps[0] if t0 is None else round(float(t0) * 1e9)
     pose = np.array([_pose_of(m) for _, m, _ in msgs], dtype=np.float64)
 
     def aligned(topic: str | None, value: Any) -> list[Any] | None:
@@ -335,9 +335,8 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
             return None
         by_stamp = {}
         for ns, msg, _ in topics[topic]:
-            key = _stamp(msg.header) if hasattr(msg, "header") else ns * 1e-9
-            by_stamp[round(key, 9)] = value(msg)
-        out = [by_stamp.get(round(s, 9)) for s in stamps]
+            by_stamp[_stamp_ns(msg.header) if hasattr(msg, "header") else ns] = value(msg)
+        out = [by_stamp.get(s) for s in stamps]
         return None if any(v is None for v in out) else out
 
     odom = None if pose_topic == "/odom" else aligned("/odom", _pose_of)
@@ -353,7 +352,7 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
     if action_topic is not None and action_topic in topics:
         acts = sorted(topics[action_topic], key=lambda e: e[0])
         actions = np.array([int(m.data) for _, m, _ in acts], dtype=np.int64)
-        action_t = np.array([ns * 1e-9 for ns, _, _ in acts]) - t0
+        action_t = np.array([(ns - t0_ns) * 1e-9 for ns, _, _ in acts])
     grid = None
     if "/map" in topics:
         grid = _grid_of(topics["/map"][-1][1])
@@ -364,7 +363,7 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                 v = tr.transform.translation
                 offset = (v.x, v.y, v.z)
     return BagTrajectory(
-        t=stamps - t0, pose=pose, odom=None if odom is None else np.array(odom),
+        t=(np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9, pose=pose, odom=None if odom is None else np.array(odom),
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),
         goal=None if goal is None else np.array(goal), actions=actions, action_t=action_t,
