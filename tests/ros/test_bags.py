@@ -191,3 +191,34 @@ def test_export_bag_of_a_collection_and_import_cli(tmp_path: Path, capsys) -> No
     code = main(["import-bag", str(tmp_path / "nowhere"), "--states", str(states),
                  "--out", str(tmp_path / "x")])
     assert code == 2 and capsys.readouterr().err.count("\n") == 1
+
+
+def test_export_bag_of_a_replay_carries_goals_and_states(tmp_path: Path) -> None:
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from simlab.ros.export import export_bag
+
+    run = tmp_path / "replay"
+    run.mkdir()
+    (run / "replay.json").write_text(json.dumps({"arena": "table"}))
+    n = 4
+    xs = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+    cols = {"t": np.arange(n) * 2.0, "duration": np.full(n, 1.0), "s": np.arange(n),
+            "a": np.array([3, 3, 11, 3]), "s_next": np.arange(1, n + 1),
+            "goal": ["C", "C", "NE", "NE"], "reward": np.zeros(n, dtype=np.int64),
+            "blocked": np.zeros(n, dtype=bool)}
+    for axis, before, after in (("x", xs[:-1], xs[1:]), ("y", np.zeros(n), np.zeros(n)),
+                                ("yaw", np.zeros(n), np.zeros(n))):
+        cols[f"{axis}_true"], cols[f"{axis}_true_next"] = before, after
+    pq.write_table(pa.table(cols), run / "transitions.parquet")
+    res = export_bag(run, tmp_path / "bag", scans=False)
+    assert res.source == "replay" and res.samples == 2 * n
+    back = read_bag(tmp_path / "bag")
+    np.testing.assert_allclose(back.t, [0, 1, 2, 3, 4, 5, 6, 7], atol=1e-9)
+    np.testing.assert_allclose(back.pose[:, 0], [0, .1, .1, .2, .2, .3, .3, .4], atol=1e-12)
+    assert back.state.tolist() == [0, 1, 1, 2, 2, 3, 3, 4]
+    assert back.goal.tolist() == ["C"] * 4 + ["NE"] * 4
+    assert back.scans is None and back.actions.tolist() == [3, 3, 11, 3]
