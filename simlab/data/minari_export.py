@@ -106,12 +106,22 @@ def _datasets_root(path: Path):
 
 
 def _env_spec(ds: Any, arena: str | None, goal: str | None, episode_length: int) -> Any:
-    """The ``TableArenaStates-v0`` spec that reproduces the data's spaces and reward."""
+    """The ``TableArenaStates-v0`` spec that reproduces the data's spaces and reward, or
+    None (with a warning) when the arena cannot be loaded (e.g. a real robot's import:
+    pass ``arena=``)."""
     import gymnasium as gym
 
     import simlab.envs  # noqa: F401  (registration)
+    from simlab.physics.arena import load_arena
 
     m = ds.manifest
+    try:
+        load_arena(arena or m["arena"]["name"])
+    except (ConfigError, OSError) as exc:
+        warnings.warn(f"no env spec recorded (recover_environment() will not work): the "
+                      f"arena {arena or m['arena']['name']!r} does not load ({exc}); pass "
+                      f"--arena NAME_OR_TOML", UserWarning, stacklevel=3)
+        return None
     names = [g["name"] for g in m["arena"].get("goals", [])]
     kwargs: dict[str, Any] = {
         "states": np.asarray(ds.centres, dtype=float).tolist(),

@@ -173,3 +173,14 @@ def test_minari_failed_export_leaves_no_partial_dataset(kinematic_dataset: Path,
     assert sorted(minari.list_local_datasets()) == ["simlab/keep-v0"]
     assert minari.load_dataset("simlab/keep-v0").total_steps > 0  # the old one survives
     assert [p.name for p in minari_home.parent.iterdir() if p.name.startswith(".")] == []
+
+
+def test_minari_export_without_a_loadable_arena_records_no_env_spec(
+        kinematic_dataset: Path, minari_home: Path) -> None:
+    import minari
+
+    from simlab.data.minari_export import export_minari
+
+    with pytest.warns(UserWarning, match="--arena"):
+        export_minari(kinematic_dataset, "simlab/noarena-v0", arena="no-such-arena")
+    assert minari.load_dataset("simlab/noarena-v0").spec.env_spec is None
