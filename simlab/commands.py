@@ -20,6 +20,8 @@ _FUNCTIONS: dict[str, str] = {
     "import_log": "simlab.data.poselog:import_log",
     "estimate": "simlab.data.estimate:estimate",
     "export_minari": "simlab.data.minari_export:export_minari",
+    "export_bag": "simlab.ros.export:export_bag",
+    "import_bag": "simlab.ros.importer:import_bag",
     "train": "simlab.training.train:train",
     "replay": "simlab.replay.replay:replay",
     "calibrate": "simlab.calibration.command:calibrate_files",

@@ -34,6 +34,8 @@ SUBCOMMANDS: dict[str, str] = {
     "import-log": "import_log",
     "estimate": "estimate",
     "export-minari": "export_minari",
+    "export-bag": "export_bag",
+    "import-bag": "import_bag",
     "train": "train",
     "replay": "replay",
     "calibrate": "calibrate",

@@ -29,9 +29,21 @@ from simlab.io import atomic_write
 DISCRETIZER_META_KEY = b"simlab.discretizer"
 
 
+#: Key of the Parquet schema metadata holding the columns' units and meanings (JSON).
+COLUMNS_META_KEY = b"simlab.columns"
+
+
 def encode_part(table: pa.Table, discretizer_hash: str) -> bytes:
-    """Parquet bytes of one part (zstd), tagged with the discretizer hash."""
-    table = table.replace_schema_metadata({DISCRETIZER_META_KEY: discretizer_hash.encode()})
+    """Parquet bytes of one part (zstd), tagged with the discretizer hash and the columns'
+    units and meanings (:data:`simlab.data.schema.COLUMN_DOCS`, JSON)."""
+    import json
+
+    from simlab.data.schema import COLUMN_DOCS
+
+    docs = {n: {"unit": COLUMN_DOCS[n][0], "description": COLUMN_DOCS[n][1]}
+            for n in table.column_names if n in COLUMN_DOCS}
+    table = table.replace_schema_metadata({DISCRETIZER_META_KEY: discretizer_hash.encode(),
+                                           COLUMNS_META_KEY: json.dumps(docs).encode()})
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, compression="zstd")
     return sink.getvalue().to_pybytes()
@@ -60,6 +72,15 @@ def write_part(
         "rows": int(table.num_rows),
         "sha256": hashlib.sha256(data).hexdigest(),
     }
+
+
+def parquet_files(directory: str | os.PathLike[str]) -> list[Path]:
+    """The part files of a dataset in (worker, part) order, as its manifest lists them
+    (for readers that take a list of files)."""
+    directory = Path(directory)
+    manifest = read_manifest(directory)
+    parts = sorted(manifest["parts"], key=lambda e: (int(e["worker"]), int(e["part"])))
+    return [directory / str(e["file"]) for e in parts]
 
 
 @dataclass(frozen=True)

@@ -16,14 +16,32 @@ Rewards are 0, or with ``goal`` the physics task's reward 1[s' in the goal area]
 ``infos`` carry ``pose`` (n + 1, 3) (m, m, rad; from the dataset's pose source), and
 ``blocked`` and ``t`` (n + 1, 1) (the step that produced the observation; False / the
 start time for the first one).
+
+Round trip: the dataset records an env spec, ``simlab/TableArenaStates-v0`` with the
+dataset's Voronoi centres (``states``, JSON list in state order), arena (built-in name or
+the ``arena=`` TOML path given to the export), action set, goal (``goal`` or the arena's
+first goal when rewards are 0) and ``max_episode_steps = episode_length``, so
+``minari.load_dataset(id).recover_environment()`` is the physics env whose observations,
+actions and rewards are those of the data. Pose sources other than ``odometry`` map to the
+simulator's truth (the env has no LIDAR localizer).
+
+Writing is one transaction: the id is validated (Minari's id syntax, an existing id
+refused unless ``overwrite``) before anything is written; the dataset is built under a
+temporary datasets root beside Minari's (``MINARI_DATASETS_PATH`` pointed there for the
+duration of the call, so the export is not thread-safe) and renamed into place, so a
+failure never leaves a partial dataset that would break ``minari list local``.
 """
 
 from __future__ import annotations
 
 import itertools
 import os
+import shutil
+import tempfile
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -58,6 +76,68 @@ def _episode_bounds(worker: np.ndarray, s: np.ndarray, s_next: np.ndarray,
     return bounds
 
 
+def check_dataset_id(dataset_id: str) -> tuple[str | None, str, int]:
+    """``(namespace, name, version)`` of a Minari id, or :class:`ConfigError` naming it."""
+    from minari.dataset.minari_dataset import parse_dataset_id
+
+    if not isinstance(dataset_id, str) or "-v" not in dataset_id:
+        raise ConfigError(f"malformed Minari id {dataset_id!r}", key="dataset_id",
+                          fix="use [namespace/]name-v<version>, e.g. simlab/table-walk-v0")
+    try:
+        return parse_dataset_id(dataset_id)
+    except (ValueError, TypeError):
+        raise ConfigError(f"malformed Minari id {dataset_id!r}", key="dataset_id",
+                          fix="use [namespace/]name-v<version>, e.g. simlab/table-walk-v0"
+                          ) from None
+
+
+@contextmanager
+def _datasets_root(path: Path):
+    """Point Minari's datasets root at ``path`` for the duration of the block."""
+    old = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(path)
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = old
+
+
+def _env_spec(ds: Any, arena: str | None, goal: str | None, episode_length: int) -> Any:
+    """The ``TableArenaStates-v0`` spec that reproduces the data's spaces and reward, or
+    None (with a warning) when the arena cannot be loaded (e.g. a real robot's import:
+    pass ``arena=``)."""
+    import gymnasium as gym
+
+    import simlab.envs  # noqa: F401  (registration)
+    from simlab.physics.arena import load_arena
+
+    m = ds.manifest
+    try:
+        load_arena(arena or m["arena"]["name"])
+    except (ConfigError, OSError) as exc:
+        warnings.warn(f"no env spec recorded (recover_environment() will not work): the "
+                      f"arena {arena or m['arena']['name']!r} does not load ({exc}); pass "
+                      f"--arena NAME_OR_TOML", UserWarning, stacklevel=3)
+        return None
+    names = [g["name"] for g in m["arena"].get("goals", [])]
+    kwargs: dict[str, Any] = {
+        "states": np.asarray(ds.centres, dtype=float).tolist(),
+        "arena": arena or m["arena"]["name"],
+        "action_set": ds.action_set.to_json(),
+        "pose_source": "odometry" if m.get("pose_source") == "odometry" else "truth",
+    }
+    if goal is not None or names:
+        kwargs["goal"] = goal if goal is not None else names[0]
+    base = gym.spec("simlab/TableArenaStates-v0")
+    return gym.envs.registration.EnvSpec(
+        id=base.id, entry_point=base.entry_point, max_episode_steps=int(episode_length),
+        kwargs={**base.kwargs, **kwargs},
+    )
+
+
 def export_minari(
     dataset: str | os.PathLike[str],
     dataset_id: str,
@@ -67,6 +147,7 @@ def export_minari(
     author: str = "simlab",
     author_email: str = "unknown",
     overwrite: bool = False,
+    arena: str | None = None,
 ) -> MinariExportResult:
     """Write the dataset directory ``dataset`` as the Minari dataset ``dataset_id``.
 
@@ -77,6 +158,8 @@ def export_minari(
         goal: name of a goal area of the dataset's arena: reward 1 when s' is in it.
         author, author_email: Minari metadata.
         overwrite: replace an existing local Minari dataset with this id.
+        arena: arena (built-in name or TOML path) of the recorded env spec (default: the
+            manifest's arena name).
 
     The dataset is stored where Minari keeps local datasets (``MINARI_DATASETS_PATH``
     or ``~/.minari/datasets``) in Minari's Arrow format.
@@ -88,9 +171,12 @@ def export_minari(
     except ModuleNotFoundError:
         raise ConfigError("exporting to Minari needs minari", key="minari",
                           fix='pip install "simlab[minari]"') from None
+    from minari.namespace import create_namespace, list_local_namespaces
     from minari.storage import get_dataset_path
 
     from simlab.data.dataset import open_dataset
+
+    namespace, _, _ = check_dataset_id(dataset_id)
     from simlab.data.goals import goal_state_masks, goals_from_manifest
 
     ds = open_dataset(dataset, validate=True)
@@ -112,11 +198,9 @@ def export_minari(
         reward_states = masks[list(names).index(goal)]
 
     target = get_dataset_path(dataset_id)
-    if target.exists():
-        if not overwrite:
-            raise ConfigError(f"a Minari dataset {dataset_id!r} already exists", path=target,
-                              fix="choose another --id or pass --overwrite")
-        minari.delete_dataset(dataset_id)
+    if target.exists() and not overwrite:
+        raise ConfigError(f"a Minari dataset {dataset_id!r} already exists", path=target,
+                          fix="choose another --id or pass --overwrite")
 
     worker = ds.column("worker")
     s = ds.column("s").astype(np.int64)
@@ -157,23 +241,36 @@ def export_minari(
         f"direction). Seed {m['seed']}, {m['workers']} workers. "
         + (f"Reward: 1 when s' is in goal {goal!r}." if goal else "Rewards are 0.")
     )
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\..*")
-        try:
-            minari.create_dataset_from_buffers(
-                dataset_id,
-                episodes,
-                observation_space=spaces.Discrete(ds.n_states),
-                action_space=spaces.Discrete(ds.n_actions),
-                algorithm_name="epsilon-greedy, epsilon = 1 (uniform random actions)",
-                author=author,
-                author_email=author_email,
-                code_permalink="simlab collect",
-                description=description,
-                data_format="arrow",
-            )
-        except ValueError as exc:
-            raise ConfigError(str(exc), key="dataset_id") from None
+    env_spec = _env_spec(ds, arena, goal, int(episode_length))
+    root = get_dataset_path()  # Minari's datasets root (created if missing)
+    tmp_root = Path(tempfile.mkdtemp(prefix=f".{root.name}.simlab-", dir=root.parent))
+    try:
+        with warnings.catch_warnings(), _datasets_root(tmp_root):
+            warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\..*")
+            try:
+                minari.create_dataset_from_buffers(
+                    dataset_id,
+                    episodes,
+                    env=env_spec,
+                    observation_space=spaces.Discrete(ds.n_states),
+                    action_space=spaces.Discrete(ds.n_actions),
+                    algorithm_name="epsilon-greedy, epsilon = 1 (uniform random actions)",
+                    author=author,
+                    author_email=author_email,
+                    code_permalink="simlab collect",
+                    description=description,
+                    data_format="arrow",
+                )
+            except ValueError as exc:
+                raise ConfigError(str(exc), key="dataset_id") from None
+        if target.exists():  # overwrite: replaced only once the new one is complete
+            minari.delete_dataset(dataset_id)
+        if namespace is not None and namespace not in list_local_namespaces():
+            create_namespace(namespace)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(tmp_root / dataset_id, target)
+    finally:
+        shutil.rmtree(tmp_root, ignore_errors=True)
     return MinariExportResult(
         dataset_id=dataset_id,
         episodes=len(episodes),

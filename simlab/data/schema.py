@@ -15,6 +15,20 @@ so ``pyarrow.dataset.dataset(DIR, format="parquet").to_table()`` and
 ``manifest.json`` would make them fail ("Parquet magic bytes not found"). DuckDB reads
 ``'DIR/*.parquet'``. Temporary files of an interrupted write also start with ``.``.
 
+**How each reader reads a dataset** (tested in ``tests/data/test_format.py`` for every
+reader installed): the directory ``DIR`` itself for the readers that discover a dataset
+the Arrow way (``pyarrow.parquet.read_table(DIR)``, ``pyarrow.dataset.dataset(DIR)``,
+``pandas.read_parquet(DIR)``, ``ray.data.read_parquet(DIR)``), and the glob
+``DIR/part-*.parquet`` for the readers that take globs (``duckdb.read_parquet``,
+``polars.read_parquet``; Polars' directory listing does not skip ``_``-files). No single
+string serves both kinds (Arrow does not expand globs, DuckDB does not list directories),
+so the layout is unchanged and :func:`simlab.data.dataset.parquet_files` gives the part
+paths, in (worker, part) order, for anything else.
+
+Units and meanings are in each part's Parquet schema: every field carries ``unit`` and
+``description`` metadata (:data:`COLUMN_DOCS`), and the schema metadata key
+``simlab.columns`` holds the same table as JSON.
+
 One row is one transition (one motion primitive). Columns:
 
 ===============  ==========  ========================================================
@@ -59,6 +73,34 @@ NO_TRUTH_SOURCES = ("truth", "log")
 POSE_COLUMNS = ("x", "y", "yaw", "x_next", "y_next", "yaw_next")
 TRUTH_COLUMNS = ("x_true", "y_true", "yaw_true", "x_next_true", "y_next_true", "yaw_next_true")
 
+#: Unit and meaning of every column, stored in the Parquet schema as each field's metadata
+#: (``unit``, ``description``) and in the part's schema metadata under ``simlab.columns``
+#: (JSON), so a reader of a bare part file knows what the numbers are.
+COLUMN_DOCS: dict[str, tuple[str, str]] = {
+    "worker": ("1", "worker (independent walk) index"),
+    "part": ("1", "part index within the worker"),
+    "step": ("1", "transition index within the worker's walk, from 0"),
+    "t": ("s", "simulated robot time (worker clock) when the primitive starts"),
+    "duration": ("s", "stepped simulated time of the primitive (no idle time)"),
+    "s": ("1", "Markov state (Voronoi cell index) before the action"),
+    "a": ("1", "action index in the manifest's action_set"),
+    "s_next": ("1", "Markov state after the action"),
+    "x": ("m", "x before, map frame, from the pose source"),
+    "y": ("m", "y before, map frame, from the pose source"),
+    "yaw": ("rad", "heading before, counter-clockwise from +x, from the pose source"),
+    "x_next": ("m", "x after, map frame, from the pose source"),
+    "y_next": ("m", "y after, map frame, from the pose source"),
+    "yaw_next": ("rad", "heading after, from the pose source"),
+    "blocked": ("1", "the obstacle detector skipped the translation"),
+    "pose_source": ("1", "where the poses come from: truth, odometry, mcl or log"),
+    "x_true": ("m", "ground-truth x before (simulated odometry/mcl datasets)"),
+    "y_true": ("m", "ground-truth y before"),
+    "yaw_true": ("rad", "ground-truth heading before"),
+    "x_next_true": ("m", "ground-truth x after"),
+    "y_next_true": ("m", "ground-truth y after"),
+    "yaw_next_true": ("rad", "ground-truth heading after"),
+}
+
 _PART_RE = re.compile(r"^part-w(\d{3})-(\d{5})\.parquet$")
 
 
@@ -97,7 +139,15 @@ def transition_schema(pose_source: str) -> pa.Schema:
     ]
     if pose_source not in NO_TRUTH_SOURCES:
         fields += [pa.field(name, pa.float64(), nullable=False) for name in TRUTH_COLUMNS]
-    return pa.schema(fields)
+    return pa.schema([f.with_metadata(column_metadata(f.name)) for f in fields])
+
+
+def column_metadata(name: str) -> dict[bytes, bytes]:
+    """Field metadata ``{unit, description}`` of a column (empty for unknown names)."""
+    if name not in COLUMN_DOCS:
+        return {}
+    unit, text = COLUMN_DOCS[name]
+    return {b"unit": unit.encode(), b"description": text.encode()}
 
 
 def schema_to_json(schema: pa.Schema) -> list[dict[str, str]]:

@@ -11,10 +11,21 @@ import gymnasium as gym
 #: id -> "module:Class" entry point. One line per environment.
 ENV_ENTRY_POINTS: dict[str, str] = {
     "simlab/TableArena-v0": "simlab.envs.table_arena:TableArenaEnv",
+    "simlab/TableArenaStates-v0": "simlab.envs.table_states:TableArenaStatesEnv",
     "simlab/EmpiricalMDP-v0": "simlab.envs.empirical_mdp:EmpiricalMDPEnv",
     "simlab/VisitLab-Nav-v0": "simlab.visitlab.envs:NavEnv",
     "simlab/VisitLab-Social-v0": "simlab.visitlab.envs:SocialEnv",
     "simlab/VisitLab-GoToHuman-v0": "simlab.visitlab.envs:GoToHumanEnv",
+}
+
+#: Episode limits registered with Gymnasium (``spec.max_episode_steps``; ``TimeLimit``
+#: truncates, ``gym.make(id, max_episode_steps=N)`` overrides), and the keyword that turns
+#: the env's own limit off so only the registered one applies. Thesis: 50-step trials.
+#: The Visit-the-lab envs keep their own limit (``max_steps``, which has no "off" value).
+ENV_LIMITS: dict[str, tuple[int, dict[str, None]]] = {
+    "simlab/TableArena-v0": (50, {"max_steps": None}),
+    "simlab/TableArenaStates-v0": (50, {"max_steps": None}),
+    "simlab/EmpiricalMDP-v0": (50, {"horizon": None}),
 }
 
 
@@ -22,4 +33,6 @@ def register_envs() -> None:
     """Register every simlab environment with Gymnasium (idempotent)."""
     for env_id, entry_point in ENV_ENTRY_POINTS.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=entry_point)
+            limit, kwargs = ENV_LIMITS.get(env_id, (None, {}))
+            gym.register(id=env_id, entry_point=entry_point, max_episode_steps=limit,
+                         kwargs=dict(kwargs))

@@ -14,6 +14,11 @@ Env card
 * **Reward** 1.0 when the state reached ``s'`` is in the goal area, else 0.0 (the
   thesis's +1 per step inside the goal area; the start state earns nothing).
 * **Episode** ``horizon`` steps (thesis: 50), ended by truncation; never terminated.
+  ``horizon=None`` leaves the limit to Gymnasium: the registered id does so and registers
+  ``max_episode_steps=50``, so ``gym.make(id, max_episode_steps=N)`` truncates at N.
+* **Render** ``ansi`` (one text line) or ``rgb_array`` (``render_fps`` 4): an (H, W, 3)
+  uint8 top-down picture of the Voronoi centres (grey), the goal states (green) and the
+  current state (red), or a strip of S squares when the MDP has no centres.
 * **Start** uniform over all states by default (so the learned policy is good
   everywhere — the replay switches goals without returning to the start), or a
   fixed ``start_state``. ``reset(options={"state": s, "goal": name})`` overrides
@@ -285,7 +290,8 @@ class EmpiricalMDPEnv(gym.Env):
         Fixed start state; ``None`` (default) draws it uniformly each episode.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["ansi"]}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["ansi", "rgb_array"],
+                                          "render_fps": 4}
 
     def __init__(
         self,
@@ -294,7 +300,7 @@ class EmpiricalMDPEnv(gym.Env):
         *,
         T: np.ndarray | None = None,
         goal_mask: np.ndarray | None = None,
-        horizon: int = 50,
+        horizon: int | None = 50,
         start_state: int | None = None,
         render_mode: str | None = None,
     ) -> None:
@@ -307,9 +313,10 @@ class EmpiricalMDPEnv(gym.Env):
         else:
             raise ConfigError("pass an mdp.npz path, an EmpiricalMDP or T=", key="mdp")
         S, A = self.mdp.n_states, self.mdp.n_actions
-        if not (isinstance(horizon, int | np.integer) and horizon >= 1):
-            raise ConfigError(f"expected an integer >= 1, got {horizon!r}", key="horizon")
-        self.horizon = int(horizon)
+        if horizon is not None and not (isinstance(horizon, int | np.integer) and horizon >= 1):
+            raise ConfigError(f"expected an integer >= 1 or None, got {horizon!r}",
+                              key="horizon")
+        self.horizon = None if horizon is None else int(horizon)
         if start_state is not None and not (0 <= int(start_state) < S):
             raise ConfigError(f"expected a state in [0, {S}), got {start_state}", key="start_state")
         self.start_state = None if start_state is None else int(start_state)
@@ -385,10 +392,38 @@ class EmpiricalMDPEnv(gym.Env):
         reward = float(self._reward[s_next])
         self._state = s_next
         self._t += 1
-        truncated = self._t >= self.horizon
+        truncated = self.horizon is not None and self._t >= self.horizon
         return s_next, reward, False, truncated, {"goal": self.goal, "in_goal": reward > 0}
 
     def render(self) -> str | None:
         if self.render_mode == "ansi":
             return f"t={self._t}/{self.horizon} state={self._state} goal={self.goal}\n"
+        if self.render_mode == "rgb_array":
+            return render_states_rgb(self.mdp.centres, self.mdp.n_states, self.goal_mask,
+                                     self._state)
         return None
+
+
+def render_states_rgb(centres: np.ndarray | None, n_states: int, goal_mask: np.ndarray,
+                      state: int, *, size: int = 256) -> np.ndarray:
+    """(size, size, 3) uint8 picture: a disc per state at its centre (grey, goal states
+    green, ``state`` red), y up; without centres a row-major grid of squares."""
+    if centres is None:
+        side = int(np.ceil(np.sqrt(n_states)))
+        idx = np.arange(n_states)
+        xy = np.stack([idx % side, -(idx // side)], axis=1).astype(np.float64)
+    else:
+        xy = np.asarray(centres, dtype=np.float64)
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    span = float(max(hi[0] - lo[0], hi[1] - lo[1], 1e-9))
+    margin = size * 0.08
+    px = margin + (xy[:, 0] - lo[0]) / span * (size - 2 * margin)
+    py = size - margin - (xy[:, 1] - lo[1]) / span * (size - 2 * margin)
+    radius = max(2.0, (size - 2 * margin) / (2.5 * max(1.0, np.sqrt(n_states))))
+    image = np.full((size, size, 3), 255, dtype=np.uint8)
+    yy, xx = np.mgrid[0:size, 0:size]
+    for s in range(n_states):
+        colour = (220, 40, 40) if s == state else (60, 170, 60) if goal_mask[s] else (150,) * 3
+        disc = (xx - px[s]) ** 2 + (yy - py[s]) ** 2 <= radius**2
+        image[disc] = colour
+    return image

@@ -9,14 +9,28 @@ Card
   :mod:`simlab.physics.motion`). Another :class:`~simlab.actions.ActionSet` (e.g. a real
   robot's 8 actions numbered counter-clockwise from East) renumbers them: action ``a``
   executes the primitive ``action_set.to_primitive(a)``; ``info["primitive"]`` says which.
-* **Observation** ``Dict(pose=Box(3), lidar=Box(360))``: the true pose (x, y in metres,
-  yaw in radians) after the primitive, and a full 360-beam LIDAR scan (metres, ``inf`` for
-  no return).
+* **Observation** ``Dict(pose=Box(3), lidar=Box(360), lidar_valid=MultiBinary(360))``
+  (``lidar_mode="finite"``, the default): the true pose (x, y in metres, yaw in radians)
+  after the primitive, a full 360-beam LIDAR scan (float32 metres in
+  ``[0, range_max]``) in which every beam without a return in ``[range_min, range_max]``
+  reads ``range_max`` (3.5 m), and ``lidar_valid`` (int8 0/1), 1 where the beam has a real
+  return. Every observation is finite and inside its bounded space, so deep-RL libraries
+  (PPO logits, observation normalisation) can use it as is. ``lidar_mode="raw"``
+  gives the scanner's REP-117 ranges instead, ``Dict(pose, lidar=Box(-inf, inf))`` with
+  ``+inf`` for no return and ``-inf`` for a reading below ``range_min`` (the simulated
+  LDS-01's rays start at ``range_min``, so only range noise produces one).
 * **Reward** 1.0 when the robot ends the step inside the current goal area, else 0.0
   (thesis eq. 2.1).
 * **Episode** starts at the arena's start pose (or ``options["pose"]``) with a goal drawn
   uniformly from the arena's goal areas (or ``options["goal"]``); never terminates;
-  truncated after ``max_steps`` primitives (thesis: 50-step trials).
+  truncated after ``max_steps`` primitives when ``max_steps`` is set (the registered id sets
+  ``max_steps=None`` and registers ``max_episode_steps=50``, the thesis's 50-step trials,
+  so Gymnasium's ``TimeLimit`` truncates and ``gym.make(id, max_episode_steps=N)`` works).
+* **Copies** ``copy.deepcopy`` and ``pickle`` rebuild a fresh PyBullet world from the
+  env's configuration (never share the client), with the robot at rest at the copied
+  pose, the same goal, step count and ``np_random`` state; the copy's odometry restarts
+  at that pose. So ``AsyncVectorEnv`` and SB3 subprocess envs are independent. Using a
+  closed env raises ``gymnasium.error.ClosedEnvironmentError``.
 * **Info** ``blocked``, ``duration`` (simulated s stepped), ``time`` (simulated s since
   reset, including the decision latency), ``goal``, ``odometry`` (3,).
 * **Seeding** the LIDAR noise and the goal draw use ``self.np_random``; the physics is
@@ -25,6 +39,7 @@ Card
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
@@ -32,15 +47,43 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ClosedEnvironmentError
 
 from simlab.actions import SIMLAB16, ActionSet
+from simlab.errors import ConfigError
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.motion import PrimitiveParams, execute_primitive
 from simlab.physics.render import render_topdown
 from simlab.physics.world import World
 
+#: Observation variants of the LIDAR (see the env card).
+LIDAR_MODES = ("finite", "raw")
+
+
+def finite_scan(ranges: np.ndarray, range_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(ranges, valid)``: float32 ranges (n,) with every non-finite beam set to
+    ``range_max`` (m), and the int8 validity mask (n,), 1 where the beam had a return."""
+    r = np.asarray(ranges, dtype=np.float32)
+    valid = np.isfinite(r)
+    return np.where(valid, r, np.float32(range_max)).astype(np.float32), valid.astype(np.int8)
+
+
+def rep117_scan(ranges: np.ndarray, hit: np.ndarray, range_min: float,
+                range_max: float) -> np.ndarray:
+    """REP-117 float32 ranges (n,) from noisy ranges (m) and a hit mask (n,) bool:
+    ``-inf`` for a return read below ``range_min``, ``+inf`` for no return or one read
+    beyond ``range_max``."""
+    r = np.asarray(ranges, dtype=np.float64).copy()
+    near = hit & (r < range_min)
+    far = ~hit | (r > range_max)
+    r[near] = -np.inf
+    r[far] = np.inf
+    return r.astype(np.float32)
+
 
 class TableArenaEnv(gym.Env):
+    """The physics TurtleBot3 acting by motion primitives (see the module's env card)."""
+
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
     def __init__(
@@ -48,32 +91,34 @@ class TableArenaEnv(gym.Env):
         arena: ArenaConfig | str = "table",
         *,
         goal: str | None = None,
-        max_steps: int = 50,
+        max_steps: int | None = 50,
         params: PrimitiveParams | None = None,
         render_mode: str | None = None,
         physics_hz: float = 200.0,
         action_set: ActionSet | Mapping[str, Any] | None = None,
+        lidar_mode: str = "finite",
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, "
                              f"got {render_mode!r}")
-        if max_steps < 1:
-            raise ValueError(f"max_steps must be >= 1, got {max_steps}")
-        self.world = World(arena, physics_hz=physics_hz)
+        if max_steps is not None and max_steps < 1:
+            raise ValueError(f"max_steps must be >= 1 or None, got {max_steps}")
+        if lidar_mode not in LIDAR_MODES:
+            raise ConfigError(f"expected one of {', '.join(LIDAR_MODES)}, got {lidar_mode!r}",
+                              key="lidar_mode")
+        self._config = {"arena": arena, "goal": goal, "max_steps": max_steps, "params": params,
+                        "render_mode": render_mode, "physics_hz": physics_hz,
+                        "action_set": action_set, "lidar_mode": lidar_mode}
+        self.world: World | None = World(arena, physics_hz=physics_hz)
         self.arena = self.world.arena
         if goal is not None:
             self.arena.goal(goal)  # validates the name
         self._fixed_goal = goal
-        self.max_steps = int(max_steps)
+        self.max_steps = None if max_steps is None else int(max_steps)
         self.params = params or PrimitiveParams()
         self.render_mode = render_mode
-        x0, y0, x1, y1 = self.arena.bounds
-        n = self.world.lidar_spec.n_beams
-        self.observation_space = spaces.Dict({
-            "pose": spaces.Box(np.array([x0, y0, -math.pi], dtype=np.float32),
-                               np.array([x1, y1, math.pi], dtype=np.float32), dtype=np.float32),
-            "lidar": spaces.Box(0.0, np.inf, shape=(n,), dtype=np.float32),
-        })
+        self.lidar_mode = lidar_mode
+        self.observation_space = self._observation_space()
         if isinstance(action_set, Mapping):  # the JSON record, e.g. from a Q-table's metadata
             action_set = ActionSet.from_json(action_set)
         self.action_set = SIMLAB16 if action_set is None else action_set
@@ -88,16 +133,59 @@ class TableArenaEnv(gym.Env):
         self._trail: list[np.ndarray] = []
         self._scan_points = np.empty((0, 2))
 
+    def _observation_space(self) -> spaces.Dict:
+        x0, y0, x1, y1 = self.arena.bounds
+        spec = self._live().lidar_spec
+        n = spec.n_beams
+        pose = spaces.Box(np.array([x0, y0, -math.pi], dtype=np.float32),
+                          np.array([x1, y1, math.pi], dtype=np.float32), dtype=np.float32)
+        if self.lidar_mode == "raw":
+            return spaces.Dict({"pose": pose,
+                                "lidar": spaces.Box(-np.inf, np.inf, shape=(n,),
+                                                    dtype=np.float32)})
+        return spaces.Dict({
+            "pose": pose,
+            "lidar": spaces.Box(0.0, np.float32(spec.range_max), shape=(n,), dtype=np.float32),
+            "lidar_valid": spaces.MultiBinary(n),
+        })
+
+    def _live(self) -> World:
+        """The world, or :class:`ClosedEnvironmentError` after :meth:`close`."""
+        if self.world is None:
+            raise ClosedEnvironmentError(
+                f"{type(self).__name__} was closed; make a new env (gym.make) to continue")
+        return self.world
+
+    def _pose_obs(self) -> np.ndarray:
+        """Pose (3,) float32 clipped to the pose box (the robot's base cannot leave the walls;
+        the clip only guards float32 rounding at the bounds)."""
+        box = self.observation_space["pose"]
+        return np.clip(self._live().pose().astype(np.float32), box.low, box.high)
+
     def _observe(self) -> dict[str, np.ndarray]:
-        scan = self.world.scan(self.np_random)
+        world = self._live()
+        spec = world.lidar_spec
+        if self.lidar_mode == "raw":
+            # noise-free cast, then the scanner's own noise draw (same stream, same size),
+            # so the reading below range_min can be told from a miss
+            scan = world.scan(None)
+            ranges = scan.ranges.copy()
+            if spec.noise_sigma > 0:
+                ranges = ranges + self.np_random.normal(0.0, spec.noise_sigma, size=ranges.shape)
+            hit = scan.hit_ids >= 0
+            lidar = rep117_scan(ranges, hit, spec.range_min, spec.range_max)
+            self._scan_points = scan.points_world()
+            return {"pose": self._pose_obs(), "lidar": lidar}
+        scan = world.scan(self.np_random)
         self._scan_points = scan.points_world()
-        pose = self.world.pose()
-        return {"pose": pose.astype(np.float32), "lidar": scan.ranges.astype(np.float32)}
+        lidar, valid = finite_scan(scan.ranges, spec.range_max)
+        return {"pose": self._pose_obs(), "lidar": lidar, "lidar_valid": valid}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        world = self._live()
         options = options or {}
-        self.world.reset(options.get("pose"))
+        world.reset(options.get("pose"))
         name = options.get("goal", self._fixed_goal)
         if name is None:
             self.goal = self.arena.goals[int(self.np_random.integers(len(self.arena.goals)))]
@@ -105,32 +193,73 @@ class TableArenaEnv(gym.Env):
             self.goal = self.arena.goal(name)
         self._steps = 0
         self._time = 0.0
-        self._trail = [self.world.pose()]
+        self._trail = [world.pose()]
         obs = self._observe()
-        return obs, {"goal": self.goal.name, "time": 0.0, "odometry": self.world.odometry()}
+        return obs, {"goal": self.goal.name, "time": 0.0, "odometry": world.odometry()}
 
     def step(self, action):
+        world = self._live()
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an int in 0..{self.action_space.n - 1}, "
                              f"got {action!r}")
         primitive = int(self._primitives[int(action)])
-        res = execute_primitive(self.world, primitive, self.np_random, self.params)
+        res = execute_primitive(world, primitive, self.np_random, self.params)
         self._steps += 1
         self._time += res.duration + self.params.decision_latency
         self._trail.append(res.pose_after)
         obs = self._observe()
-        reward = float(self.goal.contains(res.pose_after[:2]))
-        truncated = self._steps >= self.max_steps
+        reward = self._reward(res.pose_after)
+        truncated = self.max_steps is not None and self._steps >= self.max_steps
         info = {"blocked": res.blocked, "duration": res.duration, "time": self._time,
                 "goal": self.goal.name, "odometry": res.odom_after, "primitive": primitive}
         return obs, reward, False, truncated, info
 
+    def _reward(self, pose: np.ndarray) -> float:
+        """1.0 when ``pose`` (x, y, yaw) lies in the current goal area (thesis eq. 2.1)."""
+        return float(self.goal.contains(pose[:2]))
+
     def render(self):
+        world = self._live()
         if self.render_mode != "rgb_array":
             return None
-        return render_topdown(self.arena, self.world.robot_spec, self.world.pose(),
+        return render_topdown(self.arena, world.robot_spec, world.pose(),
                               trail=np.array(self._trail), scan_points=self._scan_points,
                               active_goal=self.goal.name)
 
     def close(self) -> None:
-        self.world.close()
+        """Disconnect the physics (idempotent); any later use raises."""
+        if getattr(self, "world", None) is not None:
+            self.world.close()
+            self.world = None
+
+    # ------------------------------------------------------------------ copies
+    def __getstate__(self) -> dict[str, Any]:
+        """The configuration and the episode's progress, never the PyBullet client."""
+        world = self._live()
+        return {
+            "config": dict(self._config),
+            "pose": world.pose(),
+            "goal": self.goal.name,
+            "steps": self._steps,
+            "time": self._time,
+            "trail": [np.asarray(p).copy() for p in self._trail],
+            "np_random": self._np_random,  # a Generator pickles and deep-copies its state
+            "np_random_seed": self._np_random_seed,
+        }
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Rebuild a fresh world from the configuration, the robot at rest at the pose."""
+        self.__init__(**state["config"])
+        self._live().reset(state["pose"])
+        self.goal = self.arena.goal(state["goal"])
+        self._steps = int(state["steps"])
+        self._time = float(state["time"])
+        self._trail = list(state["trail"])
+        self._np_random = state["np_random"]
+        self._np_random_seed = state["np_random_seed"]
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> TableArenaEnv:
+        new = type(self).__new__(type(self))
+        memo[id(self)] = new
+        new.__setstate__(copy.deepcopy(self.__getstate__(), memo))  # fresh world, own RNG
+        return new

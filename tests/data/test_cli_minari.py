@@ -113,3 +113,74 @@ def test_minari_cli_refuses_an_existing_id(kinematic_dataset: Path, minari_home:
     assert main([*args, "--overwrite"]) == 0
     assert main([*args[:-1], "simlab/cli-walk-v1", "--goal", "nowhere"]) == 2
     assert "unknown goal" in capsys.readouterr().err
+
+
+def test_minari_round_trip_recovers_a_working_env(kinematic_dataset: Path,
+                                                  minari_home: Path) -> None:
+    import minari
+
+    from simlab.data.minari_export import export_minari
+
+    export_minari(kinematic_dataset, "simlab/trip-v0", episode_length=64, goal="C")
+    data = minari.load_dataset("simlab/trip-v0")
+    env = data.recover_environment()
+    try:
+        assert env.spec.max_episode_steps == 64
+        assert env.observation_space == data.observation_space
+        assert env.action_space == data.action_space
+        s, _ = env.reset(seed=0, options={"pose": (0.0, 0.0, np.pi / 2)})
+        assert s == 12  # the lattice's centre state, as in the data's numbering
+        s2, r, *_ = env.step(0)
+        assert env.observation_space.contains(s2) and r == float(s2 == 12)
+        assert env.unwrapped.goal.name == "C"
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("bad_id", ["badid", "simlab/no version", "simlab//x-v0"])
+def test_minari_bad_id_writes_nothing(kinematic_dataset: Path, minari_home: Path,
+                                      bad_id: str, capsys: pytest.CaptureFixture[str]) -> None:
+    before = sorted(p.relative_to(minari_home.parent) for p in minari_home.parent.rglob("*"))
+    code = main(["export-minari", str(kinematic_dataset), "--id", bad_id])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Minari id" in err
+    after = sorted(p.relative_to(minari_home.parent) for p in minari_home.parent.rglob("*"))
+    assert after == before
+
+
+def test_minari_failed_export_leaves_no_partial_dataset(kinematic_dataset: Path,
+                                                        minari_home: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    import minari
+    from minari.dataset._storages.arrow_storage import ArrowStorage
+
+    from simlab.data.minari_export import export_minari
+
+    export_minari(kinematic_dataset, "simlab/keep-v0", episode_length=64)
+    write = ArrowStorage.update_episodes
+
+    def boom(storage, episodes):  # fail half-way: one episode written, then an error
+        write(storage, list(episodes)[:1])
+        raise OSError("disk full")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(ArrowStorage, "update_episodes", boom)
+        with pytest.raises(OSError, match="disk full"):
+            export_minari(kinematic_dataset, "simlab/half-v0", episode_length=64)
+        with pytest.raises(OSError, match="disk full"):
+            export_minari(kinematic_dataset, "simlab/keep-v0", episode_length=64,
+                          overwrite=True)
+    assert sorted(minari.list_local_datasets()) == ["simlab/keep-v0"]
+    assert minari.load_dataset("simlab/keep-v0").total_steps > 0  # the old one survives
+    assert [p.name for p in minari_home.parent.iterdir() if p.name.startswith(".")] == []
+
+
+def test_minari_export_without_a_loadable_arena_records_no_env_spec(
+        kinematic_dataset: Path, minari_home: Path) -> None:
+    import minari
+
+    from simlab.data.minari_export import export_minari
+
+    with pytest.warns(UserWarning, match="--arena"):
+        export_minari(kinematic_dataset, "simlab/noarena-v0", arena="no-such-arena")
+    assert minari.load_dataset("simlab/noarena-v0").spec.env_spec is None

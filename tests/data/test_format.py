@@ -194,3 +194,63 @@ def test_dataset_object_exposes_manifest_facts(kinematic_dataset: Path) -> None:
     assert ds.n_states == 25 and ds.n_actions == 16
     assert ds.centres.shape == (25, 2)
     assert ds.discretizer_hash == read_manifest(kinematic_dataset)["discretizer"]["hash"]
+
+
+# ---------------------------------------------------------------- every reader, one layout
+def _readers(directory: Path) -> dict[str, object]:
+    """Row counts by every installed reader, each through the documented path."""
+    import glob
+    import importlib.util
+
+    from simlab.data.dataset import parquet_files
+
+    glob_path = str(directory / "part-*.parquet")
+    counts: dict[str, object] = {
+        "pyarrow.parquet(DIR)": pq.read_table(directory).num_rows,
+        "pyarrow.dataset(DIR)": pads.dataset(directory, format="parquet").count_rows(),
+        "pyarrow.dataset(glob)": pads.dataset(sorted(glob.glob(glob_path))).count_rows(),
+        "parquet_files": pads.dataset([str(p) for p in parquet_files(directory)]).count_rows(),
+    }
+    if importlib.util.find_spec("pandas"):
+        import pandas as pd
+
+        counts["pandas(DIR)"] = len(pd.read_parquet(directory))
+    if importlib.util.find_spec("polars"):
+        import polars as pl
+
+        counts["polars(glob)"] = pl.read_parquet(glob_path).height
+    if importlib.util.find_spec("duckdb"):
+        import duckdb
+
+        counts["duckdb(glob)"] = duckdb.sql(
+            f"SELECT count(*) FROM read_parquet('{glob_path}')").fetchone()[0]
+    if importlib.util.find_spec("ray") and importlib.util.find_spec("pandas"):
+        import ray
+
+        ray.init(num_cpus=1, include_dashboard=False, ignore_reinit_error=True,
+                 log_to_driver=False)
+        try:
+            counts["ray.data(DIR)"] = ray.data.read_parquet(str(directory)).count()
+        finally:
+            ray.shutdown()
+    return counts
+
+
+def test_every_installed_reader_reads_the_same_rows(kinematic_dataset: Path) -> None:
+    counts = _readers(kinematic_dataset)
+    assert set(counts.values()) == {read_dataset(kinematic_dataset).num_rows}, counts
+
+
+def test_units_and_meanings_are_in_the_parquet_schema(kinematic_dataset: Path) -> None:
+    from simlab.data.schema import COLUMN_DOCS
+
+    path = sorted(kinematic_dataset.glob("part-*.parquet"))[0]
+    schema = pq.read_schema(path)
+    for f in schema:
+        assert f.metadata[b"unit"].decode() == COLUMN_DOCS[f.name][0], f.name
+        assert f.metadata[b"description"]
+    assert schema.field("x").metadata[b"unit"] == b"m"
+    assert schema.field("yaw").metadata[b"unit"] == b"rad"
+    assert schema.field("t").metadata[b"unit"] == b"s"
+    docs = json.loads(schema.metadata[b"simlab.columns"])
+    assert set(docs) == set(schema.names) and docs["duration"]["unit"] == "s"

@@ -1,0 +1,224 @@
+"""ROS 2 bags: written then read back exactly; an imported bag equals the pose-log import;
+export of a collection; the two CLI commands."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+
+from discretize.gridmap import OccupancyMap
+from discretize.voronoi import Discretizer
+from simlab.actions import parse_action_set
+from simlab.cli import main
+from simlab.data.dataset import open_dataset, read_dataset
+from simlab.data.poselog import import_log
+from simlab.errors import ConfigError
+from simlab.ros.bag import BagTrajectory, read_bag, write_bag
+from simlab.ros.importer import import_bag
+
+CCW = parse_action_set(8, "ccw-east")
+CENTRES = np.array([[x, y] for y in (2.0, 1.0, 0.0) for x in (0.0, 1.0, 2.0, 3.0)])
+PLAN = [(0, False), (2, False), (5, True), (5, False), (3, False), (7, True), (1, False),
+        (6, False), (4, True), (2, False)]
+
+
+def _simulate(plan, rng, *, rate=2.0, speed=0.15, drive=2.0, idle=3.0, w=1.5):
+    """Samples (N, 4) ``t x y yaw`` (t from 0) of a robot executing ``plan`` =
+    [(ccw-east action, blocked)], and the decision start times (s)."""
+    dt = 0.005
+    x, y, yaw, t = 1.5, 1.0, 0.0, 0.0
+    trace, starts = [(t, x, y, yaw)], []
+
+    def step(vx, vy, wz, n):
+        nonlocal x, y, yaw, t
+        for _ in range(n):
+            x, y, yaw, t = x + vx * dt, y + vy * dt, yaw + wz * dt, t + dt
+            trace.append((t, x, y, yaw))
+
+    for action, blocked in plan:
+        step(0, 0, 0, round(idle / dt))
+        starts.append(t)
+        goal = CCW.heading(action)
+        turn = (goal - yaw + math.pi) % (2 * math.pi) - math.pi
+        if abs(turn) > 1e-9:
+            n = round(abs(turn) / w / dt)
+            step(0, 0, turn / (n * dt), n)
+            yaw = goal
+        if not blocked:
+            step(speed * math.cos(goal), speed * math.sin(goal), 0, round(drive / dt))
+    step(0, 0, 0, round(idle / dt))
+    trace = np.asarray(trace)
+    idx = np.searchsorted(trace[:, 0], np.arange(0.13, trace[-1, 0], 1.0 / rate))
+    s = trace[idx].copy()
+    s[:, 1:3] += rng.normal(0, 0.003, (len(idx), 2))
+    s[:, 3] = (s[:, 3] + rng.normal(0, 0.01, len(idx)) + math.pi) % (2 * math.pi) - math.pi
+    s[:, 0] = np.round(s[:, 0] - s[0, 0], 6)  # from 0, whole microseconds (exact in ns)
+    return s, np.asarray(starts) - 0.13
+
+
+def _traj(samples, **kw) -> BagTrajectory:
+    return BagTrajectory(t=samples[:, 0], pose=samples[:, 1:4], **kw)
+
+
+def test_written_bag_reads_back_poses_scans_map_exactly(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    n = 25
+    t = np.cumsum(rng.uniform(0.1, 0.5, n))
+    pose = np.column_stack([rng.uniform(-1, 1, (n, 2)), rng.uniform(-3.1, 3.1, n)])
+    odom = pose + rng.normal(0, 0.05, (n, 3))
+    scans = rng.uniform(0.12, 3.5, (n, 360)).astype(np.float32)
+    scans[rng.random((n, 360)) < 0.1] = np.inf
+    occ = rng.choice(np.array([-1, 0, 100], dtype=np.int8), (30, 40))
+    grid = OccupancyMap(occ, 0.05, (-1.0, -0.75, 0.0))
+    traj = BagTrajectory(t=t, pose=pose, odom=odom, scans=scans, state=np.arange(n) % 7,
+                         goal=np.array(["NE", "C"] * 12 + ["NE"]), map=grid)
+    path = write_bag(tmp_path / "run", traj, t0=1.7e9)
+    assert (path / "metadata.yaml").is_file() and list(path.glob("*.mcap"))
+    back = read_bag(path)
+    np.testing.assert_allclose(back.t, t - t[0], atol=1e-6)  # ns stamps at 1.7e9 s
+    np.testing.assert_allclose(back.pose[:, :2], pose[:, :2], rtol=0, atol=1e-12)
+    dyaw = (back.pose[:, 2] - pose[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(dyaw).max() < 1e-12
+    np.testing.assert_allclose(back.odom[:, :2], odom[:, :2], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(back.scans, scans)  # float32 exactly, inf kept
+    np.testing.assert_array_equal(back.map.occupancy, occ)
+    assert back.map.resolution == pytest.approx(0.05) and back.map.origin == (-1.0, -0.75, 0.0)
+    assert back.state.tolist() == (np.arange(n) % 7).tolist()
+    assert back.goal.tolist() == traj.goal.tolist()
+    assert back.scan_geometry.range_max == pytest.approx(3.5)
+    # the pose through /odom instead of /amcl_pose
+    np.testing.assert_allclose(read_bag(path, pose_topic="/odom").pose[:, :2], odom[:, :2],
+                               atol=1e-12)
+    with pytest.raises(ConfigError, match="already exists"):
+        write_bag(path, traj)
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]  # no temporary left behind
+
+
+def test_tf_tree_is_map_odom_base_footprint_base_link_base_scan(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    pose = np.array([[0.5, 0.2, 0.3], [0.6, 0.2, 0.3]])
+    odom = np.array([[0.4, 0.0, 0.1], [0.5, 0.0, 0.1]])
+    path = write_bag(tmp_path / "tf", BagTrajectory(t=np.array([0.0, 0.5]), pose=pose,
+                                                     odom=odom))
+    edges, map_odom = set(), None
+    with Reader(path) as r:
+        for c, _, raw in r.messages():
+            if c.topic in ("/tf", "/tf_static"):
+                for tr in ts.deserialize_cdr(raw, c.msgtype).transforms:
+                    edges.add((tr.header.frame_id, tr.child_frame_id))
+                    if tr.child_frame_id == "odom":
+                        map_odom = tr.transform
+    assert edges == {("map", "odom"), ("odom", "base_footprint"),
+                     ("base_footprint", "base_link"), ("base_link", "base_scan")}
+    # map -> odom composed with odom -> base gives the map pose
+    from simlab.ros.bag import compose, yaw_of
+
+    mo = np.array([map_odom.translation.x, map_odom.translation.y, yaw_of(map_odom.rotation)])
+    np.testing.assert_allclose(compose(mo, odom[1]), pose[1], atol=1e-12)
+
+
+def _centres_file(path: Path) -> Path:
+    path.write_text("".join(f"{x} {y}\n" for x, y in CENTRES))
+    return path
+
+
+def test_imported_bag_equals_the_pose_log_import(tmp_path: Path) -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(4))
+    log = tmp_path / "run.log"
+    log.write_text("".join(" ".join(repr(float(v)) for v in row) + "\n" for row in samples))
+    states = _centres_file(tmp_path / "centres.txt")
+    import_log(log, states=states, out=tmp_path / "from_log")
+    bag = write_bag(tmp_path / "run_bag", _traj(samples), t0=1000.0)
+    res = import_bag(bag, states=states, out=tmp_path / "from_bag")
+    assert res.action_source.startswith("segmentation")
+    a, b = read_dataset(tmp_path / "from_log"), read_dataset(tmp_path / "from_bag")
+    assert a.num_rows == b.num_rows == len(PLAN)
+    assert a.column_names == b.column_names
+    for name in a.column_names:
+        x, y = a.column(name).to_numpy(), b.column(name).to_numpy()
+        if x.dtype.kind == "f":
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-6, err_msg=name)
+        else:
+            np.testing.assert_array_equal(y, x, err_msg=name)
+    assert b.column("a").to_pylist() == [p[0] for p in PLAN]
+
+
+def test_action_topic_gives_the_decisions(tmp_path: Path) -> None:
+    samples, starts = _simulate(PLAN, np.random.default_rng(5))
+    actions = np.array([p[0] for p in PLAN])
+    bag = write_bag(tmp_path / "b", _traj(samples, actions=actions, action_t=starts))
+    res = import_bag(bag, states=Discretizer(centres=CENTRES), out=tmp_path / "ds")
+    assert res.action_source == "action topic /simlab/action" and res.decisions == len(PLAN)
+    ds = open_dataset(tmp_path / "ds")
+    assert ds.column("a").tolist() == actions.tolist()
+    assert ds.column("blocked").tolist() == [p[1] for p in PLAN]
+
+
+def test_export_bag_of_a_collection_and_import_cli(tmp_path: Path, capsys) -> None:
+    from discretize.voronoi import Discretizer as D
+    from simlab.data.collect import collect
+
+    g = np.linspace(-0.6, 0.6, 5)
+    disc = D(centres=np.array([(x, y) for y in g[::-1] for x in g]))
+    states = tmp_path / "states.json"
+    disc.save(states)
+    collect(arena="table", states=disc, out=tmp_path / "walk", transitions=30, seed=1,
+            part_size=30, simulator="kinematic", progress=False)
+    assert main(["export-bag", str(tmp_path / "walk"), "--out", str(tmp_path / "bag")]) == 0
+    assert "pose samples of the dataset" in capsys.readouterr().out
+    back = read_bag(tmp_path / "bag")
+    walk = read_dataset(tmp_path / "walk")
+    np.testing.assert_allclose(back.pose[0], [walk.column(c)[0].as_py()
+                                              for c in ("x", "y", "yaw")], atol=1e-12)
+    assert back.actions.tolist() == walk.column("a").to_pylist()
+    assert back.state[0] == walk.column("s")[0].as_py()
+    assert back.scans.shape == (len(back.t), 360) and back.map.occupancy.max() == 100
+    # a wall is about 0.75 m from the centre: the cast scan sees it
+    assert np.isfinite(back.scans).mean() > 0.9
+    assert main(["import-bag", str(tmp_path / "bag"), "--states", str(states), "--out",
+                 str(tmp_path / "again"), "--n-actions", "16", "--convention",
+                 "simlab"]) == 0
+    again = read_dataset(tmp_path / "again")
+    assert again.column("a").to_pylist() == walk.column("a").to_pylist()
+    code = main(["import-bag", str(tmp_path / "nowhere"), "--states", str(states),
+                 "--out", str(tmp_path / "x")])
+    assert code == 2 and capsys.readouterr().err.count("\n") == 1
+
+
+def test_export_bag_of_a_replay_carries_goals_and_states(tmp_path: Path) -> None:
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from simlab.ros.export import export_bag
+
+    run = tmp_path / "replay"
+    run.mkdir()
+    (run / "replay.json").write_text(json.dumps({"arena": "table"}))
+    n = 4
+    xs = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+    cols = {"t": np.arange(n) * 2.0, "duration": np.full(n, 1.0), "s": np.arange(n),
+            "a": np.array([3, 3, 11, 3]), "s_next": np.arange(1, n + 1),
+            "goal": ["C", "C", "NE", "NE"], "reward": np.zeros(n, dtype=np.int64),
+            "blocked": np.zeros(n, dtype=bool)}
+    for axis, before, after in (("x", xs[:-1], xs[1:]), ("y", np.zeros(n), np.zeros(n)),
+                                ("yaw", np.zeros(n), np.zeros(n))):
+        cols[f"{axis}_true"], cols[f"{axis}_true_next"] = before, after
+    pq.write_table(pa.table(cols), run / "transitions.parquet")
+    res = export_bag(run, tmp_path / "bag", scans=False)
+    assert res.source == "replay" and res.samples == 2 * n
+    back = read_bag(tmp_path / "bag")
+    np.testing.assert_allclose(back.t, [0, 1, 2, 3, 4, 5, 6, 7], atol=1e-9)
+    np.testing.assert_allclose(back.pose[:, 0], [0, .1, .1, .2, .2, .3, .3, .4], atol=1e-12)
+    assert back.state.tolist() == [0, 1, 1, 2, 2, 3, 3, 4]
+    assert back.goal.tolist() == ["C"] * 4 + ["NE"] * 4
+    assert back.scans is None and back.actions.tolist() == [3, 3, 11, 3]
