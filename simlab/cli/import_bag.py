@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import argparse
 
+from simlab.cli.import_log import add_segment_arguments, segment_params_from_args
+
 HELP = "import a ROS 2 bag (/amcl_pose or /odom, optional action topic) as a dataset"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from simlab.data.poselog import SegmentParams
-
-    d = SegmentParams()
     parser.add_argument("bag", help="ROS 2 bag directory (MCAP or sqlite3)")
     parser.add_argument("--states", required=True,
                         help="states: `simlab discretize` JSON or centres text")
@@ -27,24 +26,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "segmentation of import-log (default /simlab/action)")
     parser.add_argument("--segment", action="store_true",
                         help="ignore the action topic and segment the poses")
-    parser.add_argument("--move-speed", type=float, default=d.move_speed, metavar="M/S",
-                        help=f"translation faster than this is a move (default {d.move_speed})")
-    parser.add_argument("--turn-rate", type=float, default=d.turn_rate, metavar="RAD/S",
-                        help=f"rotation faster than this is a turn (default {d.turn_rate})")
-    parser.add_argument("--join-gap", type=float, default=d.join_gap, metavar="S",
-                        help=f"longest pause between a turn and its move (default {d.join_gap})")
-    parser.add_argument("--speed-split", type=float, default=d.speed_split, metavar="M/S",
-                        help="16 actions: faster mean translation = fast primitive "
-                        f"(default {d.speed_split})")
+    add_segment_arguments(parser)
     parser.add_argument("--overwrite", action="store_true", help="replace a dataset in --out")
 
 
 def run(args: argparse.Namespace) -> int:
-    from simlab.data.poselog import SegmentParams
     from simlab.ros.importer import import_bag
 
-    segment = SegmentParams(move_speed=args.move_speed, turn_rate=args.turn_rate,
-                            join_gap=args.join_gap, speed_split=args.speed_split)
+    segment = segment_params_from_args(args)
     res = import_bag(args.bag, states=args.states, out=args.out, n_actions=args.n_actions,
                      convention=args.convention, pose_topic=args.pose_topic,
                      action_topic=None if args.segment else args.action_topic,
