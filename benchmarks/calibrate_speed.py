@@ -1,9 +1,9 @@
 """How long does `simlab calibrate` take, and how close does it get to the sampling floor?
 
 Issue 12's benchmark: a calibration on a map-built arena of ~40 m2 with ~40 states on 2
-cores. Map-built arenas are another engineer's work; until they are merged the default is
-the largest built-in arena (``table_obstacles``, 1.5 x 1.5 m) and 40 ground-truth Voronoi
-states — pass ``--arena lab.toml --states lab_states.json`` to run the real case.
+cores. The default arena is ``map-lab``: a synthetic GMapping-like 8 x 5 m lab map written
+here, turned into an arena by ``arena_from_map`` and discretized into 40 Voronoi states;
+``--arena table_obstacles`` (or any TOML, with ``--states``) runs another case.
 
 The "real" table: ``--real COUNTS`` (with ``--n-actions/--convention/--real-hours``), or by
 default a hidden physics walk of ``--real-hours`` hours with 8 ccw-east actions and hidden
@@ -25,28 +25,38 @@ import tempfile
 import time
 from pathlib import Path
 
+from collect_speed import ground_truth_states  # benchmarks/ is on sys.path as the script's dir
 
-def ground_truth_states(path: Path, arena_name: str, n_states: int) -> Path:
+
+def map_lab(directory: Path, n_states: int) -> tuple[Path, Path]:
+    """A GMapping-like 8 x 5 m lab (40 m2: walls, a desk row, a pillar; unknown outside) at
+    5 cm, its arena (``arena_from_map``, map frame kept) and ``n_states`` Voronoi states."""
     import numpy as np
 
     from discretize.gridmap import OccupancyMap
+    from discretize.mapio import write_map
     from discretize.voronoi import Discretizer
-    from simlab.physics.arena import load_arena
+    from simlab.physics.map_arena import arena_from_map
 
-    arena = load_arena(arena_name)
-    x0, y0, x1, y1 = arena.bounds
-    res, pad = 0.02, 0.15
-    origin = (x0 - pad, y0 - pad)
-    shape = (round((y1 - y0 + 2 * pad) / res), round((x1 - x0 + 2 * pad) / res))
-    occ = np.where(arena.rasterize(res, origin, shape), 100, 0).astype(np.int8)
-    grid = OccupancyMap(occ, res, (origin[0], origin[1], 0.0))
-    Discretizer.from_map(grid, n_states).save(path)
-    return path
+    res = 0.05
+    occ = np.full((112, 172), -1, dtype=np.int8)         # 5.6 x 8.6 m image, unknown
+    occ[5:107, 5:167] = 100                               # outer walls ...
+    occ[6:106, 6:166] = 0                                 # ... around 8 x 5 m of floor
+    occ[30:46, 40:120] = 100                              # a row of desks
+    occ[75:83, 130:138] = 100                             # a pillar
+    grid = OccupancyMap(occ, res, (-1.0, 2.0, 0.0))       # an off-origin map frame
+    yaml_path, _ = write_map(directory / "map.yaml", grid)
+    states = directory / "states.json"
+    Discretizer.from_map(grid, n_states).save(states)
+    arena = arena_from_map(yaml_path, directory / "lab.toml")
+    return arena, states
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--arena", default="table_obstacles")
+    parser.add_argument("--arena", default="map-lab",
+                        help="map-lab (a synthetic 40 m2 map-built lab, default), a built-in "
+                             "arena or a TOML")
     parser.add_argument("--states", default=None, help="states file (default: ground truth)")
     parser.add_argument("--n-states", type=int, default=40)
     parser.add_argument("--real", default=None, help="real counts (default: hidden walk)")
@@ -73,8 +83,12 @@ def main() -> None:
 
     aset = parse_action_set(args.n_actions, args.convention)
     with tempfile.TemporaryDirectory(prefix="simlab-bench-") as tmp:
-        states = Path(args.states) if args.states else ground_truth_states(
-            Path(tmp) / "states.json", args.arena, args.n_states)
+        if args.arena == "map-lab":
+            args.arena, default_states = map_lab(Path(tmp), args.n_states)
+        else:
+            default_states = None if args.states else ground_truth_states(
+                Path(tmp) / "states.json", args.arena, args.n_states)
+        states = Path(args.states) if args.states else default_states
         disc = load_discretizer(states)
         hidden = None
         t0 = time.perf_counter()
