@@ -53,6 +53,7 @@ from simlab.calibration.metrics import (
     bootstrap_floor,
     cross_entropy,
     entropy_per_action,
+    excess_distance,
     table_summary,
     tv_distance,
 )
@@ -110,10 +111,15 @@ class CalibrationConfig:
         step: initial refinement step, in unit-cube coordinates (> 0).
         n_boot: bootstrap resamples of the sampling floor.
         unvisited: rule for real pairs the simulation never tried (``report``/``max``).
-        objective: what the search minimises: ``"tv"`` (the visit-weighted TV distance,
-            the issue's measure) or ``"loglik"`` (bits per real transition under the
-            simulated T, :func:`~simlab.calibration.metrics.cross_entropy`; unbiased with
-            sparse real tables). The report always gives the TV distance.
+        objective: what the search minimises: ``"excess"`` (default: the visit-weighted TV
+            distance minus what sampling alone gives if the candidate were the truth,
+            :func:`~simlab.calibration.metrics.excess_distance`), ``"tv"`` (the plain
+            distance; with a few real visits per pair it favours too-certain simulators:
+            measured on a 36-state kinematic lattice with 365 and 1,167 real transitions, two
+            seeds each, hidden drive time 0.8 s was found at 0.45-0.64 s by ``tv`` and at
+            0.65-1.17 s by ``excess``: no longer biased low, but as spread) or ``"loglik"`` (bits per real transition under the simulated T,
+            :func:`~simlab.calibration.metrics.cross_entropy`). The report always gives the
+            plain TV distance.
         confirm: re-simulate the winner with another seed for the reported distance.
         progress: tqdm bar over candidates.
     """
@@ -128,7 +134,7 @@ class CalibrationConfig:
     step: float = 0.15
     n_boot: int = 200
     unvisited: str = "report"
-    objective: str = "tv"
+    objective: str = "excess"
     confirm: bool = True
     progress: bool = True
 
@@ -143,7 +149,7 @@ class CalibrationConfig:
             ("step", self.step > 0, "> 0"),
             ("n_boot", int(self.n_boot) >= 1, "an integer >= 1"),
             ("unvisited", self.unvisited in ("report", "max"), "report or max"),
-            ("objective", self.objective in ("tv", "loglik"), "tv or loglik"),
+            ("objective", self.objective in OBJECTIVES, " or ".join(OBJECTIVES)),
         )
         for name, ok, expected in checks:
             if not ok:
@@ -311,6 +317,23 @@ def _base_point(space: ParameterSpace, base: Any) -> NDArray[np.float64]:
     return space.unit({n: float(getattr(base, n)) for n in space.names})
 
 
+#: What the search may minimise (:class:`CalibrationConfig.objective`).
+OBJECTIVES = ("tv", "excess", "loglik")
+
+
+def _score(cfg: CalibrationConfig, sim: NDArray[np.int64], real: NDArray[np.int64],
+           distance: float) -> float:
+    if cfg.objective == "tv":
+        return distance
+    if cfg.objective == "loglik":
+        return cross_entropy(sim, real)
+    # excess: every candidate's resamples draw from the same seeded stream (common random
+    # numbers, as for the walks: differences between candidates are parameters, not noise)
+    rng = np.random.default_rng(np.random.SeedSequence(cfg.seed, spawn_key=(7,)))
+    e = excess_distance(sim, real, rng, unvisited=cfg.unvisited, n_boot=64)
+    return e if math.isfinite(e) else 1.0
+
+
 def _evaluate(runner: _Runner, points: list[NDArray[np.float64]], stage: str, start: int,
               ctx: dict[str, Any]) -> list[Candidate]:
     space: ParameterSpace = ctx["space"]
@@ -324,7 +347,7 @@ def _evaluate(runner: _Runner, points: list[NDArray[np.float64]], stage: str, st
     for job, u, sim in zip(jobs, points, runner.map(jobs), strict=True):
         tv = tv_distance(sim.counts, ctx["real"].counts, unvisited=cfg.unvisited)
         d = tv.distance if math.isfinite(tv.distance) else 1.0
-        score = d if cfg.objective == "tv" else cross_entropy(sim.counts, ctx["real"].counts)
+        score = _score(cfg, sim.counts, ctx["real"].counts, d)
         out.append(Candidate(job.index, stage, np.asarray(u), space.values(u), d, sim, tv,
                              score))
     return out

@@ -121,3 +121,30 @@ def test_cross_entropy_is_the_real_entropy_for_a_well_sampled_exact_simulator() 
     # a simulator that never leaves state 0 from (0, 0) pays for the real move to 1
     worse = table({(0, 0, 0): 2000, (1, 1, 1): 3000, (0, 1, 1): 5})
     assert cross_entropy(worse, real) > cross_entropy(sim, real) + 0.5
+
+
+def _sample(T: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Counts of ``n`` draws per (s, a) from ``T`` (S, A, S)."""
+    S, A, _ = T.shape
+    return np.array([[rng.multinomial(n, T[s, a]) for a in range(A)] for s in range(S)])
+
+
+def test_excess_distance_is_near_zero_for_the_truth_and_positive_for_a_wrong_model() -> None:
+    from simlab.calibration.metrics import excess_distance
+
+    rng = np.random.default_rng(3)
+    S, A = 30, 4
+    T_true = rng.dirichlet(np.ones(4), size=(S, A))
+    T_true = np.concatenate([T_true, np.zeros((S, A, S - 4))], axis=2)
+    T_wrong = np.roll(T_true, 1, axis=2)  # same spread, other next states
+    real = _sample(T_true, 5, rng)        # sparse: 5 visits per pair
+    truth_sim = _sample(T_true, 40, rng)
+    wrong_sim = _sample(T_wrong, 40, rng)
+    e_truth = excess_distance(truth_sim, real, np.random.default_rng(0))
+    e_wrong = excess_distance(wrong_sim, real, np.random.default_rng(0))
+    assert abs(e_truth) < 0.05
+    assert e_wrong > 0.2
+    # the plain distance of the truth is far from 0 at 5 visits per pair: sampling alone
+    assert tv_distance(truth_sim, real).distance > 0.15
+    # seeded: same inputs and Generator seed, same value
+    assert excess_distance(truth_sim, real, np.random.default_rng(0)) == e_truth
