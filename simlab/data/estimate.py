@@ -429,8 +429,9 @@ def estimate(
     if dataset is None:
         states_hash = None if disc is None else disc.content_hash()
     # the states fingerprint: train and replay check it against their states file
-    meta = {"action_set": action_set.to_json(), "unvisited": unvisited,
-            "states_hash": states_hash}
+    meta = {"action_set": action_set.to_json(), "unvisited": unvisited}
+    if states_hash is not None:
+        meta["states_hash"] = states_hash
     arrays: dict[str, Any] = {
         "counts": mdp.counts,
         "T": mdp.T,
