@@ -313,6 +313,10 @@ def train(
 
     t0 = time.perf_counter()
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
+    from simlab.statecheck import npz_states_hash
+
+    # the states fingerprint travels from the MDP into every Q-table (replay checks it)
+    states_hash = None if isinstance(mdp, EmpiricalMDP) else npz_states_hash(mdp)
     task = TrainTask() if task is None else task
     if task.goal_states is not None and goals not in (None, "all"):
         raise ConfigError("give either goals or goal_states", key="goal_states")
@@ -359,7 +363,8 @@ def train(
         job = _TrainJob(m=m, agent=agent, names=names, episodes=episodes, runs=runs, seed=seed,
                         horizon=horizon, start=start, params=params, valid=valid, task=task,
                         gamma=gamma, files=files, progress=progress, plot_bounds=plot_bounds,
-                        background=background, plots=plots, t0=t0, out=out)  # fmt: skip
+                        background=background, plots=plots, t0=t0, out=out,
+                        states_hash=states_hash)  # fmt: skip
         return _train_and_write(job, txn)
     raise AssertionError("unreachable")  # pragma: no cover
 
@@ -387,6 +392,7 @@ class _TrainJob:
     plots: bool
     t0: float
     out: Any
+    states_hash: str | None = None
 
 
 def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
@@ -395,7 +401,7 @@ def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
 
     (m, agent, names, episodes, runs, seed, horizon, start, params, valid, task, gamma, files,
      progress, plot_bounds, background, plots, t0, out) = (
-        getattr(job, f.name) for f in dataclasses.fields(job))  # fmt: skip
+        getattr(job, f.name) for f in dataclasses.fields(job)[:-1])  # fmt: skip
 
     from simlab.training.curves import curve_points
     from simlab.training.harness import evaluate_q, train_runs
@@ -449,6 +455,7 @@ def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
         _write_outputs(staged, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
                        agent, config, dict(seed=seed, episodes=episodes, runs=runs,
                                            horizon=horizon, start=_start_meta(start),
+                                           states_hash=job.states_hash,
                                            gamma=gamma, **_task_meta(m, task, valid)),
                        plot_bounds, background, plots, final_files=files)  # fmt: skip
     return TrainSummary(
