@@ -653,14 +653,14 @@ def replay(
                           fix="pass --qtables DIR (the output of `simlab train`) or --random")
     qt = None if qtables is None else load_qtables(qtables, goal_names, disc.n_states, states_src,
                                                    action_set=action_set)
-    mdp_source = mdp if mdp is not None else (None if qt is None else discover_mdp(qt))
-    model = None if mdp_source is None else load_model(
-        mdp_source, disc, goal_names, goal_masks,
-        action_set=None if qt is None else qt.action_set)
     states_hash = disc.content_hash()
     for i, meta in enumerate(() if qt is None else qt.metadata):
         check_states_hash(meta.get("states_hash"), states_hash, what="the Q-table",
                           path=qt.files[i] or qt.source, against=states_src or "the states")
+    mdp_source = mdp if mdp is not None else (None if qt is None else discover_mdp(qt))
+    model = None if mdp_source is None else load_model(
+        mdp_source, disc, goal_names, goal_masks,
+        action_set=None if qt is None else qt.action_set)
     if isinstance(mdp_source, str | os.PathLike):
         check_states_hash(npz_states_hash(mdp_source), states_hash, what="the MDP",
                           path=mdp_source, against=states_src or "the states")
