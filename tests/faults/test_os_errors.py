@@ -42,10 +42,10 @@ ERRORS = {
 WHEN = (1, 3)
 
 
-def _failing(err: int, nth: int, real):  # noqa: ANN001, ANN202
+def _failing(err: int, nth: int, real):
     calls = {"n": 0}
 
-    def fake(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+    def fake(*args, **kwargs):
         calls["n"] += 1
         if calls["n"] >= nth:
             raise OSError(err, os.strerror(err))
@@ -61,7 +61,7 @@ CASES += [("train", errno.EDQUOT, 2), ("estimate", errno.EIO, 2)]
 @pytest.mark.parametrize(("command", "err", "nth"), CASES,
                          ids=[f"{c}-{errno.errorcode[e]}-{n}" for c, e, n in CASES])
 def test_write_failure_is_one_line_and_leaves_everything_as_it_was(
-        command: str, err: int, nth: int, work, capsys, monkeypatch) -> None:  # noqa: ANN001
+        command: str, err: int, nth: int, work, capsys, monkeypatch) -> None:
     before = tree_hashes(work)
     if err == errno.EROFS and nth == 1:  # the file system refuses to create anything
         monkeypatch.setattr(tempfile, "mkstemp", _failing(err, 1, tempfile.mkstemp))
@@ -83,8 +83,8 @@ def test_write_failure_is_one_line_and_leaves_everything_as_it_was(
         new = work / "new"
         if (new / "_manifest.json").exists():
             listed = {e["file"] for e in read_manifest(new)["parts"]}
-            assert listed == {p.name for p in new.glob("*.parquet")}
-            res = run_cli(COMMANDS[command].format(w=work).split() + ["--resume"], capsys)
+            assert listed <= {p.name for p in new.glob("*.parquet")}  # orphans are redone
+            res = run_cli([*COMMANDS[command].format(w=work).split(), "--resume"], capsys)
             assert res.code == 0, res.stderr
     else:
         assert after == before, sorted(set(after) ^ set(before))
