@@ -288,6 +288,23 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      "--episode-length 0", ("episode",)),
     ("import-log-missing", NO, "import-log {w}/nope.csv --states {w}/states.json "
      "--out {w}/il", ("nope.csv",)),
+    # ---- the tabular half and the orchestration commands
+    ("visitlab-nav-human", NO, "visitlab train --task nav --human nosuch --out {w}/v "
+     "--no-progress", ("human",)),
+    ("visitlab-agent-nosuch", NO, "visitlab train --task nav --agent nosuch --out {w}/v "
+     "--no-progress", ("nosuch",)),
+    ("visitlab-set-bad", NO, "visitlab train --task nav --set tau=x --out {w}/v --no-progress",
+     ("tau",)),
+    ("visitlab-plot-missing", NO, "visitlab plot {w}/nope.npz --out {w}/p.png",
+     ("nope.npz",)),
+    ("visitlab-plot-garbage", _write("c.npz", "x"), "visitlab plot {w}/c.npz --out {w}/p.png",
+     ("c.npz",)),
+    ("reproduce-only-nosuch", NO, "reproduce --only nosuch --out {w}/r", ("nosuch",)),
+    ("reproduce-experiments-missing", NO, "reproduce --experiments {w}/nope --out {w}/r",
+     ("nope",)),
+    ("export-minari-not-dataset", NO, "export-minari {w}/q --id simlab/f-v0", ("q",)),
+    ("import-log-states-missing", NO, "import-log {w}/counts.csv --states {w}/nope.json "
+     "--out {w}/il", ("nope.json",)),
     ("import-log-binary", _write("log.csv", b"\x00\xff\xfe"), "import-log {w}/log.csv "
      "--states {w}/states.json --out {w}/il", ("log.csv",)),
 ]

@@ -109,7 +109,7 @@ def test_ctrl_c_during_train_is_130_and_leaves_no_output(work: Path) -> None:
     _wait_for(lambda: (work / "t").exists(), "train to start")  # the lock is taken
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate()
-    assert proc.returncode == 130, err
+    assert proc.returncode == 130, (proc.returncode, err)
     assert "simlab train: interrupted" in err and "Traceback" not in err
     assert not (work / "t").exists()
 
