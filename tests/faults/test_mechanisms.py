@@ -132,3 +132,22 @@ def test_states_fingerprint_and_arena_checks(inputs) -> None:
     check_states_hash(None, "abc", what="old file")  # files without one are not checked
     with pytest.raises(ConfigError, match="states_hash"):
         check_states_hash("abc", "abd", what="the MDP")
+
+
+def test_same_seed_same_outputs(tmp_path: Path, inputs, capsys) -> None:
+    import numpy as np
+
+    from .conftest import run_cli
+
+    arrays = []
+    for name in ("a", "b"):
+        res = run_cli(f"train --mdp {inputs.mdp} --episodes 3 --runs 2 --seed 4 --no-plots "
+                      f"--out {tmp_path / name} --no-progress".split(), capsys)
+        assert res.code == 0, res.stderr
+        with np.load(tmp_path / name / "curves.npz", allow_pickle=False) as z:
+            arrays.append({k: z[k].copy() for k in ("rewards", "curve_mean")})
+        q_files = sorted((tmp_path / name).glob("q_*.npz"))
+        with np.load(q_files[0], allow_pickle=False) as z:
+            arrays[-1]["Q"] = z["Q"].copy()
+    for key in arrays[0]:
+        np.testing.assert_array_equal(arrays[0][key], arrays[1][key])
