@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import shutil
 import tempfile
@@ -192,7 +193,8 @@ def output_transaction(out: str | os.PathLike[str], finals: Any = (), *, overwri
             try:
                 txn = OutputTransaction(out, staging, finals)
                 yield txn
-                txn.commit()
+                written = txn.commit()
+                logging.getLogger("simlab.io").info("%s: %d file(s) written", out, len(written))
             finally:
                 shutil.rmtree(staging, ignore_errors=True)
     except BaseException:

@@ -109,8 +109,15 @@ def configure_output(command: str, verbosity: int) -> None:
 
     level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(
         max(-1, min(verbosity, 2)), logging.DEBUG)
-    logging.basicConfig(level=level, format=f"simlab {command}: %(levelname)s: %(message)s",
-                        force=True)
+    # the "simlab" logger only: the root logger (and a host program's handlers) stay as is
+    logger = logging.getLogger("simlab")
+    logger.setLevel(level)
+    handler = next((h for h in logger.handlers if getattr(h, "simlab_cli", False)), None)
+    if handler is None:
+        handler = logging.StreamHandler()
+        handler.simlab_cli = True  # type: ignore[attr-defined]
+        logger.addHandler(handler)
+    handler.setFormatter(logging.Formatter(f"simlab {command}: %(levelname)s: %(message)s"))
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:
         if verbosity >= 0:
@@ -127,7 +134,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     verbosity = args.verbose - args.quiet
+    import warnings
+
+    saved_showwarning = warnings.showwarning
     configure_output(args.command, verbosity)
+    try:
+        return _run(args, verbosity)
+    finally:
+        warnings.showwarning = saved_showwarning
+
+
+def _run(args: argparse.Namespace, verbosity: int) -> int:
+    """Run the subcommand; the error boundary (module docstring)."""
     try:
         code = args._run(args)
     except SimlabError as exc:
