@@ -333,6 +333,12 @@ def train(
     from simlab.agents.registry import agent_config
 
     cfg = agent_config(agent, params)  # validates the name and overrides before any work
+    from simlab.guards import array_bytes, check_memory
+
+    # per goal and run: the reward curve (float64) and the final Q-table
+    check_memory(array_bytes((len(names), runs, episodes + m.n_states * m.n_actions), 16),
+                 what=f"{len(names)} goal(s) x {runs} run(s) x {episodes} episodes",
+                 key="episodes", fix="ask for fewer episodes, runs or goals")
     gamma = float(cfg.gamma)
     if isinstance(start, int | np.integer) and not (0 <= int(start) < m.n_states):
         raise ConfigError(f"expected a state in [0, {m.n_states}), got {start}", key="start")

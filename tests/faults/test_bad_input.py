@@ -268,6 +268,8 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      "--out {w}/t --no-progress", ("nosuch",)),
     ("train-param-bad", NO, "train --mdp {w}/mdp.npz --param tau=-1 --episodes 2 --runs 1 "
      "--out {w}/t --no-progress", ("tau",)),
+    ("train-episodes-memory", NO, "train --mdp {w}/mdp.npz --episodes 1000000000000 --runs 10 "
+     "--out {w}/t --no-progress", ("episodes", "GiB")),
     ("train-start-out-of-range", NO, "train --mdp {w}/mdp.npz --start 999 --episodes 2 "
      "--runs 1 --out {w}/t --no-progress", ("start",)),
     ("map-minutes-negative", NO, "map --minutes -1 --out {w}/m --no-progress", ("minutes",)),
