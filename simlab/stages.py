@@ -19,7 +19,8 @@ robot and arena files: after a change to that code a stage is rebuilt, never sil
 reused (folders of older code stay in the cache until ``DIR/_cache`` is deleted).
 
 A stage folder is complete when its ``_stage.json`` exists (written last, atomically);
-a folder without it (an interrupted build) is deleted and rebuilt. A lock file per
+a folder without it (an interrupted build) is deleted and rebuilt, and a build that raises
+removes its folder at once (a failed start never blocks the rerun). A lock file per
 stage (``fcntl.flock``) keeps two processes from building the same stage at once.
 
 Seeds: stage ``k`` of chain seed ``i`` uses the integer
