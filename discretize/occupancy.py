@@ -204,6 +204,12 @@ class OccupancyGrid:
             raise ValueError(f"shape: expected positive (H, W), got {shape}")
         if not resolution > 0:
             raise ValueError(f"resolution: expected > 0, got {resolution}")
+        from simlab.guards import array_bytes, check_memory
+
+        # log-odds + two stamps (8 bytes each) and the int8 map made from them
+        check_memory(array_bytes((height, width), 25), key="resolution",
+                     what=f"a {height} x {width} occupancy grid",
+                     fix="map a smaller arena or choose a coarser --resolution")
         self.resolution = float(resolution)
         self.origin_xy = (float(origin_xy[0]), float(origin_xy[1]))
         self.params = params if params is not None else LogOddsParams()

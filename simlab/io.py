@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -102,3 +104,101 @@ def exclusive_directory(path: str | os.PathLike[str], *, what: str = "output dir
         yield path
     finally:
         os.close(fd)  # closing the descriptor releases the lock
+
+
+class OutputTransaction:
+    """The outputs of one command, staged in a hidden sibling directory until commit.
+
+    Obtained from :func:`output_transaction`. ``txn.path(final)`` is where to write the file
+    that must end up at ``final``; nothing appears under a final name before
+    :meth:`commit` (called by the context manager when its block succeeds).
+    """
+
+    def __init__(self, out: Path, staging: Path, finals: tuple[Path, ...]) -> None:
+        self.out = out
+        self.staging = staging
+        self.finals = finals
+
+    def path(self, final: str | os.PathLike[str]) -> Path:
+        """The staged path of ``final`` (a path inside ``out`` or a name relative to it)."""
+        final = Path(final)
+        rel = final.relative_to(self.out) if _is_inside(final, self.out) else final
+        if rel.is_absolute() or ".." in rel.parts:
+            raise ValueError(f"{final} is not inside the output directory {self.out}")
+        staged = self.staging / rel
+        staged.parent.mkdir(parents=True, exist_ok=True)
+        return staged
+
+    def commit(self) -> list[Path]:
+        """Rename every staged file onto its final name; return the final paths written.
+
+        Every file was written completely before the first rename, so an error while
+        writing (a full disk, a kill) leaves the previous outputs untouched.
+        """
+        written = []
+        for staged in sorted(p for p in self.staging.rglob("*") if not p.is_dir()):
+            final = self.out / staged.relative_to(self.staging)
+            final.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(staged, final)
+            written.append(final)
+        return written
+
+
+def _is_inside(path: Path, directory: Path) -> bool:
+    try:
+        path.relative_to(directory)
+    except ValueError:
+        return False
+    return True
+
+
+#: Prefix of the staging directories of :func:`output_transaction` (left only by a kill;
+#: removed by the next transaction on the same directory, which holds the lock).
+STAGING_PREFIX = ".simlab-staging-"
+
+
+@contextlib.contextmanager
+def output_transaction(out: str | os.PathLike[str], finals: Any = (), *, overwrite: bool = False,
+                       what: str = "output") -> Iterator[OutputTransaction]:
+    """Lock the directory ``out``, stage the command's outputs, rename them all at the end.
+
+    The ONE output mechanism of simlab commands that write several files (``train``,
+    ``map``, ``estimate``, ``replay``, pipeline stages). Steps, in order:
+
+    1. refuse ``out`` if it is an existing file, and every path of ``finals`` that exists
+       unless ``overwrite`` (:func:`ensure_new`): before any work;
+    2. take :func:`exclusive_directory` on ``out`` (a second writer stops at once);
+    3. the caller writes to ``txn.path(final)`` inside a hidden staging directory
+       ``out/.simlab-staging-*``;
+    4. on success every staged file is renamed onto its final name; on any exception
+       (including Ctrl-C) the staging directory is removed, and ``out`` too if this
+       transaction created it and it is empty. A SIGKILL leaves only the staging directory,
+       which the next transaction on ``out`` removes.
+    """
+    out = Path(out)
+    finals = tuple(Path(f) for f in finals)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"{what} directory exists and is not a directory", path=out,
+                          fix="choose another --out, or remove the file in the way")
+    for final in finals:
+        if final.is_dir():
+            raise ConfigError(f"{what} is a directory", path=final, fix="choose another path")
+        ensure_new(final, overwrite=overwrite, what=what)
+    created = not out.exists()
+    try:
+        with exclusive_directory(out, what=f"{what} directory"):
+            for stale in out.glob(f"{STAGING_PREFIX}*"):  # left by a killed run; we hold the lock
+                shutil.rmtree(stale, ignore_errors=True)
+            staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
+            try:
+                txn = OutputTransaction(out, staging, finals)
+                yield txn
+                written = txn.commit()
+                logging.getLogger("simlab.io").info("%s: %d file(s) written", out, len(written))
+            finally:
+                shutil.rmtree(staging, ignore_errors=True)
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if empty: a failed first run must not block the rerun
+        raise

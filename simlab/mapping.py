@@ -36,7 +36,7 @@ import numpy as np
 from discretize.gridmap import OccupancyMap
 from discretize.occupancy import LogOddsParams, MapAccuracy, OccupancyGrid, map_accuracy
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json, ensure_new
+from simlab.io import atomic_write_json, output_transaction
 
 POSE_SOURCES = ("truth", "odometry")
 
@@ -144,69 +144,71 @@ def build_map(
     params = primitive_params if primitive_params is not None else PrimitiveParams()
     out = Path(out)
     yaml_path, image_path, meta_path = out / "map.yaml", out / "map.pgm", out / "exploration.json"
-    for path in (yaml_path, image_path, meta_path):
-        ensure_new(path, overwrite=overwrite, what="map output")
+    # One transaction: refuse existing outputs and take the --out lock before exploring;
+    # the three files appear together at the end, or not at all.
+    with output_transaction(out, (yaml_path, image_path, meta_path), overwrite=overwrite,
+                            what="map output") as txn:
 
-    action_seq, noise_seq = np.random.SeedSequence(int(seed)).spawn(2)
-    action_rng = np.random.default_rng(action_seq)
-    noise_rng = np.random.default_rng(noise_seq)
-    grid = OccupancyGrid.covering(arena_cfg.bounds, resolution, margin, log_odds)
+        action_seq, noise_seq = np.random.SeedSequence(int(seed)).spawn(2)
+        action_rng = np.random.default_rng(action_seq)
+        noise_rng = np.random.default_rng(noise_seq)
+        grid = OccupancyGrid.covering(arena_cfg.bounds, resolution, margin, log_odds)
 
-    def integrate(scan, odom) -> None:
-        base = scan.pose if pose_source == "truth" else odom
-        grid.integrate(
-            scan.ranges,
-            scan.angles,
-            sensor_pose(base, scan.sensor_offset),
-            scan.range_min,
-            scan.range_max,
-            inf_free_range,
-        )
+        def integrate(scan, odom) -> None:
+            base = scan.pose if pose_source == "truth" else odom
+            grid.integrate(
+                scan.ranges,
+                scan.angles,
+                sensor_pose(base, scan.sensor_offset),
+                scan.range_min,
+                scan.range_max,
+                inf_free_range,
+            )
 
-    budget = float(minutes) * 60.0
-    n_actions = n_blocked = 0
-    with World(arena_cfg) as world:
-        integrate(world.scan(noise_rng), world.odometry())
-        robot_time = 0.0
-        with tqdm(total=round(budget), unit="s", desc="exploring", disable=not progress) as bar:
-            while robot_time < budget:
-                action = int(action_rng.integers(0, N_ACTIONS))
-                result = execute_primitive(world, action, noise_rng, params, on_scan=integrate)
-                n_actions += 1
-                n_blocked += int(result.blocked)
-                new_time = world.time + n_actions * params.decision_latency
-                bar.update(min(round(new_time), round(budget)) - bar.n)
-                robot_time = new_time
-        sim_seconds = world.time
-        drift = float(np.hypot(*(world.odometry()[:2] - world.pose()[:2])))
+        budget = float(minutes) * 60.0
+        n_actions = n_blocked = 0
+        with World(arena_cfg) as world:
+            integrate(world.scan(noise_rng), world.odometry())
+            robot_time = 0.0
+            with tqdm(total=round(budget), unit="s", desc="exploring", disable=not progress) as bar:
+                while robot_time < budget:
+                    action = int(action_rng.integers(0, N_ACTIONS))
+                    result = execute_primitive(world, action, noise_rng, params, on_scan=integrate)
+                    n_actions += 1
+                    n_blocked += int(result.blocked)
+                    new_time = world.time + n_actions * params.decision_latency
+                    bar.update(min(round(new_time), round(budget)) - bar.n)
+                    robot_time = new_time
+            sim_seconds = world.time
+            drift = float(np.hypot(*(world.odometry()[:2] - world.pose()[:2])))
 
-    occupancy_map = grid.to_map()
-    truth = arena_cfg.rasterize(resolution, grid.origin_xy, grid.shape)
-    accuracy = map_accuracy(occupancy_map, truth)
-    meta = {
-        "arena": arena_cfg.name,
-        "arena_source": arena_cfg.source,
-        "arena_sha256": arena_cfg.source_sha256,
-        "minutes": float(minutes),
-        "seed": int(seed),
-        "pose_source": pose_source,
-        "resolution": resolution,
-        "margin": margin,
-        "inf_free_range": inf_free_range,
-        "log_odds": asdict(grid.params),
-        "primitive_params": asdict(params),
-        "n_scans": grid.n_scans,
-        "n_actions": n_actions,
-        "n_blocked": n_blocked,
-        "robot_seconds": robot_time,
-        "sim_seconds": sim_seconds,
-        "final_odometry_drift_m": drift,
-        "accuracy": asdict(accuracy),
-        "map_hash": occupancy_map.content_hash(),
-    }
-    # Provenance, then the image, then the YAML: a map.yaml exists only for a complete map.
-    atomic_write_json(meta_path, meta)
-    write_map(yaml_path, occupancy_map, image=image_path.name, overwrite=overwrite)
+        occupancy_map = grid.to_map()
+        truth = arena_cfg.rasterize(resolution, grid.origin_xy, grid.shape)
+        accuracy = map_accuracy(occupancy_map, truth)
+        meta = {
+            "arena": arena_cfg.name,
+            "arena_source": arena_cfg.source,
+            "arena_sha256": arena_cfg.source_sha256,
+            "minutes": float(minutes),
+            "seed": int(seed),
+            "pose_source": pose_source,
+            "resolution": resolution,
+            "margin": margin,
+            "inf_free_range": inf_free_range,
+            "log_odds": asdict(grid.params),
+            "primitive_params": asdict(params),
+            "n_scans": grid.n_scans,
+            "n_actions": n_actions,
+            "n_blocked": n_blocked,
+            "robot_seconds": robot_time,
+            "sim_seconds": sim_seconds,
+            "final_odometry_drift_m": drift,
+            "accuracy": asdict(accuracy),
+            "map_hash": occupancy_map.content_hash(),
+        }
+        # Provenance, then the image, then the YAML: a map.yaml exists only for a complete map.
+        atomic_write_json(txn.path(meta_path), meta)
+        write_map(txn.path(yaml_path), occupancy_map, image=image_path.name, overwrite=True)
     return MapRun(
         map=occupancy_map,
         yaml_path=yaml_path,

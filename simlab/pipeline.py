@@ -25,6 +25,7 @@ continues where it stopped; changing, say, the replay hours redoes only the repl
 from __future__ import annotations
 
 import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -32,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json
+from simlab.io import atomic_write, atomic_write_json, exclusive_directory
 from simlab.stages import PhysicsChain, PhysicsSettings, Stage
 
 #: Pipeline stage -> the link to its folder in the output folder.
@@ -63,6 +64,22 @@ def _check_out(out: Path, resume: bool) -> None:
     elif out.exists() and any(out.iterdir()):
         raise ConfigError("output directory is not empty", path=out,
                           fix="choose a new or empty --out")
+
+
+def _read_state(out: Path) -> dict[str, Any]:
+    """``pipeline.json`` of a run being resumed (DataError naming it if damaged)."""
+    import json
+
+    from simlab.errors import DataError
+
+    path = out / "pipeline.json"
+    try:
+        state = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(f"{path}: not valid JSON ({exc}); delete it to start over") from None
+    if not isinstance(state, dict) or not isinstance(state.get("stages", {}), dict):
+        raise DataError(f"{path}: stages: expected an object; delete it to start over")
+    return state
 
 
 def _link(link: Path, target: Path) -> None:
@@ -96,8 +113,30 @@ def pipeline(
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
     out = Path(out)
-    _check_out(out, resume)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("exists and is not a directory", path=out, fix="choose another --out")
+    created = not out.exists()
+    with exclusive_directory(out, what="pipeline output directory"):
+        _check_out(out, resume)
+        try:
+            return _run_pipeline(out, s, seed, progress, log)
+        except BaseException:
+            if created and not _any_stage_done(out):
+                # a run that failed before finishing any stage leaves nothing: the fresh
+                # rerun and --resume both work
+                shutil.rmtree(out, ignore_errors=True)
+            raise
+
+
+def _any_stage_done(out: Path) -> bool:
+    from simlab.stages import MARKER
+
+    return any((out / "stages").glob(f"physics/*/{MARKER}"))
+
+
+def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
+                  log: Callable[[str], None] | None) -> PipelineResult:
+    """The stages and the report of :func:`pipeline` (``out`` is locked and checked)."""
     say = log or (lambda _line: None)
     t_start = time.perf_counter()
     chain = PhysicsChain(out / "stages", s, seed, progress=progress)
@@ -107,6 +146,9 @@ def pipeline(
         "replay": lambda: chain.replay(0),
     }
     state: dict[str, Any] = {"settings": asdict(s), "seed": seed, "stages": {}}
+    if (out / "pipeline.json").exists():  # --resume: keep the stages recorded so far
+        state["stages"] = _read_state(out).get("stages", {})
+    atomic_write_json(out / "pipeline.json", state)  # first: an interrupted run is resumable
     n = len(STAGES) + 1
     for k, (name, link) in enumerate(STAGES.items(), start=1):
         say(f"[{k}/{n}] {name} ...")

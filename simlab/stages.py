@@ -19,7 +19,8 @@ robot and arena files: after a change to that code a stage is rebuilt, never sil
 reused (folders of older code stay in the cache until ``DIR/_cache`` is deleted).
 
 A stage folder is complete when its ``_stage.json`` exists (written last, atomically);
-a folder without it (an interrupted build) is deleted and rebuilt. A lock file per
+a folder without it (an interrupted build) is deleted and rebuilt, and a build that raises
+removes its folder at once (a failed start never blocks the rerun). A lock file per
 stage (``fcntl.flock``) keeps two processes from building the same stage at once.
 
 Seeds: stage ``k`` of chain seed ``i`` uses the integer
@@ -150,7 +151,29 @@ class PhysicsSettings:
         if values["pose_source"] not in ("truth", "odometry", "mcl"):
             raise ConfigError(f"expected truth, odometry or mcl, got {values['pose_source']!r}",
                               key=where.get("pose_source", "pose_source"))
-        return cls(**{k: values[k] for k in names})
+        settings = cls(**{k: values[k] for k in names})
+        settings.check_references(where)
+        return settings
+
+    def check_references(self, where: Mapping[str, str] | None = None) -> None:
+        """Validate the settings that name things (the agent, the arena) and the sizes,
+        before any work: ``pipeline --agent nosuch`` must not fail after the mapping."""
+        from simlab.agents.registry import agent_config
+        from simlab.guards import array_bytes, check_memory
+        from simlab.physics.arena import ArenaConfig, load_arena
+
+        where = where or {}
+        try:
+            agent_config(self.agent, None)
+        except ConfigError as exc:
+            raise ConfigError(exc.problem, key=where.get("agent", "agent"), fix=exc.fix) from None
+        arena = load_arena(self.arena)
+        assert isinstance(arena, ArenaConfig)
+        x0, y0, x1, y1 = arena.bounds
+        cells = ((x1 - x0) / self.map_resolution + 50) * ((y1 - y0) / self.map_resolution + 50)
+        check_memory(array_bytes((cells,), 25), key=where.get("map_resolution", "map_resolution"),
+                     what=f"the occupancy map of arena {arena.name!r}",
+                     fix="a smaller arena or a coarser map_resolution")
 
 
 def source_fingerprint(roots: Iterable[Path]) -> str:
@@ -264,7 +287,12 @@ class PhysicsChain:
                     shutil.rmtree(d)
                 d.mkdir(parents=True)
                 t0 = time.perf_counter()
-                summary = build(d)
+                try:
+                    summary = build(d)
+                except BaseException:
+                    # a failed build leaves nothing behind: the rerun starts clean
+                    shutil.rmtree(d, ignore_errors=True)
+                    raise
                 wall = time.perf_counter() - t0
                 atomic_write_json(marker, {"key": full_key, "summary": summary,
                                            "wall_seconds": wall})

@@ -11,7 +11,9 @@ Each subcommand lives in its own module ``simlab/cli/<name>.py`` defining
 Library code raises; this module alone turns :class:`~simlab.errors.SimlabError`,
 the operating system's errors (missing files, permissions, a full disk, a read-only
 file system, an ``--out`` that is a file) and running out of memory into one line on
-stderr and exit code 2; Ctrl-C is ``simlab X: interrupted`` and exit code 130.
+stderr and exit code 2; Ctrl-C is ``simlab X: interrupted`` and exit code 130; any other
+exception is a bug: one line ``internal error`` and exit code 1 (``-vv`` shows the
+traceback). Warnings are one line each (``simlab X: warning: ...``; ``-q`` hides them).
 """
 
 from __future__ import annotations
@@ -58,6 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
         "and Visit-the-lab simulation).",
     )
     parser.add_argument("--version", action="version", version=f"simlab {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="more messages (-v: progress notes, -vv: debug and the traceback "
+                        "of an internal error)")
+    parser.add_argument("-q", "--quiet", action="count", default=0,
+                        help="fewer messages (-q: no warnings, errors only)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in SUBCOMMANDS.items():
         try:
@@ -96,12 +103,52 @@ def describe_os_error(exc: OSError) -> str:
     return f"{line} ({fix})" if fix else line
 
 
+def configure_output(command: str, verbosity: int) -> None:
+    """Messages of one run: :mod:`logging` at a level set by ``-v``/``-q`` (default
+    WARNING), and every Python warning as one line ``simlab X: warning: ...`` (no source
+    line; ``-q`` hides them)."""
+    import logging
+    import warnings
+
+    level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(
+        max(-1, min(verbosity, 2)), logging.DEBUG)
+    # the "simlab" logger only: the root logger (and a host program's handlers) stay as is
+    logger = logging.getLogger("simlab")
+    logger.setLevel(level)
+    handler = next((h for h in logger.handlers if getattr(h, "simlab_cli", False)), None)
+    if handler is None:
+        handler = logging.StreamHandler()
+        handler.simlab_cli = True  # type: ignore[attr-defined]
+        logger.addHandler(handler)
+    handler.setFormatter(logging.Formatter(f"simlab {command}: %(levelname)s: %(message)s"))
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        if verbosity >= 0:
+            text = " ".join(str(message).split())
+            print(f"simlab {command}: warning: {text}", file=sys.stderr)
+
+    warnings.showwarning = show
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "_run", None) is None:
         parser.print_help()
         return 2
+    verbosity = args.verbose - args.quiet
+    import warnings
+
+    saved_showwarning = warnings.showwarning
+    configure_output(args.command, verbosity)
+    try:
+        return _run(args, verbosity)
+    finally:
+        warnings.showwarning = saved_showwarning
+
+
+def _run(args: argparse.Namespace, verbosity: int) -> int:
+    """Run the subcommand; the error boundary (module docstring)."""
     try:
         code = args._run(args)
     except SimlabError as exc:
@@ -117,6 +164,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"simlab {args.command}: interrupted", file=sys.stderr)
         return 130
+    except RecursionError:
+        print(f"simlab {args.command}: error: an input is nested too deeply to read",
+              file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug: one line (exit 1), the traceback with -vv
+        if verbosity >= 2:
+            raise
+        print(f"simlab {args.command}: internal error: {type(exc).__name__}: "
+              f"{' '.join(str(exc).split())[:300]} (a bug in simlab: please report it; "
+              "run with -vv for the traceback)", file=sys.stderr)
+        return 1
     return 0 if code is None else int(code)
 
 

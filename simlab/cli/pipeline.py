@@ -35,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pose-source", choices=("truth", "odometry", "mcl"), default=d.pose_source,
                    help=f"the replay's pose source (default {d.pose_source})")
     p.add_argument("--no-video", action="store_true", help="skip the replay GIF")
-    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def run(args: argparse.Namespace) -> int:

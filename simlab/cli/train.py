@@ -88,7 +88,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
     import warnings
 
     from simlab.commands import train
@@ -99,8 +98,8 @@ def run(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         summary = _train(train, args, task)
-    for w in caught:
-        print(f"warning: {w.message}", file=sys.stderr)
+    for w in caught:  # one line each, after the run (the CLI's showwarning; -q hides them)
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     print(
         f"{summary.agent}: {len(summary.goals)} goal(s) x {args.runs} runs x "
         f"{args.episodes} episodes in {summary.seconds:.1f} s -> {summary.out}"

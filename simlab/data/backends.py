@@ -12,7 +12,6 @@ needs no shared file system.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import multiprocessing
 from typing import Any, Protocol
 
 from simlab.data.walkers import PartJob, PartResult, WalkerCache, run_part
@@ -61,9 +60,9 @@ class ProcessPoolBackend:
     """
 
     def __init__(self, processes: int) -> None:
-        self._pool = cf.ProcessPoolExecutor(
-            max_workers=processes, mp_context=multiprocessing.get_context("spawn")
-        )
+        from simlab.experiments.executors import worker_pool
+
+        self._pool = worker_pool(processes)  # spawn; workers exit when this process dies
 
     def submit(self, job: PartJob) -> cf.Future[PartResult]:
         return self._pool.submit(run_part, job)

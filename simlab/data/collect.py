@@ -396,6 +396,10 @@ def collect(
         "pose_source_options": pose_source_options or {},
     })
     centres = np.asarray(disc.centres, dtype=np.float64)
+    from simlab.statecheck import check_centres_in_arena
+
+    check_centres_in_arena(centres, arena_cfg,
+                           source=str(states) if isinstance(states, str | os.PathLike) else None)
     manifest = new_manifest(
         simlab_version=__version__,
         arena=_arena_info(arena_cfg),

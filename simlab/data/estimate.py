@@ -33,6 +33,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,13 +45,17 @@ from simlab.actions import SIMLAB16, ActionSet, parse_action_set
 from simlab.data.inputs import load_arena_config, load_discretizer
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, ensure_new
+from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 
 #: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
 HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)
 
 #: Rules for unvisited (s, a) pairs (see the module docstring); the first is the default.
 UNVISITED_RULES = ("mask", "self-loop")
+
+
+class IncompleteDatasetWarning(UserWarning):
+    """The dataset's manifest says its collect run did not finish."""
 
 
 def check_unvisited_rule(rule: str, *, key: str = "unvisited") -> str:
@@ -87,6 +92,12 @@ def count_transitions(
     for name, v, upper in (("s", s, n_states), ("a", a, n_actions), ("s_next", s_next, n_states)):
         if v.size and (v.min() < 0 or v.max() >= upper):
             raise ValueError(f"{name}: indices must lie in 0..{upper - 1}")
+    from simlab.guards import array_bytes, check_memory
+
+    # counts, T and the bincount buffer: three (S, A, S) 8-byte tables
+    check_memory(array_bytes((n_states, n_actions, n_states), 24), key="n_states",
+                 what=f"a {n_states} x {n_actions} x {n_states} count table",
+                 fix="use fewer states (a coarser discretizer)")
     flat = (s * n_actions + a) * n_states + s_next
     return np.bincount(flat, minlength=n_states * n_actions * n_states).reshape(
         n_states, n_actions, n_states
@@ -359,6 +370,11 @@ def estimate(
         if action_set.n_actions != A:
             raise ConfigError(f"the dataset has {A} actions but records "
                               f"{action_set.describe()}", path=dataset, key="action_set")
+        if not ds.manifest.get("complete", False):
+            warnings.warn(f"{dataset}: the dataset is incomplete (a collect run was stopped); "
+                          "the model covers only its finished parts (finish it with "
+                          "`simlab collect --resume`)", IncompleteDatasetWarning, stacklevel=2)
+        states_hash = ds.discretizer_hash
         a_col = ds.column("a")
         c = count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A)
         centres = ds.centres
@@ -410,7 +426,12 @@ def estimate(
 
     mdp = empirical_mdp(c)
     n_masked = int((~valid_actions(mdp.visited)).sum()) if unvisited == "mask" else 0
+    if dataset is None:
+        states_hash = None if disc is None else disc.content_hash()
+    # the states fingerprint: train and replay check it against their states file
     meta = {"action_set": action_set.to_json(), "unvisited": unvisited}
+    if states_hash is not None:
+        meta["states_hash"] = states_hash
     arrays: dict[str, Any] = {
         "counts": mdp.counts,
         "T": mdp.T,
@@ -459,17 +480,20 @@ def estimate(
     summary["files"] = {"npz": str(npz_path), "summary": str(summary_path),
                         "plot": str(plot_path) if plot else None}
 
-    with atomic_write(npz_path, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
-    if plot:
-        from simlab.data.plots import plot_entropy_per_action
+    finals = (npz_path, summary_path, *((plot_path,) if plot else ()))
+    with output_transaction(npz_path.parent, finals, overwrite=overwrite,
+                            what="model output") as txn:  # all three files, or none
+        with atomic_write(txn.path(npz_path), "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        if plot:
+            from simlab.data.plots import plot_entropy_per_action
 
-        title = None
-        if mdp.n_actions == 16:
-            title = (f"Mean entropy per action — slow {mdp.slow_mean_entropy:.2f} bits, "
-                     f"fast {mdp.fast_mean_entropy:.2f} bits "
-                     f"({summary['coverage']['fraction_visited']:.0%} of (s, a) visited)")
-        plot_entropy_per_action(mdp.mean_entropy, plot_path, title=title)
-    atomic_write_json(summary_path, summary)
+            title = None
+            if mdp.n_actions == 16:
+                title = (f"Mean entropy per action — slow {mdp.slow_mean_entropy:.2f} bits, "
+                         f"fast {mdp.fast_mean_entropy:.2f} bits "
+                         f"({summary['coverage']['fraction_visited']:.0%} of (s, a) visited)")
+            plot_entropy_per_action(mdp.mean_entropy, txn.path(plot_path), title=title)
+        atomic_write_json(txn.path(summary_path), summary)
     return EstimateResult(mdp=mdp, npz=npz_path, summary_path=summary_path,
                           plot=plot_path if plot else None, summary=summary)

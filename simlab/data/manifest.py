@@ -48,6 +48,108 @@ REQUIRED_KEYS = (
 )
 
 
+_NUM = (int, float)
+
+#: The ONE declared manifest schema: field -> accepted JSON types (checked on read).
+#: ``bool`` is never accepted where a number is expected.
+MANIFEST_SCHEMA: dict[str, tuple[type, ...]] = {
+    "format": (str,),
+    "format_version": (int,),
+    "arena": (dict,),
+    "discretizer": (dict,),
+    "pose_source": (str,),
+    "seed": (int,),
+    "workers": (int,),
+    "parameters": (dict,),
+    "schema": (list,),
+    "parts": (list,),
+}
+#: Optional manifest fields and their types, checked when present.
+OPTIONAL_SCHEMA: dict[str, tuple[type, ...]] = {
+    "simlab_version": (str,),
+    "robot": (dict,),
+    "simulator": (str,),
+    "complete": (bool,),
+    "worker_seeds": (list,),
+    "action_set": (dict, type(None)),
+}
+#: Sub-fields: ``discretizer`` and ``arena`` entries the readers use.
+DISCRETIZER_SCHEMA: dict[str, tuple[type, ...]] = {
+    "hash": (str,), "n_states": (int,), "centres": (list,),
+}
+ARENA_SCHEMA: dict[str, tuple[type, ...]] = {"name": (str,)}
+#: Every entry of ``parts``.
+PART_SCHEMA: dict[str, tuple[type, ...]] = {
+    "file": (str,), "worker": (int,), "part": (int,), "rows": (int,), "sha256": (str,),
+    "t_end": _NUM,
+}
+#: ``schema`` entries (Arrow columns).
+COLUMN_SCHEMA: dict[str, tuple[type, ...]] = {"name": (str,), "type": (str,)}
+
+
+def _type_names(types: tuple[type, ...]) -> str:
+    names = {int: "a whole number", float: "a number", str: "a string", dict: "an object",
+             list: "a list", bool: "true or false", type(None): "null"}
+    return " or ".join(dict.fromkeys(names[t] for t in types))
+
+
+def _check_fields(path: Path, obj: Any, schema: Mapping[str, tuple[type, ...]], where: str,
+                  *, required: bool = True) -> None:
+    """Raise :class:`DataError` naming ``where.field`` for a missing or wrong-typed field."""
+    if not isinstance(obj, dict):
+        raise DataError(f"{path}: {where or 'manifest'}: expected an object, "
+                        f"got {type(obj).__name__}")
+    for key, types in schema.items():
+        field = f"{where}.{key}" if where else key
+        if key not in obj:
+            if required:
+                raise DataError(f"{path}: {field}: missing field (the manifest was edited or "
+                                "damaged; collect into a new --out)")
+            continue
+        value = obj[key]
+        wrong_bool = isinstance(value, bool) and bool not in types
+        if wrong_bool or not isinstance(value, types):
+            raise DataError(f"{path}: {field}: expected {_type_names(types)}, "
+                            f"got {json.dumps(value)[:40]}")
+
+
+def validate_manifest(manifest: Any, path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Check ``manifest`` against :data:`MANIFEST_SCHEMA` and its sub-schemas.
+
+    Raises :class:`DataError` naming the file and the field: a missing or wrong-typed
+    field, a part listed twice (same file, or same worker and part number: it would be
+    counted twice), negative counts. Returns the manifest.
+    """
+    path = Path(path)
+    _check_fields(path, manifest, MANIFEST_SCHEMA, "")
+    _check_fields(path, manifest, OPTIONAL_SCHEMA, "", required=False)
+    _check_fields(path, manifest["discretizer"], DISCRETIZER_SCHEMA, "discretizer")
+    _check_fields(path, manifest["arena"], ARENA_SCHEMA, "arena")
+    if manifest["workers"] < 1:
+        raise DataError(f"{path}: workers: expected a whole number >= 1, "
+                        f"got {manifest['workers']}")
+    for i, column in enumerate(manifest["schema"]):
+        _check_fields(path, column, COLUMN_SCHEMA, f"schema[{i}]")
+    files: set[str] = set()
+    slots: set[tuple[int, int]] = set()
+    for i, entry in enumerate(manifest["parts"]):
+        _check_fields(path, entry, PART_SCHEMA, f"parts[{i}]")
+        for key in ("worker", "part", "rows"):
+            if entry[key] < 0:
+                raise DataError(f"{path}: parts[{i}].{key}: expected >= 0, got {entry[key]}")
+        if entry["worker"] >= manifest["workers"]:
+            raise DataError(f"{path}: parts[{i}].worker: {entry['worker']} but the dataset has "
+                            f"{manifest['workers']} worker(s)")
+        slot = (entry["worker"], entry["part"])
+        if entry["file"] in files or slot in slots:
+            raise DataError(f"{path}: parts[{i}]: part {entry['file']!r} (worker {slot[0]}, "
+                            f"part {slot[1]}) is listed twice (it would be counted twice; "
+                            "remove the duplicate entry)")
+        files.add(entry["file"])
+        slots.add(slot)
+    return manifest
+
+
 def file_sha256(path: str | os.PathLike[str]) -> str:
     """Hex SHA-256 of a file's bytes."""
     digest = hashlib.sha256()
@@ -76,7 +178,7 @@ def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
         )
     try:
         manifest = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise DataError(f"{path}: manifest is not valid JSON ({exc})") from None
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         raise DataError(f"{path}: not a simlab transition manifest (format != {FORMAT_NAME!r})")
@@ -88,9 +190,7 @@ def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
     missing = [key for key in REQUIRED_KEYS if key not in manifest]
     if missing:
         raise DataError(f"{path}: manifest lacks the field(s) {', '.join(missing)}")
-    if not isinstance(manifest["parts"], list):
-        raise DataError(f"{path}: parts: expected a list")
-    return manifest
+    return validate_manifest(manifest, path)
 
 
 def write_manifest(directory: str | os.PathLike[str], manifest: Mapping[str, Any]) -> None:

@@ -89,7 +89,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, ensure_new
+from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 
 POSE_SOURCES = ("truth", "odometry", "mcl")
 POLICIES = ("greedy", "random")
@@ -647,6 +647,9 @@ def replay(
     arena_cfg = load_arena_config(arena)
     disc = load_discretizer(states)
     states_src = str(states) if isinstance(states, str | os.PathLike) else None
+    from simlab.statecheck import check_centres_in_arena, check_states_hash, npz_states_hash
+
+    check_centres_in_arena(disc.centres, arena_cfg, source=states_src)
     goal_names, goal_masks = select_goals(goal_state_masks(arena_cfg, disc.centres), goals,
                                           disc.n_states)
     goal_names = tuple(str(g) for g in goal_names)
@@ -655,10 +658,17 @@ def replay(
                           fix="pass --qtables DIR (the output of `simlab train`) or --random")
     qt = None if qtables is None else load_qtables(qtables, goal_names, disc.n_states, states_src,
                                                    action_set=action_set)
+    states_hash = disc.content_hash()
+    for i, meta in enumerate(() if qt is None else qt.metadata):
+        check_states_hash(meta.get("states_hash"), states_hash, what="the Q-table",
+                          path=qt.files[i] or qt.source, against=states_src or "the states")
     mdp_source = mdp if mdp is not None else (None if qt is None else discover_mdp(qt))
     model = None if mdp_source is None else load_model(
         mdp_source, disc, goal_names, goal_masks,
         action_set=None if qt is None else qt.action_set)
+    if isinstance(mdp_source, str | os.PathLike):
+        check_states_hash(npz_states_hash(mdp_source), states_hash, what="the MDP",
+                          path=mdp_source, against=states_src or "the states")
     action_set, valid = _actions_and_mask(qt, model)
     grid, map_check = load_map_for_arena(map, arena_cfg)
     params, params_source = primitive_params_for(model, params)
@@ -793,14 +803,16 @@ def replay(
     summary["files"] = {k: str(v) for k, v in files.items()}
 
     # ---- outputs
-    out.mkdir(parents=True, exist_ok=True)
-    _write_transitions(files["transitions"], run.log, goal_names)
-    if "localization" in files:
-        _write_localization(files["localization"], run.mcl_log)
-    _plot(files["plot"], run, baseline, summary, policy, pose_source)
-    if video:
-        _write_video(files, run, arena_cfg, disc, qt, goal_names, grid, max_frames)
-    atomic_write_json(files["summary"], summary)
+    with output_transaction(out, files.values(), overwrite=overwrite,
+                            what="replay output") as txn:  # every file, or none
+        staged = {k: txn.path(v) for k, v in files.items()}
+        _write_transitions(staged["transitions"], run.log, goal_names)
+        if "localization" in staged:
+            _write_localization(staged["localization"], run.mcl_log)
+        _plot(staged["plot"], run, baseline, summary, policy, pose_source)
+        if video:
+            _write_video(staged, run, arena_cfg, disc, qt, goal_names, grid, max_frames)
+        atomic_write_json(staged["summary"], summary)
     return ReplayResult(summary=summary, run=run, baseline=baseline, files=files)
 
 

@@ -53,6 +53,7 @@ numbers as training it among all goals.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import inspect
 import os
@@ -66,7 +67,7 @@ from typing import Any
 import numpy as np
 
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json, ensure_new
+from simlab.io import atomic_write_json, output_transaction
 
 __all__ = ["TASK_MODES", "GoalSummary", "TrainSummary", "TrainTask", "resolve_goals", "train"]
 
@@ -308,19 +309,23 @@ def train(
         :class:`TrainTask`: task mode, goal/start states, unvisited rule (default:
         per-step, the MDP's goals and rule).
     """
-    from tqdm.auto import tqdm
-
     from simlab.envs.empirical_mdp import EmpiricalMDP, load_mdp
-    from simlab.training.curves import curve_points
-    from simlab.training.harness import evaluate_q, train_runs
 
     t0 = time.perf_counter()
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
+    from simlab.statecheck import npz_states_hash
+
+    # the states fingerprint travels from the MDP into every Q-table (replay checks it)
+    states_hash = None if isinstance(mdp, EmpiricalMDP) else npz_states_hash(mdp)
     task = TrainTask() if task is None else task
     if task.goal_states is not None and goals not in (None, "all"):
         raise ConfigError("give either goals or goal_states", key="goal_states")
     m, start = _apply_task(m, task, start)
     names = resolve_goals(m, goals)
+    if m.counts is not None and int(np.asarray(m.counts).sum()) == 0:
+        warnings.warn(f"{m.source or 'the MDP'}: estimated from 0 transitions; every (s, a) "
+                      "is a self-loop and training learns nothing (collect data first)",
+                      stacklevel=2)
     valid = m.valid
     if valid is not None:
         warnings.warn(f"{int((~valid).sum())} unvisited (s, a) pairs masked: agents never "
@@ -328,6 +333,12 @@ def train(
     from simlab.agents.registry import agent_config
 
     cfg = agent_config(agent, params)  # validates the name and overrides before any work
+    from simlab.guards import array_bytes, check_memory
+
+    # per goal and run: the reward curve (float64) and the final Q-table
+    check_memory(array_bytes((len(names), runs, episodes + m.n_states * m.n_actions), 16),
+                 what=f"{len(names)} goal(s) x {runs} run(s) x {episodes} episodes",
+                 key="episodes", fix="ask for fewer episodes, runs or goals")
     gamma = float(cfg.gamma)
     if isinstance(start, int | np.integer) and not (0 <= int(start) < m.n_states):
         raise ConfigError(f"expected a state in [0, {m.n_states}), got {start}", key="start")
@@ -351,9 +362,55 @@ def train(
                 files["heatmaps"] = out / "heatmaps.png"
                 for g in names:
                     files[f"heatmap_{g}"] = out / f"heatmap_{_slug(g)}.png"
-        for p in files.values():  # fail before training, not after
-            ensure_new(p, overwrite=overwrite)
-        out.mkdir(parents=True, exist_ok=True)
+    with contextlib.ExitStack() as stack:
+        txn = None
+        if out is not None:  # refuses existing outputs and takes the --out lock before training
+            txn = stack.enter_context(output_transaction(out, files.values(), overwrite=overwrite))
+        job = _TrainJob(m=m, agent=agent, names=names, episodes=episodes, runs=runs, seed=seed,
+                        horizon=horizon, start=start, params=params, valid=valid, task=task,
+                        gamma=gamma, files=files, progress=progress, plot_bounds=plot_bounds,
+                        background=background, plots=plots, t0=t0, out=out,
+                        states_hash=states_hash)  # fmt: skip
+        return _train_and_write(job, txn)
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+@dataclasses.dataclass(frozen=True)
+class _TrainJob:
+    """Everything :func:`train` validated, handed to :func:`_train_and_write`."""
+
+    m: Any
+    agent: str
+    names: list[str]
+    episodes: int
+    runs: int
+    seed: Any
+    horizon: int
+    start: Any
+    params: Any
+    valid: Any
+    task: Any
+    gamma: float
+    files: dict[str, Path]
+    progress: bool
+    plot_bounds: Any
+    background: Any
+    plots: bool
+    t0: float
+    out: Any
+    states_hash: str | None = None
+
+
+def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
+    """The body of :func:`train` inside its output transaction ``txn`` (None: no outputs)."""
+    from tqdm.auto import tqdm
+
+    (m, agent, names, episodes, runs, seed, horizon, start, params, valid, task, gamma, files,
+     progress, plot_bounds, background, plots, t0, out) = (
+        getattr(job, f.name) for f in dataclasses.fields(job)[:-1])  # fmt: skip
+
+    from simlab.training.curves import curve_points
+    from simlab.training.harness import evaluate_q, train_runs
 
     results = {}
     evaluations = {}
@@ -399,12 +456,14 @@ def train(
     rewards = np.stack([results[g].rewards for g in names])
     Qs = {g: results[g].Q_runs.mean(axis=0) for g in names}
     config = results[names[0]].config
-    if out is not None:
-        _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
+    if txn is not None:
+        staged = {k: txn.path(v) for k, v in files.items()}
+        _write_outputs(staged, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
                        agent, config, dict(seed=seed, episodes=episodes, runs=runs,
                                            horizon=horizon, start=_start_meta(start),
+                                           states_hash=job.states_hash,
                                            gamma=gamma, **_task_meta(m, task, valid)),
-                       plot_bounds, background, plots)  # fmt: skip
+                       plot_bounds, background, plots, final_files=files)  # fmt: skip
     return TrainSummary(
         agent=agent, config=config, goals=tuple(summaries), rewards=rewards, Q=Qs,
         files={k: str(v) for k, v in files.items()}, seconds=time.perf_counter() - t0,
@@ -428,7 +487,8 @@ def _task_meta(m: Any, task: TrainTask, valid: np.ndarray | None) -> dict[str, A
 
 
 def _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
-                   agent, config, run_meta, plot_bounds, background, plots) -> None:  # fmt: skip
+                   agent, config, run_meta, plot_bounds, background, plots,
+                   final_files=None) -> None:  # fmt: skip
     import simlab
     from simlab.agents.storage import save_q_table
 
@@ -486,6 +546,6 @@ def _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_row
         "mdp": source,
         **run_meta,
         "goals": {s.goal: s.as_dict() for s in summaries},
-        "files": {k: str(v) for k, v in files.items()},
+        "files": {k: str(v) for k, v in (final_files or files).items()},
     }
     atomic_write_json(files["summary"], summary)

@@ -1,0 +1,119 @@
+"""Fixtures of the fault corpus: one tiny, complete set of inputs, built once.
+
+Everything is cheap: a 25-state lattice on the table, a kinematic walk of 300
+transitions, an MDP estimated from it, Q-tables of a 3-episode training, a map made from
+the arena's geometry. Each test copies what it damages into its own folder and checks
+that every file that existed before the command is byte-identical afterwards.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from discretize.voronoi import Discretizer
+
+
+@dataclass(frozen=True)
+class Inputs:
+    root: Path
+    states: Path          # 25-state lattice on the table (JSON)
+    other_states: Path    # 25 states of a 4 m square: the wrong arena
+    dataset: Path         # kinematic walk, 300 transitions, complete
+    mdp: Path             # estimated from the dataset, with goals
+    qtables: Path         # `simlab train` output (3 episodes, 1 run, no plots)
+    counts: Path          # a valid counts CSV
+    map_yaml: Path        # map of the table (from its geometry)
+
+
+def _lattice(half: float) -> Discretizer:
+    g = np.linspace(-half, half, 5)
+    return Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g]))
+
+
+@pytest.fixture(scope="session")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> Inputs:
+    from simlab.data.collect import collect
+    from simlab.data.estimate import estimate
+    from simlab.localization.maps import arena_map
+    from simlab.physics.arena import load_arena
+    from simlab.training.train import train
+
+    root = tmp_path_factory.mktemp("faults-inputs")
+    states = _lattice(0.6).save(root / "states.json")
+    other = _lattice(2.0).save(root / "other_states.json")
+    collect(arena="table", states=states, out=root / "data", transitions=300, seed=3,
+            workers=1, part_size=100, simulator="kinematic", progress=False)
+    estimate(root / "data", root / "mdp.npz", plot=False)
+    with pytest.warns(UserWarning):
+        train(root / "mdp.npz", "vi-softmax", "all", episodes=3, runs=1, seed=0,
+              out=root / "q", plots=False, progress=False)
+    counts = root / "counts.csv"
+    counts.write_text("s,a,s_next,count\n0,0,1,3\n1,3,0,2\n2,15,2,1\n")
+    from discretize.mapio import write_map
+
+    write_map(root / "map" / "map.yaml", arena_map(load_arena("table"), 0.02))
+    return Inputs(root=root, states=states, other_states=other, dataset=root / "data",
+                  mdp=root / "mdp.npz", qtables=root / "q", counts=counts,
+                  map_yaml=root / "map" / "map.yaml")
+
+
+def tree_hashes(root: Path) -> dict[str, str]:
+    """sha256 of every file under ``root`` (relative names)."""
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture()
+def work(tmp_path: Path, inputs: Inputs) -> Path:
+    """A private copy of the inputs that a test may damage (cwd for the command)."""
+    dst = tmp_path / "w"
+    shutil.copytree(inputs.root, dst)
+    return dst
+
+
+@dataclass
+class Outcome:
+    code: int
+    stderr: str
+    stdout: str
+
+    @property
+    def error_lines(self) -> list[str]:
+        return [ln for ln in self.stderr.splitlines() if ": error: " in ln
+                or ": internal error: " in ln]
+
+
+def run_cli(argv: list[str], capsys: pytest.CaptureFixture[str]) -> Outcome:
+    """``simlab argv`` in this process; returns the exit code and the captured output."""
+    from simlab.cli import main
+
+    capsys.readouterr()
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse
+        code = exc.code if isinstance(exc.code, int) else 2
+    out = capsys.readouterr()
+    return Outcome(code=code, stderr=out.err, stdout=out.out)
+
+
+def assert_refused(res: Outcome, *needles: str, code: int = 2) -> None:
+    """Exit ``code``, no traceback, exactly one error line, naming every needle."""
+    assert "Traceback" not in res.stderr, res.stderr
+    assert res.code == code, (res.code, res.stderr)
+    lines = res.error_lines if code != 130 else [ln for ln in res.stderr.splitlines()
+                                                 if "interrupted" in ln]
+    if code == 2 and not lines:  # argparse usage errors: "simlab X: error: ..." via usage
+        lines = [ln for ln in res.stderr.splitlines() if "error:" in ln]
+    assert len(lines) == 1, res.stderr
+    for needle in needles:
+        assert needle.lower() in lines[0].lower(), (needle, lines[0])
+
+
+PYTHON = sys.executable

@@ -1,0 +1,101 @@
+"""The fault corpus, part 2: the operating system says no (full disk, read-only file
+system) in the middle of writing, simulated by failing the n-th ``fsync``/temporary file.
+
+Every case: exit 2, one line naming the problem and the fix, no traceback, and the tree
+byte-identical, which includes the previous outputs an ``--overwrite`` run was replacing
+(outputs appear whole or not at all).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import tempfile
+
+import pytest
+
+from .conftest import assert_refused, run_cli, tree_hashes
+
+COMMANDS = {
+    "train": "train --mdp {w}/mdp.npz --episodes 2 --runs 1 --out {w}/q --overwrite "
+             "--no-progress",
+    "train-plots": "train --mdp {w}/mdp.npz --episodes 2 --runs 1 --out {w}/q --overwrite "
+                   "--no-progress --arena table",
+    "estimate": "estimate {w}/data --out {w}/mdp.npz --overwrite",
+    "estimate-counts": "estimate --counts {w}/counts.csv --out {w}/mdp.npz --overwrite "
+                       "--no-plot",
+    "discretize": "discretize --map {w}/map/map.yaml --out {w}/states.json --states 9 "
+                  "--overwrite --no-progress",
+    "collect": "collect --states {w}/states.json --transitions 50 --simulator kinematic "
+               "--out {w}/new --no-progress",
+    "arena-from-map": "arena-from-map {w}/map/map.yaml --out {w}/a.toml --start 0,0,0",
+}
+
+ERRORS = {
+    errno.ENOSPC: "no space left",
+    errno.EROFS: "read-only",
+    errno.EDQUOT: "quota",
+    errno.EIO: "input/output",
+}
+
+#: The n-th write that fails: 1 = the very first, 3 = after two files were written.
+WHEN = (1, 3)
+
+
+def _failing(err: int, nth: int, real):
+    calls = {"n": 0}
+
+    def fake(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] >= nth:
+            raise OSError(err, os.strerror(err))
+        return real(*args, **kwargs)
+
+    return fake
+
+
+CASES = [(c, e, n) for c in COMMANDS for e in (errno.ENOSPC, errno.EROFS) for n in WHEN]
+CASES += [("train", errno.EDQUOT, 2), ("estimate", errno.EIO, 2)]
+
+
+@pytest.mark.parametrize(("command", "err", "nth"), CASES,
+                         ids=[f"{c}-{errno.errorcode[e]}-{n}" for c, e, n in CASES])
+def test_write_failure_is_one_line_and_leaves_everything_as_it_was(
+        command: str, err: int, nth: int, work, capsys, monkeypatch) -> None:
+    before = tree_hashes(work)
+    if err == errno.EROFS and nth == 1:  # the file system refuses to create anything
+        monkeypatch.setattr(tempfile, "mkstemp", _failing(err, 1, tempfile.mkstemp))
+    else:
+        monkeypatch.setattr(os, "fsync", _failing(err, nth, os.fsync))
+    res = run_cli(COMMANDS[command].format(w=work).split(), capsys)
+    monkeypatch.undo()
+    if res.code == 0:  # fewer writes than nth: nothing failed, nothing to check here
+        assert nth > 1
+        return
+    assert_refused(res, ERRORS[err])
+    after = tree_hashes(work)
+    assert {k: after.get(k) for k in before} == before  # nothing that existed changed
+    if command == "collect":
+        # a dataset keeps its finished parts by design (resumable): the manifest lists
+        # exactly the parts on disk, and --resume completes it
+        from simlab.data.manifest import read_manifest
+
+        new = work / "new"
+        if (new / "_manifest.json").exists():
+            listed = {e["file"] for e in read_manifest(new)["parts"]}
+            assert listed <= {p.name for p in new.glob("*.parquet")}  # orphans are redone
+            res = run_cli([*COMMANDS[command].format(w=work).split(), "--resume"], capsys)
+            assert res.code == 0, res.stderr
+    else:
+        assert after == before, sorted(set(after) ^ set(before))
+    leftovers = [p for p in work.rglob("*") if ".simlab-staging-" in p.name
+                 or p.name.endswith(".tmp")]
+    assert not leftovers
+
+
+def test_describe_os_error_names_the_file_and_the_fix() -> None:
+    from simlab.cli import describe_os_error
+
+    text = describe_os_error(OSError(errno.ENOSPC, "No space left on device", "/x/q.npz"))
+    assert text.startswith("No space left on device: /x/q.npz (free some space")
+    assert "\n" not in text

@@ -1,0 +1,183 @@
+"""The fault corpus, part 3: races (one lock), kills and interrupts, failed starts,
+and the warnings promised for suspicious but legal inputs."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from simlab.io import exclusive_directory
+
+from .conftest import assert_refused, run_cli, tree_hashes
+
+WRITERS = {
+    "train": "train --mdp {w}/mdp.npz --episodes 2 --runs 1 --out {w}/busy --no-progress",
+    "map": "map --minutes 0.05 --out {w}/busy --no-progress",
+    "estimate": "estimate {w}/data --out {w}/busy/mdp.npz --no-plot",
+    "collect": "collect --states {w}/states.json --transitions 20 --simulator kinematic "
+               "--out {w}/busy --no-progress",
+    "pipeline": "pipeline --out {w}/busy --no-progress --map-minutes 0.05",
+    "replay": "replay --states {w}/states.json --qtables {w}/q --hours 0.005 "
+              "--baseline-hours 0 --out {w}/busy --no-progress",
+}
+
+
+@pytest.mark.parametrize("command", list(WRITERS))
+def test_a_second_writer_on_a_locked_out_stops_at_once(command: str, work: Path,
+                                                       capsys) -> None:
+    (work / "busy").mkdir()
+    before = tree_hashes(work)
+    with exclusive_directory(work / "busy"):  # the first writer, still running
+        res = run_cli(WRITERS[command].format(w=work).split(), capsys)
+    assert_refused(res, "another process is writing", "busy")
+    assert tree_hashes(work) == before
+
+
+def _simlab(*args: str, cwd: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    return subprocess.Popen([sys.executable, "-m", "simlab", *args], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(predicate, what: str, limit: float = 120.0) -> None:
+    """Poll ``predicate``; a hang guard (not a speed check): fail after ``limit`` s."""
+    t0 = time.monotonic()
+    while not predicate():
+        if time.monotonic() - t0 > limit:
+            raise AssertionError(f"gave up waiting for {what}")
+        time.sleep(0.1)
+
+
+def _children(pid: int) -> list[int]:
+    kids: list[int] = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            kids += [int(k) for k in (task / "children").read_text().split()]
+        except OSError:
+            pass
+    return kids
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
+def test_sigkill_of_collect_ends_its_workers_and_resume_gives_the_same_data(
+        work: Path) -> None:
+    args = ["collect", "--states", str(work / "states.json"), "--transitions", "60000",
+            "--part-size", "2000", "--workers", "2", "--simulator", "kinematic",
+            "--seed", "5", "--no-progress"]
+    proc = _simlab(*args, "--out", str(work / "killed"), cwd=work)
+    manifest = work / "killed" / "_manifest.json"
+    _wait_for(lambda: manifest.exists() and json.loads(manifest.read_text())["parts"],
+              "a first part")
+    workers = _children(proc.pid)
+    assert workers, "collect --workers 2 runs its walks in child processes"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    _wait_for(lambda: not any(_alive(p) for p in workers), "the orphaned workers to exit")
+    res = subprocess.run([sys.executable, "-m", "simlab", *args, "--out",
+                          str(work / "killed"), "--resume"], cwd=work, capture_output=True,
+                         text=True, env={**os.environ,
+                                         "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert res.returncode == 0, res.stderr
+    ref = subprocess.run([sys.executable, "-m", "simlab", *args, "--out",
+                          str(work / "whole")], cwd=work, capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert ref.returncode == 0, ref.stderr
+    parts = {p.name: p.read_bytes() for p in (work / "killed").glob("*.parquet")}
+    assert parts == {p.name: p.read_bytes() for p in (work / "whole").glob("*.parquet")}
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_train_is_130_and_leaves_no_output(work: Path) -> None:
+    proc = _simlab("train", "--mdp", str(work / "mdp.npz"), "--episodes", "200000",
+                   "--runs", "4", "--out", str(work / "t"), cwd=work)
+    _wait_for(lambda: (work / "t").exists(), "train to start")  # the lock is taken
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate()
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "simlab train: interrupted" in err and "Traceback" not in err
+    assert not (work / "t").exists()
+
+
+def test_worker_initializer_exits_when_the_parent_is_gone() -> None:
+    code = ("import os, time\n"
+            "from simlab.experiments.executors import exit_with_parent\n"
+            "exit_with_parent(os.getppid(), 0.05)\n"  # our parent lives: keep going
+            "exit_with_parent(os.getppid() + 1_000_000, 0.05)\n"  # not our parent: exit
+            "print('still here')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert res.returncode == 1 and "still here" not in res.stdout
+
+
+def test_a_pipeline_that_fails_in_its_first_stage_leaves_nothing(
+        work: Path, capsys, monkeypatch) -> None:
+    import errno
+
+    import simlab.mapping
+
+    def full_disk(*_a, **_k):
+        raise OSError(errno.ENOSPC, "No space left on device", str(work / "p" / "map.pgm"))
+
+    monkeypatch.setattr(simlab.mapping, "build_map", full_disk)
+    argv = f"pipeline --out {work}/p --no-progress --map-minutes 0.05".split()
+    for _ in range(2):  # the rerun meets the same one-line error, not "already exists"
+        res = run_cli(argv, capsys)
+        assert_refused(res, "no space left")
+        assert not (work / "p").exists()
+    (work / "p").mkdir()  # a user's empty folder: kept, and the run is resumable
+    assert_refused(run_cli(argv, capsys), "no space left")
+    assert (work / "p" / "pipeline.json").exists()
+    assert not list((work / "p").glob("stages/physics/map-*"))
+    res = run_cli([*argv, "--resume"], capsys)
+    assert_refused(res, "no space left")
+
+
+def test_estimate_warns_on_an_incomplete_dataset(work: Path, capsys) -> None:
+    m = json.loads((work / "data" / "_manifest.json").read_text())
+    m["complete"] = False
+    (work / "data" / "_manifest.json").write_text(json.dumps(m))
+    res = run_cli(f"estimate {work}/data --out {work}/m.npz --no-plot".split(), capsys)
+    assert res.code == 0, res.stderr
+    warnings = [ln for ln in res.stderr.splitlines() if ": warning: " in ln]
+    assert any("incomplete" in ln and "data" in ln for ln in warnings), res.stderr
+    quiet = run_cli(f"-q estimate {work}/data --out {work}/m2.npz --no-plot".split(), capsys)
+    assert quiet.code == 0 and "incomplete" not in quiet.stderr
+
+
+def test_train_warns_on_an_mdp_from_zero_transitions(work: Path, capsys) -> None:
+    (work / "zero.csv").write_text("s,a,s_next,count\n0,0,1,0\n1,0,0,0\n")
+    res = run_cli(f"estimate --counts {work}/zero.csv --states {work}/states.json --arena table "
+                  f"--out {work}/z.npz --no-plot".split(),
+                  capsys)
+    assert res.code == 0, res.stderr
+    res = run_cli(f"train --mdp {work}/z.npz --episodes 2 --runs 1 --no-plots --out {work}/zt "
+                  "--no-progress".split(), capsys)
+    assert any("0 transitions" in ln for ln in res.stderr.splitlines()
+               if ": warning: " in ln), res.stderr
+
+
+def test_internal_errors_are_one_line_exit_1(monkeypatch, capsys) -> None:
+    import simlab.cli.train as cli_train
+
+    def bug(_args):
+        raise TypeError("unsupported format string passed to NoneType.__format__")
+
+    monkeypatch.setattr(cli_train, "run", bug)
+    res = run_cli(["train", "--mdp", "x.npz", "--out", "y"], capsys)
+    assert_refused(res, "internal error", "TypeError", code=1)
