@@ -83,6 +83,10 @@ def parquet_files(directory: str | os.PathLike[str]) -> list[Path]:
     return [directory / str(e["file"]) for e in parts]
 
 
+class IncompleteDatasetWarning(UserWarning):
+    """The dataset's manifest says its collect run did not finish."""
+
+
 @dataclass(frozen=True)
 class TransitionDataset:
     """A dataset read from disk: its manifest and all transitions as one table.
@@ -116,6 +120,16 @@ class TransitionDataset:
     def centres(self) -> np.ndarray:
         """Voronoi centres (S, 2) in metres."""
         return np.asarray(self.manifest["discretizer"]["centres"], dtype=np.float64).reshape(-1, 2)
+
+    def warn_if_incomplete(self, use: str) -> None:
+        """Warn (:class:`IncompleteDatasetWarning`) when the collect run did not finish;
+        ``use`` says what is built from the finished parts only (``"the model"``)."""
+        if not self.manifest.get("complete", False):
+            import warnings
+
+            warnings.warn(f"{self.directory}: the dataset is incomplete (a collect run was "
+                          f"stopped); {use} covers only its finished parts (finish it with "
+                          "`simlab collect --resume`)", IncompleteDatasetWarning, stacklevel=3)
 
     @property
     def discretizer_hash(self) -> str:

@@ -33,7 +33,6 @@ from __future__ import annotations
 import itertools
 import json
 import os
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -52,10 +51,6 @@ HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)
 
 #: Rules for unvisited (s, a) pairs (see the module docstring); the first is the default.
 UNVISITED_RULES = ("mask", "self-loop")
-
-
-class IncompleteDatasetWarning(UserWarning):
-    """The dataset's manifest says its collect run did not finish."""
 
 
 def check_unvisited_rule(rule: str, *, key: str = "unvisited") -> str:
@@ -370,10 +365,7 @@ def estimate(
         if action_set.n_actions != A:
             raise ConfigError(f"the dataset has {A} actions but records "
                               f"{action_set.describe()}", path=dataset, key="action_set")
-        if not ds.manifest.get("complete", False):
-            warnings.warn(f"{dataset}: the dataset is incomplete (a collect run was stopped); "
-                          "the model covers only its finished parts (finish it with "
-                          "`simlab collect --resume`)", IncompleteDatasetWarning, stacklevel=2)
+        ds.warn_if_incomplete("the model")
         states_hash = ds.discretizer_hash
         a_col = ds.column("a")
         c = count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A)

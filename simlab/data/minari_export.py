@@ -180,6 +180,7 @@ def export_minari(
     from simlab.data.goals import goal_state_masks, goals_from_manifest
 
     ds = open_dataset(dataset, validate=True)
+    ds.warn_if_incomplete("the Minari dataset")
     if episode_length is None:
         episode_length = int(ds.manifest["parameters"].get("part_size", 250))
     if isinstance(episode_length, bool) or int(episode_length) != episode_length \

@@ -184,3 +184,18 @@ def test_minari_export_without_a_loadable_arena_records_no_env_spec(
     with pytest.warns(UserWarning, match="--arena"):
         export_minari(kinematic_dataset, "simlab/noarena-v0", arena="no-such-arena")
     assert minari.load_dataset("simlab/noarena-v0").spec.env_spec is None
+
+
+def test_minari_export_of_an_incomplete_dataset_warns(dataset_copy: Path,
+                                                      minari_home: Path) -> None:
+    import json
+
+    from simlab.data.dataset import IncompleteDatasetWarning
+    from simlab.data.minari_export import export_minari
+
+    manifest = dataset_copy / "_manifest.json"
+    m = json.loads(manifest.read_text())
+    m["complete"] = False
+    manifest.write_text(json.dumps(m))
+    with pytest.warns(IncompleteDatasetWarning, match="Minari dataset covers only its finished"):
+        export_minari(dataset_copy, "simlab/part-walk-v0", episode_length=64)
