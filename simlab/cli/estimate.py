@@ -76,8 +76,11 @@ def run(args: argparse.Namespace) -> int:
     line += f"; {result.summary['action_set']['n_actions']} actions " \
             f"({result.summary['action_set']['convention']})"
     if result.summary["masked_pairs"]:
-        line += (f"; {result.summary['masked_pairs']} unvisited (s, a) masked for planners "
-                 "(--unvisited self-loop for the old rule)")
+        line += (f"; {result.summary['masked_pairs']} untried (s, a) of visited states masked "
+                 "for planners (--unvisited self-loop for the old rule)")
+    if result.summary["states_without_data"]:
+        line += (f"; {result.summary['states_without_data']} states never left in the data "
+                 "(all their actions stay allowed)")
     files = [result.npz, result.summary_path] + ([result.plot] if result.plot else [])
     print(line)
     print("wrote " + ", ".join(str(f) for f in files))

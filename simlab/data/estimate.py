@@ -410,8 +410,11 @@ def estimate(
         goals = arena_cfg
         summary["source"] = {
             "counts": str(Path(counts)),  # type: ignore[arg-type]
+            "format": table.format,
             "rows": table.rows,
             "duplicate_rows_summed": table.duplicates,
+            # the file's own top-level fields (ISIR: actioncount, timecount), as given
+            "file_metadata": dict(table.metadata),
             "n_states_from": "states file" if disc is not None else (
                 "--n-states" if n_states is not None else "largest index + 1"),
         }
@@ -464,6 +467,7 @@ def estimate(
             + ("planners choose only visited actions (mask)" if unvisited == "mask"
                else "planners may choose them as a free stay (self-loop)")),
         "masked_pairs": n_masked,
+        "states_without_data": int((~mdp.visited.any(axis=1)).sum()),
     })
     if blocked_by_action is not None:
         summary["blocked_fraction_per_action"] = _floats(blocked_by_action)

@@ -302,3 +302,25 @@ def test_estimate_cli_action_flags(tmp_path: Path, kinematic_dataset: Path, caps
     assert not (tmp_path / "d.npz").exists()
     assert main(["estimate", "--counts", str(table), "--out", str(tmp_path / "e.npz"),
                  "--n-actions", "8", "--convention", "east"]) == 2
+
+
+def test_estimate_of_an_isir_model_reports_its_fields_and_states_without_data(
+        tmp_path: Path) -> None:
+    from simlab.actions import parse_action_set
+
+    doc = {"transitionActions": [
+        {"state": 0, "transitions": [{"action": 0, "state": 1, "prob": 4},
+                                     {"action": 2, "state": 0, "prob": 1}]},
+        {"state": 1, "transitions": [{"action": 4, "state": 0, "prob": 2}]}],
+        "actioncount": 7, "timecount": 812}
+    model = tmp_path / "robot_model"  # no extension: sniffed as JSON
+    model.write_text(json.dumps(doc))
+    res = estimate(None, tmp_path / "mdp.npz", counts=model, n_states=3,
+                   action_set=parse_action_set(8, "ccw-east"), plot=False)
+    src = res.summary["source"]
+    assert src["format"] == "isir" and src["rows"] == 3
+    assert src["file_metadata"] == {"actioncount": 7, "timecount": 812}
+    # state 2 never appears: all 8 of its actions stay allowed; states 0 and 1 lose their
+    # 6 and 7 untried actions
+    assert res.summary["states_without_data"] == 1
+    assert res.summary["masked_pairs"] == 6 + 7
