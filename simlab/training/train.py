@@ -66,6 +66,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab.data.goals import state_goal_name
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_json, output_transaction
 
@@ -247,7 +248,7 @@ def _apply_task(m: Any, task: TrainTask, start: int | None) -> tuple[Any, Any]:
     if task.goal_states is not None:
         mask = np.zeros((1, S), dtype=bool)
         mask[0, list(task.goal_states)] = True
-        name = "s" + "+".join(str(s) for s in task.goal_states)
+        name = state_goal_name(task.goal_states)
         changes.update(goal_names=(name,), goal_masks=mask)
     if changes:
         m = dataclasses.replace(m, **changes)
