@@ -55,8 +55,8 @@ from simlab.agents.kernels import (
     model_backup,
     model_observe,
     model_q_value,
-    q_learning_update,
     model_value_iteration,
+    q_learning_update,
     select_action,
 )
 from simlab.errors import ConfigError

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from simlab.agents import core
 from simlab.agents.config import (
     ModelBasedConfig,
     PassiveObserverConfig,
@@ -51,10 +52,9 @@ from simlab.agents.config import (
     SlidingWindowConfig,
     config_to_dict,
 )
+from simlab.agents.core import agent_params
 from simlab.agents.kernels import (
     count_model_new,
-    model_based_update,
-    model_value_iteration,
     q_learning_update,
     rmax_q_init,
     select_action,
@@ -69,8 +69,8 @@ TASKS = ("nav", "social", "gotohuman")
 # indices into the agent parameter array handed to the loops
 (A_KIND, A_SELECT, A_ALPHA, A_GAMMA, A_EPS, A_TAU, A_PLAN_EVERY, A_SWEEPS, A_TOL, A_M_KNOWN,
  A_INCREMENTAL, A_REPLAN, A_OBSERVER, A_OBS_SELECT, A_OBS_ALPHA, A_OBS_GAMMA, A_OBS_EPS,
- A_OBS_TAU, A_TAKEOVER) = range(19)
-_N_AP = 19
+ A_OBS_TAU, A_TAKEOVER, A_SYNC, A_UNTRIED, A_FREEZE) = range(22)
+_N_AP = 22
 _KIND_MF, _KIND_MB, _KIND_RMAX = 0, 1, 2
 
 
@@ -100,6 +100,12 @@ def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",
             changes["observer.alpha"] = 0.5
     if isinstance(preset, RMaxConfig) and variant == "paper" and task == "social":
         changes["m"] = 5
+    if variant == "paper" and isinstance(preset, ModelBasedConfig | PassiveObserverConfig):
+        # paper rules 1 and 2 (simlab.agents.core): untried pairs valued through a
+        # uniform model, one synchronous sweep over all pairs
+        changes.update({f"{prefix}synchronous": True, f"{prefix}untried_uniform": True})
+    if variant == "paper" and isinstance(preset, RMaxConfig):
+        changes.update({"synchronous": True, "freeze": True})  # paper rules 2 and 7
     changes.update(overrides or {})
     return agent_config(name, changes)
 
@@ -147,6 +153,8 @@ def agent_arrays(cfg: Any, n_states: int, n_actions: int, takeover_trial: int = 
     else:
         raise ConfigError(f"unsupported agent config {type(cfg).__name__}", key="agent")
     if not isinstance(actor, QLearningConfig):
+        p = agent_params(actor)
+        ap[A_SYNC], ap[A_UNTRIED], ap[A_FREEZE] = p.synchronous, p.untried_uniform, p.freeze
         ap[A_INCREMENTAL] = 1.0 if actor.incremental else 0.0
         ap[A_PLAN_EVERY] = actor.plan_every
         ap[A_SWEEPS] = actor.max_sweeps
@@ -180,19 +188,18 @@ def _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial):
         q_learning_update(Q_obs, s, a, r, s_next, ap[A_OBS_ALPHA], ap[A_OBS_GAMMA])
         if 0 <= ap[A_TAKEOVER] <= trial:
             return t  # after the take-over only the observer learns
-    kind = int(ap[A_KIND])
-    gamma = ap[A_GAMMA]
-    if kind == _KIND_MF:
-        q_learning_update(Q, s, a, r, s_next, ap[A_ALPHA], gamma)
-        return t + 1
-    m_known = int(ap[A_M_KNOWN])
-    model_based_update(model, Q, s, a, r, s_next, gamma, m_known, ap[A_INCREMENTAL] > 0.0,
-                       ap[A_REPLAN] > 0.0, int(ap[A_SWEEPS]), ap[A_TOL])
-    t += 1
-    plan_every = int(ap[A_PLAN_EVERY])
-    if plan_every > 0 and t % plan_every == 0:
-        model_value_iteration(model, Q, gamma, int(ap[A_SWEEPS]), ap[A_TOL], m_known)
-    return t
+    return core.learn(model, Q, s, a, r, s_next, _actor_params(ap), core.NO_MASK,
+                      core.NO_TERMINAL, t)
+
+
+@njit(cache=True)
+def _actor_params(ap):
+    """The acting agent's :class:`~simlab.agents.core.AgentParams` from ``ap``."""
+    return core.AgentParams(
+        int(ap[A_KIND]), int(ap[A_SELECT]), ap[A_ALPHA], ap[A_GAMMA], ap[A_EPS], ap[A_TAU],
+        int(ap[A_M_KNOWN]), ap[A_INCREMENTAL] > 0.0, ap[A_REPLAN] > 0.0,
+        int(ap[A_PLAN_EVERY]), int(ap[A_SWEEPS]), ap[A_TOL], ap[A_SYNC] > 0.0,
+        ap[A_UNTRIED] > 0.0, ap[A_FREEZE] > 0.0)
 
 
 @njit(cache=True)
