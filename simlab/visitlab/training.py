@@ -63,6 +63,7 @@ from simlab.agents.kernels import (
 from simlab.agents.registry import AGENTS, agent_config
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
+from simlab.visitlab.perception import P_SHARE
 
 TASKS = ("nav", "social", "gotohuman")
 
@@ -233,7 +234,7 @@ def social_train_chunk(walls_h, walls_v, los, pcfg, hp, redraw_p, robot_start, h
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.social_reset(st, env_rng, n_cells, robot_start, human_start)
+        dyn.social_reset(st, env_rng, n_cells, robot_start, human_start, pcfg[P_SHARE] != 0)
         s = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
         total = 0.0
         for _ in range(n_steps):
@@ -256,7 +257,8 @@ def gth_train_chunk(walls_h, walls_v, los, pcfg, hp, human_moves, episode, robot
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.gth_reset(st, env_rng, n_cells, episode, robot_cell, human_cell, robot_ori, human_ori)
+        dyn.gth_reset(st, env_rng, n_cells, episode, robot_cell, human_cell, robot_ori, human_ori,
+                      pcfg[P_SHARE] != 0)
         s = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
         total = 0.0
         for _ in range(n_steps):
