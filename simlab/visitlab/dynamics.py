@@ -41,9 +41,11 @@ depends only on the state the robot observed and its action:
    the robot *as it saw it at the start of the step* — along the direction opposite
    to the observed angle — at a speed drawn from s_H, unless the robot did HELLO,
    COME or POINTING this step; it stops at walls and before the robot's (new) cell,
-   then looks at the robot again. (Like the reference implementation, the human
-   reacts with a one-step lag; this also makes the direction it walks a function
-   of the observed state, so the reward is Markov in the social observation.)
+   then looks at the robot again. (The human walks with a one-step lag, as in the
+   reference implementation; this also makes the direction it walks a function of
+   the observed state, so the reward is Markov in the social observation. The gaze
+   is *not* the reference's: it aims at the robot's cell before the robot's move and
+   is never re-aimed — paper rule 4 below.)
    Not engaged:
    with probability r_H it walks in a uniformly random direction at a speed drawn
    from s_H and faces that direction; then, with probability O_H, it turns to one

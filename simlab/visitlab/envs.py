@@ -193,6 +193,14 @@ class NavEnv(_VisitLabEnv):
         self.observation_space = spaces.Discrete(self.layout.n_labels * self.layout.n_cells)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
 
+    def kernel_args(self) -> tuple:
+        """The fixed inputs of the fused navigation loop
+        (:func:`simlab.visitlab.training.nav_train_chunk`), in its argument order:
+        walls, cell labels, start cell, goal label, goal labels, steps per trial."""
+        lay = self.layout
+        return (lay.walls_h, lay.walls_v, lay.cell_labels, self.start_cell, self.goal_label,
+                np.array(lay.goal_labels, dtype=np.int64), self.max_steps)
+
     def _obs(self) -> int:
         return int(dyn.nav_obs(self._st, self.layout.n_cells))
 
@@ -287,6 +295,15 @@ class SocialEnv(_VisitLabEnv):
         self._moved_required = False
         self.observation_space = spaces.Discrete(dyn.N_SOCIAL_STATES)
         self.action_space = spaces.Discrete(N_SOCIAL_ACTIONS)
+
+    def kernel_args(self) -> tuple:
+        """The fixed inputs of the fused social loop
+        (:func:`simlab.visitlab.training.social_train_chunk`), in its argument order:
+        walls, line-of-sight table, perception array, human array, redraw probability,
+        robot and human start cells, steps per trial."""
+        lay = self.layout
+        return (lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp, self.redraw_p,
+                self.robot_start, self.human_start, self.max_steps)
 
     def _obs(self) -> int:
         return int(dyn.social_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
@@ -404,6 +421,14 @@ class GoToHumanEnv(_VisitLabEnv):
         self._los = self.layout.los_table()
         self.observation_space = spaces.Discrete(dyn.N_GTH_STATES)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
+
+    def kernel_args(self) -> tuple:
+        """The fixed inputs of the fused go-to-human loop
+        (:func:`simlab.visitlab.training.gth_train_chunk`), in its argument order."""
+        lay = self.layout
+        return (lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
+                self.human is not None, self._episode_code, self.robot_cell, self.human_cell,
+                self.robot_ori, self.human_ori, self.max_steps)
 
     def _obs(self) -> int:
         return int(dyn.gth_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
