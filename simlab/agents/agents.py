@@ -9,10 +9,14 @@ config from :mod:`simlab.agents.config`) and a ``numpy.random.Generator``:
 * ``fit(env, n_episodes)`` — run episodes on a Gymnasium env with ``Discrete``
   spaces and return the reward of each episode.
 
-The per-step work happens in the kernels (:mod:`simlab.agents.kernels`), so an
-agent used from Python makes the same random draws, in the same order, as the
-fused njit loops of :mod:`simlab.training.fused` (tested): ``act`` consumes the
-agent's Generator, ``update`` consumes nothing.
+The per-step work happens in the act / learn / plan steps of the agent core
+(:mod:`simlab.agents.core`), which the fused njit loops of
+:mod:`simlab.training.fused` and :mod:`simlab.visitlab.training` call too, so an
+agent used from Python makes the same random draws, in the same order (tested):
+``act`` consumes the agent's Generator, ``update`` consumes nothing.
+
+Every agent takes keyword arguments ``valid`` (S, A) bool and ``terminal`` (S,) bool
+(None: no constraint), also settable with :meth:`TabularAgent.constrain`.
 """
 
 from __future__ import annotations
@@ -255,9 +259,13 @@ class SlidingWindowAgent(ModelBasedAgent):
         n_actions: int,
         config: SlidingWindowConfig | None = None,
         rng: np.random.Generator | None = None,
+        *,
+        valid: np.ndarray | None = None,
+        terminal: np.ndarray | None = None,
     ) -> None:
         super().__init__(
-            n_states, n_actions, SlidingWindowConfig() if config is None else config, rng
+            n_states, n_actions, SlidingWindowConfig() if config is None else config, rng,
+            valid=valid, terminal=terminal,
         )
 
     def _new_model(self) -> WindowModel:
