@@ -222,7 +222,7 @@ def masked_select(q, vrow, method, epsilon, tau, rng):
     return _masked_greedy(q, vrow, rng)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def act(Q, s, p, valid, rng):
     """Behaviour action in state ``s`` (``p.selection`` on ``Q[s]``, masked by ``valid``)."""
     if valid.shape[0] == 0:
@@ -301,7 +301,7 @@ def _q_update(Q, s, a, r, s_next, alpha, gamma, valid, terminal):
     return td
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def learn(model, Q, s, a, r, s_next, p, valid, terminal, t):
     """Learn from ``(s, a, r, s_next)``; returns the step counter ``t`` after it.
 
@@ -332,7 +332,7 @@ def learn(model, Q, s, a, r, s_next, p, valid, terminal, t):
     return t
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _backup(model, Q, s, a, p, valid, terminal):
     if valid.shape[0] == 0 and terminal.shape[0] == 0:
         model_backup(model, Q, s, a, p.gamma, p.m_known)
