@@ -195,11 +195,14 @@ def _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial):
         q_learning_update(Q_obs, s, a, r, s_next, ap[A_OBS_ALPHA], ap[A_OBS_GAMMA])
         if 0 <= ap[A_TAKEOVER] <= trial:
             return t  # after the take-over only the observer learns
+    if ap[A_KIND] == _KIND_MF:  # the core's Q-learning step without building the record
+        q_learning_update(Q, s, a, r, s_next, ap[A_ALPHA], ap[A_GAMMA])
+        return t + 1
     return core.learn(model, Q, s, a, r, s_next, _actor_params(ap), core.NO_MASK,
                       core.NO_TERMINAL, t)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _actor_params(ap):
     """The acting agent's :class:`~simlab.agents.core.AgentParams` from ``ap``."""
     return core.AgentParams(
