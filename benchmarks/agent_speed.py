@@ -5,7 +5,7 @@ Dirichlet probabilities) and reward 1 on arriving in 5 % of the states; episodes
 of 40 steps (thesis social trials) from a uniform start. Each agent is measured
 
 * **fused**: environment sampling and agent step in one njit loop calling the
-  kernels of :mod:`simlab.agents.kernels` (how the training loops run), and
+  act / learn steps of :mod:`simlab.agents.core` (how the training loops run), and
 * **python**: the agent class's ``act`` / ``update`` called per step from Python
   (environment sampled with the same kernel),
 
@@ -38,9 +38,9 @@ import time
 import numpy as np
 from numba import njit
 
+from simlab.agents import core, make_agent
 from simlab.agents import kernels as K
-from simlab.agents import make_agent
-from simlab.agents.agents import PassiveObserverAgent, QLearningAgent, RMaxAgent
+from simlab.agents.agents import PassiveObserverAgent, RMaxAgent
 
 S, A, HORIZON = 2560, 30, 40
 
@@ -56,36 +56,18 @@ def sparse_mdp(rng: np.random.Generator, branching: int):
 
 
 @njit(cache=True)
-def fused_q(succ, cdf, reward, steps, Q, alpha, gamma, method, eps, tau, env_rng, agent_rng):
+def fused(succ, cdf, reward, steps, Q, model, p, env_rng, agent_rng):
+    """The agent core's act / learn steps (simlab.agents.core), as the training loops run."""
     s = env_rng.integers(0, S)
     total = 0.0
-    for t in range(steps):
-        if t % HORIZON == 0:
+    t = 0
+    for i in range(steps):
+        if i % HORIZON == 0:
             s = env_rng.integers(0, S)
-        a = K.select_action(Q[s], method, eps, tau, agent_rng)
+        a = core.act(Q, s, p, core.NO_MASK, agent_rng)
         s2 = succ[s, a, K.sample_from_cdf(cdf[s, a], env_rng)]
         r = reward[s2]
-        K.q_learning_update(Q, s, a, r, s2, alpha, gamma)
-        total += r
-        s = s2
-    return total
-
-
-@njit(cache=True)
-def fused_mb(succ, cdf, reward, steps, Q, model, gamma, method, eps, tau, m_known,
-             incremental, replan, plan_every, sweeps, tol, env_rng, agent_rng):  # fmt: skip
-    s = env_rng.integers(0, S)
-    total = 0.0
-    for t in range(steps):
-        if t % HORIZON == 0:
-            s = env_rng.integers(0, S)
-        a = K.select_action(Q[s], method, eps, tau, agent_rng)
-        s2 = succ[s, a, K.sample_from_cdf(cdf[s, a], env_rng)]
-        r = reward[s2]
-        K.model_based_update(model, Q, s, a, r, s2, gamma, m_known, incremental, replan, sweeps,
-                             tol)  # fmt: skip
-        if plan_every > 0 and (t + 1) % plan_every == 0:
-            K.model_value_iteration(model, Q, gamma, sweeps, tol, m_known)
+        t = core.learn(model, Q, s, a, r, s2, p, core.NO_MASK, core.NO_TERMINAL, t)
         total += r
         s = s2
     return total
@@ -93,15 +75,9 @@ def fused_mb(succ, cdf, reward, steps, Q, model, gamma, method, eps, tau, m_know
 
 def run_fused(agent, mdp, steps, env_rng):
     succ, cdf, reward = mdp
-    if isinstance(agent, QLearningAgent):
-        c = agent.config
-        return fused_q(succ, cdf, reward, steps, agent.Q, c.alpha, c.gamma, int(c.selection),
-                       c.epsilon, c.tau, env_rng, agent.rng)  # fmt: skip
-    c = agent.config
-    return fused_mb(succ, cdf, reward, steps, agent.Q, agent.model, c.gamma, agent.selection,
-                    float(agent.epsilon), float(agent.tau), agent.m_known, c.incremental,
-                    agent.replan_when_known, c.plan_every, c.max_sweeps, c.tol, env_rng,
-                    agent.rng)  # fmt: skip
+    # the planning clock restarts at each call (as before the agent core)
+    return fused(succ, cdf, reward, steps, agent.Q, getattr(agent, "model", core.NO_MODEL),
+                 agent.params, env_rng, agent.rng)
 
 
 def run_python(agent, mdp, steps, env_rng):

@@ -9,10 +9,14 @@ config from :mod:`simlab.agents.config`) and a ``numpy.random.Generator``:
 * ``fit(env, n_episodes)`` — run episodes on a Gymnasium env with ``Discrete``
   spaces and return the reward of each episode.
 
-The per-step work happens in the kernels (:mod:`simlab.agents.kernels`), so an
-agent used from Python makes the same random draws, in the same order, as the
-fused njit loops of :mod:`simlab.training.fused` (tested): ``act`` consumes the
-agent's Generator, ``update`` consumes nothing.
+The per-step work happens in the act / learn / plan steps of the agent core
+(:mod:`simlab.agents.core`), which the fused njit loops of
+:mod:`simlab.training.fused` and :mod:`simlab.visitlab.training` call too, so an
+agent used from Python makes the same random draws, in the same order (tested):
+``act`` consumes the agent's Generator, ``update`` consumes nothing.
+
+Every agent takes keyword arguments ``valid`` (S, A) bool and ``terminal`` (S,) bool
+(None: no constraint), also settable with :meth:`TabularAgent.constrain`.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab.agents import core
 from simlab.agents import kernels as K
 from simlab.agents.config import (
     ModelBasedConfig,
@@ -68,6 +73,18 @@ class TabularAgent:
     n_actions: int
     Q: np.ndarray
     rng: np.random.Generator
+    valid: np.ndarray = core.NO_MASK
+    """(S, A) bool valid-action mask (empty: every action valid); see :meth:`constrain`."""
+    terminal: np.ndarray = core.NO_TERMINAL
+    """(S,) bool terminal states (empty: none); see :meth:`constrain`."""
+
+    def constrain(self, valid: np.ndarray | None = None,
+                  terminal: np.ndarray | None = None) -> None:
+        """Set the valid-action mask ``valid`` (S, A) bool and the ``terminal`` (S,) bool
+        flags (None: all valid / no terminal state); semantics in :mod:`simlab.agents.core`.
+        """
+        self.valid = core.as_mask(valid, self.n_states, self.n_actions)
+        self.terminal = core.as_terminal(terminal, self.n_states)
 
     def act(self, s: int) -> int:
         raise NotImplementedError
@@ -136,19 +153,24 @@ class QLearningAgent(TabularAgent):
         n_actions: int,
         config: QLearningConfig | None = None,
         rng: np.random.Generator | None = None,
+        *,
+        valid: np.ndarray | None = None,
+        terminal: np.ndarray | None = None,
     ) -> None:
         _check_sizes(n_states, n_actions)
         self.config = QLearningConfig() if config is None else config
         self.rng = _check_rng(rng)
         self.n_states, self.n_actions = int(n_states), int(n_actions)
         self.Q = np.full((self.n_states, self.n_actions), self.config.initial_value)
+        self.params = core.agent_params(self.config)
+        self.constrain(valid, terminal)
 
     def act(self, s: int) -> int:
-        c = self.config
-        return int(K.select_action(self.Q[s], int(c.selection), c.epsilon, c.tau, self.rng))
+        return int(core.act(self.Q, s, self.params, self.valid, self.rng))
 
     def update(self, s: int, a: int, r: float, s_next: int) -> None:
-        K.q_learning_update(self.Q, s, a, r, s_next, self.config.alpha, self.config.gamma)
+        core.learn(core.NO_MODEL, self.Q, s, a, r, s_next, self.params, self.valid,
+                   self.terminal, 0)
 
     def update_terminal(self, s: int, a: int, r: float) -> None:
         K.q_learning_update(self.Q, s, a, r, s, self.config.alpha, 0.0)
@@ -171,25 +193,17 @@ class _ModelAgentBase(TabularAgent):
     """Softmax temperature."""
 
     def act(self, s: int) -> int:
-        return int(K.select_action(self.Q[s], self.selection, self.epsilon, self.tau, self.rng))
+        return int(core.act(self.Q, s, self.params, self.valid, self.rng))
 
     def update(self, s: int, a: int, r: float, s_next: int) -> None:
-        c = self.config
-        K.model_based_update(
-            self.model, self.Q, s, a, r, s_next, c.gamma, self.m_known,
-            c.incremental, self.replan_when_known, c.max_sweeps, c.tol,
-        )  # fmt: skip
-        self.steps += 1
-        if c.plan_every and self.steps % c.plan_every == 0:
-            self.plan()
+        self.steps = int(core.learn(self.model, self.Q, s, a, r, s_next, self.params,
+                                    self.valid, self.terminal, self.steps))
 
     def plan(self, max_sweeps: int | None = None) -> int:
-        """Run value iteration on the current model now; returns the sweeps done."""
-        c = self.config
-        sweeps = c.max_sweeps if max_sweeps is None else max_sweeps
-        return int(
-            K.model_value_iteration(self.model, self.Q, c.gamma, sweeps, c.tol, self.m_known)
-        )
+        """Plan on the current model now (:func:`simlab.agents.core.plan`); returns the
+        sweeps done."""
+        p = self.params if max_sweeps is None else self.params._replace(max_sweeps=max_sweeps)
+        return int(core.plan(self.model, self.Q, p, self.valid, self.terminal))
 
     def transition_matrix(self) -> tuple[np.ndarray, np.ndarray]:
         """Dense ``(T, R)`` of the learned model (small MDPs only)."""
@@ -211,6 +225,9 @@ class ModelBasedAgent(_ModelAgentBase):
         n_actions: int,
         config: ModelBasedConfig | None = None,
         rng: np.random.Generator | None = None,
+        *,
+        valid: np.ndarray | None = None,
+        terminal: np.ndarray | None = None,
     ) -> None:
         _check_sizes(n_states, n_actions)
         self.config = ModelBasedConfig() if config is None else config
@@ -224,6 +241,8 @@ class ModelBasedAgent(_ModelAgentBase):
         self.selection = int(c.selection)
         self.epsilon, self.tau = c.epsilon, c.tau
         self.steps = 0
+        self.params = core.agent_params(c)
+        self.constrain(valid, terminal)
 
     def _new_model(self) -> CountModel | WindowModel:
         return CountModel(self.n_states, self.n_actions, self.config.capacity)
@@ -240,9 +259,13 @@ class SlidingWindowAgent(ModelBasedAgent):
         n_actions: int,
         config: SlidingWindowConfig | None = None,
         rng: np.random.Generator | None = None,
+        *,
+        valid: np.ndarray | None = None,
+        terminal: np.ndarray | None = None,
     ) -> None:
         super().__init__(
-            n_states, n_actions, SlidingWindowConfig() if config is None else config, rng
+            n_states, n_actions, SlidingWindowConfig() if config is None else config, rng,
+            valid=valid, terminal=terminal,
         )
 
     def _new_model(self) -> WindowModel:
@@ -261,6 +284,9 @@ class RMaxAgent(_ModelAgentBase):
         n_actions: int,
         config: RMaxConfig | None = None,
         rng: np.random.Generator | None = None,
+        *,
+        valid: np.ndarray | None = None,
+        terminal: np.ndarray | None = None,
     ) -> None:
         _check_sizes(n_states, n_actions)
         self.config = RMaxConfig() if config is None else config
@@ -274,6 +300,8 @@ class RMaxAgent(_ModelAgentBase):
         self.selection = int(Selection.GREEDY)
         self.epsilon, self.tau = 0.0, 0.0
         self.steps = 0
+        self.params = core.agent_params(c)
+        self.constrain(valid, terminal)
 
     def known(self) -> np.ndarray:
         """(S, A) bool: pairs visited at least ``m`` times."""
@@ -296,6 +324,9 @@ class PassiveObserverAgent(TabularAgent):
         n_actions: int,
         config: PassiveObserverConfig | None = None,
         rng: np.random.Generator | None = None,
+        *,
+        valid: np.ndarray | None = None,
+        terminal: np.ndarray | None = None,
     ) -> None:
         _check_sizes(n_states, n_actions)
         self.config = PassiveObserverConfig() if config is None else config
@@ -305,6 +336,14 @@ class PassiveObserverAgent(TabularAgent):
         self.actor = ModelBasedAgent(n_states, n_actions, self.config.actor, self.rng)
         self.observer = QLearningAgent(n_states, n_actions, self.config.observer, self.rng)
         self.controlling = "actor"
+        self.constrain(valid, terminal)
+
+    def constrain(self, valid: np.ndarray | None = None,
+                  terminal: np.ndarray | None = None) -> None:
+        super().constrain(valid, terminal)
+        if hasattr(self, "actor"):
+            self.actor.constrain(valid, terminal)
+            self.observer.constrain(valid, terminal)
 
     @property
     def Q(self) -> np.ndarray:  # type: ignore[override]

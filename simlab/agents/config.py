@@ -177,11 +177,25 @@ class ModelBasedConfig:
     """Largest one-step reward (sets the optimistic value of unvisited pairs)."""
     capacity: int = 4096
     """Initial pool size of the sparse model in distinct (s, a, s') triples (it grows)."""
+    synchronous: bool = False
+    """Paper rule 2: each planning sweep is a Jacobi sweep over *all* (s, a), every
+    backup reading the previous sweep's values. Thesis (False): Gauss-Seidel sweeps in
+    place over the visited pairs only."""
+    untried_uniform: bool = False
+    """Paper rule 1 (with ``synchronous``): a never-tried pair has a uniform transition
+    model over all states and reward 0, so a sweep values it at ``gamma * mean(V)``.
+    Thesis (False): untried pairs keep their initial value ``q_init``."""
 
     def __post_init__(self) -> None:
         _check_gamma(self.gamma)
         _check_selection(self)
         _check_bool("incremental", self.incremental)
+        _check_bool("synchronous", self.synchronous)
+        _check_bool("untried_uniform", self.untried_uniform)
+        if self.untried_uniform and not self.synchronous:
+            raise ConfigError("untried_uniform needs synchronous sweeps (the uniform model "
+                              "of untried pairs is applied by the full sweep)",
+                              key="untried_uniform", fix="also set synchronous = true")
         _check_int("plan_every", self.plan_every, 0)
         _check_int("max_sweeps", self.max_sweeps, 1)
         _check_positive("tol", self.tol, allow_zero=True)
@@ -238,10 +252,18 @@ class RMaxConfig:
     """A value-iteration call stops when a sweep changes no entry by more than this."""
     capacity: int = 4096
     """Initial pool size of the sparse model (it grows)."""
+    synchronous: bool = False
+    """Paper rule 2: Jacobi planning sweeps over all (s, a) (see ModelBasedConfig).
+    Thesis (False): Gauss-Seidel sweeps in place over the visited pairs."""
+    freeze: bool = False
+    """Paper rule 7: a pair's model is frozen at its m-th visit (later outcomes are not
+    counted). Thesis (False): counts keep accumulating after m visits."""
 
     def __post_init__(self) -> None:
         _check_gamma(self.gamma)
         _check_int("m", self.m, 1)
+        _check_bool("synchronous", self.synchronous)
+        _check_bool("freeze", self.freeze)
         _check_finite("r_max", self.r_max)
         _check_bool("replan_when_known", self.replan_when_known)
         _check_bool("incremental", self.incremental)

@@ -129,6 +129,7 @@ from simlab.agents.sparse_model import (
     count_model_memory_bytes,
     count_model_new,
     count_model_observe,
+    count_model_q_value,
     count_model_reward,
     count_model_transition_row,
     count_model_triples,
@@ -143,6 +144,7 @@ from simlab.agents.window_model import (
     window_model_memory_bytes,
     window_model_new,
     window_model_observe,
+    window_model_q_value,
     window_model_reward,
     window_model_transition_row,
     window_model_value_iteration,
@@ -171,6 +173,7 @@ __all__ = [
     "model_backup",
     "model_based_update",
     "model_observe",
+    "model_q_value",
     "model_reward",
     "model_transition_row",
     "model_value_iteration",
@@ -405,6 +408,12 @@ def model_transition_row(model, s, a, out):
     )
 
 
+def model_q_value(model, s, a, V, gamma, floor):
+    """``(known, R(s, a) + gamma * E[V(s')])`` of a count or window model."""
+    return _python_dispatch(model, count_model_q_value, window_model_q_value, s, a, V, gamma,
+                            floor)
+
+
 _CACHE = {"cache": True}
 
 
@@ -439,6 +448,19 @@ def _ov_vi(model, Q, gamma, max_sweeps, tol, m_known):
     if isinstance(model, WindowModelType):
         return lambda model, Q, gamma, max_sweeps, tol, m_known: window_model_value_iteration(
             model, Q, gamma, max_sweeps, tol, m_known
+        )
+    return None
+
+
+@overload(model_q_value, jit_options=_CACHE)
+def _ov_q_value(model, s, a, V, gamma, floor):
+    if isinstance(model, CountModelType):
+        return lambda model, s, a, V, gamma, floor: count_model_q_value(
+            model, s, a, V, gamma, floor
+        )
+    if isinstance(model, WindowModelType):
+        return lambda model, s, a, V, gamma, floor: window_model_q_value(
+            model, s, a, V, gamma, floor
         )
     return None
 

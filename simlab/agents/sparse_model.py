@@ -332,6 +332,16 @@ def _expected_next_value(m, s, a, V):
 
 
 @njit(cache=True)
+def count_model_q_value(m, s, a, V, gamma, floor):
+    """``(known, R(s, a) + gamma * sum_s' T(s, a, s') V[s'])``; known when
+    ``n(s, a) >= floor`` (else the value is 0.0). O(successors)."""
+    n = m.n_sa[s, a]
+    if n == 0 or n < floor:
+        return False, 0.0
+    return True, m.r_sum[s, a] / n + gamma * _expected_next_value(m, s, a, V)
+
+
+@njit(cache=True)
 def count_model_backup(m, Q, s, a, gamma, m_known):
     """One Bellman optimality backup at ``(s, a)`` on the empirical model.
 

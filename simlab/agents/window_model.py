@@ -250,6 +250,22 @@ def window_model_transition_row(m, s, a, out):
 
 
 @njit(cache=True)
+def window_model_q_value(m, s, a, V, gamma, floor):
+    """``(known, mean over the window of r + gamma * V[s'])``; known when the window
+    holds at least ``floor`` outcomes (else the value is 0.0)."""
+    k = m.slot[s, a]
+    if k == -1:
+        return False, 0.0
+    h = m.win_fill[k]
+    if h == 0 or h < floor:
+        return False, 0.0
+    acc = 0.0
+    for i in range(h):
+        acc += m.win_reward[k, i] + gamma * V[m.win_state[k, i]]
+    return True, acc / h
+
+
+@njit(cache=True)
 def window_model_backup(m, Q, s, a, gamma, m_known):
     """Bellman optimality backup at ``(s, a)`` on the window model, in place on ``Q``.
 

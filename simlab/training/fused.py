@@ -15,90 +15,72 @@ exactly the same draws, see :func:`simlab.training.harness.run_episodes`)::
     update(s, a, r, s')                       # no randomness
 
 and at the start of each episode ``s = sample_from_cdf(start_cdf, env_rng)``.
-Each function returns the (n_episodes,) total reward per episode and updates
-the agent state it is given (``Q``, ``model``) in place.
+If ``s'`` is a terminal state (``task.terminal``) its reward is counted and the
+episode ends early; the next one starts from the start distribution (the real
+robot's "reward on arrival, then restart"). Actions are drawn among the valid
+ones (``task.valid``). :func:`run_loop` returns the (n_episodes,) total reward per
+episode and updates the agent state it is given (``Q``, ``model``) in place.
+
+One loop serves every agent: the act / learn / plan steps are those of
+:mod:`simlab.agents.core` (the Python agent classes call the same steps).
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
-from simlab.agents.kernels import (
-    model_based_update,
-    model_value_iteration,
-    q_learning_update,
-    sample_from_cdf,
-    select_action,
-)
+from simlab.agents import core
+from simlab.agents.kernels import sample_from_cdf
 
-__all__ = ["run_model_based", "run_q_learning"]
+__all__ = ["MdpTask", "Observer", "run_loop"]
 
+#: The environment of :func:`run_loop`: ``cdf`` (S, A, S) cumulative ``T`` along
+#: ``s'``; ``reward_next`` (S,); ``start_cdf`` (S,); ``horizon`` steps per episode;
+#: ``valid`` (S, A) bool or ``core.NO_MASK``; ``terminal`` (S,) bool or
+#: ``core.NO_TERMINAL``.
+MdpTask = namedtuple("MdpTask", ["cdf", "reward_next", "start_cdf", "horizon", "valid",
+                                 "terminal"])
 
-@njit(cache=True)
-def run_q_learning(
-    cdf, reward_next, start_cdf, horizon, n_episodes, Q, alpha, gamma, method, epsilon, tau,
-    env_rng, agent_rng,
-):  # fmt: skip
-    """Q-learning (eq. 1.12) with ``method`` selection; returns rewards per episode."""
-    totals = np.zeros(n_episodes)
-    for ep in range(n_episodes):
-        s = sample_from_cdf(start_cdf, env_rng)
-        total = 0.0
-        for _ in range(horizon):
-            a = select_action(Q[s], method, epsilon, tau, agent_rng)
-            s_next = sample_from_cdf(cdf[s, a], env_rng)
-            r = reward_next[s_next]
-            q_learning_update(Q, s, a, r, s_next, alpha, gamma)
-            total += r
-            s = s_next
-        totals[ep] = total
-    return totals
+#: A passive Q-learning observer: its ``Q`` (0 rows: none), its ``params``
+#: (:class:`~simlab.agents.core.AgentParams`) and the episode it takes over at (-1: never).
+Observer = namedtuple("Observer", ["Q", "params", "takeover_episode"])
 
 
 @njit(cache=True)
-def run_model_based(
-    cdf, reward_next, start_cdf, horizon, n_episodes,
-    Q, model, gamma, method, epsilon, tau,
-    m_known, incremental, replan_when_known, plan_every, max_sweeps, tol, steps0,
-    Q_obs, alpha_obs, gamma_obs, method_obs, epsilon_obs, tau_obs, takeover_episode,
-    env_rng, agent_rng,
-):  # fmt: skip
-    """Model-based agent (count or window ``model``), optionally with a passive observer.
+def run_loop(task, Q, model, p, observer, n_episodes, steps0, env_rng, agent_rng):
+    """Train agent ``(Q, model, p)`` for ``n_episodes`` on ``task``.
 
-    The actor selects with ``method`` on ``Q``, observes into ``model`` and
-    updates ``Q`` with :func:`~simlab.agents.kernels.model_based_update`; every
-    ``plan_every`` actor steps (counted from ``steps0``) it runs value iteration.
-    If ``Q_obs`` has rows, a Q-learner (``alpha_obs``, ``gamma_obs``) learns from
-    every transition; from episode ``takeover_episode`` on (``-1``: never) the
-    observer selects the actions (``method_obs``) and the actor stops learning.
-    Returns ``(rewards (n_episodes,), actor steps done in total)``.
+    If ``observer.Q`` has rows, a Q-learner learns from every transition; from episode
+    ``observer.takeover_episode`` on it selects the actions and the actor stops
+    learning. Returns ``(rewards (n_episodes,), actor steps done in total)``.
     """
     totals = np.zeros(n_episodes)
-    observe = Q_obs.shape[0] > 0
+    watching = observer.Q.shape[0] > 0
+    takeover = observer.takeover_episode
     steps = steps0
     for ep in range(n_episodes):
-        acting = takeover_episode < 0 or ep < takeover_episode
-        s = sample_from_cdf(start_cdf, env_rng)
+        acting = takeover < 0 or ep < takeover
+        s = sample_from_cdf(task.start_cdf, env_rng)
         total = 0.0
-        for _ in range(horizon):
+        for _ in range(task.horizon):
             if acting:
-                a = select_action(Q[s], method, epsilon, tau, agent_rng)
+                a = core.act(Q, s, p, task.valid, agent_rng)
             else:
-                a = select_action(Q_obs[s], method_obs, epsilon_obs, tau_obs, agent_rng)
-            s_next = sample_from_cdf(cdf[s, a], env_rng)
-            r = reward_next[s_next]
-            if observe:
-                q_learning_update(Q_obs, s, a, r, s_next, alpha_obs, gamma_obs)
+                a = core.act(observer.Q, s, observer.params, task.valid, agent_rng)
+            s_next = sample_from_cdf(task.cdf[s, a], env_rng)
+            r = task.reward_next[s_next]
+            if watching:
+                core.learn(model, observer.Q, s, a, r, s_next, observer.params, task.valid,
+                           task.terminal, 0)
             if acting:
-                model_based_update(
-                    model, Q, s, a, r, s_next, gamma, m_known, incremental,
-                    replan_when_known, max_sweeps, tol,
-                )  # fmt: skip
-                steps += 1
-                if plan_every > 0 and steps % plan_every == 0:
-                    model_value_iteration(model, Q, gamma, max_sweeps, tol, m_known)
+                steps = core.learn(model, Q, s, a, r, s_next, p, task.valid, task.terminal,
+                                   steps)
             total += r
             s = s_next
+            if task.terminal.shape[0] > 0 and task.terminal[s]:
+                break
         totals[ep] = total
     return totals, steps

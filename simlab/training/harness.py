@@ -9,6 +9,18 @@ Seeding: ``seed`` (int or ``SeedSequence``) is spawned into one child per run;
 each run's child is spawned again into an env stream and an agent stream. Same
 seed, same results, bit for bit; runs are independent.
 
+Constraints (issue 12), keyword arguments of :func:`run_episodes`,
+:func:`train_runs` and :func:`evaluate_q`:
+
+* ``valid`` (S, A) bool, None = every action valid: agents draw only among the
+  valid actions of a state and plan/bootstrap with maxima over valid actions (a
+  state with none falls back to all); the evaluation's optimum and greedy policies
+  use valid actions only. An all-True mask gives bit-identical results to None.
+* ``terminal`` (S,) bool, None = no terminal state: arriving in a terminal state
+  earns its ``reward_next``, then the episode ends early and the next starts from
+  the start distribution; nothing is bootstrapped from a terminal state. The
+  evaluation makes terminal states absorbing with no further reward.
+
 Two execution paths give identical numbers (tested): ``fused=True`` runs the
 compiled loops of :mod:`simlab.training.fused` on the agent's own arrays (the
 default; millions of steps per second), ``fused=False`` calls the agent's
@@ -23,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab.agents import core
 from simlab.agents import kernels as K
 from simlab.agents.agents import (
     ModelBasedAgent,
@@ -99,6 +112,8 @@ def run_episodes(
     start: int | np.ndarray | None = None,
     fused_loop: bool = True,
     takeover_episode: int | None = None,
+    valid: np.ndarray | None = None,
+    terminal: np.ndarray | None = None,
 ) -> np.ndarray:
     """Train ``agent`` for ``n_episodes``; returns (n_episodes,) reward per episode.
 
@@ -113,62 +128,53 @@ def run_episodes(
     cdf = np.cumsum(T, axis=2)
     start_cdf = np.cumsum(start_distribution(T.shape[0], start))
     takeover = _takeover_episode(agent, n_episodes, takeover_episode)
+    S, A = T.shape[:2]
+    agent.constrain(valid, terminal)
+    task = fused.MdpTask(cdf, reward_next, start_cdf, int(horizon), core.as_mask(valid, S, A),
+                         core.as_terminal(terminal, S))
     if fused_loop and isinstance(agent, _FUSABLE):
-        return _run_fused(
-            agent, cdf, reward_next, start_cdf, horizon, n_episodes, takeover, env_rng
-        )
-    return _run_python(agent, cdf, reward_next, start_cdf, horizon, n_episodes, takeover, env_rng)
+        return _run_fused(agent, task, n_episodes, takeover, env_rng)
+    return _run_python(agent, task, n_episodes, takeover, env_rng)
 
 
 _FUSABLE = (QLearningAgent, ModelBasedAgent, RMaxAgent, PassiveObserverAgent)
 
 
-def _run_python(agent, cdf, reward_next, start_cdf, horizon, n_episodes, takeover, env_rng):
+def _run_python(agent, task, n_episodes, takeover, env_rng):
     totals = np.zeros(n_episodes)
+    ends = task.terminal.shape[0] > 0
     for ep in range(n_episodes):
         if ep == takeover:
             agent.take_over()
-        s = int(K.sample_from_cdf(start_cdf, env_rng))
+        s = int(K.sample_from_cdf(task.start_cdf, env_rng))
         total = 0.0
-        for _ in range(horizon):
+        for _ in range(task.horizon):
             a = agent.act(s)
-            s_next = int(K.sample_from_cdf(cdf[s, a], env_rng))
-            r = float(reward_next[s_next])
+            s_next = int(K.sample_from_cdf(task.cdf[s, a], env_rng))
+            r = float(task.reward_next[s_next])
             agent.update(s, a, r, s_next)
             total += r
             s = s_next
+            if ends and task.terminal[s]:
+                break
         totals[ep] = total
         agent.end_episode()
     return totals
 
 
-def _run_fused(agent, cdf, reward_next, start_cdf, horizon, n_episodes, takeover, env_rng):
-    if isinstance(agent, QLearningAgent):
-        c = agent.config
-        return fused.run_q_learning(
-            cdf, reward_next, start_cdf, int(horizon), int(n_episodes), agent.Q,
-            float(c.alpha), float(c.gamma), int(c.selection), float(c.epsilon), float(c.tau),
-            env_rng, agent.rng,
-        )  # fmt: skip
+def _run_fused(agent, task, n_episodes, takeover, env_rng):
     if isinstance(agent, PassiveObserverAgent):
         actor, obs = agent.actor, agent.observer
-        Q_obs = obs.Q
-        oc = obs.config
-        obs_args = (float(oc.alpha), float(oc.gamma), int(oc.selection), float(oc.epsilon),
-                    float(oc.tau), int(takeover))  # fmt: skip
+        observer = fused.Observer(obs.Q, obs.params, int(takeover))
     else:
         actor = agent
-        Q_obs = np.zeros((0, agent.n_actions))
-        obs_args = (0.0, 0.0, 0, 0.0, 0.0, -1)
-    c = actor.config
-    totals, steps = fused.run_model_based(
-        cdf, reward_next, start_cdf, int(horizon), int(n_episodes),
-        actor.Q, actor.model, float(c.gamma), int(actor.selection), float(actor.epsilon),
-        float(actor.tau), int(actor.m_known), bool(c.incremental),
-        bool(actor.replan_when_known), int(c.plan_every), int(c.max_sweeps), float(c.tol),
-        int(actor.steps), Q_obs, *obs_args, env_rng, agent.rng,
-    )  # fmt: skip
-    actor.steps = int(steps)
+        observer = fused.Observer(np.zeros((0, agent.n_actions)), agent.params, -1)
+    model = getattr(actor, "model", core.NO_MODEL)
+    steps0 = int(getattr(actor, "steps", 0))
+    totals, steps = fused.run_loop(task, actor.Q, model, actor.params, observer,
+                                   int(n_episodes), steps0, env_rng, agent.rng)
+    if hasattr(actor, "steps"):
+        actor.steps = int(steps)
     if isinstance(agent, PassiveObserverAgent) and 0 <= takeover < n_episodes:
         agent.take_over()
     return totals
@@ -195,14 +201,39 @@ def evaluate_q(
     gamma: float,
     horizon: int,
     start: int | np.ndarray | None = None,
+    *,
+    valid: np.ndarray | None = None,
+    terminal: np.ndarray | None = None,
 ) -> GoalEvaluation:
-    """Evaluate learned ``Q_runs`` (runs, S, A) against the optimum of the true MDP."""
+    """Evaluate learned ``Q_runs`` (runs, S, A) against the optimum of the true MDP.
+
+    ``valid`` / ``terminal``: see the module docstring (invalid actions are priced
+    out of the optimum with a reward of -1e9; greedy policies pick valid actions).
+    """
+    T = np.array(T, dtype=np.float64)
+    S, A = T.shape[:2]
+    mask = core.as_mask(valid, S, A)
+    ends = core.as_terminal(terminal, S)
+    if ends.size:
+        T[ends] = 0.0
+        for s in np.flatnonzero(ends):
+            T[s, :, s] = 1.0
     R = reward_on_arrival(T, reward_next)
-    p0 = start_distribution(T.shape[0], start)
+    if ends.size:
+        R[ends] = 0.0
+    if mask.size:
+        mask = mask | ~mask.any(axis=1, keepdims=True)  # no valid action: all allowed
+        R = np.where(mask, R, -1e9)
+    p0 = start_distribution(S, start)
     Q_star, _, _ = value_iteration(T, R, gamma, tol=1e-10)
     optimal = expected_return(T, R, greedy_policy(Q_star), horizon, p0)
     bound = optimal_finite_horizon_return(T, R, horizon, p0)
-    greedy = np.array([expected_return(T, R, greedy_policy(Q), horizon, p0) for Q in Q_runs])
+
+    def masked(Q: np.ndarray) -> np.ndarray:
+        return np.where(mask, Q, -np.inf) if mask.size else Q
+
+    greedy = np.array([expected_return(T, R, greedy_policy(masked(Q)), horizon, p0)
+                       for Q in Q_runs])
     return GoalEvaluation(optimal, bound, greedy, Q_star)
 
 
@@ -237,11 +268,14 @@ def train_runs(
     overrides: dict[str, Any] | None = None,
     fused_loop: bool = True,
     on_run_done: Callable[[], None] | None = None,
+    valid: np.ndarray | None = None,
+    terminal: np.ndarray | None = None,
 ) -> TrainingResult:
     """Train ``runs`` independent copies of ``agent`` for ``episodes`` each.
 
     ``overrides`` change the registered preset's hyper-parameters
     (``{"tau": 0.05}``). ``on_run_done`` is called after each run (progress bars).
+    ``valid`` / ``terminal``: see the module docstring.
     """
     for name, value, low in (("episodes", episodes, 1), ("runs", runs, 1), ("horizon", horizon, 1)):
         if not (isinstance(value, int | np.integer) and value >= low):
@@ -260,7 +294,8 @@ def train_runs(
         ag = make_agent(agent, S, A, np.random.default_rng(agent_seq), config=cfg)
         rewards[i] = run_episodes(
             ag, T, reward_next, episodes, np.random.default_rng(env_seq),
-            horizon=horizon, start=start, fused_loop=fused_loop,
+            horizon=horizon, start=start, fused_loop=fused_loop, valid=valid,
+            terminal=terminal,
         )  # fmt: skip
         Q_runs[i] = ag.Q
         if isinstance(ag, PassiveObserverAgent):

@@ -41,9 +41,11 @@ depends only on the state the robot observed and its action:
    the robot *as it saw it at the start of the step* — along the direction opposite
    to the observed angle — at a speed drawn from s_H, unless the robot did HELLO,
    COME or POINTING this step; it stops at walls and before the robot's (new) cell,
-   then looks at the robot again. (Like the reference implementation, the human
-   reacts with a one-step lag; this also makes the direction it walks a function
-   of the observed state, so the reward is Markov in the social observation.)
+   then looks at the robot again. (The human walks with a one-step lag, as in the
+   reference implementation; this also makes the direction it walks a function of
+   the observed state, so the reward is Markov in the social observation. The gaze
+   is *not* the reference's: it aims at the robot's cell before the robot's move and
+   is never re-aimed — paper rule 4 below.)
    Not engaged:
    with probability r_H it walks in a uniformly random direction at a speed drawn
    from s_H and faces that direction; then, with probability O_H, it turns to one
@@ -53,6 +55,19 @@ depends only on the state the robot observed and its action:
    direction of the observed state.
 7. With probability ``redraw_p`` (paper: 0.2) a new required direction is drawn
    uniformly from the 8 (it may repeat).
+
+Paper rules (fields of :class:`~simlab.visitlab.perception.Perception`, read from
+``pcfg``; the thesis variant has them off):
+
+* ``gaze_before_move`` (rule 4): in 5, an engaged human's orientation becomes the
+  direction to the robot's cell *before* the robot's move (the cell it walks
+  toward) and it is not re-aimed after walking.
+* ``gth_before_attention`` (rule 5): in 4, GO_TO_HUMAN works if the human was not
+  engaged at the start of the step (before 2); the robot lands where the speed-2
+  move along the gaze ends, even on the human's cell.
+* ``share_cells`` (rule 6): moves of either agent ignore the other (they may share
+  a cell; a following human may pass the robot), random placements may coincide,
+  and a random turn draws among all 8 orientations.
 
 Go-to-human step (:func:`gth_step`): the robot moves as in 4; the human (if it
 has parameters) behaves as a human who is not engaged (5); reward +1 if, after
@@ -76,7 +91,13 @@ from numba import njit
 from simlab.visitlab.actions import ACTION_DIR
 from simlab.visitlab.grid import move, move_action_cell
 from simlab.visitlab.humans import H_FAIL, H_LOSE, H_MOVE, H_POINT, H_S1, H_S2, H_TURN
-from simlab.visitlab.perception import direction_between, percepts
+from simlab.visitlab.perception import (
+    P_GAZE_BEFORE,
+    P_GTH_BEFORE,
+    P_SHARE,
+    direction_between,
+    percepts,
+)
 
 # Layout of the world-state array ``st``.
 S_ROBOT, S_ROBOT_ORI, S_HUMAN, S_HUMAN_ORI, S_ENGAGED, S_REQ_DIR, S_GOAL, S_HUMAN_MOVE = range(8)
@@ -120,25 +141,28 @@ def draw_speed(rng: np.random.Generator, hp: np.ndarray) -> int:
 @njit(cache=True)
 def human_idle(
     walls_h: np.ndarray, walls_v: np.ndarray, st: np.ndarray, hp: np.ndarray,
-    rng: np.random.Generator,
+    rng: np.random.Generator, share: bool = False,
 ) -> int:
     """Behaviour of a human who is not engaged; returns the direction moved or -1.
 
     Draws, in order: u < r_H (then a direction and a speed), u < O_H (then a new
-    orientation among the 7 others).
+    orientation among the 7 others; among all 8 with ``share``, paper rule 6).
     """
     moved = -1
     if rng.random() < hp[H_MOVE]:
         d = rng.integers(0, 8)
         speed = draw_speed(rng, hp)
-        new = move(walls_h, walls_v, st[S_HUMAN], d, speed, st[S_ROBOT])
+        new = move(walls_h, walls_v, st[S_HUMAN], d, speed, -1 if share else st[S_ROBOT])
         st[S_HUMAN_ORI] = d
         if new != st[S_HUMAN]:
             moved = d
             st[S_HUMAN] = new
     if rng.random() < hp[H_TURN]:
-        k = rng.integers(0, 7)
-        st[S_HUMAN_ORI] = k if k < st[S_HUMAN_ORI] else k + 1
+        if share:
+            st[S_HUMAN_ORI] = rng.integers(0, 8)
+        else:
+            k = rng.integers(0, 7)
+            st[S_HUMAN_ORI] = k if k < st[S_HUMAN_ORI] else k + 1
     return moved
 
 
@@ -171,11 +195,15 @@ def interaction_level(
 
 @njit(cache=True)
 def place_two_agents(
-    st: np.ndarray, rng: np.random.Generator, n_cells: int, robot_cell: int, human_cell: int
+    st: np.ndarray, rng: np.random.Generator, n_cells: int, robot_cell: int, human_cell: int,
+    share: bool = False,
 ) -> None:
-    """Put human and robot on distinct cells; ``-1`` means uniformly random."""
+    """Put human and robot on distinct cells (any cells with ``share``); ``-1`` means
+    uniformly random."""
     st[S_HUMAN] = human_cell if human_cell >= 0 else rng.integers(0, n_cells)
-    if robot_cell >= 0 and robot_cell != st[S_HUMAN]:
+    if share:
+        st[S_ROBOT] = robot_cell if robot_cell >= 0 else rng.integers(0, n_cells)
+    elif robot_cell >= 0 and robot_cell != st[S_HUMAN]:
         st[S_ROBOT] = robot_cell
     else:
         r = rng.integers(0, n_cells - 1)
@@ -184,11 +212,12 @@ def place_two_agents(
 
 @njit(cache=True)
 def social_reset(
-    st: np.ndarray, rng: np.random.Generator, n_cells: int, robot_cell: int, human_cell: int
+    st: np.ndarray, rng: np.random.Generator, n_cells: int, robot_cell: int, human_cell: int,
+    share: bool = False,
 ) -> None:
-    """New social episode: positions (``-1`` = random), random orientations and required
-    direction, human not engaged."""
-    place_two_agents(st, rng, n_cells, robot_cell, human_cell)
+    """New social episode: positions (``-1`` = random; may coincide with ``share``),
+    random orientations and required direction, human not engaged."""
+    place_two_agents(st, rng, n_cells, robot_cell, human_cell, share)
     st[S_ROBOT_ORI] = rng.integers(0, 8)
     st[S_HUMAN_ORI] = rng.integers(0, 8)
     st[S_REQ_DIR] = rng.integers(0, 8)
@@ -214,7 +243,9 @@ def social_step(
     level_p, dist, angle, _, _, _ = percepts(walls_h, walls_v, los, pcfg, st[S_ROBOT],
                                              st[S_ROBOT_ORI], st[S_HUMAN], st[S_HUMAN_ORI])
     appropriate = 1 <= dist <= 3
+    share = pcfg[P_SHARE] != 0
     e = st[S_ENGAGED]
+    engaged_before = e >= 5
     # 2. attention
     if e >= 5:
         lost = rng.random() < hp[H_LOSE]
@@ -237,29 +268,32 @@ def social_step(
     follow_dir = direction_between(width, st[S_HUMAN], st[S_ROBOT])
     # 4. the robot acts
     if action < 24:
-        st[S_ROBOT] = move_action_cell(walls_h, walls_v, st[S_ROBOT], action, st[S_HUMAN])
+        st[S_ROBOT] = move_action_cell(walls_h, walls_v, st[S_ROBOT], action,
+                                       -1 if share else st[S_HUMAN])
         st[S_ROBOT_ORI] = ACTION_DIR[action]
     elif action == _LOOK_H:
         st[S_ROBOT_ORI] = angle
-    elif action == _GO_TO_HUMAN and e < 5:
-        target = move(walls_h, walls_v, st[S_HUMAN], st[S_HUMAN_ORI], 2, -1)
-        if target != st[S_HUMAN]:
-            st[S_ROBOT] = target
-            st[S_ROBOT_ORI] = rng.integers(0, 8)
+    elif action == _GO_TO_HUMAN:
+        _go_to_human(walls_h, walls_v, pcfg, st, engaged_before, e, rng)
     # 5. the human reacts
     moved = -1
     if e >= 5:
-        st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
+        gaze_before = pcfg[P_GAZE_BEFORE] != 0
+        if gaze_before:
+            st[S_HUMAN_ORI] = follow_dir
+        elif st[S_HUMAN] != st[S_ROBOT]:
+            st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
         if e == 7 and not (_HELLO <= action <= _POINTING):
             d = follow_dir
             speed = draw_speed(rng, hp)
-            new = move(walls_h, walls_v, st[S_HUMAN], d, speed, st[S_ROBOT])
+            new = move(walls_h, walls_v, st[S_HUMAN], d, speed, -1 if share else st[S_ROBOT])
             if new != st[S_HUMAN]:
                 moved = d
                 st[S_HUMAN] = new
-                st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
+                if not gaze_before and new != st[S_ROBOT]:
+                    st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
     else:
-        moved = human_idle(walls_h, walls_v, st, hp, rng)
+        moved = human_idle(walls_h, walls_v, st, hp, rng, share)
     st[S_ENGAGED] = e
     st[S_HUMAN_MOVE] = moved
     # 6. reward
@@ -268,6 +302,18 @@ def social_step(
     if rng.random() < redraw_p:
         st[S_REQ_DIR] = rng.integers(0, 8)
     return reward
+
+
+@njit(cache=True)
+def _go_to_human(walls_h, walls_v, pcfg, st, engaged_before, e, rng):
+    """GO_TO_HUMAN in the social module (step 4; paper rule 5 with ``P_GTH_BEFORE``)."""
+    paper = pcfg[P_GTH_BEFORE] != 0
+    if (engaged_before if paper else e >= 5):
+        return
+    target = move(walls_h, walls_v, st[S_HUMAN], st[S_HUMAN_ORI], 2, -1)
+    if paper or target != st[S_HUMAN]:
+        st[S_ROBOT] = target
+        st[S_ROBOT_ORI] = rng.integers(0, 8)
 
 
 # --------------------------------------------------------------------------- go to human
@@ -293,13 +339,14 @@ def gth_reset(
     human_cell: int,
     robot_ori: int,
     human_ori: int,
+    share: bool = False,
 ) -> None:
     """New go-to-human episode for a variant (0 random, 1 fixed positions, 2 all fixed).
 
     Random positions are uniform over distinct cells; random orientations uniform.
     """
     if variant == GTH_RANDOM:
-        place_two_agents(st, rng, n_cells, -1, -1)
+        place_two_agents(st, rng, n_cells, -1, -1, share)
     else:
         st[S_HUMAN] = human_cell
         st[S_ROBOT] = robot_cell
@@ -328,11 +375,13 @@ def gth_step(
     rng: np.random.Generator,
 ) -> float:
     """One go-to-human step (actions 0-24); returns the reward."""
+    share = pcfg[P_SHARE] != 0
     if action < 24:
-        st[S_ROBOT] = move_action_cell(walls_h, walls_v, st[S_ROBOT], action, st[S_HUMAN])
+        st[S_ROBOT] = move_action_cell(walls_h, walls_v, st[S_ROBOT], action,
+                                       -1 if share else st[S_HUMAN])
         st[S_ROBOT_ORI] = ACTION_DIR[action]
     if human_moves:
-        st[S_HUMAN_MOVE] = human_idle(walls_h, walls_v, st, hp, rng)
+        st[S_HUMAN_MOVE] = human_idle(walls_h, walls_v, st, hp, rng, share)
     _, dist, _, _, h_looks, _ = percepts(walls_h, walls_v, los, pcfg, st[S_ROBOT],
                                          st[S_ROBOT_ORI], st[S_HUMAN], st[S_HUMAN_ORI])
     return 1.0 if (h_looks and 1 <= dist <= 3) else 0.0

@@ -33,6 +33,8 @@ VARIANTS = ("thesis", "paper")
 #: Default world of the social module: a wall-free grid large enough that a
 #: 40-step trial started at the centre rarely meets the border.
 SOCIAL_GRID_SIZE = 41
+#: The paper code's social grid (paper rule 6): 140 x 140, the human at the centre.
+PAPER_SOCIAL_GRID_SIZE = 140
 
 
 def _check_variant(variant: str) -> str:
@@ -191,6 +193,14 @@ class NavEnv(_VisitLabEnv):
         self.observation_space = spaces.Discrete(self.layout.n_labels * self.layout.n_cells)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
 
+    def kernel_args(self) -> tuple:
+        """The fixed inputs of the fused navigation loop
+        (:func:`simlab.visitlab.training.nav_train_chunk`), in its argument order:
+        walls, cell labels, start cell, goal label, goal labels, steps per trial."""
+        lay = self.layout
+        return (lay.walls_h, lay.walls_v, lay.cell_labels, self.start_cell, self.goal_label,
+                np.array(lay.goal_labels, dtype=np.int64), self.max_steps)
+
     def _obs(self) -> int:
         return int(dyn.nav_obs(self._st, self.layout.n_cells))
 
@@ -238,10 +248,12 @@ class SocialEnv(_VisitLabEnv):
     placed at random, the human at ``human_start``, orientations and the required
     direction random, the human not engaged.
 
-    Variants: ``thesis`` — Manhattan distance classes, easy human, 40 steps;
-    ``paper`` — Chebyshev classes (paper code), human H1, 20 steps. Both: a
-    41 x 41 grid without inner walls, human starting at the centre, required
-    direction redrawn with probability 0.2 per step.
+    Variants: ``thesis`` — Manhattan distance classes, easy human, 40 steps, a
+    41 x 41 grid; ``paper`` — Chebyshev classes (paper code), human H1, 20 steps, the
+    paper code's 140 x 140 grid and the paper rules 3-6 of
+    :class:`~simlab.visitlab.perception.Perception` (continuous fields of view, gaze,
+    GO_TO_HUMAN, shared cells). Both: no inner walls, human starting at the centre,
+    required direction redrawn with probability 0.2 per step.
 
     ``info``: positions, orientations, ``interaction`` level, ``engaged``,
     ``distance_class``, ``angle``, ``required_direction``, the percepts
@@ -266,7 +278,8 @@ class SocialEnv(_VisitLabEnv):
         self.variant = _check_variant(variant)
         thesis = variant == "thesis"
         self.human = _resolve_human(human, "easy" if thesis else "H1")
-        self.layout = (gridworld(SOCIAL_GRID_SIZE, SOCIAL_GRID_SIZE, (1, 1)) if layout is None
+        size = SOCIAL_GRID_SIZE if thesis else PAPER_SOCIAL_GRID_SIZE
+        self.layout = (gridworld(size, size, (1, 1)) if layout is None
                        else make_layout(layout, seed=layout_seed))
         self.perception = perception if perception is not None else perception_for(variant)
         named = {"random": -1, "center": _centre(self.layout), "centre": _centre(self.layout)}
@@ -282,6 +295,15 @@ class SocialEnv(_VisitLabEnv):
         self._moved_required = False
         self.observation_space = spaces.Discrete(dyn.N_SOCIAL_STATES)
         self.action_space = spaces.Discrete(N_SOCIAL_ACTIONS)
+
+    def kernel_args(self) -> tuple:
+        """The fixed inputs of the fused social loop
+        (:func:`simlab.visitlab.training.social_train_chunk`), in its argument order:
+        walls, line-of-sight table, perception array, human array, redraw probability,
+        robot and human start cells, steps per trial."""
+        lay = self.layout
+        return (lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp, self.redraw_p,
+                self.robot_start, self.human_start, self.max_steps)
 
     def _obs(self) -> int:
         return int(dyn.social_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
@@ -312,7 +334,7 @@ class SocialEnv(_VisitLabEnv):
         self._t = 0
         self._moved_required = False
         dyn.social_reset(self._st, self.np_random, self.layout.n_cells, self.robot_start,
-                         self.human_start)
+                         self.human_start, self.perception.share_cells)
         return self._obs(), self._info()
 
     def step(self, action: int):
@@ -400,6 +422,14 @@ class GoToHumanEnv(_VisitLabEnv):
         self.observation_space = spaces.Discrete(dyn.N_GTH_STATES)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
 
+    def kernel_args(self) -> tuple:
+        """The fixed inputs of the fused go-to-human loop
+        (:func:`simlab.visitlab.training.gth_train_chunk`), in its argument order."""
+        lay = self.layout
+        return (lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
+                self.human is not None, self._episode_code, self.robot_cell, self.human_cell,
+                self.robot_ori, self.human_ori, self.max_steps)
+
     def _obs(self) -> int:
         return int(dyn.gth_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
                                self._st))
@@ -418,7 +448,8 @@ class GoToHumanEnv(_VisitLabEnv):
         super().reset(seed=seed)
         self._t = 0
         dyn.gth_reset(self._st, self.np_random, self.layout.n_cells, self._episode_code,
-                      self.robot_cell, self.human_cell, self.robot_ori, self.human_ori)
+                      self.robot_cell, self.human_cell, self.robot_ori, self.human_ori,
+                      self.perception.share_cells)
         return self._obs(), self._info()
 
     def step(self, action: int):

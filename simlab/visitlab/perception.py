@@ -22,6 +22,17 @@ Percepts of a robot R and a human H, each with a cell and a body orientation
   4 H looks at R and R looks at H; 3 H sees R and R looks at H; 2 H looks at R;
   1 H sees R; 0 otherwise (first matching rule wins).
 
+Paper-exact rules (issue 14), fields of :class:`Perception` switched on together by
+``PAPER_PERCEPTION`` and settable one by one (the kernels read them from the same
+array):
+
+* ``continuous`` (rule 3) — sees / looks at are decided on the *continuous* bearing
+  (inclusive +-``visual`` x 45 deg and +-``facing`` x 45 deg of the body
+  orientation), not on the quantised direction (which makes the fields effectively
+  +-112.5 / +-67.5 deg). The state's ``angle`` stays quantised.
+* ``gaze_before_move``, ``gth_before_attention``, ``share_cells`` (rules 4-6): rules of
+  the social dynamics, see :mod:`simlab.visitlab.dynamics`.
+
 Kernels take the perception parameters as one int64 array (:meth:`Perception.to_array`)
 and a line-of-sight table from :meth:`simlab.visitlab.grid.Layout.los_table`.
 """
@@ -40,7 +51,8 @@ from simlab.visitlab.actions import DIR_SECTOR, SECTOR_DIR
 METRICS = ("manhattan", "chebyshev")
 
 # Indices into the perception parameter array.
-P_METRIC, P_B0, P_B1, P_B2, P_B3, P_VISUAL, P_FACING = range(7)
+(P_METRIC, P_B0, P_B1, P_B2, P_B3, P_VISUAL, P_FACING, P_CONTINUOUS, P_GAZE_BEFORE,
+ P_GTH_BEFORE, P_SHARE) = range(11)
 
 
 @dataclass(frozen=True)
@@ -53,12 +65,30 @@ class Perception:
             is beyond the last one. Classes 1-3 are the *appropriate* distances.
         visual: half-width of the visual field, in 45 deg sectors (H sees R).
         facing: half-width of the facing field, in 45 deg sectors (looks at).
+        continuous: paper rule 3 — fields tested on the continuous bearing (inclusive
+            borders). Thesis (False): on the bearing quantised to 8 sectors.
+        gaze_before_move: paper rule 4 — an engaged human's gaze aims at the robot's
+            cell *before* the robot's move and is not re-aimed after the human moves.
+            Thesis (False): aimed at the robot's new cell, re-aimed after following.
+        gth_before_attention: paper rule 5 — GO_TO_HUMAN works only if the human was
+            not engaged *before* this step's attention check, and it lands 2 cells
+            along the human's gaze even on the human's own cell. Thesis (False): allowed
+            if not engaged after the attention check; nothing happens if the landing
+            cell is the human's.
+        share_cells: paper rule 6 — robot and human may share a cell (moves are not
+            blocked by the other agent, random placements may coincide) and an idle
+            human's random turn picks among all 8 orientations (the current one too).
+            Thesis (False): agents never share a cell; a turn picks one of the 7 others.
     """
 
     metric: str = "manhattan"
     bounds: tuple[int, int, int, int] = (1, 2, 3, 4)
     visual: int = 2
     facing: int = 1
+    continuous: bool = False
+    gaze_before_move: bool = False
+    gth_before_attention: bool = False
+    share_cells: bool = False
 
     def __post_init__(self) -> None:
         if self.metric not in METRICS:
@@ -74,15 +104,25 @@ class Perception:
                 f"expected 0 <= facing <= visual <= 4 sectors, got facing={self.facing}, "
                 f"visual={self.visual}", key="visual")
 
+        for key in ("continuous", "gaze_before_move", "gth_before_attention", "share_cells"):
+            if not isinstance(getattr(self, key), bool | np.bool_):
+                raise ConfigError(f"expected true or false, got {getattr(self, key)!r}",
+                                  key=key)
+
     def to_array(self) -> np.ndarray:
-        """Parameters for the kernels, int64 shape (7,): metric, bounds, visual, facing."""
+        """Parameters for the kernels, int64 shape (11,): metric, bounds, visual, facing,
+        then the four paper rules (0/1) in field order (``P_*`` indices)."""
         return np.array(
-            [METRICS.index(self.metric), *self.bounds, self.visual, self.facing], dtype=np.int64
+            [METRICS.index(self.metric), *self.bounds, self.visual, self.facing,
+             self.continuous, self.gaze_before_move, self.gth_before_attention,
+             self.share_cells], dtype=np.int64,
         )
 
 
 THESIS_PERCEPTION = Perception("manhattan", (1, 2, 3, 4))
-PAPER_PERCEPTION = Perception("chebyshev", (1, 2, 4, 5))
+PAPER_PERCEPTION = Perception("chebyshev", (1, 2, 4, 5), continuous=True,
+                              gaze_before_move=True, gth_before_attention=True,
+                              share_cells=True)
 
 
 def perception_for(variant: str) -> Perception:
@@ -117,6 +157,17 @@ def sector_gap(dir_a: int, dir_b: int) -> int:
     """Angular difference of two directions, in 45 deg sectors (0-4)."""
     d = abs(DIR_SECTOR[dir_a] - DIR_SECTOR[dir_b]) % 8
     return min(d, 8 - d)
+
+
+@njit(cache=True)
+def bearing_gap(orientation: int, drow: int, dcol: int) -> float:
+    """Angle between direction ``orientation`` and the offset ``(drow, dcol)``, in units
+    of 45 deg (continuous, 0-4). A zero offset (shared cell) has gap 0: in view."""
+    if drow == 0 and dcol == 0:
+        return 0.0
+    theta = math.atan2(-drow, dcol) / (math.pi / 4.0)  # sectors, ccw from RIGHT
+    d = abs(theta - DIR_SECTOR[orientation]) % 8.0
+    return min(d, 8.0 - d)
 
 
 @njit(cache=True)
@@ -226,7 +277,7 @@ def percepts(
     """``(level, distance_class, angle, h_sees_r, h_looks_at_r, r_looks_at_h)``.
 
     ``angle`` is the quantised direction robot -> human; ``level`` the percept level
-    0-4. Robot and human must be on different cells.
+    0-4. On a shared cell (paper rule 6) the bearing is 0: angle RIGHT, in view.
     """
     width = walls_h.shape[1]
     drow = human // width - robot // width
@@ -239,10 +290,16 @@ def percepts(
         if d > pcfg[P_B0 + i]:
             dist += 1
     visible = line_of_sight(walls_h, walls_v, los, robot, human)
-    h_gap = sector_gap(human_ori, to_robot)
-    h_sees = visible and h_gap <= pcfg[P_VISUAL]
-    h_looks = visible and h_gap <= pcfg[P_FACING]
-    r_looks = visible and sector_gap(robot_ori, angle) <= pcfg[P_FACING]
+    if pcfg[P_CONTINUOUS] != 0:
+        h_gap = bearing_gap(human_ori, -drow, -dcol)
+        h_sees = visible and h_gap <= pcfg[P_VISUAL] + 1e-9
+        h_looks = visible and h_gap <= pcfg[P_FACING] + 1e-9
+        r_looks = visible and bearing_gap(robot_ori, drow, dcol) <= pcfg[P_FACING] + 1e-9
+    else:
+        h_gap = sector_gap(human_ori, to_robot)
+        h_sees = visible and h_gap <= pcfg[P_VISUAL]
+        h_looks = visible and h_gap <= pcfg[P_FACING]
+        r_looks = visible and sector_gap(robot_ori, angle) <= pcfg[P_FACING]
     if h_looks and r_looks:
         level = 4
     elif h_sees and r_looks:

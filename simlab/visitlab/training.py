@@ -20,8 +20,14 @@ registry presets, :func:`loop_agent_config` applies the settings of a variant:
 * ``thesis`` — model-based planning every 10,000 steps with at most 50 sweeps
   (thesis Fig. 4.1 caption);
 * ``paper`` — Q-learning alpha 0.5, one value-iteration sweep every 1000 steps,
-  R-max m = 5 on the social task (m = 1 otherwise; the registry's R-max already
-  plans like the paper: one sweep every 1000 steps).
+  R-max m = 5 on the social task (m = 1 otherwise), and the paper-exact planning
+  rules of :mod:`simlab.agents.core`: the sweep is synchronous over all pairs
+  (rule 2), untried pairs are valued through a uniform model (rule 1, model-based
+  agents) and R-max freezes a pair's model at its m-th visit (rule 7). Without
+  them (the registry's presets, the thesis variant) the sweep is in place over the
+  visited pairs and untried pairs stay at 0: that agent learns 2-6 times slower
+  than the published code on the social task (issue 14), so only the paper
+  variant claims to plan like the paper.
 
 then the caller's overrides (registry keys, ``"actor.plan_every"`` for nested ones).
 
@@ -43,6 +49,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from simlab.agents import core
 from simlab.agents.config import (
     ModelBasedConfig,
     PassiveObserverConfig,
@@ -51,10 +58,9 @@ from simlab.agents.config import (
     SlidingWindowConfig,
     config_to_dict,
 )
+from simlab.agents.core import agent_params
 from simlab.agents.kernels import (
     count_model_new,
-    model_based_update,
-    model_value_iteration,
     q_learning_update,
     rmax_q_init,
     select_action,
@@ -63,14 +69,15 @@ from simlab.agents.kernels import (
 from simlab.agents.registry import AGENTS, agent_config
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
+from simlab.visitlab.perception import P_SHARE
 
 TASKS = ("nav", "social", "gotohuman")
 
 # indices into the agent parameter array handed to the loops
 (A_KIND, A_SELECT, A_ALPHA, A_GAMMA, A_EPS, A_TAU, A_PLAN_EVERY, A_SWEEPS, A_TOL, A_M_KNOWN,
  A_INCREMENTAL, A_REPLAN, A_OBSERVER, A_OBS_SELECT, A_OBS_ALPHA, A_OBS_GAMMA, A_OBS_EPS,
- A_OBS_TAU, A_TAKEOVER) = range(19)
-_N_AP = 19
+ A_OBS_TAU, A_TAKEOVER, A_SYNC, A_UNTRIED, A_FREEZE) = range(22)
+_N_AP = 22
 _KIND_MF, _KIND_MB, _KIND_RMAX = 0, 1, 2
 
 
@@ -100,6 +107,12 @@ def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",
             changes["observer.alpha"] = 0.5
     if isinstance(preset, RMaxConfig) and variant == "paper" and task == "social":
         changes["m"] = 5
+    if variant == "paper" and isinstance(preset, ModelBasedConfig | PassiveObserverConfig):
+        # paper rules 1 and 2 (simlab.agents.core): untried pairs valued through a
+        # uniform model, one synchronous sweep over all pairs
+        changes.update({f"{prefix}synchronous": True, f"{prefix}untried_uniform": True})
+    if variant == "paper" and isinstance(preset, RMaxConfig):
+        changes.update({"synchronous": True, "freeze": True})  # paper rules 2 and 7
     changes.update(overrides or {})
     return agent_config(name, changes)
 
@@ -147,6 +160,8 @@ def agent_arrays(cfg: Any, n_states: int, n_actions: int, takeover_trial: int = 
     else:
         raise ConfigError(f"unsupported agent config {type(cfg).__name__}", key="agent")
     if not isinstance(actor, QLearningConfig):
+        p = agent_params(actor)
+        ap[A_SYNC], ap[A_UNTRIED], ap[A_FREEZE] = p.synchronous, p.untried_uniform, p.freeze
         ap[A_INCREMENTAL] = 1.0 if actor.incremental else 0.0
         ap[A_PLAN_EVERY] = actor.plan_every
         ap[A_SWEEPS] = actor.max_sweeps
@@ -180,19 +195,21 @@ def _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial):
         q_learning_update(Q_obs, s, a, r, s_next, ap[A_OBS_ALPHA], ap[A_OBS_GAMMA])
         if 0 <= ap[A_TAKEOVER] <= trial:
             return t  # after the take-over only the observer learns
-    kind = int(ap[A_KIND])
-    gamma = ap[A_GAMMA]
-    if kind == _KIND_MF:
-        q_learning_update(Q, s, a, r, s_next, ap[A_ALPHA], gamma)
+    if ap[A_KIND] == _KIND_MF:  # the core's Q-learning step without building the record
+        q_learning_update(Q, s, a, r, s_next, ap[A_ALPHA], ap[A_GAMMA])
         return t + 1
-    m_known = int(ap[A_M_KNOWN])
-    model_based_update(model, Q, s, a, r, s_next, gamma, m_known, ap[A_INCREMENTAL] > 0.0,
-                       ap[A_REPLAN] > 0.0, int(ap[A_SWEEPS]), ap[A_TOL])
-    t += 1
-    plan_every = int(ap[A_PLAN_EVERY])
-    if plan_every > 0 and t % plan_every == 0:
-        model_value_iteration(model, Q, gamma, int(ap[A_SWEEPS]), ap[A_TOL], m_known)
-    return t
+    return core.learn(model, Q, s, a, r, s_next, _actor_params(ap), core.NO_MASK,
+                      core.NO_TERMINAL, t)
+
+
+@njit(cache=True, inline="always")
+def _actor_params(ap):
+    """The acting agent's :class:`~simlab.agents.core.AgentParams` from ``ap``."""
+    return core.AgentParams(
+        int(ap[A_KIND]), int(ap[A_SELECT]), ap[A_ALPHA], ap[A_GAMMA], ap[A_EPS], ap[A_TAU],
+        int(ap[A_M_KNOWN]), ap[A_INCREMENTAL] > 0.0, ap[A_REPLAN] > 0.0,
+        int(ap[A_PLAN_EVERY]), int(ap[A_SWEEPS]), ap[A_TOL], ap[A_SYNC] > 0.0,
+        ap[A_UNTRIED] > 0.0, ap[A_FREEZE] > 0.0)
 
 
 @njit(cache=True)
@@ -226,7 +243,7 @@ def social_train_chunk(walls_h, walls_v, los, pcfg, hp, redraw_p, robot_start, h
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.social_reset(st, env_rng, n_cells, robot_start, human_start)
+        dyn.social_reset(st, env_rng, n_cells, robot_start, human_start, pcfg[P_SHARE] != 0)
         s = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
         total = 0.0
         for _ in range(n_steps):
@@ -249,7 +266,8 @@ def gth_train_chunk(walls_h, walls_v, los, pcfg, hp, human_moves, episode, robot
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.gth_reset(st, env_rng, n_cells, episode, robot_cell, human_cell, robot_ori, human_ori)
+        dyn.gth_reset(st, env_rng, n_cells, episode, robot_cell, human_cell, robot_ori, human_ori,
+                      pcfg[P_SHARE] != 0)
         s = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
         total = 0.0
         for _ in range(n_steps):
@@ -282,22 +300,11 @@ class _Runner:
     def __init__(self, env: Any, task: str) -> None:
         self.env = env
         self.task = task
-        lay = env.layout
         self.n_states = env.observation_space.n
         self.n_actions = env.action_space.n
-        if task == "nav":
-            self.fixed = (lay.walls_h, lay.walls_v, lay.cell_labels, env.start_cell, env.goal_label,
-                          np.array(lay.goal_labels, dtype=np.int64), env.max_steps)
-            self.kernel = nav_train_chunk
-        elif task == "social":
-            self.fixed = (lay.walls_h, lay.walls_v, env._los, env._pcfg, env._hp, env.redraw_p,
-                          env.robot_start, env.human_start, env.max_steps)
-            self.kernel = social_train_chunk
-        else:
-            self.fixed = (lay.walls_h, lay.walls_v, env._los, env._pcfg, env._hp,
-                          env.human is not None, env._episode_code, env.robot_cell, env.human_cell,
-                          env.robot_ori, env.human_ori, env.max_steps)
-            self.kernel = gth_train_chunk
+        self.fixed = env.kernel_args()
+        self.kernel = {"nav": nav_train_chunk, "social": social_train_chunk,
+                       "gotohuman": gth_train_chunk}[task]
 
     def run(self, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns) -> int:
         return int(self.kernel(*self.fixed, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0,
@@ -389,33 +396,6 @@ def smooth_curve(returns: np.ndarray, n_points: int = 100) -> tuple[np.ndarray, 
     return x, mean, std
 
 
-def _run_seed(task: str, variant: str, env_kwargs: dict[str, Any], cfg: Any,
-              trials: int, gens: tuple[np.random.Generator, np.random.Generator],
-              q0: np.ndarray | None, chunk: int, on_chunk: Any = None
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """One seeded run: returns ``(returns (trials,), final Q (S, A))``.
-
-    The Q returned is the agent's ``Q`` (for a passive observer: the observer's).
-    """
-    env = make_env(task, variant=variant, **env_kwargs)
-    runner = _Runner(env, task)
-    env_rng, agent_rng = gens
-    takeover = (round(cfg.takeover_fraction * trials)
-                if isinstance(cfg, PassiveObserverConfig) else -1)
-    ap, Q, Q_obs, model = agent_arrays(cfg, runner.n_states, runner.n_actions, takeover)
-    if q0 is not None:
-        target = Q_obs if isinstance(cfg, PassiveObserverConfig) else Q
-        target[...] = q0
-    returns = np.zeros(trials, dtype=np.float64)
-    t = 0
-    for lo in range(0, trials, chunk):
-        hi = min(trials, lo + chunk)
-        t = runner.run(Q, Q_obs, model, ap, env_rng, agent_rng, t, lo, returns[lo:hi])
-        if on_chunk is not None:
-            on_chunk(hi - lo)
-    return returns, (Q_obs if isinstance(cfg, PassiveObserverConfig) else Q)
-
-
 def train(
     task: str = "social",
     agent: str = "mb-egreedy",
@@ -466,7 +446,6 @@ def train(
         else:
             raise ConfigError(f"expected shape {(n_states, n_actions)} or "
                               f"{(seeds, n_states, n_actions)}, got {q.shape}", key="initial_q")
-    chunk = max(1, min(trials, 200_000 // env.max_steps))
     gens = seed_generators(seed, seeds)
     returns = np.zeros((seeds, trials), dtype=np.float64)
     qs = np.zeros((seeds, n_states, n_actions), dtype=np.float64)
@@ -477,14 +456,14 @@ def train(
               desc=f"{task} {agent}") as bar:
         if workers == 1 or seeds == 1:
             for i in range(seeds):
-                returns[i], qs[i] = _run_seed(task, variant, env_kwargs, cfg, trials, gens[i],
-                                              q0s[i], chunk, bar.update)
+                returns[i], qs[i] = _seed_curve(task, variant, env_kwargs, cfg, trials, gens[i],
+                                                q0s[i], bar.update)
         else:
             from concurrent.futures import ProcessPoolExecutor, as_completed
 
             with ProcessPoolExecutor(max_workers=min(workers, seeds)) as pool:
-                futures = {pool.submit(_run_seed, task, variant, env_kwargs, cfg, trials,
-                                       gens[i], q0s[i], chunk): i for i in range(seeds)}
+                futures = {pool.submit(_seed_curve, task, variant, env_kwargs, cfg, trials,
+                                       gens[i], q0s[i]): i for i in range(seeds)}
                 for fut in as_completed(futures):
                     i = futures[fut]
                     returns[i], qs[i] = fut.result()
@@ -582,11 +561,22 @@ class SeedRun:
     steps: int = 0
 
 
+def _seed_curve(task: str, variant: str, env_kwargs: dict[str, Any], cfg: Any, trials: int,
+                gens: tuple[np.random.Generator, np.random.Generator],
+                q0: np.ndarray | None, on_chunk: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """One seed of :func:`train`: ``(returns (trials,), final Q (S, A))`` (the observer's
+    Q for a passive observer)."""
+    run = run_seed(task, cfg, trials, gens, variant=variant, env_kwargs=env_kwargs,
+                   initial_q=q0, on_chunk=on_chunk)
+    return run.returns, (run.q_observer if run.q_observer is not None else run.q)
+
+
 def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
                                                            np.random.Generator], *,
              variant: str = "thesis", env_kwargs: dict[str, Any] | None = None,
              observer: QLearningConfig | None = None, takeover_fraction: float = 0.5,
-             initial_q: np.ndarray | None = None, keep_model: bool = False) -> SeedRun:
+             initial_q: np.ndarray | None = None, keep_model: bool = False,
+             on_chunk: Any = None) -> SeedRun:
     """One seeded run of agent config ``cfg`` (from :func:`loop_agent_config`).
 
     The building block of :func:`train` for callers that spread seeds over their own
@@ -595,7 +585,8 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
     passive Q-learner (:func:`observer_arrays`) taking over after ``takeover_fraction``
     of the trials (1.0: it only watches). ``initial_q`` starts the actor's Q (the
     observer's for the registry's ``passive-observer``); ``keep_model`` returns the
-    actor's count model as arrays.
+    actor's count model as arrays. ``on_chunk(n)`` is called after each chunk of ``n``
+    trials (progress bars).
     """
     env = make_env(task, variant=variant, **(env_kwargs or {}))
     runner = _Runner(env, task)
@@ -620,6 +611,8 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
     for lo in range(0, trials, chunk):
         hi = min(trials, lo + chunk)
         t = runner.run(Q, Q_obs, model, ap, env_rng, agent_rng, t, lo, returns[lo:hi])
+        if on_chunk is not None:
+            on_chunk(hi - lo)
     has_observer = registry_observer or observer is not None
     kept = None
     if keep_model:

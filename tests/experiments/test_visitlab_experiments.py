@@ -188,3 +188,22 @@ def test_adaptability_runs_the_named_humans_on_the_shared_modules(tmp_path):
     with pytest.raises(ConfigError) as e:
         combined({**MODULES, "combined": {"colour": 1}}, dict(TINY), ctx)
     assert e.value.key == "params.combined"
+
+
+def test_paper_social_figure_runs_the_paper_variant_at_a_tiny_budget(tmp_path):
+    res = reproduce(tmp_path / "out", only="paper_fig4_social_humans", budget="quick",
+                    progress=False, log=None)
+    entry = res.entry("paper_fig4_social_humans")
+    assert entry["status"] == "ok", entry.get("error")
+    m = entry["metrics"]
+    for h in ("H1", "H2", "H3"):
+        for k in ("plateau", "at_5k", "at_10k", "at_15k", "at_25k"):
+            assert f"{h}_{k}" in m
+    # the runs are exactly `simlab visitlab train` in the paper variant (20-step trials)
+    ref = train("social", "mb-egreedy", trials=200, seeds=2, seed=visitlab_seed(0),
+                variant="paper", human="H1", progress=False)
+    assert ref.config["agent_config"]["synchronous"] is True
+    assert ref.config["max_steps"] == 20
+    assert m["H1_plateau"] == pytest.approx(ref.returns[:, -20:].mean())
+    text = (res.out / "results.md").read_text()
+    assert "paper_fig4_social_humans" in text

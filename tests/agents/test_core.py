@@ -1,0 +1,189 @@
+"""The agent core: paper planning rules 1, 2, 7, valid-action masks and terminal states."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simlab.agents import core
+from simlab.agents.agents import ModelBasedAgent, QLearningAgent, RMaxAgent
+from simlab.agents.config import ModelBasedConfig, QLearningConfig, RMaxConfig
+from simlab.agents.kernels import count_model_observe
+from simlab.agents.registry import AGENTS, make_agent
+from simlab.agents.sparse_model import CountModel
+from simlab.errors import ConfigError
+from simlab.training.harness import evaluate_q, run_episodes
+
+
+def _params(**kw):
+    return core.agent_params(ModelBasedConfig(**kw))
+
+
+def test_untried_pairs_after_one_sweep_equal_gamma_mean_v():
+    S, A, gamma = 4, 2, 0.9
+    model = CountModel(S, A, 16)
+    count_model_observe(model, 0, 0, 1.0, 1)  # the only tried pair
+    Q = np.array([[0.0, 0.0], [2.0, 1.0], [0.5, 3.0], [1.0, 1.0]])
+    V = Q.max(axis=1)  # 0, 2, 3, 1 -> mean 1.5
+    p = _params(gamma=gamma, synchronous=True, untried_uniform=True, max_sweeps=1)
+    core.plan(model, Q, p, core.NO_MASK, core.NO_TERMINAL)
+    assert Q[0, 0] == pytest.approx(1.0 + gamma * V[1])
+    untried = [(s, a) for s in range(S) for a in range(A) if (s, a) != (0, 0)]
+    for s, a in untried:
+        assert Q[s, a] == pytest.approx(gamma * V.mean())
+
+
+def test_synchronous_vs_in_place_on_three_state_chain():
+    # 2 -> 1 (r 0), 1 -> 0 (r 0), 0 -> 0 (r 1); one action, Q starts at 0, gamma 0.5.
+    # The in-place sweep visits pairs by index: 0, 1, 2.
+    gamma = 0.5
+    qs = {}
+    for sync in (True, False):
+        m = CountModel(3, 1, 8)
+        count_model_observe(m, 2, 0, 0.0, 1)
+        count_model_observe(m, 1, 0, 0.0, 0)
+        count_model_observe(m, 0, 0, 1.0, 0)
+        Q = np.zeros((3, 1))
+        core.plan(m, Q, _params(gamma=gamma, synchronous=sync, max_sweeps=1), core.NO_MASK,
+                  core.NO_TERMINAL)
+        qs[sync] = Q[:, 0]
+    # Jacobi: each backup reads the previous sweep's zeros -> only the rewarded pair moves
+    np.testing.assert_allclose(qs[True], [1.0, 0.0, 0.0])
+    # Gauss-Seidel: Q0 = 1, then Q1 = 0.5 * 1, then Q2 = 0.5 * 0.5 within the same sweep
+    np.testing.assert_allclose(qs[False], [1.0, 0.5, 0.25])
+
+
+def test_untried_uniform_needs_synchronous():
+    with pytest.raises(ConfigError, match="synchronous"):
+        ModelBasedConfig(untried_uniform=True)
+
+
+def test_rmax_freeze_stops_counting_at_m():
+    for freeze, expected in ((True, 2), (False, 4)):
+        agent = RMaxAgent(3, 2, RMaxConfig(m=2, freeze=freeze, plan_every=0),
+                         np.random.default_rng(0))
+        for s_next in (1, 1, 2, 2):
+            agent.update(0, 0, 0.0, s_next)
+        assert agent.model.n_sa[0, 0] == expected
+        T, _ = agent.transition_matrix()
+        assert T[0, 0, 1] == pytest.approx(1.0 if freeze else 0.5)
+
+
+# --------------------------------------------------------------------------- masks
+@pytest.mark.parametrize("method,eps", [(0, 0.0), (1, 0.5), (1, 1.0), (2, 0.0)])
+def test_masked_selection_never_picks_an_invalid_action(method, eps):
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=6)
+    vrow = np.array([False, True, False, True, True, False])
+    q[0] = 100.0  # the best action is invalid
+    picks = {int(core.masked_select(q, vrow, method, eps, 0.5, rng)) for _ in range(500)}
+    assert picks <= {1, 3, 4}
+    if method == 1 and eps == 1.0:
+        assert picks == {1, 3, 4}
+
+
+@pytest.mark.parametrize("method", [0, 1, 2])
+def test_all_true_mask_draws_like_no_mask(method):
+    q = np.array([0.3, 0.3, 0.1, 0.3])
+    r1, r2 = np.random.default_rng(7), np.random.default_rng(7)
+    from simlab.agents.kernels import select_action
+
+    a1 = [select_action(q, method, 0.3, 0.2, r1) for _ in range(300)]
+    a2 = [core.masked_select(q, np.ones(4, bool), method, 0.3, 0.2, r2) for _ in range(300)]
+    assert a1 == a2
+    assert r1.random() == r2.random()
+
+
+def test_state_without_valid_action_falls_back_to_all():
+    rng = np.random.default_rng(0)
+    picks = {int(core.masked_select(np.zeros(3), np.zeros(3, bool), 1, 1.0, 0.1, rng))
+             for _ in range(200)}
+    assert picks == {0, 1, 2}
+
+
+def _chain(S=5):
+    """Action 1 moves right, action 0 stays; reward on arriving in the last state."""
+    T = np.zeros((S, 2, S))
+    for s in range(S):
+        T[s, 0, s] = 1.0
+        T[s, 1, min(s + 1, S - 1)] = 1.0
+    r = np.zeros(S)
+    r[-1] = 1.0
+    return T, r
+
+
+@pytest.mark.parametrize("name", sorted(set(AGENTS) - {"sliding-window"}))
+def test_no_agent_picks_an_invalid_action(name):
+    T, r = _chain()
+    valid = np.ones((5, 2), bool)
+    valid[:, 0] = False  # "stay" forbidden everywhere
+    agent = make_agent(name, 5, 2, np.random.default_rng(1))
+    seen = []
+    orig = agent.act
+    agent.act = lambda s: seen.append(orig(s)) or seen[-1]
+    run_episodes(agent, T, r, 20, np.random.default_rng(2), horizon=10, start=0,
+                 fused_loop=False, valid=valid)
+    assert seen and set(seen) == {1}
+
+
+@pytest.mark.parametrize("name", sorted(AGENTS))
+def test_fused_and_python_agree_with_mask_and_terminal(name):
+    T, r = _chain()
+    valid = np.ones((5, 2), bool)
+    valid[2, 0] = False
+    terminal = np.zeros(5, bool)
+    terminal[-1] = True
+    out = []
+    for fused_loop in (True, False):
+        agent = make_agent(name, 5, 2, np.random.default_rng(4))
+        rewards = run_episodes(agent, T, r, 30, np.random.default_rng(5), horizon=12,
+                               fused_loop=fused_loop, valid=valid, terminal=terminal)
+        out.append((rewards, agent.Q.copy()))
+    np.testing.assert_array_equal(out[0][0], out[1][0])
+    np.testing.assert_array_equal(out[0][1], out[1][1])
+
+
+def test_terminal_ends_the_episode_and_counts_its_reward():
+    T, r = _chain()
+    terminal = np.zeros(5, bool)
+    terminal[-1] = True
+    for cfg in (QLearningConfig(epsilon=0.1), ModelBasedConfig(plan_every=5)):
+        cls = QLearningAgent if isinstance(cfg, QLearningConfig) else ModelBasedAgent
+        agent = cls(5, 2, cfg, np.random.default_rng(0))
+        rewards = run_episodes(agent, T, r, 200, np.random.default_rng(1), horizon=30,
+                               start=0, terminal=terminal)
+        # without termination a greedy agent would collect up to 27 per episode
+        assert rewards.max() == 1.0
+        assert rewards[-50:].mean() > 0.9
+        assert np.all(agent.Q[4] == 0.0) or isinstance(agent, QLearningAgent)
+
+
+def test_all_true_mask_is_bit_identical_to_none():
+    T, r = _chain()
+    out = []
+    for valid in (None, np.ones((5, 2), bool)):
+        agent = make_agent("q-learning", 5, 2, np.random.default_rng(4))
+        out.append(run_episodes(agent, T, r, 30, np.random.default_rng(5), horizon=12,
+                                valid=valid))
+        out.append(agent.Q.copy())
+    np.testing.assert_array_equal(out[0], out[2])
+    np.testing.assert_array_equal(out[1], out[3])
+
+
+def test_evaluate_q_with_terminal_and_mask():
+    T, r = _chain()
+    terminal = np.zeros(5, bool)
+    terminal[-1] = True
+    Q = np.zeros((1, 5, 2))
+    Q[0, :, 1] = 1.0  # always move right
+    ev = evaluate_q(T, r, Q, 0.9, 10, start=0, terminal=terminal)
+    assert ev.optimal_return == pytest.approx(1.0)  # reward once, then absorbed
+    valid = np.ones((5, 2), bool)
+    valid[:, 1] = False  # cannot move: nothing to earn
+    ev = evaluate_q(T, r, Q, 0.9, 10, start=0, terminal=terminal, valid=valid)
+    assert ev.greedy_returns[0] == pytest.approx(0.0)
+
+
+def test_bad_mask_shape_is_a_config_error():
+    with pytest.raises(ConfigError, match="valid"):
+        QLearningAgent(3, 2, rng=np.random.default_rng(0), valid=np.ones((2, 2), bool))
