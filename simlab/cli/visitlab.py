@@ -83,6 +83,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     s.add_argument("--run", type=int, default=0, help="run index in the curves file")
     s.add_argument("--seed-index", type=int, default=0, help="seeded run whose Q to use")
     s.add_argument("--png", default=None, help="also save the last frame as a PNG")
+    s.add_argument("--overwrite", action="store_true", help="replace an existing --png")
     c = sub.add_parser("combined", help="run the combined architecture with trained modules",
                        description="Lead a human to goal rooms with three trained Q tables "
                                    "(thesis Fig. 3.1): prints goal rooms reached per trial, "
@@ -169,29 +170,37 @@ def _humans(args: argparse.Namespace) -> list:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from simlab.io import ensure_new
+    from pathlib import Path
+
+    from simlab.io import output_transaction
     from simlab.visitlab.results import FILES, save_results
     from simlab.visitlab.training import train
 
-    for name in FILES:  # fail before hours of training, not after
-        ensure_new(f"{args.out}/{name}", overwrite=args.overwrite, what=name)
+    out = Path(args.out)
+    finals = [out / name for name in FILES]
     overrides = _overrides(args.set)
-    results = []
-    for agent in [a.strip() for a in args.agent.split(",") if a.strip()]:
-        for human in _humans(args):
-            kw = _env_kwargs(args)
-            if human is not None:
-                kw["human"] = human
-            res = train(args.task, agent, trials=args.trials, seeds=args.seeds, seed=args.seed,
-                        variant=args.variant, progress=not args.no_progress,
-                        agent_overrides=overrides, workers=args.workers, **kw)
-            results.append(res)
-            s = res.summary()
-            print(f"{res.label}: plateau {s['plateau']:.2f} +- {s['plateau_std']:.2f} per trial "
-                  f"(last 10% of {s['n_trials']} trials, {s['n_seeds']} seeds), 90% of it "
-                  f"reached at trial {s['trials_to_90pct']}, {s['wall_time_s']:.1f} s")
-    paths = save_results(results, args.out, overwrite=args.overwrite, title=args.title)
-    print("wrote " + ", ".join(str(p) for p in paths.values()))
+    # the one output transaction: refused before hours of training (a file in the way, a
+    # locked --out), written whole or not at all (a full disk, Ctrl-C)
+    with output_transaction(out, finals, overwrite=args.overwrite,
+                            what="visitlab output") as txn:
+        results = []
+        for agent in [a.strip() for a in args.agent.split(",") if a.strip()]:
+            for human in _humans(args):
+                kw = _env_kwargs(args)
+                if human is not None:
+                    kw["human"] = human
+                res = train(args.task, agent, trials=args.trials, seeds=args.seeds,
+                            seed=args.seed, variant=args.variant,
+                            progress=not args.no_progress, agent_overrides=overrides,
+                            workers=args.workers, **kw)
+                results.append(res)
+                s = res.summary()
+                print(f"{res.label}: plateau {s['plateau']:.2f} +- {s['plateau_std']:.2f} per "
+                      f"trial (last 10% of {s['n_trials']} trials, {s['n_seeds']} seeds), 90% "
+                      f"of it reached at trial {s['trials_to_90pct']}, "
+                      f"{s['wall_time_s']:.1f} s")
+        save_results(results, txn.staging, overwrite=True, title=args.title)
+    print("wrote " + ", ".join(str(f) for f in finals))
     return 0
 
 
@@ -202,6 +211,10 @@ def _show(args: argparse.Namespace) -> int:
     from simlab.errors import ConfigError
     from simlab.visitlab.training import make_env
 
+    if args.png:
+        from simlab.io import ensure_new
+
+        ensure_new(args.png, overwrite=args.overwrite, what="PNG")  # before the episode
     kw = _env_kwargs(args)
     humans = _humans(args)
     if humans[0] is not None:

@@ -413,6 +413,12 @@ def make_layout(spec: str | Layout, seed: int | None = None) -> Layout:
         except ValueError:
             raise ConfigError(f"unknown layout {spec!r}", key="layout",
                               fix="use gridworld-HxW, e.g. gridworld-20x20") from None
+        from simlab.guards import array_bytes, check_memory
+
+        # cell labels, two wall rasters and per-cell tables: ~32 bytes a cell, before any
+        # Q-table (cells x goals x 25 actions, checked by the trainer)
+        check_memory(array_bytes((h, w), 32), what=f"a {h} x {w} grid", key="layout",
+                     fix="use a smaller gridworld-HxW")
         return gridworld(h, w)
     if name == "paper":
         return paper_layout()

@@ -446,6 +446,11 @@ def train(
         else:
             raise ConfigError(f"expected shape {(n_states, n_actions)} or "
                               f"{(seeds, n_states, n_actions)}, got {q.shape}", key="initial_q")
+    from simlab.guards import array_bytes, check_memory
+
+    check_memory(array_bytes((seeds, trials)) + array_bytes((seeds, n_states, n_actions)),
+                 what=f"learning curves of {seeds} seeds x {trials} trials and their Q-tables",
+                 key="trials", fix="fewer --trials or --seeds")
     gens = seed_generators(seed, seeds)
     returns = np.zeros((seeds, trials), dtype=np.float64)
     qs = np.zeros((seeds, n_states, n_actions), dtype=np.float64)
@@ -459,15 +464,24 @@ def train(
                 returns[i], qs[i] = _seed_curve(task, variant, env_kwargs, cfg, trials, gens[i],
                                                 q0s[i], bar.update)
         else:
-            from concurrent.futures import ProcessPoolExecutor, as_completed
+            from concurrent.futures import as_completed
 
-            with ProcessPoolExecutor(max_workers=min(workers, seeds)) as pool:
+            from simlab.experiments.executors import worker_pool
+
+            # the one local pool: workers exit with this process; Ctrl-C cancels what has
+            # not started instead of waiting for every seed to finish
+            pool = worker_pool(min(workers, seeds))
+            try:
                 futures = {pool.submit(_seed_curve, task, variant, env_kwargs, cfg, trials,
                                        gens[i], q0s[i]): i for i in range(seeds)}
                 for fut in as_completed(futures):
                     i = futures[fut]
                     returns[i], qs[i] = fut.result()
                     bar.update(trials)
+            except BaseException:
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            pool.shutdown(wait=True)
     wall = time.perf_counter() - start
     human = getattr(env, "human", None)
     label = agent if human is None or task != "social" else f"{agent} / {human.name}"

@@ -301,6 +301,14 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      ("nope.npz",)),
     ("visitlab-plot-garbage", _write("c.npz", "x"), "visitlab plot {w}/c.npz --out {w}/p.png",
      ("c.npz",)),
+    ("visitlab-trials-memory", NO, "visitlab train --task nav --trials 1000000000000 "
+     "--out {w}/v --no-progress", ("trials", "TiB")),
+    ("visitlab-grid-memory", NO, "visitlab train --task nav --layout gridworld-100000x100000 "
+     "--out {w}/v --no-progress", ("layout", "GiB")),
+    ("visitlab-out-is-a-file", _write("vfile", "x"), "visitlab train --task nav --trials 5 "
+     "--seeds 1 --out {w}/vfile --no-progress", ("vfile", "not a directory")),
+    ("visitlab-show-png-exists", _write("show.png", b"\x89PNG old"), "visitlab show --task nav "
+     "--png {w}/show.png", ("show.png", "--overwrite")),
     ("reproduce-only-nosuch", NO, "reproduce --only nosuch --out {w}/r", ("nosuch",)),
     ("reproduce-experiments-missing", NO, "reproduce --experiments {w}/nope --out {w}/r",
      ("nope",)),

@@ -29,6 +29,8 @@ COMMANDS = {
     "collect": "collect --states {w}/states.json --transitions 50 --simulator kinematic "
                "--out {w}/new --no-progress",
     "arena-from-map": "arena-from-map {w}/map/map.yaml --out {w}/a.toml --start 0,0,0",
+    "visitlab-train": "visitlab train --task nav --trials 5 --seeds 1 --out {w}/v "
+                      "--no-progress",
 }
 
 ERRORS = {
