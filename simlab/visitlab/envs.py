@@ -65,6 +65,37 @@ def _cell_option(value: Any, layout: Layout, key: str, named: dict[str, int]) ->
     return int(value)
 
 
+def _goal_option(goal: Any, layout: Layout) -> int:
+    """A goal label of ``layout``, or ``"random"`` -> -1."""
+    if goal == "random":
+        return -1
+    if isinstance(goal, int | np.integer) and not isinstance(goal, bool) \
+            and int(goal) in layout.goal_labels:
+        return int(goal)
+    raise ConfigError(f"expected 'random' or one of {layout.goal_labels}, got {goal!r}",
+                      key="goal")
+
+
+def _direction_option(value: Any, key: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 0 <= value < 8:
+        raise ConfigError(f"expected a direction 0-7, got {value!r}", key=key)
+    return int(value)
+
+
+def _reset_options(options: dict | None, defaults: dict[str, Any]) -> dict[str, Any]:
+    """``defaults`` updated by ``reset(options=...)``; unknown keys are refused by name.
+
+    Options apply to the episode that this ``reset`` starts only (Gymnasium's convention);
+    the env's constructor settings stay the defaults of later resets.
+    """
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(defaults))
+    if unknown:
+        raise ConfigError(f"unknown reset option(s) {unknown}", key=f"options.{unknown[0]}",
+                          fix=f"allowed: {sorted(defaults)}")
+    return {**defaults, **options}
+
+
 def _centre(layout: Layout) -> int:
     return layout.cell(layout.height // 2, layout.width // 2)
 
@@ -181,13 +212,7 @@ class NavEnv(_VisitLabEnv):
         self.start_cell = _cell_option(start, self.layout, "start", {"random": -1})
         if goal is None:
             goal = self.layout.goal_labels[-1] if thesis else "random"
-        if goal == "random":
-            self.goal_label = -1
-        elif isinstance(goal, int | np.integer) and int(goal) in self.layout.goal_labels:
-            self.goal_label = int(goal)
-        else:
-            raise ConfigError(f"expected 'random' or one of {self.layout.goal_labels}, got {goal!r}",
-                              key="goal")
+        self.goal_label = _goal_option(goal, self.layout)
         self.max_steps = _check_steps(max_steps if max_steps is not None else (50 if thesis else 20))
         self._goal_labels = np.array(self.layout.goal_labels, dtype=np.int64)
         self.observation_space = spaces.Discrete(self.layout.n_labels * self.layout.n_cells)
@@ -213,10 +238,16 @@ class NavEnv(_VisitLabEnv):
         return info
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Options: ``start`` (cell, ``(row, col)`` or ``"random"``), ``goal`` (label or
+        ``"random"``), for this episode only."""
+        opt = _reset_options(options, {"start": self.start_cell, "goal": self.goal_label})
+        start = -1 if opt["start"] == -1 else _cell_option(opt["start"], self.layout,
+                                                           "options.start", {"random": -1})
+        goal = -1 if opt["goal"] == -1 else _goal_option(opt["goal"], self.layout)
         super().reset(seed=seed)
         self._t = 0
-        dyn.nav_reset(self._st, self.np_random, self.layout.n_cells, self.start_cell,
-                      self.goal_label, self._goal_labels)
+        dyn.nav_reset(self._st, self.np_random, self.layout.n_cells, start, goal,
+                      self._goal_labels)
         return self._obs(), self._info()
 
     def step(self, action: int):
@@ -330,11 +361,20 @@ class SocialEnv(_VisitLabEnv):
         return info
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Options: ``robot_start``, ``human_start`` (cell, ``(row, col)`` or ``"random"``;
+        the human also ``"center"``), for this episode only."""
+        opt = _reset_options(options, {"robot_start": self.robot_start,
+                                       "human_start": self.human_start})
+        named = {"random": -1, "center": _centre(self.layout), "centre": _centre(self.layout)}
+        robot = _cell_option(opt["robot_start"], self.layout, "options.robot_start",
+                             {"random": -1}) if opt["robot_start"] != -1 else -1
+        human = _cell_option(opt["human_start"], self.layout, "options.human_start",
+                             named) if opt["human_start"] != -1 else -1
         super().reset(seed=seed)
         self._t = 0
         self._moved_required = False
-        dyn.social_reset(self._st, self.np_random, self.layout.n_cells, self.robot_start,
-                         self.human_start, self.perception.share_cells)
+        dyn.social_reset(self._st, self.np_random, self.layout.n_cells, robot, human,
+                         self.perception.share_cells)
         return self._obs(), self._info()
 
     def step(self, action: int):
@@ -409,11 +449,8 @@ class GoToHumanEnv(_VisitLabEnv):
         self.human_cell = _cell_option(human_cell, self.layout, "human_cell", named)
         if self.robot_cell == self.human_cell:
             raise ConfigError("robot and human cannot start on the same cell", key="robot_cell")
-        for key, value in (("robot_ori", robot_ori), ("human_ori", human_ori)):
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 0 <= value < 8:
-                raise ConfigError(f"expected a direction 0-7, got {value!r}", key=key)
-        self.robot_ori = int(robot_ori)
-        self.human_ori = int(human_ori)
+        self.robot_ori = _direction_option(robot_ori, "robot_ori")
+        self.human_ori = _direction_option(human_ori, "human_ori")
         self.max_steps = _check_steps(max_steps if max_steps is not None else (40 if thesis else 20))
         self._hp = (self.human.to_array() if self.human is not None
                     else np.zeros(8, dtype=np.float64))
@@ -445,11 +482,24 @@ class GoToHumanEnv(_VisitLabEnv):
         return info
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Options: ``robot_cell``, ``human_cell`` (cell or ``(row, col)``), ``robot_ori``,
+        ``human_ori`` (0-7), for this episode only (the episode variant decides which of
+        them a reset draws at random instead)."""
+        opt = _reset_options(options, {"robot_cell": self.robot_cell,
+                                       "human_cell": self.human_cell,
+                                       "robot_ori": self.robot_ori, "human_ori": self.human_ori})
+        named = {"center": _centre(self.layout), "centre": _centre(self.layout)}
+        robot = _cell_option(opt["robot_cell"], self.layout, "options.robot_cell", {})
+        human = _cell_option(opt["human_cell"], self.layout, "options.human_cell", named)
+        if robot == human and not self.perception.share_cells:
+            raise ConfigError("robot and human cannot start on the same cell",
+                              key="options.robot_cell")
+        r_ori = _direction_option(opt["robot_ori"], "options.robot_ori")
+        h_ori = _direction_option(opt["human_ori"], "options.human_ori")
         super().reset(seed=seed)
         self._t = 0
         dyn.gth_reset(self._st, self.np_random, self.layout.n_cells, self._episode_code,
-                      self.robot_cell, self.human_cell, self.robot_ori, self.human_ori,
-                      self.perception.share_cells)
+                      robot, human, r_ori, h_ori, self.perception.share_cells)
         return self._obs(), self._info()
 
     def step(self, action: int):

@@ -198,3 +198,36 @@ def test_bad_arguments_raise_config_errors():
     env.reset(seed=0)
     with pytest.raises(ConfigError, match="action"):
         env.step(25)
+
+
+def test_reset_options_place_the_episode_and_only_that_episode() -> None:
+    nav = NavEnv(variant="paper")
+    goal = nav.layout.goal_labels[0]
+    _, info = nav.reset(seed=0, options={"start": 5, "goal": goal})
+    assert info["robot_cell"] == 5 and info["goal_label"] == goal
+    _, info = nav.reset(seed=0, options={"start": (2, 3)})
+    assert info["robot_cell"] == nav.layout.cell(2, 3)
+    # without options the constructor's settings hold again (paper: random start)
+    starts = {nav.reset(seed=s)[1]["robot_cell"] for s in range(6)}
+    assert len(starts) > 1
+
+    social = SocialEnv(variant="paper")
+    _, info = social.reset(seed=1, options={"robot_start": 10, "human_start": 11})
+    assert (info["robot_cell"], info["human_cell"]) == (10, 11)
+
+    gth = GoToHumanEnv(episode="fixed")
+    _, info = gth.reset(seed=2, options={"robot_cell": 30, "human_cell": 33, "robot_ori": 3,
+                                         "human_ori": 2})
+    assert (info["robot_cell"], info["human_cell"]) == (30, 33)
+    assert (info["robot_orientation"], info["human_orientation"]) == (3, 2)
+
+
+@pytest.mark.parametrize(("make", "options", "match"), [
+    (lambda: NavEnv(), {"nosuch": 1}, "unknown reset option"),
+    (lambda: NavEnv(), {"start": 10**9}, "options.start"),
+    (lambda: SocialEnv(), {"human_start": "nowhere"}, "options.human_start"),
+    (lambda: GoToHumanEnv(), {"robot_ori": 9}, "options.robot_ori"),
+])
+def test_bad_reset_options_name_the_key(make, options, match) -> None:
+    with pytest.raises(ConfigError, match=match):
+        make().reset(seed=0, options=options)
