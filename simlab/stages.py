@@ -97,6 +97,17 @@ class PhysicsSettings:
     pose_source: str = "mcl"
     video: bool = False
     seeds: int = 1
+    #: ``[primitives]`` TOML of the dataset walk (e.g. ``simlab calibrate``'s
+    #: ``primitives.toml``); "" = the built-in primitives. Replay takes the dataset's.
+    primitives: str = ""
+
+    def primitive_params(self) -> Any:
+        """The walk's :class:`~simlab.physics.motion.PrimitiveParams` (None: built-in)."""
+        if not self.primitives:
+            return None
+        from simlab.physics.motion import PrimitiveParams
+
+        return PrimitiveParams.from_toml(self.primitives)
 
     @classmethod
     def from_tables(cls, params: Mapping[str, Any], budget: Mapping[str, Any]
@@ -145,7 +156,7 @@ class PhysicsSettings:
                         or not math.isfinite(v) or v <= 0):
                     raise ConfigError(f"expected a number > 0, got {v!r}", key=key)
                 v = float(v)
-            elif not isinstance(v, str) or not v:
+            elif not isinstance(v, str) or (not v and name != "primitives"):
                 raise ConfigError(f"expected a non-empty string, got {v!r}", key=key)
             values[name] = v
         if values["pose_source"] not in ("truth", "odometry", "mcl"):
@@ -163,6 +174,7 @@ class PhysicsSettings:
         from simlab.physics.arena import ArenaConfig, load_arena
 
         where = where or {}
+        self.primitive_params()  # a bad [primitives] file is refused before any work
         try:
             agent_config(self.agent, None)
         except ConfigError as exc:
@@ -350,12 +362,15 @@ class PhysicsChain:
 
             res = collect(s.arena, parent.path / "states.json", out=d / "data", hours=s.hours,
                           seed=seed, workers=s.workers, backend=self.backend,
-                          progress=self.progress)
+                          progress=self.progress, params=s.primitive_params())
             return {"transitions": res.transitions, "simulated_hours": res.simulated_hours,
                     "collect_wall_seconds": res.wall_seconds}
 
-        return self.cached_stage("dataset", {"parent": parent.key, "hours": s.hours,
-                                             "workers": s.workers, "seed": seed}, build)
+        key = {"parent": parent.key, "hours": s.hours, "workers": s.workers, "seed": seed}
+        params = s.primitive_params()
+        if params is not None:  # absent for the built-in primitives: old cache keys still hold
+            key["primitives"] = params.to_json()
+        return self.cached_stage("dataset", key, build)
 
     def mdp(self, i: int) -> Stage:
         """Chain seed ``i``'s empirical MDP (``mdp.npz``, ``mdp.json``, entropy plot)."""

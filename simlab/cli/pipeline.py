@@ -35,6 +35,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pose-source", choices=("truth", "odometry", "mcl"), default=d.pose_source,
                    help=f"the replay's pose source (default {d.pose_source})")
     p.add_argument("--no-video", action="store_true", help="skip the replay GIF")
+    p.add_argument("--primitives", default="", metavar="FILE.toml",
+                   help="[primitives] of the dataset walk, e.g. simlab calibrate's "
+                        "primitives.toml (default: built-in; replay uses the dataset's)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -46,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
         map_minutes=args.map_minutes, states=args.states, hours=args.hours, workers=args.workers,
         agent=args.agent, episodes=args.episodes, runs=args.runs,
         replay_hours=args.replay_hours, pose_source=args.pose_source, video=not args.no_video,
+        primitives=args.primitives,
     )
     print(f"done in {res.wall_seconds:.0f} s: {res.report}")
     return 0

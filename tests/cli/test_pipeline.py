@@ -74,3 +74,23 @@ def test_pipeline_settings_are_validated(tmp_path):
     with pytest.raises(ConfigError, match="not empty"):
         pipeline("table", tmp_path / "full", log=None)
     assert (tmp_path / "full" / "keep.txt").read_text() == "user data"
+
+
+def test_pipeline_primitives_file_is_read_checked_and_part_of_the_dataset_key(tmp_path):
+    good = tmp_path / "primitives.toml"
+    good.write_text("[primitives]\ndrive_time = 0.8\nwheel_noise = 0.05\n")
+    s = PhysicsSettings.create(primitives=str(good))
+    params = s.primitive_params()
+    assert params.drive_time == 0.8 and params.wheel_noise == 0.05
+    assert PhysicsSettings.create().primitive_params() is None  # built-in primitives
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[primitives]\nwarp = 9\n")
+    with pytest.raises(ConfigError, match="warp"):
+        PhysicsSettings.create(primitives=str(bad))
+    # refused before any work: nothing is created
+    with pytest.raises(ConfigError, match="warp"):
+        pipeline("table", tmp_path / "run", log=None, primitives=str(bad))
+    assert not (tmp_path / "run").exists()
+    assert main(["pipeline", "--out", str(tmp_path / "run2"), "--primitives",
+                 str(tmp_path / "nope.toml")]) == 2
+    assert not (tmp_path / "run2").exists()
