@@ -295,7 +295,7 @@ def test_estimate_cli_action_flags(tmp_path: Path, kinematic_dataset: Path, caps
     m = load_mdp(out)
     assert m.action_set.convention == "ccw-east" and m.action_set.speed == "fast"
     assert m.action_set.to_primitive(0) == 8 + 3  # fast RIGHT
-    assert "14 unvisited (s, a) masked" in capsys.readouterr().out
+    assert "14 untried (s, a) of visited states masked" in capsys.readouterr().out
     # Action flags describe a count table; on a dataset they are refused (exit 2).
     assert main(["estimate", str(kinematic_dataset), "--out", str(tmp_path / "d.npz"),
                  "--convention", "ccw-east"]) == 2
