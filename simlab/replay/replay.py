@@ -452,6 +452,58 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
                       mcl_log=None if tracker is None else tracker.log(), frames=frames)
 
 
+def _bar(total: float, desc: str, progress: bool) -> Any:
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit="robot-h", disable=not progress,
+                dynamic_ncols=True, bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} robot-h "
+                                               "[{elapsed}<{remaining}{postfix}]")
+
+
+def _run_quiet(spec: _RunSpec, seqs: list[np.random.SeedSequence]) -> RunOutcome:
+    """:func:`_run` without a progress bar (the entry point of the baseline's process)."""
+    return _run(spec, seqs)
+
+
+def usable_cores() -> int:
+    """CPUs this process may run on (its affinity mask; ``os.cpu_count()`` elsewhere)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _run_both(spec: _RunSpec, seqs: list[np.random.SeedSequence], bspec: _RunSpec | None,
+              bseqs: list[np.random.SeedSequence], hours: float, baseline_hours: float,
+              policy: str, pose_source: str, progress: bool, parallel: bool
+              ) -> tuple[RunOutcome, RunOutcome | None]:
+    """The main run (in this process) and the random baseline (``bspec``, None: none).
+
+    With ``parallel`` and at least two usable cores the baseline runs in a ``spawn``
+    process (no PyBullet client or lock of this process is inherited) while this one
+    drives the main run: the two worlds share nothing and each draws from its own
+    seed streams, so the outcome is the sequential one, bit for bit (tested); the
+    replay's wall time becomes that of the longer run instead of their sum.
+    """
+    if bspec is None or not parallel or usable_cores() < 2:
+        with _bar(hours, f"replay {policy} ({pose_source})", progress) as bar:
+            run = _run(spec, seqs, bar)
+        if bspec is None:
+            return run, None
+        with _bar(baseline_hours, "replay random baseline", progress) as bar:
+            return run, _run(bspec, bseqs, bar)
+    import concurrent.futures as cf
+    import multiprocessing
+
+    with cf.ProcessPoolExecutor(max_workers=1,
+                                mp_context=multiprocessing.get_context("spawn")) as pool:
+        future = pool.submit(_run_quiet, bspec, bseqs)
+        with _bar(hours, f"replay {policy} ({pose_source}; random baseline in parallel)",
+                  progress) as bar:
+            run = _run(spec, seqs, bar)
+        return run, future.result()
+
+
 # --------------------------------------------------------------------------------------
 # Summaries
 # --------------------------------------------------------------------------------------
@@ -564,6 +616,7 @@ def replay(
     max_frames: int = 150,
     action_set: Any = None,
     goals: str | Sequence[str] | None = None,
+    parallel: bool = True,
 ) -> ReplayResult:
     """Replay the Q-tables in physics for ``hours`` of robot time (see the module doc).
 
@@ -602,6 +655,9 @@ def replay(
         max_frames: at most this many video frames (evenly spread over the replay).
         action_set: :class:`~simlab.actions.ActionSet` of in-memory Q-tables (files record
             theirs; given, it must agree).
+        parallel: run the random baseline in a second process while this one drives the
+            learned policy (when the machine has two usable cores; the runs are
+            independent, so the results are bit-identical to ``parallel=False``).
 
     Returns:
         :class:`ReplayResult`. Raises :class:`ConfigError` for bad input (naming the file):
@@ -695,24 +751,14 @@ def replay(
                     return_to_start=return_to_start, retry_blocked=retry_blocked,
                     escape_radius=escape_radius, epsilon=epsilon,
                     frame_stride=stride, primitives=action_set.primitives(), valid=valid)
-    from tqdm.auto import tqdm
-
-    with tqdm(total=hours, desc=f"replay {policy} ({pose_source})", unit="robot-h",
-              disable=not progress, dynamic_ncols=True,
-              bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} robot-h "
-                         "[{elapsed}<{remaining}{postfix}]") as bar:
-        run = _run(spec, seqs[:4], bar)
-    baseline = None
+    bspec = None
     if baseline_hours > 0:
         bspec = replace(spec, policy="random", pose_source="truth", mcl_field=None,
                         budget=baseline_hours * 3600.0, return_to_start=False, frame_stride=0,
                         params=params if pose_source != "odometry"
                         else replace(params, heading_source="truth"))
-        with tqdm(total=baseline_hours, desc="replay random baseline", unit="robot-h",
-                  disable=not progress, dynamic_ncols=True,
-                  bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} robot-h "
-                             "[{elapsed}<{remaining}{postfix}]") as bar:
-            baseline = _run(bspec, seqs[4].spawn(4), bar)
+    run, baseline = _run_both(spec, seqs[:4], bspec, seqs[4].spawn(4), hours,
+                              baseline_hours, policy, pose_source, progress, parallel)
 
     # ---- summary
     result = _run_summary(run, goal_names)
