@@ -306,6 +306,8 @@ class _RunSpec:
     """simlab primitive executed by each action of the action set, ``(A,)``."""
     valid: NDArray[np.bool_] | None = None
     """``(G, S, A)`` actions the greedy policy may choose (None: all)."""
+    remote_mcl: bool = False
+    """Run the ``mcl`` particle filter in a process of its own (``parallel``)."""
 
 
 def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) -> RunOutcome:
@@ -335,9 +337,15 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
         on_scan = None
         scan_beams = None
         if spec.pose_source == "mcl":
-            tracker = MCLTracker(spec.mcl_field, loc_rng, spec.mcl_params,
-                                 initial_pose=np.asarray(spec.arena.start, dtype=np.float64),
-                                 odometry=world.odometry())
+            start_pose = np.asarray(spec.arena.start, dtype=np.float64)
+            if spec.remote_mcl:  # the filter beside the physics (bit-identical)
+                from simlab.localization.remote import RemoteTracker
+
+                tracker = RemoteTracker(spec.mcl_field, seqs[2], spec.mcl_params,
+                                        initial_pose=start_pose, odometry=world.odometry())
+            else:
+                tracker = MCLTracker(spec.mcl_field, loc_rng, spec.mcl_params,
+                                     initial_pose=start_pose, odometry=world.odometry())
             on_scan = tracker.on_scan
             # cast only the beams the filter reads (40 of 360): half the replay's time
             scan_beams = tracker.filter.beam_subset(world.lidar_spec.n_beams)
@@ -656,8 +664,9 @@ def replay(
         action_set: :class:`~simlab.actions.ActionSet` of in-memory Q-tables (files record
             theirs; given, it must agree).
         parallel: run the random baseline in a second process while this one drives the
-            learned policy (when the machine has two usable cores; the runs are
-            independent, so the results are bit-identical to ``parallel=False``).
+            learned policy, and the ``mcl`` particle filter in a third, beside the physics
+            (:mod:`simlab.localization.remote`), when the machine has two usable cores; the
+            results are bit-identical to ``parallel=False`` (tested).
 
     Returns:
         :class:`ReplayResult`. Raises :class:`ConfigError` for bad input (naming the file):
@@ -750,7 +759,8 @@ def replay(
                     budget=budget, params=params, mcl_field=field_, mcl_params=mcl_params,
                     return_to_start=return_to_start, retry_blocked=retry_blocked,
                     escape_radius=escape_radius, epsilon=epsilon,
-                    frame_stride=stride, primitives=action_set.primitives(), valid=valid)
+                    frame_stride=stride, primitives=action_set.primitives(), valid=valid,
+                    remote_mcl=bool(parallel) and usable_cores() >= 2)
     bspec = None
     if baseline_hours > 0:
         bspec = replace(spec, policy="random", pose_source="truth", mcl_field=None,

@@ -39,7 +39,8 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
     for parallel in (False, True):
         runs[parallel] = replay("table", chain.states, chain.qtables, hours=0.03, seed=3,
                                 pose_source=pose_source, out=tmp_path / f"p{parallel}",
-                                progress=False, parallel=parallel, baseline_hours=0.02)
+                                progress=False, parallel=parallel, baseline_hours=0.02,
+                                video=pose_source == "mcl", max_frames=5)
     seq, par = runs[False], runs[True]
     assert seq.baseline is not None and par.baseline is not None
     assert seq.baseline.log.n > 0 and seq.run.log.n > 0
@@ -48,6 +49,13 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
     assert seq.baseline.stepped_seconds == par.baseline.stepped_seconds
     assert _strip(seq.summary) == _strip(par.summary)
     assert seq.files["transitions"].read_bytes() == par.files["transitions"].read_bytes()
+    if pose_source == "mcl":  # the filter ran in its own process: same updates, same frames
+        assert seq.run.mcl_log.t.size > 0
+        _logs_equal(seq.run.mcl_log, par.run.mcl_log)
+        assert len(seq.run.frames) == len(par.run.frames) > 0
+        for f, g in zip(seq.run.frames, par.run.frames, strict=True):
+            assert np.array_equal(f.particles, g.particles)
+            assert np.array_equal(f.estimate, g.estimate)
 
 
 def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
