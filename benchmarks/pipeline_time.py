@@ -182,13 +182,20 @@ def main() -> None:
 
             warm = start_warmup()
         _instrument(cpu, warm)
+        lines: list[str] = []
+
+        def log(msg: str) -> None:
+            lines.append(f"{time.perf_counter() - t0:8.1f} s  {msg}")
+
         with CompileTimer() as ct:
-            pipeline(args.arena, out, seed=args.seed, progress=False, log=None, **settings)
+            pipeline(args.arena, out, seed=args.seed, progress=False, log=log, **settings)
         total = time.perf_counter() - t0
         rate1, cpu_rate1 = bare_rate(args.arena, args.bare_seconds)
         rec = json.loads((out / "pipeline.json").read_text())
         stepped = stepped_seconds(out)
     load1 = os.getloadavg()
+    print("pipeline log (time since start):")
+    print("\n".join(lines))
     rate, cpu_rate = max(rate0, rate1), max(cpu_rate0, cpu_rate1)
     print(f"machine: {cores} usable cores, load average {load0[0]:.2f} before / "
           f"{load1[0]:.2f} after; bare stepSimulation ({args.arena}, circle): "
