@@ -62,6 +62,13 @@ Decisions where the thesis is silent:
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
+* **scheduling** (issue 17; ``parallel=True``, on a machine with two usable cores): the
+  random baseline runs in a ``spawn`` process while this one drives the learned policy,
+  and the ``mcl`` filter runs in a third process fed scan by scan
+  (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
+  decisions and video frames). The worlds and seed streams are independent, so the
+  results are bit-identical to ``parallel=False``; the replay's wall time becomes that
+  of its longest part instead of the sum.
 
 Outputs in ``out``: ``replay.json`` (summary; the headline numbers also flat at its top
 level: ``reward_rate_per_hour``, ``random_rate_per_hour``, ``predicted_rate_per_hour``,
