@@ -62,7 +62,7 @@ Decisions where the thesis is silent:
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
-* **scheduling** (issue 17; ``parallel=True``, on a machine with two usable cores): the
+* **scheduling** (issue 17; ``parallel=True``, when cores are idle, :func:`schedule`): the
   random baseline runs in a ``spawn`` process while this one drives the learned policy,
   and the ``mcl`` filter runs in a third process fed scan by scan
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
@@ -488,19 +488,58 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
+def idle_cores(window: float = 0.25) -> float:
+    """CPUs idle right now, as seen by this process: ``usable_cores()`` times the idle
+    share of ``/proc/stat`` over ``window`` seconds (this process sleeps meanwhile, so
+    a quiet 2-core machine reads ~2). Without ``/proc/stat``: ``usable_cores()``."""
+
+    def sample() -> tuple[int, int]:
+        with open("/proc/stat") as fh:
+            values = [int(v) for v in fh.readline().split()[1:]]
+        return values[3] + values[4], sum(values)  # idle + iowait, total
+
+    try:
+        idle0, total0 = sample()
+        time.sleep(window)
+        idle1, total1 = sample()
+    except (OSError, ValueError, IndexError):  # pragma: no cover - not Linux
+        return float(usable_cores())
+    if total1 <= total0:
+        return float(usable_cores())
+    return usable_cores() * (idle1 - idle0) / (total1 - total0)
+
+
+def schedule(parallel: bool, baseline: bool, mcl: bool) -> tuple[bool, bool]:
+    """``(baseline in a process, mcl filter in a process)`` for a replay.
+
+    Extra processes pay only with idle cores to run on: on a machine already busy they
+    add their start-up (~1.5 s each) and contention (measured: a 1 h + 1 h replay at load
+    4 on 2 cores took 18 s in three processes, 14 s in one). So with ``parallel`` the
+    baseline gets a process when at least 1.5 cores are idle, and the filter one when
+    another 1 is idle beyond the baseline's (with no baseline: 1.5). Results do not
+    depend on the choice (bit-identical, tested).
+    """
+    if not parallel or usable_cores() < 2 or not (baseline or mcl):
+        return False, False
+    free = idle_cores()
+    split_baseline = baseline and free >= 1.5
+    split_mcl = mcl and free >= (2.5 if split_baseline else 1.5)
+    return split_baseline, split_mcl
+
+
 def _run_both(spec: _RunSpec, seqs: list[np.random.SeedSequence], bspec: _RunSpec | None,
               bseqs: list[np.random.SeedSequence], hours: float, baseline_hours: float,
               policy: str, pose_source: str, progress: bool, parallel: bool
               ) -> tuple[RunOutcome, RunOutcome | None]:
     """The main run (in this process) and the random baseline (``bspec``, None: none).
 
-    With ``parallel`` and at least two usable cores the baseline runs in a ``spawn``
+    With ``parallel`` (see :func:`schedule`) the baseline runs in a ``spawn``
     process (no PyBullet client or lock of this process is inherited) while this one
     drives the main run: the two worlds share nothing and each draws from its own
     seed streams, so the outcome is the sequential one, bit for bit (tested); the
     replay's wall time becomes that of the longer run instead of their sum.
     """
-    if bspec is None or not parallel or usable_cores() < 2:
+    if bspec is None or not parallel:
         with _bar(hours, f"replay {policy} ({pose_source})", progress) as bar:
             run = _run(spec, seqs, bar)
         if bspec is None:
@@ -672,8 +711,9 @@ def replay(
             theirs; given, it must agree).
         parallel: run the random baseline in a second process while this one drives the
             learned policy, and the ``mcl`` particle filter in a third, beside the physics
-            (:mod:`simlab.localization.remote`), when the machine has two usable cores; the
-            results are bit-identical to ``parallel=False`` (tested).
+            (:mod:`simlab.localization.remote`), when the machine has idle cores for them
+            (:func:`schedule`); the results are bit-identical to ``parallel=False``
+            (tested).
 
     Returns:
         :class:`ReplayResult`. Raises :class:`ConfigError` for bad input (naming the file):
@@ -761,13 +801,14 @@ def replay(
     budget = hours * 3600.0
     expected_transitions = budget / (params.decision_latency + 1.5)
     stride = max(1, math.ceil(expected_transitions / max_frames)) if video else 0
+    split_baseline, split_mcl = schedule(parallel, baseline_hours > 0, pose_source == "mcl")
     spec = _RunSpec(arena=arena_cfg, discretizer=disc, goal_masks=goal_masks,
                     Q=None if qt is None else qt.Q, policy=policy, pose_source=pose_source,
                     budget=budget, params=params, mcl_field=field_, mcl_params=mcl_params,
                     return_to_start=return_to_start, retry_blocked=retry_blocked,
                     escape_radius=escape_radius, epsilon=epsilon,
                     frame_stride=stride, primitives=action_set.primitives(), valid=valid,
-                    remote_mcl=bool(parallel) and usable_cores() >= 2)
+                    remote_mcl=split_mcl)
     bspec = None
     if baseline_hours > 0:
         bspec = replace(spec, policy="random", pose_source="truth", mcl_field=None,
@@ -775,7 +816,7 @@ def replay(
                         params=params if pose_source != "odometry"
                         else replace(params, heading_source="truth"))
     run, baseline = _run_both(spec, seqs[:4], bspec, seqs[4].spawn(4), hours,
-                              baseline_hours, policy, pose_source, progress, parallel)
+                              baseline_hours, policy, pose_source, progress, split_baseline)
 
     # ---- summary
     result = _run_summary(run, goal_names)

@@ -34,7 +34,11 @@ def _logs_equal(a, b) -> None:
 
 @pytest.mark.parametrize("pose_source", ["truth", "mcl"])
 def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
-    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)  # even on a 1-core runner
+    # both extra processes (baseline, filter), even on a busy or 1-core runner
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    monkeypatch.setattr(replay_module, "idle_cores", lambda: 3.0)
+    assert replay_module.schedule(True, True, pose_source == "mcl") == (
+        True, pose_source == "mcl")
     runs = {}
     for parallel in (False, True):
         runs[parallel] = replay("table", chain.states, chain.qtables, hours=0.03, seed=3,
@@ -58,9 +62,23 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
             assert np.array_equal(f.estimate, g.estimate)
 
 
-def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
-    """With a single usable core no process is started (the pool is never built)."""
+def test_schedule_follows_idle_cores(monkeypatch) -> None:
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    for idle, with_baseline, without_baseline in ((0.4, (False, False), (False, False)),
+                                                  (1.9, (True, False), (False, True)),
+                                                  (2.6, (True, True), (False, True))):
+        monkeypatch.setattr(replay_module, "idle_cores", lambda idle=idle: idle)
+        assert replay_module.schedule(True, True, True) == with_baseline
+        assert replay_module.schedule(True, False, True) == without_baseline
+        assert replay_module.schedule(False, True, True) == (False, False)
     monkeypatch.setattr(replay_module, "usable_cores", lambda: 1)
+    assert replay_module.schedule(True, True, True) == (False, False)
+    assert 0.0 <= replay_module.idle_cores(0.05) <= 2.0 + 1e-9
+
+
+def test_busy_machine_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
+    """Without idle cores no process is started (the pool is never built)."""
+    monkeypatch.setattr(replay_module, "idle_cores", lambda: 0.5)
 
     def refuse(*_a, **_k):
         raise AssertionError("a process pool was started on one core")
