@@ -89,6 +89,7 @@ def stepped_seconds(out: Path) -> dict[str, tuple[float, int]]:
         total += float(rep["random_baseline"]["stepped_seconds"])
         worlds = 2
     res["replay"] = (total, worlds)
+    res["replay_schedule"] = rep.get("schedule")  # type: ignore[assignment]
     return res
 
 
@@ -224,6 +225,7 @@ def main() -> None:
           f"{stages_wall / floor_total:10.2f} {cpu_total:8.1f}")
     print(f"pipeline: done in {total:.1f} s (stages + report {total - stages_wall:.1f} s); "
           f"whole / physics floor = {total / floor_total:.2f}")
+    print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}")
     print(f"numba compile in this process: {ct.seconds:.1f} s"
           + (f"; the training waited {cpu.get('train_wait', 0.0):.1f} s for the warm-up"
              if warm else ""))

@@ -848,6 +848,7 @@ def replay(
         "primitive_params": asdict(params),
         "primitive_params_source": params_source,
         "mcl_params": asdict(mcl_params) if pose_source == "mcl" else None,
+        "schedule": {"baseline_process": split_baseline, "mcl_process": split_mcl},
         "result": result,
         "localization": _localization_summary(run),
     }

@@ -17,7 +17,7 @@ def _strip(summary: dict) -> dict:
     """The summary without wall-clock figures and output paths."""
     out = {}
     for k, v in summary.items():
-        if k in WALL_KEYS or k == "files":
+        if k in WALL_KEYS or k in ("files", "schedule"):
             continue
         out[k] = _strip(v) if isinstance(v, dict) else v
     return out
@@ -47,6 +47,9 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
                                 video=pose_source == "mcl", max_frames=5)
     seq, par = runs[False], runs[True]
     assert seq.baseline is not None and par.baseline is not None
+    assert seq.summary["schedule"] == {"baseline_process": False, "mcl_process": False}
+    assert par.summary["schedule"] == {"baseline_process": True,
+                                       "mcl_process": pose_source == "mcl"}
     assert seq.baseline.log.n > 0 and seq.run.log.n > 0
     _logs_equal(seq.run.log, par.run.log)
     _logs_equal(seq.baseline.log, par.baseline.log)
