@@ -1,7 +1,7 @@
 """The robot: facts read from its URDF, the differential drive, and wheel odometry.
 
 One source of truth: wheel radius, wheel separation, motor torque and speed limits, the
-LIDAR mount and the footprint are read from the URDF by tag and element name (yourdfpy),
+LIDAR mount and the footprint are read from the URDF by tag and element name,
 never written here as literals. The velocity limits ``v_max`` and ``w_max`` are the
 published controller limits of the TurtleBot3 Burger (0.22 m/s, 2.84 rad/s), which the URDF
 format has no place for; they are fields of :class:`RobotSpec`.
@@ -17,13 +17,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from simlab.assets import resolve
 from simlab.errors import ConfigError
-from simlab.physics._bullet import pybullet, quiet_stdout
+from simlab.physics._bullet import pybullet
 
 #: Published TurtleBot3 Burger controller limits.
 BURGER_V_MAX = 0.22  # m/s
@@ -72,6 +74,80 @@ def _link(robot, name: str, path: Path):
     raise ConfigError(f"link {name!r} not found", path=path, key=f"link[@name={name!r}]")
 
 
+def _floats(text: str | None, n: int, default: float = 0.0) -> list[float]:
+    if text is None:
+        return [default] * n
+    values = [float(v) for v in text.split()]
+    if len(values) != n:
+        raise ValueError(f"expected {n} numbers, got {text!r}")
+    return values
+
+
+def _origin(el: Any) -> NDArray[np.float64]:
+    """4x4 transform of an element's ``<origin xyz rpy>`` (identity when absent; URDF
+    fixed-axis roll-pitch-yaw: ``R = Rz(yaw) Ry(pitch) Rx(roll)``)."""
+    o = el.find("origin")
+    xyz = _floats(None if o is None else o.get("xyz"), 3)
+    r, p, y = _floats(None if o is None else o.get("rpy"), 3)
+    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
+                              math.cos(y), math.sin(y))
+    t = np.eye(4)
+    t[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                 [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                 [-sp, cp * sr, cp * cr]]
+    t[:3, 3] = xyz
+    return t
+
+
+def _geometry(el: Any) -> SimpleNamespace:
+    g = el.find("geometry")
+    cyl = None if g is None else g.find("cylinder")
+    box = None if g is None else g.find("box")
+    return SimpleNamespace(
+        cylinder=None if cyl is None else SimpleNamespace(radius=float(cyl.get("radius")),
+                                                          length=float(cyl.get("length"))),
+        box=None if box is None else SimpleNamespace(size=_floats(box.get("size"), 3)))
+
+
+def _parse_urdf(path: Path) -> SimpleNamespace:
+    """The parts of a URDF :func:`load_robot_spec` reads, by tag and attribute name (the
+    shapes ``yourdfpy`` gives them: ``origin`` 4x4 transforms, ``limit``, ``geometry``),
+    with the standard library's XML parser: importing yourdfpy (and trimesh) cost ~1-2 s
+    in every fresh process (the walk workers, the replay's baseline process)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+        joints = []
+        for j in root.findall("joint"):
+            lim = j.find("limit")
+            joints.append(SimpleNamespace(
+                name=j.get("name"), parent=j.find("parent").get("link"),
+                child=j.find("child").get("link"), origin=_origin(j),
+                limit=None if lim is None else SimpleNamespace(
+                    effort=None if lim.get("effort") is None else float(lim.get("effort")),
+                    velocity=None if lim.get("velocity") is None
+                    else float(lim.get("velocity")))))
+        links = []
+        for link in root.findall("link"):
+            inertial = link.find("inertial")
+            mass = None if inertial is None else inertial.find("mass")
+            links.append(SimpleNamespace(
+                name=link.get("name"),
+                visuals=[SimpleNamespace(geometry=_geometry(v), origin=_origin(v))
+                         for v in link.findall("visual")],
+                collisions=[SimpleNamespace(geometry=_geometry(c), origin=_origin(c))
+                            for c in link.findall("collision")],
+                inertial=None if mass is None else SimpleNamespace(
+                    mass=float(mass.get("value")))))
+    except (ET.ParseError, OSError, AttributeError, TypeError, ValueError) as exc:
+        raise ConfigError(f"cannot parse URDF: {exc}", path=path) from None
+    if root.tag != "robot":
+        raise ConfigError(f"cannot parse URDF: root element <{root.tag}>, expected <robot>",
+                          path=path)
+    return SimpleNamespace(name=root.get("name"), joints=joints, links=links)
+
+
 def load_robot_spec(
     name_or_path: str | Path = "turtlebot3_burger",
     *,
@@ -81,13 +157,7 @@ def load_robot_spec(
 ) -> RobotSpec:
     """Read a :class:`RobotSpec` from a built-in robot name or a ``.urdf`` path."""
     path = resolve("robots", name_or_path, ".urdf")
-    with quiet_stdout():  # yourdfpy imports trimesh, which imports (and so wakes) pybullet
-        import yourdfpy
-    try:
-        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
-    except Exception as exc:  # yourdfpy raises assorted lxml/ValueError types
-        raise ConfigError(f"cannot parse URDF: {exc}", path=path) from None
-    robot = urdf.robot
+    robot = _parse_urdf(path)
 
     jl = _joint(robot, left_wheel_joint, path)
     jr = _joint(robot, right_wheel_joint, path)

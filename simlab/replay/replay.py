@@ -62,6 +62,13 @@ Decisions where the thesis is silent:
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
+* **scheduling** (issue 17; ``parallel=True``, when cores are idle, :func:`schedule`): the
+  random baseline runs in a ``spawn`` process while this one drives the learned policy,
+  and the ``mcl`` filter runs in a third process fed scan by scan
+  (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
+  decisions and video frames). The worlds and seed streams are independent, so the
+  results are bit-identical to ``parallel=False``; the replay's wall time becomes that
+  of its longest part instead of the sum.
 
 Outputs in ``out``: ``replay.json`` (summary; the headline numbers also flat at its top
 level: ``reward_rate_per_hour``, ``random_rate_per_hour``, ``predicted_rate_per_hour``,
@@ -306,6 +313,8 @@ class _RunSpec:
     """simlab primitive executed by each action of the action set, ``(A,)``."""
     valid: NDArray[np.bool_] | None = None
     """``(G, S, A)`` actions the greedy policy may choose (None: all)."""
+    remote_mcl: bool = False
+    """Run the ``mcl`` particle filter in a process of its own (``parallel``)."""
 
 
 def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) -> RunOutcome:
@@ -335,9 +344,15 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
         on_scan = None
         scan_beams = None
         if spec.pose_source == "mcl":
-            tracker = MCLTracker(spec.mcl_field, loc_rng, spec.mcl_params,
-                                 initial_pose=np.asarray(spec.arena.start, dtype=np.float64),
-                                 odometry=world.odometry())
+            start_pose = np.asarray(spec.arena.start, dtype=np.float64)
+            if spec.remote_mcl:  # the filter beside the physics (bit-identical)
+                from simlab.localization.remote import RemoteTracker
+
+                tracker = RemoteTracker(spec.mcl_field, seqs[2], spec.mcl_params,
+                                        initial_pose=start_pose, odometry=world.odometry())
+            else:
+                tracker = MCLTracker(spec.mcl_field, loc_rng, spec.mcl_params,
+                                     initial_pose=start_pose, odometry=world.odometry())
             on_scan = tracker.on_scan
             # cast only the beams the filter reads (40 of 360): half the replay's time
             scan_beams = tracker.filter.beam_subset(world.lidar_spec.n_beams)
@@ -452,6 +467,97 @@ def _run(spec: _RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) ->
                       mcl_log=None if tracker is None else tracker.log(), frames=frames)
 
 
+def _bar(total: float, desc: str, progress: bool) -> Any:
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit="robot-h", disable=not progress,
+                dynamic_ncols=True, bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} robot-h "
+                                               "[{elapsed}<{remaining}{postfix}]")
+
+
+def _run_quiet(spec: _RunSpec, seqs: list[np.random.SeedSequence]) -> RunOutcome:
+    """:func:`_run` without a progress bar (the entry point of the baseline's process)."""
+    return _run(spec, seqs)
+
+
+def usable_cores() -> int:
+    """CPUs this process may run on (its affinity mask; ``os.cpu_count()`` elsewhere)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def idle_cores(window: float = 0.25) -> float:
+    """CPUs idle right now, as seen by this process: ``usable_cores()`` times the idle
+    share of ``/proc/stat`` over ``window`` seconds (this process sleeps meanwhile, so
+    a quiet 2-core machine reads ~2). Without ``/proc/stat``: ``usable_cores()``."""
+
+    def sample() -> tuple[int, int]:
+        with open("/proc/stat") as fh:
+            values = [int(v) for v in fh.readline().split()[1:]]
+        return values[3] + values[4], sum(values)  # idle + iowait, total
+
+    try:
+        idle0, total0 = sample()
+        time.sleep(window)
+        idle1, total1 = sample()
+    except (OSError, ValueError, IndexError):  # pragma: no cover - not Linux
+        return float(usable_cores())
+    if total1 <= total0:
+        return float(usable_cores())
+    return usable_cores() * (idle1 - idle0) / (total1 - total0)
+
+
+def schedule(parallel: bool, baseline: bool, mcl: bool) -> tuple[bool, bool]:
+    """``(baseline in a process, mcl filter in a process)`` for a replay.
+
+    Extra processes pay only with idle cores to run on: on a machine already busy they
+    add their start-up (~1.5 s each) and contention (measured: a 1 h + 1 h replay at load
+    4 on 2 cores took 18 s in three processes, 14 s in one). So with ``parallel`` the
+    baseline gets a process when at least 1.5 cores are idle, and the filter one when
+    another 1 is idle beyond the baseline's (with no baseline: 1.5). Results do not
+    depend on the choice (bit-identical, tested).
+    """
+    if not parallel or usable_cores() < 2 or not (baseline or mcl):
+        return False, False
+    free = idle_cores()
+    split_baseline = baseline and free >= 1.5
+    split_mcl = mcl and free >= (2.5 if split_baseline else 1.5)
+    return split_baseline, split_mcl
+
+
+def _run_both(spec: _RunSpec, seqs: list[np.random.SeedSequence], bspec: _RunSpec | None,
+              bseqs: list[np.random.SeedSequence], hours: float, baseline_hours: float,
+              policy: str, pose_source: str, progress: bool, parallel: bool
+              ) -> tuple[RunOutcome, RunOutcome | None]:
+    """The main run (in this process) and the random baseline (``bspec``, None: none).
+
+    With ``parallel`` (see :func:`schedule`) the baseline runs in a ``spawn``
+    process (no PyBullet client or lock of this process is inherited) while this one
+    drives the main run: the two worlds share nothing and each draws from its own
+    seed streams, so the outcome is the sequential one, bit for bit (tested); the
+    replay's wall time becomes that of the longer run instead of their sum.
+    """
+    if bspec is None or not parallel:
+        with _bar(hours, f"replay {policy} ({pose_source})", progress) as bar:
+            run = _run(spec, seqs, bar)
+        if bspec is None:
+            return run, None
+        with _bar(baseline_hours, "replay random baseline", progress) as bar:
+            return run, _run(bspec, bseqs, bar)
+    import concurrent.futures as cf
+    import multiprocessing
+
+    with cf.ProcessPoolExecutor(max_workers=1,
+                                mp_context=multiprocessing.get_context("spawn")) as pool:
+        future = pool.submit(_run_quiet, bspec, bseqs)
+        with _bar(hours, f"replay {policy} ({pose_source}; random baseline in parallel)",
+                  progress) as bar:
+            run = _run(spec, seqs, bar)
+        return run, future.result()
+
+
 # --------------------------------------------------------------------------------------
 # Summaries
 # --------------------------------------------------------------------------------------
@@ -564,6 +670,7 @@ def replay(
     max_frames: int = 150,
     action_set: Any = None,
     goals: str | Sequence[str] | None = None,
+    parallel: bool = True,
 ) -> ReplayResult:
     """Replay the Q-tables in physics for ``hours`` of robot time (see the module doc).
 
@@ -602,6 +709,11 @@ def replay(
         max_frames: at most this many video frames (evenly spread over the replay).
         action_set: :class:`~simlab.actions.ActionSet` of in-memory Q-tables (files record
             theirs; given, it must agree).
+        parallel: run the random baseline in a second process while this one drives the
+            learned policy, and the ``mcl`` particle filter in a third, beside the physics
+            (:mod:`simlab.localization.remote`), when the machine has idle cores for them
+            (:func:`schedule`); the results are bit-identical to ``parallel=False``
+            (tested).
 
     Returns:
         :class:`ReplayResult`. Raises :class:`ConfigError` for bad input (naming the file):
@@ -699,30 +811,22 @@ def replay(
     budget = hours * 3600.0
     expected_transitions = budget / (params.decision_latency + 1.5)
     stride = max(1, math.ceil(expected_transitions / max_frames)) if video else 0
+    split_baseline, split_mcl = schedule(parallel, baseline_hours > 0, pose_source == "mcl")
     spec = _RunSpec(arena=arena_cfg, discretizer=disc, goal_masks=goal_masks,
                     Q=None if qt is None else qt.Q, policy=policy, pose_source=pose_source,
                     budget=budget, params=params, mcl_field=field_, mcl_params=mcl_params,
                     return_to_start=return_to_start, retry_blocked=retry_blocked,
                     escape_radius=escape_radius, epsilon=epsilon,
-                    frame_stride=stride, primitives=action_set.primitives(), valid=valid)
-    from tqdm.auto import tqdm
-
-    with tqdm(total=hours, desc=f"replay {policy} ({pose_source})", unit="robot-h",
-              disable=not progress, dynamic_ncols=True,
-              bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} robot-h "
-                         "[{elapsed}<{remaining}{postfix}]") as bar:
-        run = _run(spec, seqs[:4], bar)
-    baseline = None
+                    frame_stride=stride, primitives=action_set.primitives(), valid=valid,
+                    remote_mcl=split_mcl)
+    bspec = None
     if baseline_hours > 0:
         bspec = replace(spec, policy="random", pose_source="truth", mcl_field=None,
                         budget=baseline_hours * 3600.0, return_to_start=False, frame_stride=0,
                         params=params if pose_source != "odometry"
                         else replace(params, heading_source="truth"))
-        with tqdm(total=baseline_hours, desc="replay random baseline", unit="robot-h",
-                  disable=not progress, dynamic_ncols=True,
-                  bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} robot-h "
-                             "[{elapsed}<{remaining}{postfix}]") as bar:
-            baseline = _run(bspec, seqs[4].spawn(4), bar)
+    run, baseline = _run_both(spec, seqs[:4], bspec, seqs[4].spawn(4), hours,
+                              baseline_hours, policy, pose_source, progress, split_baseline)
 
     # ---- summary
     result = _run_summary(run, goal_names)
@@ -754,6 +858,7 @@ def replay(
         "primitive_params": asdict(params),
         "primitive_params_source": params_source,
         "mcl_params": asdict(mcl_params) if pose_source == "mcl" else None,
+        "schedule": {"baseline_process": split_baseline, "mcl_process": split_mcl},
         "result": result,
         "localization": _localization_summary(run),
     }

@@ -1,0 +1,237 @@
+"""Wall time of ``simlab pipeline`` per stage against its physics floor (issue 17).
+
+Runs :func:`simlab.commands.pipeline` on the defaults (``--quick``: a smaller budget) into
+a temporary folder and, in the same run, measures the machine's bare PyBullet stepping
+rate for the arena (``stepSimulation`` of the robot driving a circle, as
+``benchmarks/physics_speed.py`` (a)), then prints per stage:
+
+* its wall time (``pipeline.json``);
+* the simulated seconds it stepped: the map's ``exploration.json`` ``sim_seconds``; the
+  dataset's ``duration`` column; the replay's ``stepped_seconds`` of the learned run and
+  of the random baseline (``replay.json``); 0 for the stages without physics;
+* its physics floor = stepped seconds / bare rate (x real time) / usable cores (the
+  stage can use at most ``min(cores, independent worlds)`` of them: the map has one
+  world, the dataset ``workers``, the replay two);
+* wall / floor;
+* its CPU seconds (this process and its worker processes) and CPU / physics, where
+  physics = stepped seconds / the bare rate per CPU second: the share of the stage's
+  work that is not stepping, which a loaded machine does not inflate (wall time it does).
+
+``--warmup`` starts :func:`simlab.warmup.start_warmup` with the pipeline and makes the
+training wait for it (the change proposed for ``simlab/pipeline.py``); the wait is
+counted in the training's wall time.
+
+The numba compile time of the run (``numba:compile`` events of this process; compiles
+in worker processes are not seen) is printed separately, as is the load average before
+and after (the machine may be shared: compare runs made one after the other).
+
+    python benchmarks/pipeline_time.py [--quick] [--out DIR] [--bare-seconds 30] [--warmup]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+QUICK = {"map_minutes": 5.0, "hours": 1.0, "episodes": 300, "runs": 2, "replay_hours": 0.5}
+
+
+def bare_rate(arena: str, seconds: float, repeats: int = 2) -> tuple[float, float]:
+    """Best real-time factor of bare ``stepSimulation`` over ``repeats`` runs, per wall
+    second and per CPU second of this process."""
+    from simlab.physics.world import World
+
+    best = best_cpu = 0.0
+    for _ in range(repeats):
+        with World(arena) as world:
+            world.reset((0.0, -0.3, 0.0))
+            world.drive.command(0.15, 0.5)  # a 0.3 m circle inside the table
+            world.step(round(world.physics_hz))
+            n = round(seconds * world.physics_hz)
+            step = world.client.stepSimulation
+            t, c = time.perf_counter(), time.process_time()
+            for _ in range(n):
+                step()
+            best = max(best, seconds / (time.perf_counter() - t))
+            best_cpu = max(best_cpu, seconds / max(time.process_time() - c, 1e-9))
+    return best, best_cpu
+
+
+def usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def stepped_seconds(out: Path) -> dict[str, tuple[float, int]]:
+    """Per stage: (simulated seconds stepped, independent worlds it stepped in)."""
+    import pyarrow.parquet as pq
+
+    rec = json.loads((out / "pipeline.json").read_text())
+    res: dict[str, tuple[float, int]] = {k: (0.0, 1) for k in rec["stages"]}
+    expl = json.loads((out / "map" / "exploration.json").read_text())
+    res["map"] = (float(expl["sim_seconds"]), 1)
+    parts = [p for p in sorted((out / "dataset" / "data").rglob("*.parquet"))
+             if not p.name.startswith(".")]
+    dur = sum(float(pq.read_table(p, columns=["duration"]).column("duration")
+                    .to_numpy().sum()) for p in parts)
+    res["dataset"] = (dur, int(rec["settings"]["workers"]))
+    rep = json.loads((out / "replay" / "replay.json").read_text())
+    worlds = 1
+    total = float(rep["result"]["stepped_seconds"])
+    if rep.get("random_baseline"):
+        total += float(rep["random_baseline"]["stepped_seconds"])
+        worlds = 2
+    res["replay"] = (total, worlds)
+    res["replay_schedule"] = rep.get("schedule")  # type: ignore[assignment]
+    return res
+
+
+class CompileTimer:
+    """Total seconds of ``numba:compile`` events in this process."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self.count = 0
+
+    def __enter__(self) -> CompileTimer:
+        from numba.core import event
+
+        self._listener = event.TimingListener()
+        event.register("numba:compile", self._listener)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        from numba.core import event
+
+        event.unregister("numba:compile", self._listener)
+        if self._listener.done:
+            self.seconds = self._listener.duration
+
+
+def _cpu() -> float:
+    import resource
+
+    me = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def _instrument(cpu: dict[str, float], warm: Any) -> None:
+    """Record each stage's CPU seconds (this process and its reaped children: the
+    dataset's and the replay's worker processes) and, with a warm-up, make the training
+    stage wait for it first (the proposed ``simlab pipeline`` change, see ``--warmup``)."""
+    from simlab.stages import PhysicsChain
+
+    original = PhysicsChain.cached_stage
+    original_qtables = PhysicsChain.qtables
+
+    def cached_stage(self: Any, stage: str, key: Any, build: Any) -> Any:
+        def timed(d: Path) -> Any:
+            c = _cpu()
+            try:
+                return build(d)
+            finally:
+                cpu[stage] = cpu.get(stage, 0.0) + _cpu() - c
+
+        return original(self, stage, key, timed)
+
+    def qtables(self: Any, i: int) -> Any:
+        self.mdp(i)  # the parents first: the wait belongs to the training stage
+        if warm is not None:
+            t = time.perf_counter()
+            warm.wait()
+            cpu["train_wait"] = time.perf_counter() - t
+        return original_qtables(self, i)
+
+    PhysicsChain.cached_stage = cached_stage  # type: ignore[method-assign]
+    PhysicsChain.qtables = qtables  # type: ignore[method-assign]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a small budget (minutes, not hours)")
+    ap.add_argument("--out", default=None, help="keep the run here (new folder; default: temp)")
+    ap.add_argument("--arena", default="table", help="arena of the pipeline and the bare rate")
+    ap.add_argument("--bare-seconds", type=float, default=30.0,
+                    help="simulated seconds of each bare-stepping measurement")
+    ap.add_argument("--seed", type=int, default=0, help="root seed of the pipeline")
+    ap.add_argument("--warmup", action="store_true",
+                    help="start simlab.warmup.start_warmup() with the pipeline and wait for "
+                         "it before training (what `simlab pipeline` does once wired)")
+    args = ap.parse_args()
+
+    from simlab.commands import pipeline
+
+    load0 = os.getloadavg()
+    cores = usable_cores()
+    rate0, cpu_rate0 = bare_rate(args.arena, args.bare_seconds)
+    settings = QUICK if args.quick else {}
+    cpu: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(args.out) if args.out else Path(tmp) / "run"
+        t0 = time.perf_counter()
+        warm = None
+        if args.warmup:
+            from simlab.warmup import start_warmup
+
+            warm = start_warmup()
+        _instrument(cpu, warm)
+        lines: list[str] = []
+
+        def log(msg: str) -> None:
+            lines.append(f"{time.perf_counter() - t0:8.1f} s  {msg}")
+
+        with CompileTimer() as ct:
+            pipeline(args.arena, out, seed=args.seed, progress=False, log=log, **settings)
+        total = time.perf_counter() - t0
+        rate1, cpu_rate1 = bare_rate(args.arena, args.bare_seconds)
+        rec = json.loads((out / "pipeline.json").read_text())
+        stepped = stepped_seconds(out)
+    load1 = os.getloadavg()
+    print("pipeline log (time since start):")
+    print("\n".join(lines))
+    rate, cpu_rate = max(rate0, rate1), max(cpu_rate0, cpu_rate1)
+    print(f"machine: {cores} usable cores, load average {load0[0]:.2f} before / "
+          f"{load1[0]:.2f} after; bare stepSimulation ({args.arena}, circle): "
+          f"{rate:.0f}x real time per wall second (before {rate0:.0f}x, after {rate1:.0f}x), "
+          f"{cpu_rate:.0f}x per CPU second")
+    print(f"budget: {'--quick ' + json.dumps(QUICK) if args.quick else 'defaults'}"
+          f"{'; numba warm-up process started with the pipeline' if warm else ''}")
+    print(f"{'stage':<8} {'wall s':>8} {'stepped s':>10} {'worlds':>6} {'floor s':>8} "
+          f"{'wall/floor':>10} {'CPU s':>8} {'CPU/physics':>11}")
+    floor_total = cpu_total = 0.0
+    for name, r in rec["stages"].items():
+        sec, worlds = stepped.get(name, (0.0, 1))
+        # the training's wait for the warm-up is outside its record: count it in
+        wall = float(r["wall_seconds"]) + (cpu.get("train_wait", 0.0) if name == "train" else 0)
+        floor = sec / rate / min(cores, worlds) if sec else 0.0
+        floor_total += floor
+        ratio = f"{wall / floor:10.2f}" if floor else f"{'-':>10}"
+        c = cpu.get(name, float("nan"))
+        cpu_total += c
+        cratio = f"{c / (sec / cpu_rate):11.2f}" if sec else f"{'-':>11}"
+        print(f"{name:<8} {wall:8.1f} {sec:10.0f} {worlds:6d} {floor:8.1f} {ratio} "
+              f"{c:8.1f} {cratio}")
+    stages_wall = (sum(float(r["wall_seconds"]) for r in rec["stages"].values())
+                   + cpu.get("train_wait", 0.0))
+    print(f"{'stages':<8} {stages_wall:8.1f} {'':>10} {'':>6} {floor_total:8.1f} "
+          f"{stages_wall / floor_total:10.2f} {cpu_total:8.1f}")
+    print(f"pipeline: done in {total:.1f} s (stages + report {total - stages_wall:.1f} s); "
+          f"whole / physics floor = {total / floor_total:.2f}")
+    print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}")
+    print(f"numba compile in this process: {ct.seconds:.1f} s"
+          + (f"; the training waited {cpu.get('train_wait', 0.0):.1f} s for the warm-up"
+             if warm else ""))
+    if warm is not None and warm.process.exitcode not in (0, None):
+        print(f"warning: the warm-up process failed (exit code {warm.process.exitcode})")
+
+
+if __name__ == "__main__":
+    main()

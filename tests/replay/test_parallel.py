@@ -1,0 +1,94 @@
+"""The replay's random baseline in a second process: the same results as sequentially."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from simlab.replay import replay as replay_module
+from simlab.replay.replay import replay
+
+WALL_KEYS = {"wall_seconds", "real_time_factor_robot", "real_time_factor_stepped"}
+
+
+def _strip(summary: dict) -> dict:
+    """The summary without wall-clock figures and output paths."""
+    out = {}
+    for k, v in summary.items():
+        if k in WALL_KEYS or k in ("files", "schedule"):
+            continue
+        out[k] = _strip(v) if isinstance(v, dict) else v
+    return out
+
+
+def _logs_equal(a, b) -> None:
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray):
+            assert x.dtype == y.dtype and np.array_equal(x, y), f.name
+        else:
+            assert x == y, f.name
+
+
+@pytest.mark.parametrize("pose_source", ["truth", "mcl"])
+def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
+    # both extra processes (baseline, filter), even on a busy or 1-core runner
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    monkeypatch.setattr(replay_module, "idle_cores", lambda: 3.0)
+    assert replay_module.schedule(True, True, pose_source == "mcl") == (
+        True, pose_source == "mcl")
+    runs = {}
+    for parallel in (False, True):
+        runs[parallel] = replay("table", chain.states, chain.qtables, hours=0.03, seed=3,
+                                pose_source=pose_source, out=tmp_path / f"p{parallel}",
+                                progress=False, parallel=parallel, baseline_hours=0.02,
+                                video=pose_source == "mcl", max_frames=5)
+    seq, par = runs[False], runs[True]
+    assert seq.baseline is not None and par.baseline is not None
+    assert seq.summary["schedule"] == {"baseline_process": False, "mcl_process": False}
+    assert par.summary["schedule"] == {"baseline_process": True,
+                                       "mcl_process": pose_source == "mcl"}
+    assert seq.baseline.log.n > 0 and seq.run.log.n > 0
+    _logs_equal(seq.run.log, par.run.log)
+    _logs_equal(seq.baseline.log, par.baseline.log)
+    assert seq.baseline.stepped_seconds == par.baseline.stepped_seconds
+    assert _strip(seq.summary) == _strip(par.summary)
+    assert seq.files["transitions"].read_bytes() == par.files["transitions"].read_bytes()
+    if pose_source == "mcl":  # the filter ran in its own process: same updates, same frames
+        assert seq.run.mcl_log.t.size > 0
+        _logs_equal(seq.run.mcl_log, par.run.mcl_log)
+        assert len(seq.run.frames) == len(par.run.frames) > 0
+        for f, g in zip(seq.run.frames, par.run.frames, strict=True):
+            assert np.array_equal(f.particles, g.particles)
+            assert np.array_equal(f.estimate, g.estimate)
+
+
+def test_schedule_follows_idle_cores(monkeypatch) -> None:
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    for idle, with_baseline, without_baseline in ((0.4, (False, False), (False, False)),
+                                                  (1.9, (True, False), (False, True)),
+                                                  (2.6, (True, True), (False, True))):
+        monkeypatch.setattr(replay_module, "idle_cores", lambda idle=idle: idle)
+        assert replay_module.schedule(True, True, True) == with_baseline
+        assert replay_module.schedule(True, False, True) == without_baseline
+        assert replay_module.schedule(False, True, True) == (False, False)
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 1)
+    assert replay_module.schedule(True, True, True) == (False, False)
+    assert 0.0 <= replay_module.idle_cores(0.05) <= 2.0 + 1e-9
+
+
+def test_busy_machine_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
+    """Without idle cores no process is started (the pool is never built)."""
+    monkeypatch.setattr(replay_module, "idle_cores", lambda: 0.5)
+
+    def refuse(*_a, **_k):
+        raise AssertionError("a process pool was started on one core")
+
+    import concurrent.futures as cf
+
+    monkeypatch.setattr(cf, "ProcessPoolExecutor", refuse)
+    res = replay("table", chain.states, chain.qtables, hours=0.01, seed=1,
+                 out=tmp_path / "one", progress=False, baseline_hours=0.01)
+    assert res.baseline is not None and res.baseline.log.n > 0
