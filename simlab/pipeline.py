@@ -140,6 +140,11 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
     say = log or (lambda _line: None)
     t_start = time.perf_counter()
     chain = PhysicsChain(out / "stages", s, seed, progress=progress)
+    from simlab.warmup import start_warmup
+
+    # numba compiles the training and MCL kernels in a spare process while the map and the
+    # walk run in physics; training then loads them from numba's cache (issue 17)
+    warm = start_warmup(agent=s.agent, mcl=s.pose_source == "mcl")
     build: dict[str, Callable[[], Stage]] = {  # chain seed 0: the pipeline is one chain
         "map": chain.map, "states": chain.states, "dataset": lambda: chain.dataset(0),
         "mdp": lambda: chain.mdp(0), "train": lambda: chain.qtables(0),
@@ -152,6 +157,8 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
     n = len(STAGES) + 1
     for k, (name, link) in enumerate(STAGES.items(), start=1):
         say(f"[{k}/{n}] {name} ...")
+        if name == "train":
+            warm.wait()
         stage = build[name]()
         _link(out / link, stage.path)
         record = {**stage.summary, "folder": link, "built": stage.built,
