@@ -111,13 +111,14 @@ class CalibrationConfig:
         step: initial refinement step, in unit-cube coordinates (> 0).
         n_boot: bootstrap resamples of the sampling floor.
         unvisited: rule for real pairs the simulation never tried (``report``/``max``).
-        objective: what the search minimises: ``"excess"`` (default: the visit-weighted TV
-            distance minus what sampling alone gives if the candidate were the truth,
+        objective: what the search minimises: ``"excess"`` (default: the visit-weighted
+            TV distance minus what sampling alone gives if the candidate were the truth,
             :func:`~simlab.calibration.metrics.excess_distance`), ``"tv"`` (the plain
             distance; with a few real visits per pair it favours too-certain simulators:
-            measured on a 36-state kinematic lattice with 365 and 1,167 real transitions, two
-            seeds each, hidden drive time 0.8 s was found at 0.45-0.64 s by ``tv`` and at
-            0.65-1.17 s by ``excess``: no longer biased low, but as spread) or ``"loglik"`` (bits per real transition under the simulated T,
+            on a 36-state kinematic lattice with 365 and 1,167 real transitions, two seeds
+            each, hidden drive time 0.8 s was found at 0.45-0.64 s by ``tv`` and at
+            0.65-1.17 s by ``excess``: no longer biased low, but as spread) or ``"loglik"``
+            (bits per real transition under the simulated T,
             :func:`~simlab.calibration.metrics.cross_entropy`). The report always gives the
             plain TV distance.
         confirm: re-simulate the winner with another seed for the reported distance.
