@@ -286,7 +286,8 @@ def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, s
 
     recorded = None if model is None else model.primitive_params
     if recorded is None:
-        if model is not None and params is None:
+        # only when no dataset was found at all (a kinematic dataset has no primitives)
+        if model is not None and model.dataset is None and params is None:
             warnings.warn(
                 "the MDP carries no record of the motion primitives it was estimated from "
                 "(no dataset manifest beside it); replaying with the default primitives — "

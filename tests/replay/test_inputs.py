@@ -98,10 +98,16 @@ def test_primitives_come_from_the_dataset_and_must_match_it(tmp_path) -> None:
         primitive_params_for(unknown, None)
     assert primitive_params_for(None, None)[1] == "default"
     # an MDP with no record of its primitives: the defaults, with a warning that says so
-    unrecorded = replace(model, primitive_params=None)
+    unrecorded = replace(model, primitive_params=None, dataset=None)
     with pytest.warns(UserWarning, match="no record of the motion primitives"):
         params, source = primitive_params_for(unrecorded, None)
     assert source == "default" and params == PrimitiveParams()
+    # a dataset without primitives (the kinematic simulator) is a record: no warning
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert primitive_params_for(replace(model, primitive_params=None), None)[1] == "default"
 
 
 def test_dataset_pace_is_read_from_the_estimate_summary(chain, tmp_path) -> None:
