@@ -147,6 +147,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = saved_showwarning
 
 
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """True when Ctrl-C is behind ``exc``: a SIGINT that lands inside a numba-compiled call
+    surfaces as ``SystemError: ... returned a result with an exception set`` whose cause is
+    the KeyboardInterrupt."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
 def _run(args: argparse.Namespace, verbosity: int) -> int:
     """Run the subcommand; the error boundary (module docstring)."""
     try:
@@ -169,6 +183,9 @@ def _run(args: argparse.Namespace, verbosity: int) -> int:
               file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: one line (exit 1), the traceback with -vv
+        if _caused_by_interrupt(exc):
+            print(f"simlab {args.command}: interrupted", file=sys.stderr)
+            return 130
         if verbosity >= 2:
             raise
         print(f"simlab {args.command}: internal error: {type(exc).__name__}: "

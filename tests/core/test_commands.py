@@ -74,3 +74,27 @@ def test_interrupt_is_exit_130(monkeypatch, capsys):
     monkeypatch.setattr(cli, "build_parser", parser)
     assert cli.main(["drive"]) == 130
     assert capsys.readouterr().err == "simlab drive: interrupted\n"
+
+
+def test_interrupt_inside_compiled_code_is_exit_130(monkeypatch, capsys):
+    """A SIGINT that lands inside a numba call surfaces as a SystemError caused by the
+    KeyboardInterrupt (CPython's "returned a result with an exception set")."""
+    import simlab.cli as cli
+
+    def interrupted_in_numba(args):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as k:
+            raise SystemError("<numba function> returned a result with an exception set") from k
+
+    real = cli.build_parser
+
+    def parser():
+        p = real()
+        sub = next(a for a in p._actions if a.dest == "command")
+        sub.choices["drive"].set_defaults(_run=interrupted_in_numba)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    assert cli.main(["drive"]) == 130
+    assert capsys.readouterr().err == "simlab drive: interrupted\n"
