@@ -31,10 +31,8 @@ simulated transitions per hour match: ``latency = 3600 * hours / n_real - mean d
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import dataclasses
 import math
-import multiprocessing
 import tempfile
 import time
 import warnings
@@ -287,14 +285,17 @@ class CalibrationResult:
     latency_fitted: bool
     wall_seconds: float
     notes: list[str] = field(default_factory=list)
+    #: the starting point re-simulated on the confirmation seed (None without ``confirm``)
+    start_confirmed: Candidate | None = None
 
 
 class _Runner:
     """In-process for one worker, else a spawn process pool (one arena per process)."""
 
     def __init__(self, workers: int) -> None:
-        self._pool = None if workers == 1 else cf.ProcessPoolExecutor(
-            max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        from simlab.experiments.executors import worker_pool  # workers exit with us
+
+        self._pool = None if workers == 1 else worker_pool(workers)
 
     def map(self, jobs: list[_Job]) -> list[SimTable]:
         if self._pool is None:
@@ -529,12 +530,28 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     cands, best = search(real, arena_cfg, disc, space=space, base=base, config=config)
     params = space.apply(base, cands[best].unit)
     final = cands[best]
+    start = None
     notes = []
     if config.confirm:
+        # the winner of a noisy search is flattered by its own seed: re-simulate it AND the
+        # starting point on a fresh seed, and keep the start unless the winner beats it there
         ctx = _context(real, arena_cfg, disc, space, base, config, config.seed + 1)
-        final = _evaluate(_Runner(1), [cands[best].unit], "confirm", len(cands), ctx)[0]
+        units = [cands[best].unit] + ([cands[0].unit] if best != 0 else [])
+        runner = _Runner(min(len(units), config.workers))
+        try:
+            confirmed = _evaluate(runner, units, "confirm", len(cands), ctx)
+        finally:
+            runner.close()
+        final, start = confirmed[0], confirmed[-1]
         notes.append(f"distance of the best candidate on the search seed "
-                     f"{cands[best].distance:.4f}; on a fresh seed {final.distance:.4f}")
+                     f"{cands[best].distance:.4f}; on a fresh seed {final.distance:.4f} "
+                     f"(the starting point there: {start.distance:.4f})")
+        if best != 0 and start.score <= final.score:
+            notes.append("on the fresh seed the starting point scores at least as well as "
+                         "the search's best: the search found no better parameters, the "
+                         "starting point is kept")
+            best, final = 0, start
+            params = space.apply(base, cands[0].unit)
     params, fitted = _fit_latency(params, real, final.sim)
     rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(2)[1])
     floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
@@ -552,6 +569,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         entropy_real=entropy_per_action(real.counts),
         entropy_sim=entropy_per_action(final.sim.counts),
         latency_fitted=fitted, wall_seconds=time.perf_counter() - t0, notes=notes,
+        start_confirmed=start,
     )
 
 

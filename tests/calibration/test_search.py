@@ -44,6 +44,24 @@ def test_hidden_kinematic_parameters_are_recovered(lattice16) -> None:
     # decision latency fitted from the real rate (the hidden walk's 3.0 s)
     assert res.latency_fitted
     assert res.params.decision_latency == pytest.approx(3.0, abs=0.3)
+    # on the fresh seed the winner beats the starting point it was compared with there
+    assert res.start_confirmed is not None and res.start_confirmed.stage == "confirm"
+    assert res.final.score < res.start_confirmed.score
+
+
+def test_the_starting_point_is_kept_unless_beaten_on_the_fresh_seed(lattice9) -> None:
+    """Real data made with the defaults: nothing is better than the start, and the
+    calibration never returns parameters that score worse than it on the fresh seed."""
+    real = real_table(hidden_walk(lattice9, KinematicParams(), CCW8, 2.0, 21, "kinematic"), CCW8)
+    cfg = CalibrationConfig(hours_per_candidate=2.0, candidates=6, workers=1, seed=3,
+                            simulator="kinematic", n_boot=20, progress=False)
+    res = calibrate(real, "table", lattice9, space=SPACE, config=cfg)
+    start = res.start_confirmed if res.best != 0 else res.final
+    assert start is not None and res.final.score <= start.score
+    if res.best == 0:
+        assert res.params.drive_time == KinematicParams().drive_time
+        assert any("starting point is kept" in n for n in res.notes) or \
+            res.candidates[0].score <= min(c.score for c in res.candidates)
 
 
 def test_same_seed_same_search_and_common_random_numbers(lattice9) -> None:
