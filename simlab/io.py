@@ -61,6 +61,21 @@ def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> None:
     atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
 
 
+def read_toml(path: str | os.PathLike[str], *, what: str = "file",
+              key: str | None = None) -> dict[str, Any]:
+    """The tables of a TOML file; a missing or malformed file is a :class:`ConfigError`
+    naming it (``what`` says which file it is: ``"primitives file"``)."""
+    import tomllib
+
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except (FileNotFoundError, IsADirectoryError):
+        raise ConfigError(f"{what} not found", path=path, key=key) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"not valid TOML: {exc}", path=path) from None
+
+
 def ensure_new(path: str | os.PathLike[str], *, overwrite: bool = False, what: str = "output") -> Path:
     """Refuse to replace an existing ``path`` unless ``overwrite`` is true.
 

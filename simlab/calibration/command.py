@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,14 +35,14 @@ def load_base(path: str | os.PathLike[str] | None, simulator: str) -> Any:
     base = default_base(simulator)
     if path is None:
         return base
+    if simulator == "physics":
+        from simlab.physics.motion import PrimitiveParams
+
+        return PrimitiveParams.from_toml(path)  # the format of collect --primitives
+    from simlab.io import read_toml
+
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("primitives file not found", path=path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"not valid TOML: {exc}", path=path) from None
-    table = doc.get("primitives")
+    table = read_toml(path, what="primitives file").get("primitives")
     if not isinstance(table, dict):
         raise ConfigError("no [primitives] table", path=path)
     names = {f.name for f in dataclasses.fields(base)}

@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -142,13 +141,10 @@ def space_from_mapping(table: Mapping[str, Any], *, where: str = "parameters") -
 
 def load_space(path: str | os.PathLike[str]) -> ParameterSpace:
     """Read a space TOML file (module docstring); errors name the file and key."""
+    from simlab.io import read_toml
+
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("parameter space file not found", path=path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"not valid TOML: {exc}", path=path) from None
+    doc = read_toml(path, what="parameter space file")
     try:
         return space_from_mapping(doc.get("parameters", {}))
     except ConfigError as exc:

@@ -43,7 +43,6 @@ import dataclasses
 import functools
 import math
 import os
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 from enum import IntEnum
@@ -216,13 +215,10 @@ class PrimitiveParams:
     def from_toml(cls, path: str | os.PathLike[str]) -> PrimitiveParams:
         """Load the ``[primitives]`` table of a TOML file (other tables are ignored, so a
         calibration report can carry the table beside its own)."""
+        from simlab.io import read_toml
+
         p = Path(path)
-        try:
-            data = tomllib.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ConfigError("file not found", path=p, key="--primitives") from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"not valid TOML: {exc}", path=p) from None
+        data = read_toml(p, what="primitives file", key="--primitives")
         if "primitives" not in data:
             raise ConfigError("missing table", path=p, key="primitives",
                               fix="put the settings under a [primitives] table")
