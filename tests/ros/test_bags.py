@@ -3,7 +3,6 @@ export of a collection; the two CLI commands."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from simlab.data.poselog import import_log
 from simlab.errors import ConfigError
 from simlab.ros.bag import BagTrajectory, read_bag, write_bag
 from simlab.ros.importer import import_bag
+from tests.data.test_import_log import _simulate as simulate_log
 
 CCW = parse_action_set(8, "ccw-east")
 CENTRES = np.array([[x, y] for y in (2.0, 1.0, 0.0) for x in (0.0, 1.0, 2.0, 3.0)])
@@ -27,38 +27,12 @@ PLAN = [(0, False), (2, False), (5, True), (5, False), (3, False), (7, True), (1
         (6, False), (4, True), (2, False)]
 
 
-def _simulate(plan, rng, *, rate=2.0, speed=0.15, drive=2.0, idle=3.0, w=1.5):
-    """Samples (N, 4) ``t x y yaw`` (t from 0) of a robot executing ``plan`` =
-    [(ccw-east action, blocked)], and the decision start times (s)."""
-    dt = 0.005
-    x, y, yaw, t = 1.5, 1.0, 0.0, 0.0
-    trace, starts = [(t, x, y, yaw)], []
-
-    def step(vx, vy, wz, n):
-        nonlocal x, y, yaw, t
-        for _ in range(n):
-            x, y, yaw, t = x + vx * dt, y + vy * dt, yaw + wz * dt, t + dt
-            trace.append((t, x, y, yaw))
-
-    for action, blocked in plan:
-        step(0, 0, 0, round(idle / dt))
-        starts.append(t)
-        goal = CCW.heading(action)
-        turn = (goal - yaw + math.pi) % (2 * math.pi) - math.pi
-        if abs(turn) > 1e-9:
-            n = round(abs(turn) / w / dt)
-            step(0, 0, turn / (n * dt), n)
-            yaw = goal
-        if not blocked:
-            step(speed * math.cos(goal), speed * math.sin(goal), 0, round(drive / dt))
-    step(0, 0, 0, round(idle / dt))
-    trace = np.asarray(trace)
-    idx = np.searchsorted(trace[:, 0], np.arange(0.13, trace[-1, 0], 1.0 / rate))
-    s = trace[idx].copy()
-    s[:, 1:3] += rng.normal(0, 0.003, (len(idx), 2))
-    s[:, 3] = (s[:, 3] + rng.normal(0, 0.01, len(idx)) + math.pi) % (2 * math.pi) - math.pi
-    s[:, 0] = np.round(s[:, 0] - s[0, 0], 6)  # from 0, whole microseconds (exact in ns)
-    return s, np.asarray(starts) - 0.13
+def _simulate(plan, rng):
+    """The import-log tests' synthetic robot (same trace, same noise draws) with ``t`` from 0
+    in whole microseconds (exact in bag nanoseconds), and the decision start times (s)."""
+    s, truth = simulate_log(plan, rng)
+    s[:, 0] = np.round(s[:, 0] - s[0, 0], 6)
+    return s, np.asarray([start for start, *_ in truth]) - 0.13  # the log's first sample time
 
 
 def _traj(samples, **kw) -> BagTrajectory:
