@@ -17,8 +17,8 @@ rate for the arena (``stepSimulation`` of the robot driving a circle, as
   physics = stepped seconds / the bare rate per CPU second: the share of the stage's
   work that is not stepping, which a loaded machine does not inflate (wall time it does).
 
-``--warmup`` starts :func:`simlab.warmup.start_warmup` with the pipeline and makes the
-training wait for it (the change proposed for ``simlab/pipeline.py``); the wait is
+``--warmup`` starts :func:`simlab.orchestration.warmup.start_warmup` with the pipeline and makes the
+training wait for it (the change proposed for ``simlab/orchestration/pipeline.py``); the wait is
 counted in the training's wall time.
 
 The numba compile time of the run (``numba:compile`` events of this process; compiles
@@ -127,7 +127,7 @@ def _instrument(cpu: dict[str, float], warm: Any) -> None:
     """Record each stage's CPU seconds (this process and its reaped children: the
     dataset's and the replay's worker processes) and, with a warm-up, make the training
     stage wait for it first (the proposed ``simlab pipeline`` change, see ``--warmup``)."""
-    from simlab.stages import PhysicsChain
+    from simlab.orchestration.stages import PhysicsChain
 
     original = PhysicsChain.cached_stage
     original_qtables = PhysicsChain.qtables
@@ -163,7 +163,7 @@ def main() -> None:
                     help="simulated seconds of each bare-stepping measurement")
     ap.add_argument("--seed", type=int, default=0, help="root seed of the pipeline")
     ap.add_argument("--warmup", action="store_true",
-                    help="start simlab.warmup.start_warmup() with the pipeline and wait for "
+                    help="start simlab.orchestration.warmup.start_warmup() with the pipeline and wait for "
                          "it before training (what `simlab pipeline` does once wired)")
     args = ap.parse_args()
 
@@ -179,7 +179,7 @@ def main() -> None:
         t0 = time.perf_counter()
         warm = None
         if args.warmup:
-            from simlab.warmup import start_warmup
+            from simlab.orchestration.warmup import start_warmup
 
             warm = start_warmup()
         _instrument(cpu, warm)

@@ -1,7 +1,7 @@
 """Occupancy maps, the ROS map_server format and Voronoi state discretization.
 
 This package knows nothing of PyBullet (the exploration run that feeds it scans is
-:mod:`simlab.mapping`). Modules:
+:mod:`simlab.orchestration.mapping`). Modules:
 
 * :mod:`discretize.gridmap` — :class:`OccupancyMap`, the map object (map_server
   orientation, world/pixel conversions, content hash);

@@ -7,7 +7,7 @@ Conventions (those of the ROS ``map_server``, so real-robot maps load unchanged)
 * Row 0 is the **top** of the image (largest y), column 0 the left (smallest x).
 * ``origin = (x, y, yaw)`` is the world pose (metres, radians) of the lower-left
   corner of the lower-left pixel; the map is rotated by ``yaw`` about that point.
-  Maps from GMapping and from :mod:`simlab.mapping` have ``yaw = 0``.
+  Maps from GMapping and from :mod:`simlab.orchestration.mapping` have ``yaw = 0``.
 * Pixel ``(row, col)`` covers, in the map's own (unrotated) frame,
   ``x in [col*res, (col+1)*res)`` and ``y in [(H-1-row)*res, (H-row)*res)``
   measured from the origin.

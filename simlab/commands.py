@@ -13,7 +13,7 @@ from simlab.lazy import lazy_exports
 #: Function name -> "module:attribute".
 _FUNCTIONS: dict[str, str] = {
     "drive": "simlab.physics.drive:drive",
-    "map": "simlab.mapping:build_map",
+    "map": "simlab.orchestration.mapping:build_map",
     "arena_from_map": "simlab.physics.map_arena:arena_from_map",
     "discretize": "discretize.voronoi:discretize_map",
     "collect": "simlab.data.collect:collect",
@@ -25,7 +25,7 @@ _FUNCTIONS: dict[str, str] = {
     "train": "simlab.training.train:train",
     "replay": "simlab.replay.replay:replay",
     "calibrate": "simlab.calibration.command:calibrate_files",
-    "pipeline": "simlab.pipeline:pipeline",
+    "pipeline": "simlab.orchestration.pipeline:pipeline",
     "visitlab_train": "simlab.visitlab.training:train",
     "reproduce": "simlab.experiments.reproduce:reproduce",
 }

@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from simlab.mapping import build_map
+    from simlab.orchestration.mapping import build_map
 
     out = args.out
     if out is None:

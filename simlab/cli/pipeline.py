@@ -9,7 +9,7 @@ HELP = ("the physics half end to end: map, Voronoi states, random-walk dataset, 
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from simlab.stages import PhysicsSettings
+    from simlab.orchestration.stages import PhysicsSettings
 
     d = PhysicsSettings()
     p.add_argument("--arena", default=d.arena, help="built-in arena name or .toml path")
@@ -42,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from simlab.pipeline import pipeline
+    from simlab.orchestration.pipeline import pipeline
 
     res = pipeline(
         args.arena, args.out, seed=args.seed, resume=args.resume, progress=not args.no_progress,

@@ -12,6 +12,8 @@ Layers, one per module:
 * :mod:`simlab.data.collect` — the ``simlab collect`` driver (budgets, exact resume);
 * :mod:`simlab.data.estimate` — counts, T = n(s,a,s')/n(s,a), entropy, coverage,
   ``simlab estimate``;
+* :mod:`simlab.data.mdp` — :class:`EmpiricalMDP`, the validated transition matrix with its
+  goal areas that training, replay and the env read (``mdp.npz``);
 * :mod:`simlab.data.counts` — import of external count tables (real-robot logs);
 * :mod:`simlab.data.goals` — which Markov states belong to which goal area;
 * :mod:`simlab.data.plots` — the mean-entropy-per-action bar plot (thesis Fig. 4.8);
@@ -30,7 +32,9 @@ from simlab.lazy import lazy_exports
 _LAZY: dict[str, str] = {
     "CollectResult": "simlab.data.collect",
     "EstimateResult": "simlab.data.estimate",
-    "EmpiricalMDP": "simlab.data.estimate",
+    "EmpiricalMDP": "simlab.data.mdp",
+    "load_mdp": "simlab.data.mdp",
+    "mdp_from_arrays": "simlab.data.mdp",
     "empirical_mdp": "simlab.data.estimate",
     "read_dataset": "simlab.data.dataset",
     "open_dataset": "simlab.data.dataset",

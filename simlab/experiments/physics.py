@@ -1,7 +1,7 @@
 """The physics experiments: thesis Figs. 4.8 (entropy), 4.9 (training), 4.10 (replay).
 
-All three read the settings of :class:`~simlab.stages.PhysicsSettings`
-from their TOML and share one :class:`~simlab.stages.PhysicsChain`
+All three read the settings of :class:`~simlab.orchestration.stages.PhysicsSettings`
+from their TOML and share one :class:`~simlab.orchestration.stages.PhysicsChain`
 cache: map -> states -> 10-hour walk(s) -> empirical MDP -> Q-tables. The runners add
 the statistics, the figures and the metrics the ``[[expect]]`` checks read. ``seeds``
 is the number of independent chains (datasets with their MDP, training and replay) on
@@ -20,7 +20,7 @@ import numpy as np
 
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
-from simlab.stages import PhysicsChain, PhysicsSettings, chain_seed
+from simlab.orchestration.stages import PhysicsChain, PhysicsSettings, chain_seed
 
 #: Transitions the thesis's robot logged in about 10 hours of random walk (3.2.5).
 THESIS_TRANSITIONS_10H = 8448

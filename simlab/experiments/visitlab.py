@@ -82,7 +82,7 @@ from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.io import atomic_write, atomic_write_json
-from simlab.stages import file_lock, source_fingerprint, stage_key
+from simlab.orchestration.stages import file_lock, source_fingerprint, stage_key
 
 #: First element of the spawn key of every Visit-the-lab stream ("VISL" in ASCII).
 VISITLAB_SPAWN_KEY = 0x5649534C
@@ -243,7 +243,7 @@ _RUN_SOURCES = ("actions", "grid", "perception", "humans", "dynamics", "envs", "
 
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """:func:`~simlab.stages.source_fingerprint` of the source a training run depends on:
+    """:func:`~simlab.orchestration.stages.source_fingerprint` of the source a training run depends on:
     the Visit-the-lab simulation and training loops (:data:`_RUN_SOURCES`) and every
     module of ``simlab.agents``. Figures, the combined architecture and these runners are
     not part of it (they do not change a run's numbers)."""

@@ -190,10 +190,10 @@ class ModelInputs:
 def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
                goal_masks: NDArray[np.bool_], *,
                action_set: ActionSet | None = None) -> ModelInputs:
-    """Load an ``mdp.npz`` (or an :class:`~simlab.envs.empirical_mdp.EmpiricalMDP`) and
+    """Load an ``mdp.npz`` (or an :class:`~simlab.data.mdp.EmpiricalMDP`) and
     check it against the discretizer, the arena's goals and (when given) the Q-tables'
     ``action_set``."""
-    from simlab.envs.empirical_mdp import EmpiricalMDP, load_mdp
+    from simlab.data.mdp import EmpiricalMDP, load_mdp
 
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
     src = None if m.source is None else str(m.source)

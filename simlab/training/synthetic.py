@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from simlab.envs.empirical_mdp import EmpiricalMDP, mdp_from_arrays
+from simlab.data.mdp import EmpiricalMDP, mdp_from_arrays
 
 __all__ = ["DIRECTIONS", "synthetic_arena_mdp"]
 

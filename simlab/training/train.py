@@ -286,7 +286,7 @@ def train(
     Parameters
     ----------
     mdp:
-        ``mdp.npz`` path (``simlab estimate``) or an :class:`~simlab.envs.empirical_mdp.EmpiricalMDP`.
+        ``mdp.npz`` path (``simlab estimate``) or an :class:`~simlab.data.mdp.EmpiricalMDP`.
     agent:
         A registered agent name (:mod:`simlab.agents.registry`).
     goals:
@@ -310,7 +310,7 @@ def train(
         :class:`TrainTask`: task mode, goal/start states, unvisited rule (default:
         per-step, the MDP's goals and rule).
     """
-    from simlab.envs.empirical_mdp import EmpiricalMDP, load_mdp
+    from simlab.data.mdp import EmpiricalMDP, load_mdp
 
     t0 = time.perf_counter()
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)

@@ -8,8 +8,8 @@ import pytest
 
 from simlab.cli import main
 from simlab.errors import ConfigError
-from simlab.pipeline import STAGES, pipeline
-from simlab.stages import PhysicsSettings
+from simlab.orchestration.pipeline import STAGES, pipeline
+from simlab.orchestration.stages import PhysicsSettings
 
 TINY = ["--map-minutes", "2", "--hours", "0.3", "--workers", "1", "--episodes", "60",
         "--runs", "1", "--replay-hours", "0.05", "--pose-source", "truth", "--no-video",

@@ -273,7 +273,7 @@ def test_estimate_records_the_action_set_and_the_unvisited_rule(tmp_path: Path) 
 def test_estimate_of_a_dataset_takes_its_action_set(tmp_path: Path,
                                                     kinematic_dataset: Path) -> None:
     from simlab.actions import SIMLAB16, parse_action_set
-    from simlab.envs.empirical_mdp import load_mdp
+    from simlab.data.mdp import load_mdp
 
     estimate(kinematic_dataset, tmp_path / "mdp.npz", plot=False)
     m = load_mdp(tmp_path / "mdp.npz")
@@ -286,7 +286,7 @@ def test_estimate_of_a_dataset_takes_its_action_set(tmp_path: Path,
 
 def test_estimate_cli_action_flags(tmp_path: Path, kinematic_dataset: Path, capsys) -> None:
     from simlab.cli import main
-    from simlab.envs.empirical_mdp import load_mdp
+    from simlab.data.mdp import load_mdp
 
     table = _count_csv(tmp_path / "c.csv", [(0, 0, 1, 3), (1, 4, 0, 2)])
     out = tmp_path / "m.npz"

@@ -16,7 +16,7 @@ from discretize.mapio import read_map
 from discretize.occupancy import map_accuracy
 from discretize.voronoi import Discretizer, eroded_free_mask
 from simlab.cli import main
-from simlab.mapping import build_map, sensor_pose
+from simlab.orchestration.mapping import build_map, sensor_pose
 from simlab.physics.arena import load_arena
 
 

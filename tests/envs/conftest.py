@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.envs.empirical_mdp import EmpiricalMDP
+from simlab.data.mdp import EmpiricalMDP
 from simlab.training.synthetic import synthetic_arena_mdp
 
 

@@ -12,7 +12,7 @@ import pytest
 from simlab.errors import ConfigError
 from simlab.experiments.physics import linearity_r2, paired_entropy_difference
 from simlab.experiments.spec import discover_experiments
-from simlab.stages import (
+from simlab.orchestration.stages import (
     MARKER,
     PhysicsChain,
     PhysicsSettings,
@@ -79,7 +79,7 @@ def test_stage_cache_builds_once_and_rebuilds_an_interrupted_stage(tmp_path):
 
 
 def test_stage_cache_is_rebuilt_when_the_code_changes(tmp_path, monkeypatch):
-    import simlab.stages as pc
+    import simlab.orchestration.stages as pc
 
     def build(d):
         return {}

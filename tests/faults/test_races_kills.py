@@ -129,12 +129,12 @@ def test_a_pipeline_that_fails_in_its_first_stage_leaves_nothing(
         work: Path, capsys, monkeypatch) -> None:
     import errno
 
-    import simlab.mapping
+    import simlab.orchestration.mapping
 
     def full_disk(*_a, **_k):
         raise OSError(errno.ENOSPC, "No space left on device", str(work / "p" / "map.pgm"))
 
-    monkeypatch.setattr(simlab.mapping, "build_map", full_disk)
+    monkeypatch.setattr(simlab.orchestration.mapping, "build_map", full_disk)
     argv = f"pipeline --out {work}/p --no-progress --map-minutes 0.05".split()
     for _ in range(2):  # the rerun meets the same one-line error, not "already exists"
         res = run_cli(argv, capsys)

@@ -25,7 +25,7 @@ import pytest
 from simlab.actions import CONVENTIONS, HEADINGS, SIMLAB16, parse_action_set
 from simlab.agents.storage import load_npz, save_q_table
 from simlab.cli import main
-from simlab.envs.empirical_mdp import load_mdp, mdp_from_arrays
+from simlab.data.mdp import load_mdp, mdp_from_arrays
 from simlab.replay.replay import greedy_action
 from simlab.training import harness
 from simlab.training.train import TrainTask, train

@@ -18,7 +18,7 @@ import pytest
 from discretize.voronoi import discretize_map
 from simlab.data.collect import collect
 from simlab.data.estimate import estimate
-from simlab.mapping import build_map
+from simlab.orchestration.mapping import build_map
 
 
 @pytest.fixture(scope="module")

@@ -65,7 +65,7 @@ def test_provenance_naming_another_arena_fails_with_the_file(tmp_path) -> None:
 
 
 def test_an_explored_map_matches_its_arena_only(tmp_path) -> None:
-    from simlab.mapping import build_map
+    from simlab.orchestration.mapping import build_map
 
     run = build_map("table", minutes=4.0, seed=3, out=tmp_path / "m", progress=False)
     _, check = load_map_for_arena(run.yaml_path, load_arena("table"))

@@ -48,14 +48,14 @@ def test_warm_cache_means_no_compile(tmp_path) -> None:
     cold = int(json.loads(_run(_UPDATE, tmp_path / "cold")))
     assert cold > 0  # a cold cache compiles (else the check below proves nothing)
     warm_dir = tmp_path / "warm"
-    _run("from simlab.warmup import warm_kernels; print(warm_kernels(agent=None))", warm_dir)
+    _run("from simlab.orchestration.warmup import warm_kernels; print(warm_kernels(agent=None))", warm_dir)
     assert any(warm_dir.rglob("*.nbi"))
     assert int(json.loads(_run(_UPDATE, warm_dir))) == 0
 
 
 def test_start_warmup_process_ends(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    from simlab.warmup import start_warmup
+    from simlab.orchestration.warmup import start_warmup
 
     w = start_warmup(agent=None, mcl=True)
     assert w.wait()

@@ -8,7 +8,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the environments)
-from simlab.envs.empirical_mdp import EmpiricalMDPEnv, load_mdp
+from simlab.data.mdp import load_mdp
+from simlab.envs.empirical_mdp import EmpiricalMDPEnv
 from simlab.errors import ConfigError
 
 
@@ -136,7 +137,8 @@ def test_env_exposes_the_action_set_and_the_mask(tmp_path) -> None:
     import json
 
     from simlab.actions import SIMLAB16, parse_action_set
-    from simlab.envs.empirical_mdp import EmpiricalMDPEnv, load_mdp
+    from simlab.data.mdp import load_mdp
+    from simlab.envs.empirical_mdp import EmpiricalMDPEnv
 
     T = np.zeros((2, 8, 2))
     T[:, :, 0] = 1.0

@@ -51,7 +51,7 @@ def warm_mcl() -> None:
 def warm_training(agent: str = "vi-softmax") -> None:
     """Compile ``agent``'s training kernels: :func:`simlab.training.train.train` on a
     3-state, 16-action MDP for 2 episodes (no files written)."""
-    from simlab.envs.empirical_mdp import EmpiricalMDP
+    from simlab.data.mdp import EmpiricalMDP
     from simlab.training.train import train
 
     s, a = 3, 16

@@ -1,7 +1,7 @@
 """``simlab pipeline``: the whole physics half, end to end, as one command.
 
 Stages (each the library call of a subcommand of its own), built by the physics chain
-(:class:`simlab.stages.PhysicsChain`):
+(:class:`simlab.orchestration.stages.PhysicsChain`):
 
 1. ``map``      explore the arena at random and build an occupancy map  (``simlab map``)
 2. ``states``   Voronoi states on the map                          (``simlab discretize``)
@@ -34,7 +34,7 @@ from typing import Any
 
 from simlab.errors import ConfigError
 from simlab.io import atomic_write, atomic_write_json, exclusive_directory
-from simlab.stages import PhysicsChain, PhysicsSettings, Stage
+from simlab.orchestration.stages import PhysicsChain, PhysicsSettings, Stage
 
 #: Pipeline stage -> the link to its folder in the output folder.
 STAGES: dict[str, str] = {"map": "map", "states": "states", "dataset": "dataset", "mdp": "mdp",
@@ -105,7 +105,7 @@ def pipeline(
 ) -> PipelineResult:
     """Run the physics pipeline on ``arena`` into ``out`` (see the module docstring).
 
-    ``settings`` are :class:`~simlab.stages.PhysicsSettings` fields (``hours=1.0`` for a
+    ``settings`` are :class:`~simlab.orchestration.stages.PhysicsSettings` fields (``hours=1.0`` for a
     quick run; the defaults are the thesis's); ``seed`` the root seed of every stage;
     ``log`` receives one line per stage (None: silent).
     """
@@ -129,7 +129,7 @@ def pipeline(
 
 
 def _any_stage_done(out: Path) -> bool:
-    from simlab.stages import MARKER
+    from simlab.orchestration.stages import MARKER
 
     return any((out / "stages").glob(f"physics/*/{MARKER}"))
 
@@ -140,7 +140,7 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
     say = log or (lambda _line: None)
     t_start = time.perf_counter()
     chain = PhysicsChain(out / "stages", s, seed, progress=progress)
-    from simlab.warmup import start_warmup
+    from simlab.orchestration.warmup import start_warmup
 
     # numba compiles the training and MCL kernels in a spare process while the map and the
     # walk run in physics; training then loads them from numba's cache (issue 17)
@@ -169,7 +169,7 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
         say(f"[{k}/{n}] {name}: {_headline(name, record, s)} ({done})")
     say(f"[{n}/{n}] report ...")
     _visits_figure(out)
-    from simlab.pipeline_report import write_report
+    from simlab.orchestration.report import write_report
 
     report = write_report(out, s, seed, state)
     say(f"[{n}/{n}] report: {report}")

@@ -17,8 +17,8 @@ def _fig(out: Path, rel: str, caption: str) -> str:
 
 def write_report(out: Path, s: Any, seed: int, state: dict[str, Any]) -> Path:
     """Write ``out/report.md`` from the stage records in ``state`` (see
-    :mod:`simlab.pipeline`); ``s`` are the run's :class:`~simlab.stages.PhysicsSettings`."""
-    from simlab.pipeline import train_ratios
+    :mod:`simlab.orchestration.pipeline`); ``s`` are the run's :class:`~simlab.orchestration.stages.PhysicsSettings`."""
+    from simlab.orchestration.pipeline import train_ratios
 
     st = state["stages"]
     m, d, mdp, tr, rp = (st.get(k, {}) for k in ("map", "dataset", "mdp", "train", "replay"))

@@ -4,7 +4,7 @@
 need the same intermediate products: an occupancy map, Voronoi states, a random-walk
 dataset, the empirical MDP, the Q-tables trained on it and a closed-loop replay.
 :class:`PhysicsChain` builds each of them with the library function that owns the stage
-(:func:`simlab.mapping.build_map`, :func:`discretize.voronoi.discretize_map`,
+(:func:`simlab.orchestration.mapping.build_map`, :func:`discretize.voronoi.discretize_map`,
 :func:`simlab.data.collect.collect`, :func:`simlab.data.estimate.estimate`,
 :func:`simlab.training.train.train`, :func:`simlab.replay.replay.replay`) into
 ``<cache>/physics/<stage>-<key>/`` where ``key`` hashes the stage's settings, its parent
@@ -205,7 +205,7 @@ def source_fingerprint(roots: Iterable[Path]) -> str:
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
     """:func:`source_fingerprint` of what the physics chain's results depend on: the
-    ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.mapping``, ``discretize``,
+    ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.orchestration.mapping``, ``discretize``,
     ``simlab.agents``, ``simlab.training``, ``simlab.envs``, ``simlab.replay``,
     ``simlab.localization`` and the robot and arena assets. Computed once per process."""
     import discretize
@@ -326,7 +326,7 @@ class PhysicsChain:
         seed = chain_seed(self.root_seed, "map", 0)
 
         def build(d: Path) -> dict[str, Any]:
-            from simlab.mapping import build_map
+            from simlab.orchestration.mapping import build_map
 
             run = build_map(s.arena, minutes=s.map_minutes, seed=seed, out=d,
                             resolution=s.map_resolution, progress=self.progress)

@@ -1,0 +1,248 @@
+"""The empirical MDP: a validated transition matrix with its goal areas (thesis 4.5).
+
+A data type shared by training, replay and the ``simlab/EmpiricalMDP-v0`` env, built by
+``simlab estimate`` and read from its ``mdp.npz``.
+
+The npz arrays (see :func:`load_mdp`): ``T`` (S, A, S) float64, rows summing to 1
+(required); ``counts`` (S, A, S) int64, ``visited`` (S, A) bool, ``entropy``
+(S, A) float64 bits (optional, kept for reports); ``centres`` (S, 2) float64
+metres, ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool (needed to pick a
+goal by name); ``bounds`` (4,) ``x_min, y_min, x_max, y_max`` metres (optional, for plots; the
+convention of :attr:`simlab.physics.arena.ArenaConfig.bounds`); ``meta_json`` (optional):
+``action_set`` (absent: simlab's 16 primitives; for another number of actions unknown, None,
+which training accepts and heat-map arrows and replay refuse)
+and ``unvisited`` (``mask``, the default also for files without it, or ``self-loop``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab.actions import ActionSet, action_set_from_metadata
+from simlab.errors import ConfigError
+
+__all__ = ["EmpiricalMDP", "load_mdp", "mdp_from_arrays"]
+
+_ROW_ATOL = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class EmpiricalMDP:
+    """A validated empirical MDP and its goal areas (arrays are read-only)."""
+
+    T: np.ndarray
+    """(S, A, S) float64 transition probabilities, rows sum to 1."""
+    goal_names: tuple[str, ...] = ()
+    """Names of the goal areas (G,)."""
+    goal_masks: np.ndarray | None = None
+    """(G, S) bool, ``goal_masks[g, s]``: state s lies in goal g."""
+    centres: np.ndarray | None = None
+    """(S, 2) float64 metres, the Voronoi centres."""
+    bounds: tuple[float, float, float, float] | None = None
+    """``(x_min, y_min, x_max, y_max)`` metres of the arena, if known."""
+    counts: np.ndarray | None = None
+    """(S, A, S) int64 transition counts, if known."""
+    visited: np.ndarray | None = None
+    """(S, A) bool, pairs observed at least once, if known."""
+    entropy: np.ndarray | None = None
+    """(S, A) float64 entropy of T(s, a, .) in bits, if known."""
+    source: str | None = None
+    """File the MDP was read from (for messages)."""
+    action_set: ActionSet | None = None
+    """What each action index means (None only for MDPs built from bare arrays)."""
+    unvisited: str = "mask"
+    """Rule for unvisited (s, a): ``mask`` (planners never choose them) or ``self-loop``."""
+    cdf: np.ndarray = field(init=False, repr=False)
+    """(S, A, S) cumulative sums of T along s' (for sampling)."""
+
+    def __post_init__(self) -> None:
+        cdf = np.cumsum(self.T, axis=2)
+        cdf.setflags(write=False)
+        object.__setattr__(self, "cdf", cdf)
+
+    @property
+    def n_states(self) -> int:
+        return int(self.T.shape[0])
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.T.shape[1])
+
+    @property
+    def valid(self) -> np.ndarray | None:
+        """(S, A) bool actions a planner may choose, or None when all are allowed.
+
+        Under the ``mask`` rule the visited pairs (a state with no visited action keeps
+        all of them); None under ``self-loop``, without ``visited``/``counts``, or when
+        every pair was visited (so fully covered data trains exactly as before).
+        """
+        from simlab.data.estimate import valid_actions
+
+        if self.unvisited != "mask":
+            return None
+        visited = self.visited
+        if visited is None and self.counts is not None:
+            visited = self.counts.sum(axis=2) > 0
+        if visited is None:
+            return None
+        v = valid_actions(visited)
+        return None if v.all() else v
+
+    def goal_index(self, goal: str | int) -> int:
+        """Index of a goal given by name or index; :class:`ConfigError` lists the valid ones."""
+        if self.goal_masks is None or not self.goal_names:
+            raise ConfigError(
+                "has no goal areas (arrays goal_names and goal_masks)",
+                path=self.source,
+                key="goal",
+                fix="re-run simlab estimate with an arena that defines goals, or pass goal_mask=",
+            )
+        if isinstance(goal, int | np.integer) and not isinstance(goal, bool):
+            if 0 <= int(goal) < len(self.goal_names):
+                return int(goal)
+        elif isinstance(goal, str) and goal in self.goal_names:
+            return self.goal_names.index(goal)
+        raise ConfigError(
+            f"unknown goal {goal!r}; valid goals: {', '.join(self.goal_names)}",
+            path=self.source,
+            key="goal",
+        )
+
+    def goal_mask(self, goal: str | int) -> np.ndarray:
+        """(S,) bool mask of a goal."""
+        return self.goal_masks[self.goal_index(goal)].copy()
+
+    def goal_reward(self, goal: str | int | np.ndarray) -> np.ndarray:
+        """(S,) float64 reward on arrival: 1.0 inside the goal, 0.0 elsewhere."""
+        mask = goal if isinstance(goal, np.ndarray) else self.goal_mask(goal)
+        return np.asarray(mask, dtype=np.float64)
+
+
+def _readonly(a: np.ndarray | None) -> np.ndarray | None:
+    if a is None:
+        return None
+    a = np.array(a)
+    a.setflags(write=False)
+    return a
+
+
+def mdp_from_arrays(
+    T: np.ndarray,
+    *,
+    goal_names: Any = None,
+    goal_masks: np.ndarray | None = None,
+    centres: np.ndarray | None = None,
+    bounds: Any = None,
+    counts: np.ndarray | None = None,
+    visited: np.ndarray | None = None,
+    entropy: np.ndarray | None = None,
+    source: str | os.PathLike[str] | None = None,
+    action_set: ActionSet | None = None,
+    unvisited: str = "mask",
+) -> EmpiricalMDP:
+    """Validate arrays and build an :class:`EmpiricalMDP`.
+
+    ``action_set`` must have A actions (default: simlab's 16 primitives when A is 16, else
+    None); ``unvisited`` is ``mask`` or ``self-loop`` (see :attr:`EmpiricalMDP.valid`).
+
+    Raises :class:`ConfigError` naming ``source`` and the array: T not
+    (S, A, S), negative or non-finite entries, rows not summing to 1, goal
+    arrays or centres of the wrong shape.
+    """
+    from simlab.agents.planning import validate_mdp
+
+    path = None if source is None else str(source)
+    T = np.asarray(T)
+    validate_mdp(T, atol=_ROW_ATOL, path=path, p_name="T")
+    T = T.astype(np.float64)
+    S, A = T.shape[:2]
+    names: tuple[str, ...] = ()
+    if goal_names is not None or goal_masks is not None:
+        if goal_names is None or goal_masks is None:
+            missing = "goal_masks" if goal_masks is None else "goal_names"
+            raise ConfigError("goal_names and goal_masks come together", path=path, key=missing)
+        names = tuple(str(n) for n in np.asarray(goal_names).ravel())
+        goal_masks = np.asarray(goal_masks)
+        if goal_masks.shape != (len(names), S):
+            raise ConfigError(
+                f"expected shape (G, S) = ({len(names)}, {S}), got {goal_masks.shape}",
+                path=path,
+                key="goal_masks",
+            )
+        if len(set(names)) != len(names):
+            raise ConfigError(f"duplicate goal names in {list(names)}", path=path, key="goal_names")
+        goal_masks = goal_masks.astype(bool)
+    if centres is not None:
+        centres = np.asarray(centres, dtype=np.float64)
+        if centres.shape != (S, 2):
+            raise ConfigError(
+                f"expected shape (S, 2) = ({S}, 2), got {centres.shape}", path=path, key="centres"
+            )
+    bounds_t = None
+    if bounds is not None:
+        b = np.asarray(bounds, dtype=np.float64).ravel()
+        if b.shape != (4,) or not (b[0] < b[2] and b[1] < b[3]):
+            raise ConfigError(
+                f"expected (x_min, y_min, x_max, y_max) with min < max, got {b.tolist()}",
+                path=path,
+                key="bounds",
+            )
+        bounds_t = (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
+    for name, arr, shape in (("counts", counts, (S, A, S)), ("visited", visited, (S, A)),
+                             ("entropy", entropy, (S, A))):  # fmt: skip
+        if arr is not None and np.shape(arr) != shape:
+            raise ConfigError(f"expected shape {shape}, got {np.shape(arr)}", path=path, key=name)
+    from simlab.data.estimate import check_unvisited_rule
+
+    check_unvisited_rule(unvisited)
+    if action_set is None and A == 16:
+        action_set = action_set_from_metadata(None, A, where=path or "mdp")
+    if action_set is not None and action_set.n_actions != A:
+        raise ConfigError(f"action_set says {action_set.n_actions} actions, T has {A}",
+                          path=path, key="action_set")
+    return EmpiricalMDP(
+        T=_readonly(T),
+        goal_names=names,
+        goal_masks=_readonly(goal_masks),
+        centres=_readonly(centres),
+        bounds=bounds_t,
+        counts=_readonly(counts),
+        visited=_readonly(visited),
+        entropy=_readonly(entropy),
+        source=path,
+        action_set=action_set,
+        unvisited=unvisited,
+    )
+
+
+def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
+    """Read and validate an ``mdp.npz`` (no pickle). Only ``T`` is required.
+
+    Errors name the file and the array (missing ``T``, rows not summing to 1,
+    shapes that disagree).
+    """
+    from simlab.agents.storage import load_npz
+
+    arrays, meta = load_npz(path, ("T",))
+    path = Path(path)
+    T = arrays["T"]
+    n_actions = int(T.shape[1]) if T.ndim == 3 else 16
+    return mdp_from_arrays(
+        T,
+        goal_names=arrays.get("goal_names"),
+        goal_masks=arrays.get("goal_masks"),
+        centres=arrays.get("centres"),
+        bounds=arrays.get("bounds"),
+        counts=arrays.get("counts"),
+        visited=arrays.get("visited"),
+        entropy=arrays.get("entropy"),
+        source=path,
+        action_set=(action_set_from_metadata(meta, n_actions, where=str(path))
+                    if meta.get("action_set") is not None or n_actions == 16 else None),
+        unvisited=str(meta.get("unvisited", "mask")),
+    )
