@@ -221,7 +221,7 @@ def action_set_from_metadata(meta: Mapping[str, Any] | None, n_actions: int, *,
 class ActionSetOptions(CommandConfig):
     """The ``--n-actions/--convention/--speed`` field group of the commands that read data
     whose action numbering is given by the user (``estimate`` of a count table; inherit it
-    in a command's config and call :meth:`action_set`).
+    in a command's config and call :meth:`make_action_set`).
 
     ``n_actions`` defaults to None = "not given" so that a command can tell a choice from
     the default (``estimate`` refuses the group for a dataset, which records its own).
@@ -243,7 +243,7 @@ class ActionSetOptions(CommandConfig):
         """Whether any field of the group differs from its default."""
         return self.n_actions is not None or self.convention != "simlab" or self.speed != "slow"
 
-    def action_set(self, default_n_actions: int = 16) -> ActionSet:
+    def make_action_set(self, default_n_actions: int = 16) -> ActionSet:
         """The :class:`ActionSet` of the fields (``n_actions`` None: ``default_n_actions``);
         a 16-action set has both speeds, so ``speed`` only describes an 8-action one."""
         n = default_n_actions if self.n_actions is None else self.n_actions
