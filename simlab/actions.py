@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from simlab.directions import Direction
 from simlab.errors import ConfigError
+from simlab.options import CommandConfig, option
 
 #: Heading (rad, counter-clockwise from +x of the map) of each simlab :class:`Direction`.
 HEADINGS: NDArray[np.float64] = np.array(
@@ -214,3 +215,36 @@ def action_set_from_metadata(meta: Mapping[str, Any] | None, n_actions: int, *,
         raise ConfigError(f"action_set says {aset.n_actions} actions, the arrays have "
                           f"{n_actions}", path=where)
     return aset
+
+
+@dataclass(frozen=True, kw_only=True)
+class ActionSetOptions(CommandConfig):
+    """The ``--n-actions/--convention/--speed`` field group of the commands that read data
+    whose action numbering is given by the user (``estimate`` of a count table; inherit it
+    in a command's config and call :meth:`make_action_set`).
+
+    ``n_actions`` defaults to None = "not given" so that a command can tell a choice from
+    the default (``estimate`` refuses the group for a dataset, which records its own).
+    """
+
+    n_actions: int | None = option(
+        None, "actions of the data: 8 (one speed) or 16 (default 16; a dataset records its "
+        "own)", choices=(8, 16))
+    convention: str = option(
+        "simlab", "direction numbering: simlab (UP, DOWN, LEFT, RIGHT, UL, UR, DL, DR), "
+        "ccw-east (0 E, 1 NE, ... 7 SE) or 8 numbers PERM, the simlab direction of each of "
+        "yours")
+    speed: str = option(
+        "slow", "which primitive speed an 8-action robot's single speed is (ignored for 16 "
+        "actions)", choices=("slow", "fast"))
+
+    @property
+    def action_set_given(self) -> bool:
+        """Whether any field of the group differs from its default."""
+        return self.n_actions is not None or self.convention != "simlab" or self.speed != "slow"
+
+    def make_action_set(self, default_n_actions: int = 16) -> ActionSet:
+        """The :class:`ActionSet` of the fields (``n_actions`` None: ``default_n_actions``);
+        a 16-action set has both speeds, so ``speed`` only describes an 8-action one."""
+        n = default_n_actions if self.n_actions is None else self.n_actions
+        return parse_action_set(n, self.convention, self.speed if n == 8 else "slow")

@@ -90,6 +90,9 @@ class CommandConfig:
     """
 
     COMMAND: ClassVar[str] = ""
+    #: The fields a call may give positionally, in order (default: every field, in field
+    #: order). Set it when field groups from base classes come first in the field order.
+    ARGUMENTS: ClassVar[tuple[str, ...]] = ()
 
     # -- construction -----------------------------------------------------------------
 
@@ -193,7 +196,8 @@ def command(config_cls: type[C]) -> Callable[[Callable[[C], Any]], Callable[...,
     the config first, positional arguments taken in the order of the dataclass's fields
     (``estimate(dataset, out, plot=False)``). ``help(fn)`` shows every option.
     """
-    names = [f.name for f in dataclasses.fields(config_cls)]  # type: ignore[arg-type]
+    names = list(config_cls.ARGUMENTS) or [
+        f.name for f in dataclasses.fields(config_cls)]  # type: ignore[arg-type]
 
     def wrap(fn: Callable[[C], Any]) -> Callable[..., Any]:
         @functools.wraps(fn)

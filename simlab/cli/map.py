@@ -8,49 +8,15 @@ HELP = "explore an arena at random in physics and write its occupancy map (map.p
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--arena", default="table", help="built-in arena name or .toml path")
-    parser.add_argument(
-        "--minutes",
-        type=float,
-        default=10.0,
-        help="robot time to explore, driving + idle latency (default 10; the thesis: 73.1)",
-    )
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument(
-        "--out", default=None, metavar="DIR", help="output directory (default maps/<arena>)"
-    )
-    parser.add_argument(
-        "--resolution", type=float, default=0.01, metavar="M", help="cell size (default 0.01 m)"
-    )
-    parser.add_argument(
-        "--pose-source",
-        choices=("truth", "odometry"),
-        default="truth",
-        help="pose to map with: truth (stand-in for GMapping's corrected pose) or "
-        "odometry (shows the drift)",
-    )
-    parser.add_argument("--overwrite", action="store_true", help="replace existing outputs")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from simlab.orchestration.mapping import MapConfig
+
+    MapConfig.add_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from simlab.orchestration.mapping import MapConfig, build_map
 
-    from simlab.orchestration.mapping import build_map
-
-    out = args.out
-    if out is None:
-        out = Path("maps") / Path(str(args.arena)).stem
-    result = build_map(
-        arena=args.arena,
-        minutes=args.minutes,
-        seed=args.seed,
-        out=out,
-        resolution=args.resolution,
-        pose_source=args.pose_source,
-        overwrite=args.overwrite,
-        progress=not args.no_progress,
-    )
+    result = build_map(MapConfig.from_args(args))
     acc = result.accuracy
     h, w = result.map.shape
     print(

@@ -28,7 +28,6 @@ import dataclasses
 import hashlib
 import importlib.util
 import json
-import math
 import os
 import time
 from dataclasses import dataclass
@@ -38,6 +37,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
+from simlab import validation as v
 from simlab.data.backends import BACKENDS, make_backend
 from simlab.data.dataset import validate_part, write_part
 from simlab.data.inputs import load_arena_config, load_discretizer
@@ -67,6 +67,8 @@ from simlab.data.walkers import (
 )
 from simlab.errors import ConfigError
 from simlab.io import exclusive_directory
+from simlab.options import command, option
+from simlab.physics.primitive_options import PrimitiveOptions
 
 #: Default transitions per part: small enough that a crash loses little, large enough
 #: that per-part overheads (world rebuild, file, manifest) stay negligible.
@@ -152,43 +154,6 @@ def _default_params(simulator: str) -> Any:
     from simlab.physics.motion import PrimitiveParams
 
     return PrimitiveParams()
-
-
-def _check_inputs(hours: float | None, transitions: int | None, seed: int, workers: int,
-                  part_size: int, backend: str, address: str | None, simulator: str) -> None:
-    if (hours is None) == (transitions is None):
-        raise ConfigError("give exactly one budget: --hours H or --transitions N", key="budget")
-    if hours is not None and not (isinstance(hours, int | float) and math.isfinite(hours)
-                                  and hours > 0):
-        raise ConfigError(f"expected a number of hours > 0, got {hours!r}", key="hours")
-    if transitions is not None and (isinstance(transitions, bool) or int(transitions) != transitions
-                                    or transitions < 1):
-        raise ConfigError(f"expected a whole number >= 1, got {transitions!r}", key="transitions")
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-        raise ConfigError(f"expected a whole number >= 1, got {workers!r}", key="workers")
-    if workers > 999:
-        raise ConfigError(f"at most 999 workers, got {workers}", key="workers")
-    if transitions is not None and transitions < workers:
-        raise ConfigError(
-            f"{transitions} transitions cannot be split over {workers} workers", key="workers",
-            fix="use fewer workers or more transitions",
-        )
-    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
-        raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
-    if isinstance(part_size, bool) or int(part_size) != part_size or part_size < 1:
-        raise ConfigError(f"expected a whole number >= 1, got {part_size!r}", key="part_size")
-    if backend not in BACKENDS:
-        raise ConfigError(f"unknown backend {backend!r}", key="backend",
-                          fix=f"choose one of {', '.join(BACKENDS)}")
-    if backend == "local" and address is not None:
-        raise ConfigError("--address applies to the ray backend only", key="address",
-                          fix="add --backend ray or drop --address")
-    if backend == "ray" and importlib.util.find_spec("ray") is None:
-        raise ConfigError("the ray backend needs Ray", key="backend",
-                          fix='pip install "simlab[ray]", or use --backend local')
-    if simulator not in SIMULATORS:
-        raise ConfigError(f"unknown simulator {simulator!r}", key="simulator",
-                          fix=f"choose one of {', '.join(SIMULATORS)}")
 
 
 def _split_transitions(total: int, workers: int) -> list[int]:
@@ -312,53 +277,135 @@ def _part_table(result: PartResult, step0: int, discretizer: Any, pose_source: s
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
-def collect(
-    arena: Any = "table",
-    states: Any = None,
-    *,
-    out: str | os.PathLike[str],
-    hours: float | None = None,
-    transitions: int | None = None,
-    seed: int = 0,
-    workers: int = 1,
-    resume: bool = False,
-    backend: str = "local",
-    address: str | None = None,
-    part_size: int = DEFAULT_PART_SIZE,
-    pose_source: str = "truth",
-    simulator: str = "physics",
-    params: Any = None,
-    pose_source_options: dict[str, Any] | None = None,
-    progress: bool = True,
-) -> CollectResult:
+@dataclass(frozen=True, kw_only=True)
+class CollectConfig(PrimitiveOptions):
+    """Options of ``simlab collect`` / :func:`collect` (one budget: ``hours`` or
+    ``transitions``). The primitive options (:class:`PrimitiveOptions`) and ``params``
+    are two ways to give the primitive parameters: the flags for the command line,
+    ``params`` (a ``PrimitiveParams``, ``KinematicParams`` or a ``[primitives]`` TOML
+    path) from Python; giving both is refused."""
+
+    COMMAND = "collect"
+    ARGUMENTS = ("arena", "states")
+
+    arena: Any = option("table", "built-in arena name or .toml path")
+    states: Any | None = option(None, "states file written by `simlab discretize` (JSON) "
+                         "(required)")
+    out: Path = option(help="dataset directory (new or empty)")
+    hours: float | None = option(
+        None, "total simulated robot time in hours, split over the workers (or --transitions)")
+    transitions: int | None = option(None, "total number of transitions (or --hours)")
+    seed: int = option(0, "root seed")
+    workers: int = option(1, "parallel walks, one arena per process")
+    resume: bool = option(False, "continue an interrupted collection in --out")
+    backend: str = option("local", "local process pool or Ray tasks", choices=BACKENDS)
+    address: str | None = option(
+        None, "Ray cluster address (ray backend; default: start Ray locally)")
+    part_size: int = option(DEFAULT_PART_SIZE, "transitions per part file")
+    pose_source: str = option("truth", "poses that are recorded and discretized",
+                              choices=("truth", "odometry", "mcl"))
+    simulator: str = option("physics", "physics (PyBullet) or kinematic (physics-free "
+                            "dry run)", choices=SIMULATORS)
+    params: Any | None = option(None, "PrimitiveParams / KinematicParams / [primitives] TOML path "
+                         "(Python and TOML only; default: the simulator's defaults)", cli=False)
+    pose_source_options: Any | None = option(None, "keyword arguments of the pose source factory",
+                                      cli=False)
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        if self.states is None:
+            raise ConfigError("a states file is required", key="states",
+                              fix="--states states.json (written by `simlab discretize`)")
+        if (self.hours is None) == (self.transitions is None):
+            raise ConfigError("give exactly one budget: --hours H or --transitions N",
+                              key="budget")
+        if self.hours is not None:
+            v.positive(self.hours, "hours")
+        if self.transitions is not None:
+            v.whole(self.transitions, "transitions", minimum=1)
+        v.whole(self.workers, "workers", minimum=1, maximum=999)
+        if self.transitions is not None and self.transitions < self.workers:
+            raise ConfigError(
+                f"{self.transitions} transitions cannot be split over {self.workers} workers",
+                key="workers", fix="use fewer workers or more transitions")
+        v.whole(self.seed, "seed")
+        v.whole(self.part_size, "part_size", minimum=1)
+        self._check_backend()
+        check_pose_source(self.pose_source, self.simulator)
+        if self.primitive_options_given:
+            if self.simulator == "kinematic":
+                raise ConfigError("primitive settings apply to the physics simulator only",
+                                  key="--primitives",
+                                  fix="drop them or use --simulator physics")
+            if self.params is not None:
+                raise ConfigError("give the primitive parameters once: params or the "
+                                  "primitive options", key="params")
+
+    def _check_backend(self) -> None:
+        if self.backend == "local" and self.address is not None:
+            raise ConfigError("--address applies to the ray backend only", key="address",
+                              fix="add --backend ray or drop --address")
+        if self.backend == "ray" and importlib.util.find_spec("ray") is None:
+            raise ConfigError("the ray backend needs Ray", key="backend",
+                              fix='pip install "simlab[ray]", or use --backend local')
+
+    def resolved_params(self) -> Any:
+        """The primitive parameters the walkers use (see the class docstring)."""
+        if self.primitive_options_given:
+            return self.primitive_params()
+        if self.params is None:
+            return _default_params(self.simulator)
+        if isinstance(self.params, str | os.PathLike):  # a [primitives] TOML file
+            from simlab.physics.motion import PrimitiveParams
+
+            return PrimitiveParams.from_toml(self.params)
+        return self.params
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What every part of one collection shares (built once by :func:`collect`)."""
+
+    cfg: CollectConfig
+    out: Path
+    disc: Any
+    schema: pa.Schema
+    spec: WalkSpec
+    per_worker: list[int] | None
+    t_budget: float | None
+
+
+@command(CollectConfig)
+def collect(cfg: CollectConfig) -> CollectResult:
     """Collect an epsilon = 1 random-walk transition dataset into the directory ``out``.
 
-    Args:
-        arena: built-in arena name, ``.toml`` path or an ``ArenaConfig``.
-        states: states file of ``simlab discretize`` (JSON) or a discretizer object
-            (``state_of(xy (N, 2)) -> (N,)``, ``n_states``, ``centres``,
-            ``content_hash()``).
-        out: dataset directory; must be empty or absent unless ``resume``.
-        hours: total simulated robot time (h), split evenly over the workers.
-        transitions: total number of transitions instead of ``hours``.
-        seed: root seed; worker ``w``, part ``p`` draw from
-            ``SeedSequence(seed, spawn_key=(w, p))``.
-        workers: independent walks, one arena (process) each.
-        resume: continue the collection already in ``out`` (see the module docstring).
-        backend: ``"local"`` (process pool; in-process for one worker) or ``"ray"``.
-        address: Ray cluster address (``ray`` backend); default: local Ray.
-        part_size: transitions per part file (the unit of crash loss and resumption).
-        pose_source: ``"truth"``, ``"odometry"`` or ``"mcl"`` — the poses recorded and
-            discretized (truth columns are added when it is not ``truth``).
-        simulator: ``"physics"`` (PyBullet) or ``"kinematic"`` (physics-free point robot
-            for dry runs; see :class:`~simlab.data.walkers.KinematicWalker`).
-        params: ``PrimitiveParams`` (physics) or ``KinematicParams``; default values if None.
-            Recorded complete in ``manifest["parameters"]["primitive"]``
-            (``PrimitiveParams.from_json`` or
-            :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
-            ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
-        pose_source_options: keyword arguments for the pose source factory.
-        progress: show a tqdm bar with transitions/s and simulated hours per wall second.
+    Takes a :class:`CollectConfig` or its fields as arguments (``collect("table",
+    "states.json", out=..., hours=1.0)``). The fields:
+
+    * ``arena``: built-in arena name, ``.toml`` path or an ``ArenaConfig``.
+    * ``states``: states file of ``simlab discretize`` (JSON) or a discretizer object
+      (``state_of(xy (N, 2)) -> (N,)``, ``n_states``, ``centres``, ``content_hash()``).
+    * ``out``: dataset directory; must be empty or absent unless ``resume``.
+    * ``hours``: total simulated robot time (h), split evenly over the workers;
+      ``transitions``: total number of transitions instead.
+    * ``seed``: root seed; worker ``w``, part ``p`` draw from
+      ``SeedSequence(seed, spawn_key=(w, p))``.
+    * ``workers``: independent walks, one arena (process) each.
+    * ``resume``: continue the collection already in ``out`` (see the module docstring).
+    * ``backend``: ``"local"`` (process pool; in-process for one worker) or ``"ray"``;
+      ``address``: Ray cluster address (default: local Ray).
+    * ``part_size``: transitions per part file (the unit of crash loss and resumption).
+    * ``pose_source``: ``"truth"``, ``"odometry"`` or ``"mcl"`` — the poses recorded and
+      discretized (truth columns are added when it is not ``truth``).
+    * ``simulator``: ``"physics"`` (PyBullet) or ``"kinematic"`` (physics-free point robot
+      for dry runs; see :class:`~simlab.data.walkers.KinematicWalker`).
+    * ``params`` or the primitive options: see :meth:`CollectConfig.resolved_params`.
+      Recorded complete in ``manifest["parameters"]["primitive"]``
+      (``PrimitiveParams.from_json`` or
+      :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
+      ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
+    * ``pose_source_options``: keyword arguments for the pose source factory.
+    * ``progress``: show a tqdm bar with transitions/s and simulated hours per wall second.
 
     Returns:
         A :class:`CollectResult`.
@@ -368,128 +415,24 @@ def collect(
             options that differ from the dataset's (naming the field).
         DataError: a listed part is missing, truncated or corrupted (naming the file).
     """
-    _check_inputs(hours, transitions, seed, workers, part_size, backend, address, simulator)
-    check_pose_source(pose_source, simulator)
     wall0 = time.perf_counter()
-    out = Path(out)
-    arena_cfg = load_arena_config(arena)
-    disc = load_discretizer(states)
-    params = _default_params(simulator) if params is None else params
-    if isinstance(params, str | os.PathLike):  # a [primitives] TOML file
-        from simlab.physics.motion import PrimitiveParams
-
-        params = PrimitiveParams.from_toml(params)
-    from simlab import __version__
-
-    per_worker = None if transitions is None else _split_transitions(int(transitions), workers)
-    t_budget = None if hours is None else float(hours) * 3600.0 / workers
-    schema = transition_schema(pose_source)
-    parameters = _jsonable({
-        "epsilon": 1.0,
-        "n_actions": N_ACTIONS,
-        "hours": None if hours is None else float(hours),
-        "transitions": None if transitions is None else int(transitions),
-        "seconds_per_worker": t_budget,
-        "transitions_per_worker": per_worker,
-        "part_size": int(part_size),
-        "primitive": params.to_json() if hasattr(params, "to_json") else params,
-        "pose_source_options": pose_source_options or {},
-    })
-    centres = np.asarray(disc.centres, dtype=np.float64)
-    from simlab.statecheck import check_centres_in_arena
-
-    check_centres_in_arena(centres, arena_cfg,
-                           source=str(states) if isinstance(states, str | os.PathLike) else None)
-    manifest = new_manifest(
-        simlab_version=__version__,
-        arena=_arena_info(arena_cfg),
-        robot=_robot_info(simulator),
-        simulator=simulator,
-        pose_source=pose_source,
-        discretizer={
-            "hash": disc.content_hash(),
-            "n_states": int(disc.n_states),
-            "centres": centres.tolist(),
-        },
-        seed=int(seed),
-        workers=int(workers),
-        parameters=parameters,
-        schema=schema_to_json(schema),
-    )
-    manifest["sources"] = {
-        "arena_file": getattr(arena_cfg, "source", None),
-        "states_file": None if not isinstance(states, str | os.PathLike) else str(states),
-    }
-    manifest = _jsonable(manifest)
+    out = Path(cfg.out)
+    arena_cfg = load_arena_config(cfg.arena)
+    disc = load_discretizer(cfg.states)
+    params = cfg.resolved_params()
+    per_worker = None if cfg.transitions is None else _split_transitions(
+        int(cfg.transitions), cfg.workers)
+    t_budget = None if cfg.hours is None else float(cfg.hours) * 3600.0 / cfg.workers
+    schema = transition_schema(cfg.pose_source)
+    manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget)
     # One run per directory: a second collect on the same --out stops here.
     with exclusive_directory(out, what="dataset directory"):
-        manifest = _prepare_directory(out, manifest, resume)
-        wstates = _worker_states(manifest, workers, per_worker, out)
+        manifest = _prepare_directory(out, manifest, cfg.resume)
+        run = _Run(cfg=cfg, out=out, disc=disc, schema=schema, per_worker=per_worker,
+                   t_budget=t_budget, spec=_walk_spec(cfg, manifest, arena_cfg, disc, params))
+        wstates = _worker_states(manifest, cfg.workers, per_worker, out)
         orphans = _orphans(out, manifest)
-
-        key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
-                             sort_keys=True) + repr(params) + repr(pose_source_options)
-        spec = WalkSpec(
-            key=hashlib.sha256(key_src.encode()).hexdigest(),
-            simulator=simulator,
-            arena=arena_cfg,
-            params=params,
-            pose_source=pose_source,
-            pose_source_options=dict(pose_source_options or {}),
-            discretizer=disc if getattr(params, "mode", "fixed") == "until_state_change" else None,
-        )
-
-        def job_for(w: int) -> PartJob:
-            st = wstates[w]
-            return PartJob(spec=spec, seed=int(seed), worker=w, part=st.next_part, t0=st.t,
-                           pose0=st.pose, part_size=int(part_size), remaining=st.remaining,
-                           t_budget=t_budget)
-
-        done_rows = sum(int(e["rows"]) for e in manifest["parts"])
-        bar = _Progress(progress, transitions=transitions, hours=hours, done_rows=done_rows,
-                        done_seconds=sum(st.t for st in wstates))
-        written = 0
-        peak_rss = 0.0
-        cpu = [0.0] * workers
-        pending = [w for w in range(workers) if not wstates[w].done]
-        if pending:
-            runner = make_backend(backend, len(pending), address)
-            try:
-                handles = {runner.submit(job_for(w)): w for w in pending}
-                while handles:
-                    for handle, result in runner.wait(list(handles)):
-                        del handles[handle]
-                        w = result.worker
-                        st = wstates[w]
-                        table = _part_table(result, st.step, disc, pose_source, schema)
-                        entry = write_part(out, w, result.part, table, disc.content_hash())
-                        orphans.discard(entry["file"])
-                        entry.update(t_end=result.t_end, pose_end=list(result.pose_end),
-                                     final=result.final)
-                        manifest["parts"].append(entry)
-                        manifest["parts"].sort(key=lambda e: (e["worker"], e["part"]))
-                        st.next_part += 1
-                        st.step += result.rows
-                        sim_delta = result.t_end - st.t
-                        st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
-                        if st.remaining is not None:
-                            st.remaining -= result.rows
-                        manifest["complete"] = all(s.done for s in wstates)
-                        write_manifest(out, manifest)
-                        written += 1
-                        peak_rss = max(peak_rss, result.peak_rss_mb)
-                        cpu[w] += result.cpu_seconds
-                        bar.update(result.rows, sim_delta)
-                        if not st.done:
-                            handles[runner.submit(job_for(w))] = w
-            finally:
-                runner.close()
-                bar.close()
-        else:
-            bar.close()
-            if not manifest["complete"]:
-                manifest["complete"] = True
-                write_manifest(out, manifest)
+        written, peak_rss, cpu = _run_parts(run, manifest, wstates, orphans)
         for name in orphans:  # left by a run killed at a point this run never reached
             (out / name).unlink(missing_ok=True)
         return CollectResult(
@@ -503,6 +446,133 @@ def collect(
             complete=bool(manifest["complete"]),
             worker_cpu_seconds=tuple(cpu),
         )
+
+
+def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
+                  schema: pa.Schema, per_worker: list[int] | None,
+                  t_budget: float | None) -> dict[str, Any]:
+    """The manifest this run writes (or checks a resumed directory's against)."""
+    from simlab import __version__
+    from simlab.statecheck import check_centres_in_arena
+
+    states = cfg.states
+    parameters = _jsonable({
+        "epsilon": 1.0,
+        "n_actions": N_ACTIONS,
+        "hours": None if cfg.hours is None else float(cfg.hours),
+        "transitions": None if cfg.transitions is None else int(cfg.transitions),
+        "seconds_per_worker": t_budget,
+        "transitions_per_worker": per_worker,
+        "part_size": int(cfg.part_size),
+        "primitive": params.to_json() if hasattr(params, "to_json") else params,
+        "pose_source_options": cfg.pose_source_options or {},
+    })
+    centres = np.asarray(disc.centres, dtype=np.float64)
+    check_centres_in_arena(centres, arena_cfg,
+                           source=str(states) if isinstance(states, str | os.PathLike) else None)
+    manifest = new_manifest(
+        simlab_version=__version__,
+        arena=_arena_info(arena_cfg),
+        robot=_robot_info(cfg.simulator),
+        simulator=cfg.simulator,
+        pose_source=cfg.pose_source,
+        discretizer={
+            "hash": disc.content_hash(),
+            "n_states": int(disc.n_states),
+            "centres": centres.tolist(),
+        },
+        seed=int(cfg.seed),
+        workers=int(cfg.workers),
+        parameters=parameters,
+        schema=schema_to_json(schema),
+    )
+    manifest["sources"] = {
+        "arena_file": getattr(arena_cfg, "source", None),
+        "states_file": None if not isinstance(states, str | os.PathLike) else str(states),
+    }
+    return _jsonable(manifest)
+
+
+def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, disc: Any,
+               params: Any) -> WalkSpec:
+    """What every part's walker is built from; ``key`` names it for the worker caches."""
+    key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
+                         sort_keys=True) + repr(params) + repr(cfg.pose_source_options)
+    return WalkSpec(
+        key=hashlib.sha256(key_src.encode()).hexdigest(),
+        simulator=cfg.simulator,
+        arena=arena_cfg,
+        params=params,
+        pose_source=cfg.pose_source,
+        pose_source_options=dict(cfg.pose_source_options or {}),
+        discretizer=disc if getattr(params, "mode", "fixed") == "until_state_change" else None,
+    )
+
+
+def _job_for(run: _Run, st: _WorkerState, w: int) -> PartJob:
+    return PartJob(spec=run.spec, seed=int(run.cfg.seed), worker=w, part=st.next_part,
+                   t0=st.t, pose0=st.pose, part_size=int(run.cfg.part_size),
+                   remaining=st.remaining, t_budget=run.t_budget)
+
+
+def _run_parts(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState],
+               orphans: set[str]) -> tuple[int, float, list[float]]:
+    """Compute the missing parts, writing each with the manifest listing it.
+
+    Returns (parts written, peak worker RSS in MiB, CPU seconds per worker)."""
+    cfg = run.cfg
+    done_rows = sum(int(e["rows"]) for e in manifest["parts"])
+    bar = _Progress(cfg.progress, transitions=cfg.transitions, hours=cfg.hours,
+                    done_rows=done_rows, done_seconds=sum(st.t for st in wstates))
+    written, peak_rss, cpu = 0, 0.0, [0.0] * cfg.workers
+    pending = [w for w in range(cfg.workers) if not wstates[w].done]
+    if not pending:
+        bar.close()
+        if not manifest["complete"]:
+            manifest["complete"] = True
+            write_manifest(run.out, manifest)
+        return written, peak_rss, cpu
+    runner = make_backend(cfg.backend, len(pending), cfg.address)
+    try:
+        handles = {runner.submit(_job_for(run, wstates[w], w)): w for w in pending}
+        while handles:
+            for handle, result in runner.wait(list(handles)):
+                del handles[handle]
+                w = result.worker
+                st = wstates[w]
+                sim_delta = _record_part(run, manifest, wstates, result, orphans)
+                written += 1
+                peak_rss = max(peak_rss, result.peak_rss_mb)
+                cpu[w] += result.cpu_seconds
+                bar.update(result.rows, sim_delta)
+                if not st.done:
+                    handles[runner.submit(_job_for(run, st, w))] = w
+    finally:
+        runner.close()
+        bar.close()
+    return written, peak_rss, cpu
+
+
+def _record_part(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState],
+                 result: PartResult, orphans: set[str]) -> float:
+    """Write one finished part, then the manifest listing it; advance its worker's state.
+    Returns the simulated seconds the part covered."""
+    st = wstates[result.worker]
+    table = _part_table(result, st.step, run.disc, run.cfg.pose_source, run.schema)
+    entry = write_part(run.out, result.worker, result.part, table, run.disc.content_hash())
+    orphans.discard(entry["file"])
+    entry.update(t_end=result.t_end, pose_end=list(result.pose_end), final=result.final)
+    manifest["parts"].append(entry)
+    manifest["parts"].sort(key=lambda e: (e["worker"], e["part"]))
+    st.next_part += 1
+    st.step += result.rows
+    sim_delta = result.t_end - st.t
+    st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
+    if st.remaining is not None:
+        st.remaining -= result.rows
+    manifest["complete"] = all(s.done for s in wstates)
+    write_manifest(run.out, manifest)
+    return sim_delta
 
 
 class _Progress:

@@ -6,7 +6,7 @@ it ``visited[s, a] = False``, so every row of T is a distribution and a planner 
 an untried action as "nothing happens" (agents that want optimism, e.g. R-max, use
 ``visited``). Eq. 1.14, ``R(s, a) = sum_i r_i / n(s, a)``, is computed per goal with
 the reward of the physics task, r = 1 when s' lies in the goal area
-(:meth:`EmpiricalMDP.rewards`; 0 for unvisited pairs).
+(:meth:`CountModel.rewards`; 0 for unvisited pairs).
 
 **Unvisited pairs for planners** (issue 12): the self-loop keeps T a distribution, but a
 planner must not read "never tried" as "a free stay". The rule stored in the model's
@@ -40,11 +40,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab.actions import SIMLAB16, ActionSet, parse_action_set
+from simlab import validation
+from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions
 from simlab.data.inputs import load_arena_config, load_discretizer
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError
 from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
+from simlab.options import command, option
 
 #: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
 HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)
@@ -140,8 +142,11 @@ def _nanmean(values: NDArray[np.float64]) -> float:
 
 
 @dataclass(frozen=True)
-class EmpiricalMDP:
-    """Counts and the estimated model (arrays are read-only views of the inputs).
+class CountModel:
+    """Counts and the model estimated from them (arrays are read-only views of the inputs).
+
+    What :func:`estimate` computes before writing ``mdp.npz``; not the validated
+    :class:`simlab.data.mdp.EmpiricalMDP` that training and replay load from that file.
 
     Attributes:
         counts: n(s, a, s') ``(S, A, S)`` int64.
@@ -201,7 +206,7 @@ class EmpiricalMDP:
         return out
 
 
-def empirical_mdp(counts: ArrayLike) -> EmpiricalMDP:
+def empirical_mdp(counts: ArrayLike) -> CountModel:
     """Estimate T, visited and entropy from counts ``(S, A, S)`` (see the module docstring)."""
     c = np.asarray(counts)
     if not np.issubdtype(c.dtype, np.integer):
@@ -209,10 +214,10 @@ def empirical_mdp(counts: ArrayLike) -> EmpiricalMDP:
             raise ValueError("counts: expected whole numbers")
     c = c.astype(np.int64)
     T, visited = transition_matrix(c)
-    return EmpiricalMDP(counts=c, T=T, visited=visited, entropy=entropy_bits(T))
+    return CountModel(counts=c, T=T, visited=visited, entropy=entropy_bits(T))
 
 
-def coverage_report(mdp: EmpiricalMDP, *, max_listed: int | None = None) -> dict[str, Any]:
+def coverage_report(mdp: CountModel, *, max_listed: int | None = None) -> dict[str, Any]:
     """Coverage: visited pairs, unvisited (s, a) list, n(s, a) histogram and quantiles."""
     n_sa = mdp.n_sa
     edges = list(HISTOGRAM_EDGES)
@@ -244,7 +249,7 @@ def coverage_report(mdp: EmpiricalMDP, *, max_listed: int | None = None) -> dict
 class EstimateResult:
     """What :func:`estimate` produced: the model, the output paths and the summary."""
 
-    mdp: EmpiricalMDP
+    mdp: CountModel
     npz: Path
     summary_path: Path
     plot: Path | None
@@ -276,42 +281,92 @@ def _floats(values: NDArray[np.float64]) -> list[float | None]:
     return [_finite(v) for v in values]
 
 
-def estimate(
-    dataset: str | os.PathLike[str] | None = None,
-    out: str | os.PathLike[str] = "mdp.npz",
-    *,
-    counts: str | os.PathLike[str] | None = None,
-    arena: Any = None,
-    states: Any = None,
-    n_states: int | None = None,
-    n_actions: int = N_ACTIONS,
-    plot: bool = True,
-    overwrite: bool = False,
-    action_set: ActionSet | None = None,
-    unvisited: str = "mask",
-) -> EstimateResult:
+@dataclass(frozen=True, kw_only=True)
+class EstimateConfig(ActionSetOptions):
+    """Options of ``simlab estimate`` / :func:`estimate`. The action-set group
+    (:class:`~simlab.actions.ActionSetOptions`) and ``action_set`` (an
+    :class:`~simlab.actions.ActionSet`, from Python) describe a count table only; a dataset
+    records its own (decision: the group is refused for a dataset, as the CLI always did)."""
+
+    COMMAND = "estimate"
+    ARGUMENTS = ("dataset", "out")
+
+    dataset: Path | None = option(None, "dataset directory written by `simlab collect`",
+                                  positional=True)
+    out: Path = option(help="model file mdp.npz (summary .json and _entropy.png beside it)")
+    counts: Path | None = option(
+        None, "instead of a dataset: CSV/JSON table with s, a, s_next, count")
+    arena: Any | None = option(
+        None, "arena whose goals define goal_masks (default: the dataset's)")
+    states: Any | None = option(
+        None, "states file: S and centres for --counts; checked against a dataset")
+    n_states: int | None = option(None, "number of states for --counts without --states")
+    unvisited: str = option("mask", "unvisited (s, a): mask = planners never choose them; "
+                            "self-loop = the old rule, a free stay")
+    plot: bool = option(True, "the entropy bar plot (--no-plot skips it)")
+    overwrite: bool = option(False, "replace existing outputs")
+    action_set: Any | None = option(None, "ActionSet of a count table (Python only)", cli=False)
+
+    def validate(self) -> None:
+        if (self.dataset is None) == (self.counts is None):
+            raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
+                              key="source")
+        check_unvisited_rule(self.unvisited)
+        if self.action_set is not None and not isinstance(self.action_set, ActionSet):
+            raise ConfigError(f"expected an ActionSet, got {self.action_set!r}",
+                              key="action_set")
+        if self.action_set_given and (self.dataset is not None or self.action_set is not None):
+            raise ConfigError("--n-actions/--convention/--speed describe a --counts table; a "
+                              "dataset records its own action set", key="n_actions",
+                              fix="drop them, or re-import the data with the right convention")
+        if self.n_actions is not None or self.convention != "simlab":
+            self.make_action_set(N_ACTIONS)  # a bad convention names its field here
+        if self.n_states is not None:
+            validation.whole(self.n_states, "n_states", minimum=1)
+        output_paths(self.out)
+
+    def table_action_set(self) -> ActionSet:
+        """The action set of a count table: ``action_set``, else the group's fields."""
+        return self.action_set if self.action_set is not None else self.make_action_set(N_ACTIONS)
+
+
+@dataclass
+class _Source:
+    """What the dataset or the count table gives the model (arrays as loaded)."""
+
+    counts: NDArray[np.int64]
+    action_set: ActionSet
+    summary: dict[str, Any]
+    states_hash: str | None = None
+    centres: NDArray[np.float64] | None = None
+    goals: Any = None
+    bounds: list[float] | None = None
+    blocked_by_action: NDArray[np.float64] | None = None
+
+
+@command(EstimateConfig)
+def estimate(cfg: EstimateConfig) -> EstimateResult:
     """Estimate the empirical MDP of a dataset directory or an external count table.
 
-    Args:
-        dataset: a directory written by ``simlab collect`` (validated: checksums,
-            schema, discretizer). Its manifest supplies S, the centres and the goals.
-        out: the model file ``*.npz``; the JSON summary and the entropy plot go beside
-            it (``mdp.json``, ``mdp_entropy.png``). Must not lie inside ``dataset``.
-        counts: instead of ``dataset``, a CSV/JSON count table (:mod:`simlab.data.counts`).
-        arena: arena name/path/``ArenaConfig`` whose goals define ``goal_masks``
-            (default for a dataset: the goals recorded in its manifest).
-        states: states file or discretizer: S and the centres for a count table; for a
-            dataset, its hash must equal the manifest's (else DataError).
-        n_states: S for a count table without ``states`` (default: largest index + 1).
-        n_actions: A for a count table (16 motion primitives) when ``action_set`` is None
-            (then simlab's numbering; 8 actions means the slow speed).
-        plot: write the mean-entropy-per-action bar plot (thesis Fig. 4.8).
-        overwrite: replace existing output files.
-        action_set: what the action indices mean. A count table takes it as given; a
-            dataset carries its own (``TransitionDataset.action_set``, SIMLAB16 for
-            datasets without one) and a different ``action_set`` is refused.
-        unvisited: rule for unvisited (s, a), ``mask`` (default) or ``self-loop``,
-            stored in the model's metadata (module docstring).
+    Takes an :class:`EstimateConfig` or its fields (``estimate(dataset, out, plot=False)``):
+
+    * ``dataset``: a directory written by ``simlab collect`` (validated: checksums,
+      schema, discretizer). Its manifest supplies S, the centres and the goals.
+    * ``out``: the model file ``*.npz``; the JSON summary and the entropy plot go beside
+      it (``mdp.json``, ``mdp_entropy.png``). Must not lie inside ``dataset``.
+    * ``counts``: instead of ``dataset``, a CSV/JSON count table (:mod:`simlab.data.counts`).
+    * ``arena``: arena name/path/``ArenaConfig`` whose goals define ``goal_masks``
+      (default for a dataset: the goals recorded in its manifest).
+    * ``states``: states file or discretizer: S and the centres for a count table; for a
+      dataset, its hash must equal the manifest's (else DataError).
+    * ``n_states``: S for a count table without ``states`` (default: largest index + 1).
+    * ``n_actions``/``convention``/``speed`` or ``action_set``: what the action indices of
+      a count table mean (default simlab's 16 primitives). A dataset carries its own
+      (``TransitionDataset.action_set``, SIMLAB16 for datasets without one).
+    * ``plot``: write the mean-entropy-per-action bar plot (thesis Fig. 4.8).
+    * ``overwrite``: replace existing output files.
+    * ``unvisited``: rule for unvisited (s, a), ``mask`` (default) or ``self-loop``,
+      stored in the model's metadata (module docstring).
 
     Returns:
         :class:`EstimateResult`. The npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
@@ -321,112 +376,119 @@ def estimate(
         with a known arena ``bounds`` (4,) ``x_min, y_min, x_max, y_max`` m; and
         ``meta_json`` (JSON: ``action_set``, ``unvisited``).
     """
-    from simlab.data.goals import goal_state_masks, goals_from_manifest
-
-    if (dataset is None) == (counts is None):
-        raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
-                          key="source")
-    check_unvisited_rule(unvisited)
-    npz_path, summary_path, plot_path = output_paths(out)
-    if dataset is not None and _inside(npz_path, Path(dataset)):
+    npz_path, summary_path, plot_path = output_paths(cfg.out)
+    if cfg.dataset is not None and _inside(npz_path, Path(cfg.dataset)):
         raise ConfigError(
             "the model must not be written inside the dataset directory (Parquet readers "
             "of the directory would choke on it)", path=npz_path,
             fix="choose --out outside the dataset, e.g. beside it",
         )
-    for p in (npz_path, summary_path, *((plot_path,) if plot else ())):
-        ensure_new(p, overwrite=overwrite)
+    for p in (npz_path, summary_path, *((plot_path,) if cfg.plot else ())):
+        ensure_new(p, overwrite=cfg.overwrite)
+    disc = None if cfg.states is None else load_discretizer(cfg.states)
+    arena_cfg = None if cfg.arena is None else load_arena_config(cfg.arena)
+    src = _from_dataset(cfg, disc, arena_cfg) if cfg.dataset is not None else \
+        _from_counts(cfg, disc, arena_cfg)
+    mdp = empirical_mdp(src.counts)
+    arrays, goal_info = _model_arrays(mdp, src, cfg.unvisited)
+    summary = _summary(mdp, src, cfg.unvisited, goal_info)
+    summary["files"] = {"npz": str(npz_path), "summary": str(summary_path),
+                        "plot": str(plot_path) if cfg.plot else None}
+    _write_outputs(cfg, mdp, arrays, summary, (npz_path, summary_path, plot_path))
+    return EstimateResult(mdp=mdp, npz=npz_path, summary_path=summary_path,
+                          plot=plot_path if cfg.plot else None, summary=summary)
 
-    disc = None
-    if states is not None:
-        disc = load_discretizer(states)
-    arena_cfg = None
-    if arena is not None:
-        arena_cfg = load_arena_config(arena)
 
-    summary: dict[str, Any] = {}
-    centres = None
-    goals: Any = None
+def _from_dataset(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
+    """Counts, action set, centres, goals and blocked fractions of a dataset directory."""
+    from simlab.data.dataset import open_dataset
+    from simlab.data.goals import goals_from_manifest
+
+    dataset = cfg.dataset
+    ds = open_dataset(dataset, validate=True,
+                      expected_discretizer=None if disc is None else disc.content_hash())
+    S, A = ds.n_states, ds.n_actions
+    action_set = getattr(ds, "action_set", None) or SIMLAB16
+    if cfg.action_set is not None and cfg.action_set != action_set:
+        raise ConfigError(
+            f"the dataset records {action_set.describe()}, not {cfg.action_set.describe()}",
+            path=dataset, key="action_set",
+            fix="leave --n-actions/--convention/--speed out for a dataset")
+    if action_set.n_actions != A:
+        raise ConfigError(f"the dataset has {A} actions but records "
+                          f"{action_set.describe()}", path=dataset, key="action_set")
+    ds.warn_if_incomplete("the model")
+    a_col = ds.column("a")
+    arena = ds.manifest["arena"]
     bounds = None if arena_cfg is None else [float(v) for v in arena_cfg.bounds]
-    blocked_by_action = None
-    if dataset is not None:
-        from simlab.data.dataset import open_dataset
+    if bounds is None and arena.get("bounds") is not None:
+        bounds = [float(v) for v in arena["bounds"]]
+    tries = np.bincount(a_col, minlength=A)
+    hits = np.bincount(a_col, weights=ds.column("blocked").astype(np.float64), minlength=A)
+    parts = ds.manifest["parts"]
+    source = {
+        "dataset": str(Path(dataset)),
+        "arena": arena["name"],
+        "simulator": ds.manifest.get("simulator"),
+        "pose_source": ds.manifest["pose_source"],
+        "discretizer_hash": ds.discretizer_hash,
+        "seed": ds.manifest["seed"],
+        "workers": ds.manifest["workers"],
+        "complete": ds.manifest.get("complete"),
+        "simulated_hours": float(
+            sum(max((e["t_end"] for e in parts if e["worker"] == w), default=0.0)
+                for w in range(int(ds.manifest["workers"])))) / 3600.0,
+    }
+    return _Source(
+        counts=count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A),
+        action_set=action_set, summary={"source": source},
+        states_hash=ds.discretizer_hash, centres=ds.centres,
+        goals=arena_cfg if arena_cfg is not None else goals_from_manifest(
+            arena.get("goals", [])),
+        bounds=bounds,
+        blocked_by_action=np.divide(hits, tries, out=np.full(A, np.nan), where=tries > 0))
 
-        ds = open_dataset(dataset, validate=True,
-                          expected_discretizer=None if disc is None else disc.content_hash())
-        S, A = ds.n_states, ds.n_actions
-        ds_actions = getattr(ds, "action_set", None) or SIMLAB16
-        if action_set is not None and action_set != ds_actions:
-            raise ConfigError(
-                f"the dataset records {ds_actions.describe()}, not {action_set.describe()}",
-                path=dataset, key="action_set",
-                fix="leave --n-actions/--convention/--speed out for a dataset")
-        action_set = ds_actions
-        if action_set.n_actions != A:
-            raise ConfigError(f"the dataset has {A} actions but records "
-                              f"{action_set.describe()}", path=dataset, key="action_set")
-        ds.warn_if_incomplete("the model")
-        states_hash = ds.discretizer_hash
-        a_col = ds.column("a")
-        c = count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A)
-        centres = ds.centres
-        goals = arena_cfg if arena_cfg is not None else goals_from_manifest(
-            ds.manifest["arena"].get("goals", []))
-        if bounds is None and ds.manifest["arena"].get("bounds") is not None:
-            bounds = [float(v) for v in ds.manifest["arena"]["bounds"]]
-        blocked = ds.column("blocked")
-        tries = np.bincount(a_col, minlength=A)
-        hits = np.bincount(a_col, weights=blocked.astype(np.float64), minlength=A)
-        blocked_by_action = np.divide(hits, tries, out=np.full(A, np.nan), where=tries > 0)
-        summary["source"] = {
-            "dataset": str(Path(dataset)),
-            "arena": ds.manifest["arena"]["name"],
-            "simulator": ds.manifest.get("simulator"),
-            "pose_source": ds.manifest["pose_source"],
-            "discretizer_hash": ds.discretizer_hash,
-            "seed": ds.manifest["seed"],
-            "workers": ds.manifest["workers"],
-            "complete": ds.manifest.get("complete"),
-            "simulated_hours": float(
-                sum(max((e["t_end"] for e in ds.manifest["parts"] if e["worker"] == w),
-                        default=0.0) for w in range(int(ds.manifest["workers"])))) / 3600.0,
-        }
-    else:
-        from simlab.data.counts import load_counts
 
-        if disc is not None and n_states is not None and int(n_states) != disc.n_states:
-            raise ConfigError(
-                f"--n-states {n_states} disagrees with the states file ({disc.n_states} states)",
-                key="n_states",
-            )
-        S_given = disc.n_states if disc is not None else n_states
-        if action_set is None:
-            action_set = SIMLAB16 if int(n_actions) == 16 else parse_action_set(n_actions)
-        n_actions = action_set.n_actions
-        table = load_counts(counts, n_states=S_given, n_actions=n_actions)  # type: ignore[arg-type]
-        c = table.counts
-        if disc is not None:
-            centres = np.asarray(disc.centres, dtype=np.float64)
-        goals = arena_cfg
-        summary["source"] = {
-            "counts": str(Path(counts)),  # type: ignore[arg-type]
-            "format": table.format,
-            "rows": table.rows,
-            "duplicate_rows_summed": table.duplicates,
-            # the file's own top-level fields (ISIR: actioncount, timecount), as given
-            "file_metadata": dict(table.metadata),
-            "n_states_from": "states file" if disc is not None else (
-                "--n-states" if n_states is not None else "largest index + 1"),
-        }
+def _from_counts(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
+    """Counts and centres of an external count table (its action set as given)."""
+    from simlab.data.counts import load_counts
 
-    mdp = empirical_mdp(c)
-    n_masked = int((~valid_actions(mdp.visited)).sum()) if unvisited == "mask" else 0
-    if dataset is None:
-        states_hash = None if disc is None else disc.content_hash()
+    n_states = cfg.n_states
+    if disc is not None and n_states is not None and int(n_states) != disc.n_states:
+        raise ConfigError(
+            f"--n-states {n_states} disagrees with the states file ({disc.n_states} states)",
+            key="n_states",
+        )
+    action_set = cfg.table_action_set()
+    table = load_counts(cfg.counts, n_states=disc.n_states if disc is not None else n_states,
+                        n_actions=action_set.n_actions)  # type: ignore[arg-type]
+    source = {
+        "counts": str(Path(cfg.counts)),  # type: ignore[arg-type]
+        "format": table.format,
+        "rows": table.rows,
+        "duplicate_rows_summed": table.duplicates,
+        # the file's own top-level fields (ISIR: actioncount, timecount), as given
+        "file_metadata": dict(table.metadata),
+        "n_states_from": "states file" if disc is not None else (
+            "--n-states" if n_states is not None else "largest index + 1"),
+    }
+    return _Source(
+        counts=table.counts, action_set=action_set, summary={"source": source},
+        states_hash=None if disc is None else disc.content_hash(),
+        centres=None if disc is None else np.asarray(disc.centres, dtype=np.float64),
+        goals=arena_cfg,
+        bounds=None if arena_cfg is None else [float(v) for v in arena_cfg.bounds])
+
+
+def _model_arrays(mdp: CountModel, src: _Source, unvisited: str
+                  ) -> tuple[dict[str, Any], dict[str, list[int]] | None]:
+    """The arrays of ``mdp.npz`` and the goal states (None without centres or goals)."""
+    from simlab.data.goals import goal_state_masks
+
     # the states fingerprint: train and replay check it against their states file
-    meta = {"action_set": action_set.to_json(), "unvisited": unvisited}
-    if states_hash is not None:
-        meta["states_hash"] = states_hash
+    meta = {"action_set": src.action_set.to_json(), "unvisited": unvisited}
+    if src.states_hash is not None:
+        meta["states_hash"] = src.states_hash
     arrays: dict[str, Any] = {
         "counts": mdp.counts,
         "T": mdp.T,
@@ -436,18 +498,25 @@ def estimate(
         "meta_json": np.array(json.dumps(meta)),
     }
     goal_info = None
-    if bounds is not None:
-        arrays["bounds"] = np.asarray(bounds, dtype=np.float64)
-    if centres is not None:
-        arrays["centres"] = np.asarray(centres, dtype=np.float64)
-        if goals is not None:
-            names, masks = goal_state_masks(goals, centres)
+    if src.bounds is not None:
+        arrays["bounds"] = np.asarray(src.bounds, dtype=np.float64)
+    if src.centres is not None:
+        arrays["centres"] = np.asarray(src.centres, dtype=np.float64)
+        if src.goals is not None:
+            names, masks = goal_state_masks(src.goals, src.centres)
             arrays["goal_names"] = names
             arrays["goal_masks"] = masks
             arrays["R"] = mdp.rewards(masks)
             goal_info = {str(n): [int(s) for s in np.flatnonzero(m)]
                          for n, m in zip(names, masks, strict=True)}
+    return arrays, goal_info
 
+
+def _summary(mdp: CountModel, src: _Source, unvisited: str,
+             goal_info: dict[str, list[int]] | None) -> dict[str, Any]:
+    """The JSON summary beside the model (without its ``files`` entry)."""
+    n_masked = int((~valid_actions(mdp.visited)).sum()) if unvisited == "mask" else 0
+    summary = dict(src.summary)
     summary.update({
         "n_states": mdp.n_states,
         "n_actions": mdp.n_actions,
@@ -460,7 +529,7 @@ def estimate(
             "overall_mean_visited": float(mdp.entropy[mdp.visited].mean())
             if mdp.visited.any() else None,
         },
-        "action_set": action_set.to_json(),
+        "action_set": src.action_set.to_json(),
         "unvisited": unvisited,
         "unvisited_rule": (
             "T[s, a, s] = 1, flagged visited[s, a] = False; "
@@ -469,19 +538,23 @@ def estimate(
         "masked_pairs": n_masked,
         "states_without_data": int((~mdp.visited.any(axis=1)).sum()),
     })
-    if blocked_by_action is not None:
-        summary["blocked_fraction_per_action"] = _floats(blocked_by_action)
+    if src.blocked_by_action is not None:
+        summary["blocked_fraction_per_action"] = _floats(src.blocked_by_action)
     if goal_info is not None:
         summary["goal_states"] = goal_info
-    summary["files"] = {"npz": str(npz_path), "summary": str(summary_path),
-                        "plot": str(plot_path) if plot else None}
+    return summary
 
-    finals = (npz_path, summary_path, *((plot_path,) if plot else ()))
-    with output_transaction(npz_path.parent, finals, overwrite=overwrite,
-                            what="model output") as txn:  # all three files, or none
+
+def _write_outputs(cfg: EstimateConfig, mdp: CountModel, arrays: dict[str, Any],
+                   summary: dict[str, Any], paths: tuple[Path, Path, Path]) -> None:
+    """Write the model, the plot and the summary: all of them, or none."""
+    npz_path, summary_path, plot_path = paths
+    finals = (npz_path, summary_path, *((plot_path,) if cfg.plot else ()))
+    with output_transaction(npz_path.parent, finals, overwrite=cfg.overwrite,
+                            what="model output") as txn:
         with atomic_write(txn.path(npz_path), "wb") as fh:
             np.savez_compressed(fh, **arrays)
-        if plot:
+        if cfg.plot:
             from simlab.data.plots import plot_entropy_per_action
 
             title = None
@@ -491,5 +564,3 @@ def estimate(
                          f"({summary['coverage']['fraction_visited']:.0%} of (s, a) visited)")
             plot_entropy_per_action(mdp.mean_entropy, txn.path(plot_path), title=title)
         atomic_write_json(txn.path(summary_path), summary)
-    return EstimateResult(mdp=mdp, npz=npz_path, summary_path=summary_path,
-                          plot=plot_path if plot else None, summary=summary)

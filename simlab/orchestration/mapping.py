@@ -26,7 +26,6 @@ arena's own geometry); each is written atomically, the YAML last.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -34,9 +33,11 @@ from typing import Any
 import numpy as np
 
 from discretize.gridmap import OccupancyMap
-from discretize.occupancy import LogOddsParams, MapAccuracy, OccupancyGrid, map_accuracy
+from discretize.occupancy import MapAccuracy, OccupancyGrid, map_accuracy
+from simlab import validation as v
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_json, output_transaction
+from simlab.options import CommandConfig, command, option
 
 POSE_SOURCES = ("truth", "odometry")
 
@@ -79,130 +80,105 @@ def sensor_pose(base_pose: np.ndarray, sensor_offset: np.ndarray) -> np.ndarray:
     return np.array([x + c * ox - s * oy, y + s * ox + c * oy, yaw])
 
 
-def build_map(
-    arena: str | os.PathLike[str] = "table",
-    minutes: float = 10.0,
-    seed: int = 0,
-    out: str | os.PathLike[str] = "maps/table",
-    resolution: float = 0.01,
-    *,
-    pose_source: str = "truth",
-    margin: float = 0.25,
-    inf_free_range: float | None = 0.0,
-    log_odds: LogOddsParams | None = None,
-    primitive_params: Any = None,
-    overwrite: bool = False,
-    progress: bool = True,
-) -> MapRun:
+@dataclass(frozen=True, kw_only=True)
+class MapConfig(CommandConfig):
+    """Options of ``simlab map`` / :func:`build_map` (lengths in m, times in minutes)."""
+
+    COMMAND = "map"
+
+    arena: Any = option("table", "built-in arena name or .toml path")
+    minutes: float = option(10.0, "robot time to explore, driving + idle latency (the "
+                            "thesis: 73.1)")
+    seed: int = option(0, "random seed")
+    out: Path | None = option(None, "output directory (default maps/<arena>)", metavar="DIR")
+    resolution: float = option(0.01, "cell size in m", metavar="M")
+    pose_source: str = option(
+        "truth", "pose to map with: truth (stand-in for GMapping's corrected pose) or "
+        "odometry (shows the drift)", choices=POSE_SOURCES)
+    margin: float = option(0.25, "map extent beyond the arena's inner area on each side (m)",
+                           cli=False)
+    inf_free_range: float | None = option(
+        0.0, "how far a no-return beam marks free space (m); None: range_max", cli=False)
+    log_odds: Any | None = option(None, "LogOddsParams (default: built-in)", cli=False)
+    primitive_params: Any | None = option(None, "PrimitiveParams (default: built-in)",
+                                          cli=False)
+    overwrite: bool = option(False, "replace existing outputs")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        if not (math.isfinite(self.minutes) and self.minutes > 0):
+            raise ConfigError(f"expected a duration > 0 minutes, got {self.minutes!r}",
+                              key="minutes")
+        v.number(self.resolution, "resolution", low=0.001, high=0.2)
+        v.positive(self.margin, "margin", allow_zero=True)
+        v.whole(self.seed, "seed")
+        if self.out is None:  # the command line's default, also for Python callers
+            object.__setattr__(self, "out", Path("maps") / Path(str(self.arena)).stem)
+
+
+@command(MapConfig)
+def build_map(cfg: MapConfig) -> MapRun:
     """Explore ``arena`` at random for ``minutes`` of robot time and write its map.
 
-    Args:
-        arena: built-in arena name or ``.toml`` path.
-        minutes: robot time to explore (simulated driving + idle decision latency).
-        seed: one integer; ``SeedSequence(seed)`` is split into the action and the
-            LIDAR-noise streams. Same seed, same map.
-        out: output directory (``map.pgm``, ``map.yaml``, ``exploration.json``).
-        resolution: map cell side (m).
-        pose_source: ``"truth"`` (default) or ``"odometry"`` (drifts).
-        margin: map extent beyond the arena's inner area on each side (m); must
-            cover the walls.
-        inf_free_range: how far a no-return beam marks free space (m); 0 ignores
-            them (see the module docstring), None = up to the LIDAR's range_max.
-        log_odds: inverse sensor model (default :class:`LogOddsParams`).
-        primitive_params: :class:`simlab.physics.motion.PrimitiveParams` (default).
-        overwrite: replace existing outputs.
-        progress: show a progress bar over robot time.
-    """
-    from tqdm import tqdm
+    Takes a :class:`MapConfig` or its fields (``build_map("table", minutes=3, out=d)``):
 
+    * ``arena``: built-in arena name, ``.toml`` path or ``ArenaConfig``.
+    * ``minutes``: robot time to explore (simulated driving + idle decision latency).
+    * ``seed``: one integer; ``SeedSequence(seed)`` is split into the action and the
+      LIDAR-noise streams. Same seed, same map.
+    * ``out``: output directory (``map.pgm``, ``map.yaml``, ``exploration.json``);
+      default ``maps/<arena name or file stem>``.
+    * ``resolution``: map cell side (m).
+    * ``pose_source``: ``"truth"`` (default) or ``"odometry"`` (drifts).
+    * ``margin``: map extent beyond the arena's inner area on each side (m); must
+      cover the walls.
+    * ``inf_free_range``: how far a no-return beam marks free space (m); 0 ignores
+      them (see the module docstring), None = up to the LIDAR's range_max.
+    * ``log_odds``: inverse sensor model (default :class:`LogOddsParams`).
+    * ``primitive_params``: :class:`simlab.physics.motion.PrimitiveParams` (default).
+    * ``overwrite``: replace existing outputs; ``progress``: a bar over robot time.
+    """
     from discretize.mapio import write_map
     from simlab.physics.arena import ArenaConfig, load_arena
-    from simlab.physics.motion import N_ACTIONS, PrimitiveParams, execute_primitive
-    from simlab.physics.world import World
+    from simlab.physics.motion import PrimitiveParams
 
-    if not (isinstance(minutes, int | float) and math.isfinite(minutes) and minutes > 0):
-        raise ConfigError(f"expected a duration > 0 minutes, got {minutes!r}", key="minutes")
-    if not (math.isfinite(resolution) and 0.001 <= resolution <= 0.2):
+    arena_cfg = cfg.arena if isinstance(cfg.arena, ArenaConfig) else load_arena(cfg.arena)
+    if cfg.margin < arena_cfg.wall_thickness:
         raise ConfigError(
-            f"expected a cell size between 0.001 and 0.2 m, got {resolution!r}", key="resolution"
+            f"margin {cfg.margin} m does not cover the walls ({arena_cfg.wall_thickness} m "
+            "thick)", key="margin",
         )
-    if pose_source not in POSE_SOURCES:
-        raise ConfigError(
-            f"expected one of {', '.join(POSE_SOURCES)}, got {pose_source!r}", key="pose_source"
-        )
-    if not (math.isfinite(margin) and margin >= 0):
-        raise ConfigError(f"expected a margin >= 0 m, got {margin!r}", key="margin")
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
-
-    arena_cfg = arena if isinstance(arena, ArenaConfig) else load_arena(arena)
-    if margin < arena_cfg.wall_thickness:
-        raise ConfigError(
-            f"margin {margin} m does not cover the walls ({arena_cfg.wall_thickness} m thick)",
-            key="margin",
-        )
-    params = primitive_params if primitive_params is not None else PrimitiveParams()
-    out = Path(out)
+    params = cfg.primitive_params if cfg.primitive_params is not None else PrimitiveParams()
+    out = Path(cfg.out)
     yaml_path, image_path, meta_path = out / "map.yaml", out / "map.pgm", out / "exploration.json"
     # One transaction: refuse existing outputs and take the --out lock before exploring;
     # the three files appear together at the end, or not at all.
-    with output_transaction(out, (yaml_path, image_path, meta_path), overwrite=overwrite,
+    with output_transaction(out, (yaml_path, image_path, meta_path), overwrite=cfg.overwrite,
                             what="map output") as txn:
-
-        action_seq, noise_seq = np.random.SeedSequence(int(seed)).spawn(2)
-        action_rng = np.random.default_rng(action_seq)
-        noise_rng = np.random.default_rng(noise_seq)
-        grid = OccupancyGrid.covering(arena_cfg.bounds, resolution, margin, log_odds)
-
-        def integrate(scan, odom) -> None:
-            base = scan.pose if pose_source == "truth" else odom
-            grid.integrate(
-                scan.ranges,
-                scan.angles,
-                sensor_pose(base, scan.sensor_offset),
-                scan.range_min,
-                scan.range_max,
-                inf_free_range,
-            )
-
-        budget = float(minutes) * 60.0
-        n_actions = n_blocked = 0
-        with World(arena_cfg) as world:
-            integrate(world.scan(noise_rng), world.odometry())
-            robot_time = 0.0
-            with tqdm(total=round(budget), unit="s", desc="exploring", disable=not progress) as bar:
-                while robot_time < budget:
-                    action = int(action_rng.integers(0, N_ACTIONS))
-                    result = execute_primitive(world, action, noise_rng, params, on_scan=integrate)
-                    n_actions += 1
-                    n_blocked += int(result.blocked)
-                    new_time = world.time + n_actions * params.decision_latency
-                    bar.update(min(round(new_time), round(budget)) - bar.n)
-                    robot_time = new_time
-            sim_seconds = world.time
-            drift = float(np.hypot(*(world.odometry()[:2] - world.pose()[:2])))
-
+        grid = OccupancyGrid.covering(arena_cfg.bounds, cfg.resolution, cfg.margin,
+                                      cfg.log_odds)
+        ex = _explore(cfg, arena_cfg, params, grid)
         occupancy_map = grid.to_map()
-        truth = arena_cfg.rasterize(resolution, grid.origin_xy, grid.shape)
+        truth = arena_cfg.rasterize(cfg.resolution, grid.origin_xy, grid.shape)
         accuracy = map_accuracy(occupancy_map, truth)
         meta = {
             "arena": arena_cfg.name,
             "arena_source": arena_cfg.source,
             "arena_sha256": arena_cfg.source_sha256,
-            "minutes": float(minutes),
-            "seed": int(seed),
-            "pose_source": pose_source,
-            "resolution": resolution,
-            "margin": margin,
-            "inf_free_range": inf_free_range,
+            "minutes": float(cfg.minutes),
+            "seed": int(cfg.seed),
+            "pose_source": cfg.pose_source,
+            "resolution": cfg.resolution,
+            "margin": cfg.margin,
+            "inf_free_range": cfg.inf_free_range,
             "log_odds": asdict(grid.params),
             "primitive_params": asdict(params),
             "n_scans": grid.n_scans,
-            "n_actions": n_actions,
-            "n_blocked": n_blocked,
-            "robot_seconds": robot_time,
-            "sim_seconds": sim_seconds,
-            "final_odometry_drift_m": drift,
+            "n_actions": ex.n_actions,
+            "n_blocked": ex.n_blocked,
+            "robot_seconds": ex.robot_seconds,
+            "sim_seconds": ex.sim_seconds,
+            "final_odometry_drift_m": ex.drift,
             "accuracy": asdict(accuracy),
             "map_hash": occupancy_map.content_hash(),
         }
@@ -210,15 +186,57 @@ def build_map(
         atomic_write_json(txn.path(meta_path), meta)
         write_map(txn.path(yaml_path), occupancy_map, image=image_path.name, overwrite=True)
     return MapRun(
-        map=occupancy_map,
-        yaml_path=yaml_path,
-        image_path=image_path,
-        meta_path=meta_path,
-        n_scans=grid.n_scans,
-        n_actions=n_actions,
-        n_blocked=n_blocked,
-        robot_seconds=robot_time,
-        sim_seconds=sim_seconds,
-        accuracy=accuracy,
-        final_drift=drift,
+        map=occupancy_map, yaml_path=yaml_path, image_path=image_path, meta_path=meta_path,
+        n_scans=grid.n_scans, n_actions=ex.n_actions, n_blocked=ex.n_blocked,
+        robot_seconds=ex.robot_seconds, sim_seconds=ex.sim_seconds, accuracy=accuracy,
+        final_drift=ex.drift,
     )
+
+
+@dataclass(frozen=True)
+class _Exploration:
+    """Counts and clocks of one exploration (s, m)."""
+
+    n_actions: int
+    n_blocked: int
+    robot_seconds: float
+    sim_seconds: float
+    drift: float
+
+
+def _explore(cfg: MapConfig, arena_cfg: Any, params: Any, grid: OccupancyGrid) -> _Exploration:
+    """Drive uniformly random primitives until ``minutes`` of robot time, integrating every
+    LIDAR scan into ``grid``."""
+    from tqdm import tqdm
+
+    from simlab.physics.motion import N_ACTIONS, execute_primitive
+    from simlab.physics.world import World
+
+    action_seq, noise_seq = np.random.SeedSequence(int(cfg.seed)).spawn(2)
+    action_rng = np.random.default_rng(action_seq)
+    noise_rng = np.random.default_rng(noise_seq)
+
+    def integrate(scan, odom) -> None:
+        base = scan.pose if cfg.pose_source == "truth" else odom
+        grid.integrate(scan.ranges, scan.angles, sensor_pose(base, scan.sensor_offset),
+                       scan.range_min, scan.range_max, cfg.inf_free_range)
+
+    budget = float(cfg.minutes) * 60.0
+    n_actions = n_blocked = 0
+    with World(arena_cfg) as world:
+        integrate(world.scan(noise_rng), world.odometry())
+        robot_time = 0.0
+        with tqdm(total=round(budget), unit="s", desc="exploring",
+                  disable=not cfg.progress) as bar:
+            while robot_time < budget:
+                action = int(action_rng.integers(0, N_ACTIONS))
+                result = execute_primitive(world, action, noise_rng, params, on_scan=integrate)
+                n_actions += 1
+                n_blocked += int(result.blocked)
+                new_time = world.time + n_actions * params.decision_latency
+                bar.update(min(round(new_time), round(budget)) - bar.n)
+                robot_time = new_time
+        sim_seconds = world.time
+        drift = float(np.hypot(*(world.odometry()[:2] - world.pose()[:2])))
+    return _Exploration(n_actions=n_actions, n_blocked=n_blocked, robot_seconds=robot_time,
+                        sim_seconds=sim_seconds, drift=drift)

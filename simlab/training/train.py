@@ -66,11 +66,13 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation as v
 from simlab.data.goals import state_goal_name
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_json, output_transaction
+from simlab.options import CommandConfig, command, option
 
-__all__ = ["TASK_MODES", "GoalSummary", "TrainSummary", "TrainTask", "resolve_goals", "train"]
+__all__ = ["TASK_MODES", "GoalSummary", "TrainConfig", "TrainSummary", "TrainTask", "resolve_goals", "train"]
 
 #: Task modes of :class:`TrainTask` (the first is the default).
 TASK_MODES = ("per-step", "episodic")
@@ -261,185 +263,289 @@ def _apply_task(m: Any, task: TrainTask, start: int | None) -> tuple[Any, Any]:
     return m, p0
 
 
-def train(
-    mdp: str | os.PathLike[str] | Any,
-    agent: str = "vi-softmax",
-    goals: str | Sequence[str] | None = "all",
-    episodes: int = 2000,
-    runs: int = 10,
-    seed: int = 0,
-    out: str | os.PathLike[str] | None = None,
-    *,
-    horizon: int = 50,
-    start: int | None = None,
-    params: dict[str, Any] | None = None,
-    bounds: Sequence[float] | None = None,
-    arena: Any = None,
-    occupancy_map: Any = None,
-    plots: bool = True,
-    overwrite: bool = False,
-    progress: bool = True,
-    task: TrainTask | None = None,
-) -> TrainSummary:
+def param_pair(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` of ``--param`` (VALUE as JSON, else as a plain string)."""
+    import argparse
+    import json
+
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        parsed = json.loads(value)
+    except json.JSONDecodeError:
+        parsed = value  # plain strings: --param selection=softmax
+    return key.strip(), parsed
+
+
+_AGENTS = "q-learning, q-softmax, mb-egreedy, vi-softmax, rmax, sliding-window, passive-observer"
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class TrainConfig(CommandConfig):
+    """Options of ``simlab train`` / :func:`train`.
+
+    ``task`` is a :class:`TrainTask` (Python) or its mode (``--task``); with a mode,
+    ``goal_states``, ``start_states`` and ``unvisited`` complete it (``validate`` makes
+    ``task`` the :class:`TrainTask`). ``params`` is a dict of hyper-parameter overrides;
+    ``--param KEY=VALUE`` (repeatable) is added by the CLI module.
+    """
+
+    COMMAND = "train"
+
+    mdp: Any = option(help="mdp.npz written by simlab estimate (or an EmpiricalMDP)")
+    agent: str = option("vi-softmax", f"agent name ({_AGENTS})")
+    goals: Any | None = option("all", "'all' or comma-separated goal names", parse=str)
+    episodes: int = option(2000, "episodes per run")
+    runs: int = option(10, "independent runs per goal")
+    seed: int = option(0, "root seed")
+    out: Path | None = option(None, "output directory (Python: None writes nothing) "
+                              "(required)")
+    horizon: int = option(50, "steps per episode")
+    start: int | None = option(None, "fixed start state (default: uniform over states)")
+    params: Any | None = option(None, "hyper-parameter overrides {name: value}", cli=False)
+    bounds: tuple[float, ...] | None = option(
+        None, "heat-map extent XMIN YMIN XMAX YMAX in metres (default: from --arena or the "
+        "centres)")
+    arena: Any | None = option(None, "arena name or TOML for the heat-map extent", parse=str)
+    occupancy_map: Any | None = option(None, "map.yaml drawn under the heat maps", flag="map",
+                                       parse=str)
+    goal_states: Any | None = option(
+        None, "train one goal made of these state ids, e.g. 18 or 18,19 (named s18, "
+        "s18+19); no arena needed (default: the MDP's named goals)", parse=str)
+    start_states: Any | None = option(
+        None, "start states drawn uniformly, e.g. 0,32 (default: all states, or --start)",
+        parse=str)
+    task: Any | None = option(
+        None, "per-step: +1 per step arriving in the goal, fixed-length episodes (thesis; "
+        "default); episodic: +1 on arrival, then restart from the start states (real robot)",
+        parse=str, metavar="{per-step,episodic}")
+    unvisited: str | None = option(
+        None, "unvisited (s, a): mask = never chosen, self-loop = the old free stay "
+        "(default: the rule stored in the MDP, mask for old files)",
+        choices=("mask", "self-loop"))
+    plots: bool = option(True, "the PNG figures (--no-plots skips them)")
+    overwrite: bool = option(False, "replace existing outputs")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        v.whole(self.episodes, "episodes", minimum=1)
+        v.whole(self.runs, "runs", minimum=1)
+        v.whole(self.seed, "seed")
+        v.whole(self.horizon, "horizon", minimum=1)
+        if self.bounds is not None and len(self.bounds) != 4:
+            raise ConfigError(f"expected 4 numbers XMIN YMIN XMAX YMAX, got {self.bounds}",
+                              key="bounds")
+        if self.params is not None and not isinstance(self.params, dict):
+            raise ConfigError(f"expected a table of overrides, got {self.params!r}",
+                              key="params")
+        extra = (self.goal_states, self.start_states, self.unvisited)
+        if isinstance(self.task, TrainTask):
+            if any(x is not None for x in extra):
+                raise ConfigError("give goal_states/start_states/unvisited in the TrainTask",
+                                  key="task")
+            task = self.task
+        else:
+            task = TrainTask(mode="per-step" if self.task is None else self.task,
+                             goal_states=self.goal_states, start_states=self.start_states,
+                             unvisited=self.unvisited)
+        object.__setattr__(self, "task", task)
+        if task.goal_states is not None and self.goals not in (None, "all"):
+            raise ConfigError("give either goals or goal_states", key="goal_states")
+
+
+@command(TrainConfig)
+def train(cfg: TrainConfig) -> TrainSummary:
     """Train ``agent`` on the empirical MDP ``mdp`` for each goal; write results to ``out``.
 
-    Parameters
-    ----------
-    mdp:
-        ``mdp.npz`` path (``simlab estimate``) or an :class:`~simlab.data.mdp.EmpiricalMDP`.
-    agent:
-        A registered agent name (:mod:`simlab.agents.registry`).
-    goals:
-        ``"all"``, a comma-separated string or a list of goal names.
-    episodes, runs, seed, horizon, start:
-        Training budget, independent runs, root seed, steps per episode, fixed
-        start state (``None``: uniform).
-    params:
-        Hyper-parameter overrides of the agent's preset (``{"tau": 0.05}``).
-    bounds, arena:
-        Heat-map extent ``(x_min, y_min, x_max, y_max)`` m, or an arena (name,
-        path or config) to take it from; default: the MDP file's ``bounds`` or
-        the centres' extent.
-    occupancy_map:
-        Optional ``map.yaml`` path or occupancy map drawn under the heat maps.
-    out:
-        Output directory (created); ``None`` writes nothing and only returns.
-    plots, overwrite, progress:
-        Write PNGs; replace existing outputs; show a progress bar.
-    task:
-        :class:`TrainTask`: task mode, goal/start states, unvisited rule (default:
-        per-step, the MDP's goals and rule).
+    Takes a :class:`TrainConfig` or its fields (``train(mdp, "q-learning", out=...)``):
+
+    * ``mdp``: ``mdp.npz`` path (``simlab estimate``) or an
+      :class:`~simlab.data.mdp.EmpiricalMDP`.
+    * ``agent``: a registered agent name (:mod:`simlab.agents.registry`).
+    * ``goals``: ``"all"``, a comma-separated string or a list of goal names.
+    * ``episodes``, ``runs``, ``seed``, ``horizon``, ``start``: training budget,
+      independent runs, root seed, steps per episode, fixed start state (``None``: uniform).
+    * ``params``: hyper-parameter overrides of the agent's preset (``{"tau": 0.05}``).
+    * ``bounds``, ``arena``: heat-map extent ``(x_min, y_min, x_max, y_max)`` m, or an arena
+      (name, path or config) to take it from; default: the MDP file's ``bounds`` or the
+      centres' extent.
+    * ``occupancy_map``: optional ``map.yaml`` path or occupancy map under the heat maps.
+    * ``out``: output directory (created); ``None`` writes nothing and only returns.
+    * ``plots``, ``overwrite``, ``progress``: write PNGs; replace existing outputs; show a
+      progress bar.
+    * ``task`` (a :class:`TrainTask` or its mode) with ``goal_states``, ``start_states``,
+      ``unvisited``: task mode, goal/start states, unvisited rule (default: per-step, the
+      MDP's goals and rule).
     """
     from simlab.data.mdp import EmpiricalMDP, load_mdp
 
     t0 = time.perf_counter()
+    mdp = cfg.mdp
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
     from simlab.statecheck import npz_states_hash
 
     # the states fingerprint travels from the MDP into every Q-table (replay checks it)
     states_hash = None if isinstance(mdp, EmpiricalMDP) else npz_states_hash(mdp)
-    task = TrainTask() if task is None else task
-    if task.goal_states is not None and goals not in (None, "all"):
-        raise ConfigError("give either goals or goal_states", key="goal_states")
-    m, start = _apply_task(m, task, start)
-    names = resolve_goals(m, goals)
-    if m.counts is not None and int(np.asarray(m.counts).sum()) == 0:
-        warnings.warn(f"{m.source or 'the MDP'}: estimated from 0 transitions; every (s, a) "
-                      "is a self-loop and training learns nothing (collect data first)",
-                      stacklevel=2)
-    valid = m.valid
-    if valid is not None:
-        warnings.warn(f"{int((~valid).sum())} unvisited (s, a) pairs masked: agents never "
-                      "choose them (unvisited='self-loop' for the old rule)", stacklevel=2)
+    task = cfg.task
+    m, start = _apply_task(m, task, cfg.start)
+    names = resolve_goals(m, cfg.goals)
+    _warn_about(m)
     from simlab.agents.registry import agent_config
 
-    cfg = agent_config(agent, params)  # validates the name and overrides before any work
+    # validates the name and overrides before any work
+    gamma = float(agent_config(cfg.agent, cfg.params).gamma)
     from simlab.guards import array_bytes, check_memory
 
     # per goal and run: the reward curve (float64) and the final Q-table
-    check_memory(array_bytes((len(names), runs, episodes + m.n_states * m.n_actions), 16),
-                 what=f"{len(names)} goal(s) x {runs} run(s) x {episodes} episodes",
+    check_memory(array_bytes((len(names), cfg.runs, cfg.episodes + m.n_states * m.n_actions),
+                             16),
+                 what=f"{len(names)} goal(s) x {cfg.runs} run(s) x {cfg.episodes} episodes",
                  key="episodes", fix="ask for fewer episodes, runs or goals")
-    gamma = float(cfg.gamma)
     if isinstance(start, int | np.integer) and not (0 <= int(start) < m.n_states):
         raise ConfigError(f"expected a state in [0, {m.n_states}), got {start}", key="start")
-    plot_bounds = _bounds(m, bounds, arena) if plots else None
-    background = occupancy_map
-    if plots and isinstance(occupancy_map, str | os.PathLike):
+    plot_bounds = _bounds(m, cfg.bounds, cfg.arena) if cfg.plots else None
+    background = cfg.occupancy_map
+    if cfg.plots and isinstance(background, str | os.PathLike):
         from discretize.mapio import read_map
 
-        background = read_map(occupancy_map)
-
-    files: dict[str, Path] = {}
-    if out is not None:
-        out = Path(out)
-        for g in names:
-            files[f"q_{g}"] = out / f"q_{_slug(g)}.npz"
-        files["curves"] = out / "curves.npz"
-        files["summary"] = out / "summary.json"
-        if plots:
-            files["curves_png"] = out / "curves.png"
-            if m.centres is not None:
-                files["heatmaps"] = out / "heatmaps.png"
-                for g in names:
-                    files[f"heatmap_{g}"] = out / f"heatmap_{_slug(g)}.png"
+        background = read_map(background)
+    out = cfg.out
+    files = {} if out is None else _output_files(out, names, cfg.plots, m.centres is not None)
     with contextlib.ExitStack() as stack:
         txn = None
         if out is not None:  # refuses existing outputs and takes the --out lock before training
-            txn = stack.enter_context(output_transaction(out, files.values(), overwrite=overwrite))
-        job = _TrainJob(m=m, agent=agent, names=names, episodes=episodes, runs=runs, seed=seed,
-                        horizon=horizon, start=start, params=params, valid=valid, task=task,
-                        gamma=gamma, files=files, progress=progress, plot_bounds=plot_bounds,
-                        background=background, plots=plots, t0=t0, out=out,
-                        states_hash=states_hash)  # fmt: skip
+            txn = stack.enter_context(output_transaction(out, files.values(),
+                                                         overwrite=cfg.overwrite))
+        job = _TrainJob(cfg=cfg, m=m, names=names, start=start, valid=m.valid, gamma=gamma,
+                        files=files, plot_bounds=plot_bounds, background=background, t0=t0,
+                        states_hash=states_hash)
         return _train_and_write(job, txn)
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _warn_about(m: Any) -> None:
+    """Warn about an MDP estimated from nothing and about masked (s, a) pairs."""
+    if m.counts is not None and int(np.asarray(m.counts).sum()) == 0:
+        warnings.warn(f"{m.source or 'the MDP'}: estimated from 0 transitions; every (s, a) "
+                      "is a self-loop and training learns nothing (collect data first)",
+                      stacklevel=3)
+    if m.valid is not None:
+        warnings.warn(f"{int((~m.valid).sum())} unvisited (s, a) pairs masked: agents never "
+                      "choose them (unvisited='self-loop' for the old rule)", stacklevel=3)
+
+
+def _output_files(out: Any, names: list[str], plots: bool, centres: bool) -> dict[str, Path]:
+    """Every file :func:`train` writes into ``out``, by role."""
+    out = Path(out)
+    files = {f"q_{g}": out / f"q_{_slug(g)}.npz" for g in names}
+    files["curves"] = out / "curves.npz"
+    files["summary"] = out / "summary.json"
+    if plots:
+        files["curves_png"] = out / "curves.png"
+        if centres:
+            files["heatmaps"] = out / "heatmaps.png"
+            for g in names:
+                files[f"heatmap_{g}"] = out / f"heatmap_{_slug(g)}.png"
+    return files
 
 
 @dataclasses.dataclass(frozen=True)
 class _TrainJob:
     """Everything :func:`train` validated, handed to :func:`_train_and_write`."""
 
+    cfg: TrainConfig
     m: Any
-    agent: str
     names: list[str]
-    episodes: int
-    runs: int
-    seed: Any
-    horizon: int
     start: Any
-    params: Any
     valid: Any
-    task: Any
     gamma: float
     files: dict[str, Path]
-    progress: bool
     plot_bounds: Any
     background: Any
-    plots: bool
     t0: float
-    out: Any
     states_hash: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class _Results:
+    """What the runs of every goal produced."""
+
+    runs: dict[str, Any]
+    evaluations: dict[str, Any]
+    summaries: list[GoalSummary]
+    curve_rows: list[tuple[Any, Any, Any]]
+    rewards: np.ndarray
+    Qs: dict[str, np.ndarray]
+    config: Any
 
 
 def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
     """The body of :func:`train` inside its output transaction ``txn`` (None: no outputs)."""
+    cfg = job.cfg
+    runs, evaluations = _train_goals(job)
+    summaries, curve_rows = _goal_summaries(job, runs, evaluations)
+    names = job.names
+    res = _Results(runs=runs, evaluations=evaluations, summaries=summaries,
+                   curve_rows=curve_rows, rewards=np.stack([runs[g].rewards for g in names]),
+                   Qs={g: runs[g].Q_runs.mean(axis=0) for g in names},
+                   config=runs[names[0]].config)
+    if txn is not None:
+        staged = {k: txn.path(v) for k, v in job.files.items()}
+        run_meta = dict(seed=cfg.seed, episodes=cfg.episodes, runs=cfg.runs,
+                        horizon=cfg.horizon, start=_start_meta(job.start),
+                        states_hash=job.states_hash, gamma=job.gamma,
+                        **_task_meta(job.m, cfg.task, job.valid))
+        _write_outputs(job, res, staged, run_meta)
+    return TrainSummary(
+        agent=cfg.agent, config=res.config, goals=tuple(summaries), rewards=res.rewards,
+        Q=res.Qs, files={k: str(v) for k, v in job.files.items()},
+        seconds=time.perf_counter() - job.t0, out=None if cfg.out is None else Path(cfg.out),
+    )  # fmt: skip
+
+
+def _train_goals(job: _TrainJob) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Train and evaluate every goal: (runs by goal, evaluations by goal)."""
     from tqdm.auto import tqdm
 
-    (m, agent, names, episodes, runs, seed, horizon, start, params, valid, task, gamma, files,
-     progress, plot_bounds, background, plots, t0, out) = (
-        getattr(job, f.name) for f in dataclasses.fields(job)[:-1])  # fmt: skip
-
-    from simlab.training.curves import curve_points
     from simlab.training.harness import evaluate_q, train_runs
 
-    results = {}
-    evaluations = {}
-    bar = tqdm(total=len(names) * runs, disable=not progress, desc=f"train {agent}", unit="run")
+    cfg, m, valid = job.cfg, job.m, job.valid
+    results, evaluations = {}, {}
+    bar = tqdm(total=len(job.names) * cfg.runs, disable=not cfg.progress,
+               desc=f"train {cfg.agent}", unit="run")
     try:
-        for g in names:
+        for g in job.names:
             gi = m.goal_index(g)
             reward = m.goal_reward(g)
-            terminal = m.goal_mask(g) if task.mode == "episodic" else None
-            seq = np.random.SeedSequence(seed, spawn_key=(gi,))
+            terminal = m.goal_mask(g) if cfg.task.mode == "episodic" else None
+            seq = np.random.SeedSequence(cfg.seed, spawn_key=(gi,))
             res = train_runs(
-                m.T, reward, agent, episodes=episodes, runs=runs, seed=seq, horizon=horizon,
-                start=start, overrides=params, on_run_done=lambda: bar.update(1),
+                m.T, reward, cfg.agent, episodes=cfg.episodes, runs=cfg.runs, seed=seq,
+                horizon=cfg.horizon, start=job.start, overrides=cfg.params,
+                on_run_done=lambda: bar.update(1),
                 **_harness_kwargs(train_runs, valid=valid, terminal=terminal),
             )  # fmt: skip
             results[g] = res
             Q_mean = res.Q_runs.mean(axis=0)
             evaluations[g] = evaluate_q(m.T, reward, np.concatenate([res.Q_runs, Q_mean[None]]),
-                                        gamma, horizon, start,
+                                        job.gamma, cfg.horizon, job.start,
                                         **_harness_kwargs(evaluate_q, valid=valid,
                                                           terminal=terminal))  # fmt: skip
     finally:
         bar.close()
+    return results, evaluations
 
-    tail = max(1, episodes // 10)
+
+def _goal_summaries(job: _TrainJob, results: dict[str, Any], evaluations: dict[str, Any]
+                    ) -> tuple[list[GoalSummary], list[tuple[Any, Any, Any]]]:
+    """Per goal: the summary figures and the learning curve (x, mean, std)."""
+    from simlab.training.curves import curve_points
+
+    tail = max(1, job.cfg.episodes // 10)
     summaries = []
     curve_rows = []
-    for g in names:
+    for g in job.names:
         res, ev = results[g], evaluations[g]
         x, mean, std = curve_points(res.rewards)
         curve_rows.append((x, mean, std))
@@ -454,22 +560,7 @@ def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
             saved_q_return=float(ev.greedy_returns[-1]), upper_bound=float(ev.upper_bound),
             episodes_to_90=int(x[reached[0]]) if len(reached) else None,
         ))  # fmt: skip
-    rewards = np.stack([results[g].rewards for g in names])
-    Qs = {g: results[g].Q_runs.mean(axis=0) for g in names}
-    config = results[names[0]].config
-    if txn is not None:
-        staged = {k: txn.path(v) for k, v in files.items()}
-        _write_outputs(staged, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
-                       agent, config, dict(seed=seed, episodes=episodes, runs=runs,
-                                           horizon=horizon, start=_start_meta(start),
-                                           states_hash=job.states_hash,
-                                           gamma=gamma, **_task_meta(m, task, valid)),
-                       plot_bounds, background, plots, final_files=files)  # fmt: skip
-    return TrainSummary(
-        agent=agent, config=config, goals=tuple(summaries), rewards=rewards, Q=Qs,
-        files={k: str(v) for k, v in files.items()}, seconds=time.perf_counter() - t0,
-        out=None if out is None else Path(out),
-    )  # fmt: skip
+    return summaries, curve_rows
 
 
 def _start_meta(start: Any) -> int | None:
@@ -487,66 +578,75 @@ def _task_meta(m: Any, task: TrainTask, valid: np.ndarray | None) -> dict[str, A
     }
 
 
-def _write_outputs(files, m, names, results, evaluations, Qs, rewards, curve_rows, summaries,
-                   agent, config, run_meta, plot_bounds, background, plots,
-                   final_files=None) -> None:  # fmt: skip
+def _write_outputs(job: _TrainJob, res: _Results, files: dict[str, Path],
+                   run_meta: dict[str, Any]) -> None:
+    """Write the Q-tables, curves, figures and summary to ``files`` (staged paths)."""
     import simlab
     from simlab.agents.storage import save_q_table
 
+    m, names, agent = job.m, job.names, job.cfg.agent
     source = None if m.source is None else str(m.source)
     for g in names:
-        res = results[g]
-        arrays = {"Q_runs": res.Q_runs, "Q_star": evaluations[g].Q_star,
+        runs = res.runs[g]
+        arrays = {"Q_runs": runs.Q_runs, "Q_star": res.evaluations[g].Q_star,
                   "goal_mask": m.goal_mask(g)}  # fmt: skip
-        arrays.update(res.extra)
+        arrays.update(runs.extra)
         if m.valid is not None:
             arrays["valid"] = m.valid
-        meta = {"agent": agent, "config": config, "goal": g, "goal_index": m.goal_index(g),
+        meta = {"agent": agent, "config": res.config, "goal": g, "goal_index": m.goal_index(g),
                 "mdp": source, "Q": "mean over runs of the final Q-tables",
                 "simlab_version": simlab.__version__, **run_meta}  # fmt: skip
-        save_q_table(files[f"q_{g}"], Qs[g], metadata=meta, arrays=arrays, overwrite=True)
+        save_q_table(files[f"q_{g}"], res.Qs[g], metadata=meta, arrays=arrays, overwrite=True)
 
     import json
 
     from simlab.io import atomic_write
 
-    x = curve_rows[0][0]
+    curve_rows = res.curve_rows
     with atomic_write(files["curves"], "wb") as fh:
         np.savez_compressed(
-            fh, rewards=rewards, goal_names=np.array(names), curve_x=x,
+            fh, rewards=res.rewards, goal_names=np.array(names), curve_x=curve_rows[0][0],
             curve_mean=np.stack([r[1] for r in curve_rows]),
             curve_std=np.stack([r[2] for r in curve_rows]),
-            optimal_return=np.array([s.optimal_return for s in summaries]),
-            meta_json=np.array(json.dumps({"agent": agent, "config": config, **run_meta})),
+            optimal_return=np.array([s.optimal_return for s in res.summaries]),
+            meta_json=np.array(json.dumps({"agent": agent, "config": res.config,
+                                           **run_meta})),
         )  # fmt: skip
-    if plots:
-        from simlab.training.curves import save_learning_curves
-
-        panels = [(f"{s.goal}: final {s.final_mean_reward:.1f} / optimal {s.optimal_return:.1f}",
-                   {agent: results[s.goal].rewards}, s.optimal_return) for s in summaries]  # fmt: skip
-        save_learning_curves(
-            files["curves_png"],
-            panels,
-            suptitle=f"{agent}, {run_meta['runs']} runs, mean and std per block",
-        )
-        if m.centres is not None:
-            from simlab.training.heatmap import save_heatmap_grid, save_q_heatmap
-
-            masks = [m.goal_mask(g) for g in names]
-            for g, mask in zip(names, masks, strict=True):
-                save_q_heatmap(files[f"heatmap_{g}"], m.centres, Qs[g], plot_bounds, mask,
-                               background=background, title=f"{agent}: goal {g}",
-                               action_set=m.action_set, valid=m.valid)  # fmt: skip
-            save_heatmap_grid(files["heatmaps"], m.centres, [Qs[g] for g in names], masks, names,
-                              plot_bounds, background=background,
-                              suptitle=f"max_a Q(s, a) and argmax arrows, {agent}",
-                              action_set=m.action_set, valid=m.valid)  # fmt: skip
+    if job.cfg.plots:
+        _write_figures(job, res, files, run_meta["runs"])
     summary = {
         "agent": agent,
-        "config": config,
+        "config": res.config,
         "mdp": source,
         **run_meta,
-        "goals": {s.goal: s.as_dict() for s in summaries},
-        "files": {k: str(v) for k, v in (final_files or files).items()},
+        "goals": {s.goal: s.as_dict() for s in res.summaries},
+        "files": {k: str(v) for k, v in job.files.items()},
     }
     atomic_write_json(files["summary"], summary)
+
+
+def _write_figures(job: _TrainJob, res: _Results, files: dict[str, Path], runs: int) -> None:
+    """The learning curves and, with centres, the Q heat maps."""
+    from simlab.training.curves import save_learning_curves
+
+    m, names, agent = job.m, job.names, job.cfg.agent
+    panels = [(f"{s.goal}: final {s.final_mean_reward:.1f} / optimal {s.optimal_return:.1f}",
+               {agent: res.runs[s.goal].rewards}, s.optimal_return) for s in res.summaries]  # fmt: skip
+    save_learning_curves(
+        files["curves_png"],
+        panels,
+        suptitle=f"{agent}, {runs} runs, mean and std per block",
+    )
+    if m.centres is None:
+        return
+    from simlab.training.heatmap import save_heatmap_grid, save_q_heatmap
+
+    masks = [m.goal_mask(g) for g in names]
+    for g, mask in zip(names, masks, strict=True):
+        save_q_heatmap(files[f"heatmap_{g}"], m.centres, res.Qs[g], job.plot_bounds, mask,
+                       background=job.background, title=f"{agent}: goal {g}",
+                       action_set=m.action_set, valid=m.valid)  # fmt: skip
+    save_heatmap_grid(files["heatmaps"], m.centres, [res.Qs[g] for g in names], masks, names,
+                      job.plot_bounds, background=job.background,
+                      suptitle=f"max_a Q(s, a) and argmax arrows, {agent}",
+                      action_set=m.action_set, valid=m.valid)  # fmt: skip
