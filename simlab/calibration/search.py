@@ -293,7 +293,7 @@ class _Runner:
     """In-process for one worker, else a spawn process pool (one arena per process)."""
 
     def __init__(self, workers: int) -> None:
-        from simlab.experiments.executors import worker_pool  # workers exit with us
+        from simlab.parallel import worker_pool  # workers exit with us
 
         self._pool = None if workers == 1 else worker_pool(workers)
 

@@ -229,7 +229,7 @@ def reproduce(
     previous = _read_previous(out / RESULTS_JSON)
 
     from simlab import __version__
-    from simlab.experiments.executors import make_executor
+    from simlab.parallel import make_executor
 
     executor = make_executor(backend, workers=workers, address=address)
     say = log or (lambda _line: None)

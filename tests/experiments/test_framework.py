@@ -13,7 +13,7 @@ import pytest
 from simlab.cli import main
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult, experiment_seed
-from simlab.experiments.executors import LocalExecutor, make_executor
+from simlab.parallel import LocalExecutor, make_executor
 from simlab.experiments.registry import get_runner, runner
 from simlab.experiments.reproduce import reproduce
 

@@ -11,7 +11,7 @@ import pytest
 
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, experiment_seed
-from simlab.experiments.executors import LocalExecutor
+from simlab.parallel import LocalExecutor
 from simlab.experiments.reproduce import reproduce
 from simlab.experiments.visitlab import (
     curve_metrics,
