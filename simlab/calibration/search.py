@@ -290,21 +290,20 @@ class CalibrationResult:
 
 
 class _Runner:
-    """In-process for one worker, else a spawn process pool (one arena per process)."""
+    """Simulates candidate tables on the one parallel layer: in this process for one
+    worker, else a :class:`~simlab.parallel.LocalExecutor` pool (one arena per process,
+    workers exit with us); tables come back in job order."""
 
     def __init__(self, workers: int) -> None:
-        from simlab.parallel import worker_pool  # workers exit with us
+        from simlab.parallel import LocalExecutor
 
-        self._pool = None if workers == 1 else worker_pool(workers)
+        self._executor = LocalExecutor(workers)
 
     def map(self, jobs: list[_Job]) -> list[SimTable]:
-        if self._pool is None:
-            return [simulate_table(j) for j in jobs]
-        return list(self._pool.map(simulate_table, jobs))
+        return self._executor.map(simulate_table, [{"job": j} for j in jobs])
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(cancel_futures=True)
+        self._executor.close()
 
 
 def _sobol(dim: int, n: int, rng: np.random.Generator) -> NDArray[np.float64]:

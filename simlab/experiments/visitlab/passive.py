@@ -9,6 +9,7 @@ import numpy as np
 
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
+from simlab.experiments.registry import runner
 from simlab.experiments.visitlab.metrics import corr, curve_metrics
 from simlab.experiments.visitlab.runs import (
     cache_note,
@@ -19,6 +20,7 @@ from simlab.experiments.visitlab.runs import (
 )
 
 
+@runner("visitlab.passive_qmaps")
 def passive_qmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> RunResult:
     """IMOL poster Fig. 5: Q maps learned by model-free agents on the goal-conditioned
     navigation task, alone or watching model-based agents that explore differently.
