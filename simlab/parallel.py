@@ -31,6 +31,7 @@ from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any
 
+from simlab import validation
 from simlab.errors import ConfigError
 
 #: Where jobs can run (``--backend``).
@@ -229,9 +230,7 @@ class LocalExecutor(_Executor):
     def __init__(self, workers: int | None = None) -> None:
         if workers is None:
             workers = os.cpu_count() or 1
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ConfigError(f"expected a whole number >= 1, got {workers!r}", key="workers")
-        self.workers = workers
+        self.workers = validation.whole(workers, "workers", minimum=1)
         self._pool: cf.ProcessPoolExecutor | None = None
 
     def _get_pool(self) -> cf.ProcessPoolExecutor:

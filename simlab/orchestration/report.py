@@ -27,7 +27,8 @@ def _fig(out: Path, rel: str, caption: str) -> str:
 
 def write_report(out: Path, s: Any, seed: int, state: dict[str, Any]) -> Path:
     """Write ``out/report.md`` from the stage records in ``state`` (see
-    :mod:`simlab.orchestration.pipeline`); ``s`` are the run's :class:`~simlab.orchestration.stages.PhysicsSettings`."""
+    :mod:`simlab.orchestration.pipeline`); ``s`` are the run's
+    :class:`~simlab.orchestration.stages.PhysicsSettings`."""
     st = state["stages"]
     m, d, mdp, tr, rp = (st.get(k, {}) for k in ("map", "dataset", "mdp", "train", "replay"))
     n_states = st.get("states", {}).get("n_states")

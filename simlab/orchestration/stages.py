@@ -52,7 +52,6 @@ key                 meaning                                                    d
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.orchestration.cache import MARKER, Stage, StageCache
 
@@ -138,22 +138,16 @@ class PhysicsSettings:
             key = where.get(name, name)
             kind = type(getattr(defaults, name))
             if kind is bool:
-                if not isinstance(v, bool):
-                    raise ConfigError(f"expected true or false, got {v!r}", key=key)
+                v = validation.boolean(v, key)
             elif kind is int:
-                if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                    raise ConfigError(f"expected a whole number >= 1, got {v!r}", key=key)
+                v = validation.whole(v, key, minimum=1)
             elif kind is float:
-                if (isinstance(v, bool) or not isinstance(v, int | float)
-                        or not math.isfinite(v) or v <= 0):
-                    raise ConfigError(f"expected a number > 0, got {v!r}", key=key)
-                v = float(v)
+                v = validation.positive(v, key)
             elif not isinstance(v, str) or (not v and name != "primitives"):
                 raise ConfigError(f"expected a non-empty string, got {v!r}", key=key)
             values[name] = v
-        if values["pose_source"] not in ("truth", "odometry", "mcl"):
-            raise ConfigError(f"expected truth, odometry or mcl, got {values['pose_source']!r}",
-                              key=where.get("pose_source", "pose_source"))
+        validation.choice(values["pose_source"], ("truth", "odometry", "mcl"),
+                          where.get("pose_source", "pose_source"))
         settings = cls(**{k: values[k] for k in names})
         settings.check_references(where)
         return settings

@@ -3,13 +3,19 @@ task, and the IMOL 2023 poster's Figs. 4 and 5.
 
 Runners (the ``visitlab`` group of :mod:`simlab.experiments.registry`), one module each
 ------------------------------------------------------------------------------------
-* ``visitlab.curves`` (``learning_curves``) — learning curves of several training runs (Figs. 4.1, 4.2, 4.4,
-  4.5, 4.6, poster Fig. 4), with per-run metrics (below);
-* ``visitlab.nav_heatmaps`` (``heatmaps``) — Fig. 4.3, navigation value maps for the 9 goal rooms;
-* ``visitlab.combined`` (``architecture``) — the combined architecture (goals per trial, an episode GIF);
+* ``visitlab.curves`` (``learning_curves``) — learning curves of several training runs
+  (Figs. 4.1, 4.2, 4.4, 4.5, 4.6, poster Fig. 4), with per-run metrics (below);
+* ``visitlab.nav_heatmaps`` (``heatmaps``) — Fig. 4.3, navigation value maps for the 9
+  goal rooms;
+* ``visitlab.combined`` (``architecture``) — the combined architecture (goals per trial,
+  an episode GIF);
 * ``visitlab.adaptability`` (``adaptation``) — Fig. 4.7, continued learning with three humans;
 * ``visitlab.passive_qmaps`` (``passive``) — poster Fig. 5, what a passive Q-learner learns from
   watching model-based agents that explore differently.
+
+Shared pieces: :mod:`.runs` (the run tables, seeds and the run cache), :mod:`.metrics`
+(curve metrics, greedy success), :mod:`.modules` (the combined architecture's three
+trained modules, shared by ``combined`` and ``adaptability``).
 
 Training runs (``[[params.runs]]`` and the module tables)
 --------------------------------------------------------
@@ -36,7 +42,8 @@ A run is one agent trained on one task for ``seeds`` seeds (``budget.seeds``) of
 final Q tables; ``model_<i>.npz`` when a model is kept; ``_stage.json`` written last),
 where ``key`` hashes everything that defines it (task, agent, variant, env, overrides,
 observer, trials, seeds), the root seed, the simlab version and a fingerprint of the
-source the run depends on (:func:`code_fingerprint`: changed code is never reused). So
+source the run depends on (:func:`simlab.orchestration.cache.code_fingerprint` of
+scope ``visitlab-run``: changed code is never reused). So
 Figs. 4.1 and 4.2 share their model-based navigation runs, poster Fig. 4 reuses
 Fig. 4.5's social run, Fig. 4.4's random-episode go-to-human run is the combined
 architecture's module, and the combined task and Fig. 4.7 share the three trained
@@ -71,7 +78,7 @@ from simlab.experiments.visitlab.adaptation import adapt_job, adaptability
 from simlab.experiments.visitlab.architecture import combined
 from simlab.experiments.visitlab.heatmaps import nav_heatmaps
 from simlab.experiments.visitlab.learning_curves import curves
-from simlab.experiments.visitlab.metrics import corr, curve_metrics, greedy_success
+from simlab.experiments.visitlab.metrics import curve_metrics, greedy_success, pearson
 from simlab.experiments.visitlab.modules import direction_matrix, evaluate_job, module_specs
 from simlab.experiments.visitlab.passive import passive_qmaps
 from simlab.experiments.visitlab.runs import (
@@ -87,6 +94,6 @@ from simlab.experiments.visitlab.runs import (
 )
 
 __all__ = ["VISITLAB_SPAWN_KEY", "RunData", "RunSpec", "adapt_job", "adaptability", "combined",
-           "corr", "curve_metrics", "curves", "direction_matrix", "env_kwargs", "evaluate_job",
+           "curve_metrics", "curves", "direction_matrix", "env_kwargs", "evaluate_job",
            "get_runs", "greedy_success", "module_specs", "nav_heatmaps", "param_notes",
-           "parse_run", "passive_qmaps", "train_job", "visitlab_seed"]
+           "parse_run", "passive_qmaps", "pearson", "train_job", "visitlab_seed"]

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
@@ -19,7 +20,6 @@ from simlab.experiments.visitlab.runs import (
     get_runs,
     param_notes,
     visitlab_seed,
-    whole,
 )
 
 
@@ -53,6 +53,31 @@ def _adaptation_humans(params: Mapping[str, Any], trained: Any) -> dict[str, Any
     return out
 
 
+def _carry_options(params: Mapping[str, Any]) -> list[bool]:
+    """``params.carry_model``: distinct booleans, the first the one metrics describe."""
+    carry = params.get("carry_model", [True])
+    if (not isinstance(carry, list) or not carry or not all(isinstance(c, bool) for c in carry)
+            or len(set(carry)) != len(carry)):
+        raise ConfigError(f"expected a list of distinct booleans, got {carry!r}",
+                          key="params.carry_model")
+    return carry
+
+
+def level_metrics(goals: np.ndarray) -> dict[str, Any]:
+    """``start`` (mean goals per trial over the first 10 % of trials), ``final`` (last
+    20 %) and ``trials_to_90pct`` (first trial at which the smoothed seed-mean curve
+    reaches 90 % of ``final``; None if never) of ``goals`` ``(seeds, trials)``."""
+    from simlab.visitlab.training import smooth_curve
+
+    trials = goals.shape[1]
+    start = float(goals[:, :max(1, trials // 10)].mean())
+    final = float(goals[:, -max(1, trials // 5):].mean())
+    x, mean, _ = smooth_curve(goals, min(50, trials))
+    hit = np.flatnonzero(mean >= 0.9 * final) if final > 0 else np.zeros(0, dtype=int)
+    return {"start": start, "final": final,
+            "trials_to_90pct": int(x[hit[0]]) if hit.size else None}
+
+
 @runner("visitlab.adaptability")
 def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> RunResult:
     """Thesis Fig. 4.7: the social module trained with one human continues learning in
@@ -61,8 +86,8 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     The modules are :func:`module_specs` (shared with ``visitlab.combined``); the
     humans :func:`simlab.visitlab.adaptability.thesis_humans` of the social module's
     human, or ``[params.humans]`` (name -> preset or table of Human fields; a human
-    named ``same`` is the reference of the ratios); ``params.carry_model`` a list of booleans (what continues: Q and model, or Q
-    only; one figure panel each; the first is the one the metrics without suffix
+    named ``same`` is the reference of the ratios); ``params.carry_model`` a list of
+    booleans (what continues: Q and model, or Q only; one figure panel each; the first is the one the metrics without suffix
     describe). Metrics per human ``h`` (``same``, ``slower``, ``pointing``) and carry
     option (suffix ``_q_only`` for Q only, ``_model`` for Q and model, on the options
     after the first): ``h_start`` (mean goals per trial over the
@@ -76,12 +101,8 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
 
     specs = module_specs(params, budget)
     n = specs["nav"].seeds
-    trials = whole(budget.get("trials"), "budget.trials")
-    carry = params.get("carry_model", [True])
-    if (not isinstance(carry, list) or not carry or not all(isinstance(c, bool) for c in carry)
-            or len(set(carry)) != len(carry)):
-        raise ConfigError(f"expected a list of distinct booleans, got {carry!r}",
-                          key="params.carry_model")
+    trials = validation.whole(budget.get("trials"), "budget.trials", minimum=1)
+    carry = _carry_options(params)
     base_task = combined_task(params, specs)
     humans = _adaptation_humans(params, base_task.human)
     got = get_runs(ctx, [specs[k] for k in MODULE_KEYS], desc="modules")
@@ -105,20 +126,12 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     panels = []
     legends = {"same": "same human", "slower": "2x slower human", "pointing": "pointing need"}
     details: dict[str, Any] = {"curves": {}}
-    from simlab.visitlab.training import smooth_curve
-
     for c in carry:
         suffix = "" if c == carry[0] else ("_model" if c else "_q_only")
         panel = []
         for name in humans:
             g = np.stack(curves_[(c, name)])
-            start = float(g[:, :max(1, trials // 10)].mean())
-            final = float(g[:, -max(1, trials // 5):].mean())
-            x, mean, _ = smooth_curve(g, min(50, trials))
-            hit = np.flatnonzero(mean >= 0.9 * final) if final > 0 else np.zeros(0, dtype=int)
-            metrics[f"{name}_start{suffix}"] = start
-            metrics[f"{name}_final{suffix}"] = final
-            metrics[f"{name}_trials_to_90pct{suffix}"] = int(x[hit[0]]) if hit.size else None
+            metrics.update({f"{name}_{k}{suffix}": v for k, v in level_metrics(g).items()})
             panel.append((legends.get(name, humans[name].name), g))
             details["curves"][f"{name}{suffix}"] = curve_details(name, g)
         same = metrics.get(f"same_final{suffix}")

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.experiments.visitlab.modules import (
@@ -16,7 +17,7 @@ from simlab.experiments.visitlab.modules import (
     module_specs,
     modules_of,
 )
-from simlab.experiments.visitlab.runs import cache_note, get_runs, param_notes, visitlab_seed, whole
+from simlab.experiments.visitlab.runs import cache_note, get_runs, param_notes, visitlab_seed
 
 
 @runner("visitlab.combined")
@@ -39,7 +40,7 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
 
     specs = module_specs(params, budget)
     n = specs["nav"].seeds
-    trials = whole(budget.get("trials"), "budget.trials")
+    trials = validation.whole(budget.get("trials"), "budget.trials", minimum=1)
     task = combined_task(params, specs)
     got = get_runs(ctx, [specs[k] for k in MODULE_KEYS], desc="modules")
     runs = dict(zip(MODULE_KEYS, got, strict=True))

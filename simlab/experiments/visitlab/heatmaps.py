@@ -9,7 +9,7 @@ import numpy as np
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
-from simlab.experiments.visitlab.metrics import curve_metrics, greedy_success
+from simlab.experiments.visitlab.metrics import curve_metrics, greedy_success, pearson
 from simlab.experiments.visitlab.runs import (
     cache_note,
     env_kwargs,
@@ -55,7 +55,7 @@ def nav_heatmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
         for j, g in enumerate(lay.goal_labels):
             block = q[g * n:(g + 1) * n]
             success[i, j] = greedy_success(nxt, labels, block, g, horizon)
-            corr[i, j] = corr(block.max(axis=1), qstar[g * n:(g + 1) * n].max(axis=1))
+            corr[i, j] = pearson(block.max(axis=1), qstar[g * n:(g + 1) * n].max(axis=1))
     values = run.q.max(axis=2).mean(axis=0)  # mean over seeds of max_a Q
     gaps = []
     for g in lay.goal_labels:

@@ -90,7 +90,8 @@ def greedy_success(nxt: np.ndarray, labels: np.ndarray, q: np.ndarray, goal: int
     return float(done.mean()) if cells.size else 1.0
 
 
-def corr(a: np.ndarray, b: np.ndarray) -> float:
+def pearson(a: np.ndarray, b: np.ndarray) -> float:
+    """Pearson correlation of two 1-D arrays of one length; NaN when one is constant."""
     if a.std() == 0 or b.std() == 0:
         return math.nan
     return float(np.corrcoef(a, b)[0, 1])

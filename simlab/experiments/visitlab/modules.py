@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.experiments.visitlab.metrics import curve_metrics
 from simlab.experiments.visitlab.runs import (
@@ -17,7 +18,6 @@ from simlab.experiments.visitlab.runs import (
     as_table,
     env_kwargs,
     parse_run,
-    whole,
 )
 
 MODULE_KEYS = ("nav", "gotohuman", "social")
@@ -53,7 +53,8 @@ def combined_task(params: Mapping[str, Any], specs: Mapping[str, RunSpec], human
     return CombinedTask(layout=c.get("layout", "gridworld"), human=human,
                         perception=perception_for(specs["social"].variant),
                         speed_weights=tuple(c.get("speed_weights", (0.1, 0.1, 0.8))),
-                        max_steps=whole(c.get("max_steps", 100), "params.combined.max_steps"))
+                        max_steps=validation.whole(c.get("max_steps", 100),
+                                                   "params.combined.max_steps", minimum=1))
 
 
 def modules_of(runs: Mapping[str, RunData], i: int):

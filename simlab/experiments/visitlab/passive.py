@@ -10,7 +10,7 @@ import numpy as np
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
-from simlab.experiments.visitlab.metrics import corr, curve_metrics
+from simlab.experiments.visitlab.metrics import curve_metrics, pearson
 from simlab.experiments.visitlab.runs import (
     cache_note,
     env_kwargs,
@@ -59,7 +59,7 @@ def passive_qmaps(params: dict[str, Any], budget: dict[str, Any], ctx: RunContex
         learned = q.max(axis=2)[:, goal_rows]  # (seeds, states)
         v = np.broadcast_to(vstar[goal_rows], learned.shape)
         L = r.spec.label
-        metrics[f"{L}_corr_vstar"] = corr(learned.ravel(), v.ravel())
+        metrics[f"{L}_corr_vstar"] = pearson(learned.ravel(), v.ravel())
         metrics[f"{L}_mae_vstar"] = float(np.abs(learned - v).mean())
         metrics[f"{L}_visited"] = float((learned != 0).mean())
         metrics.update(curve_metrics(L, r.returns))

@@ -3,6 +3,7 @@ seeds, and the shared run cache (see the package docstring)."""
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -11,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext
 from simlab.io import atomic_write
@@ -31,18 +33,6 @@ def visitlab_seed(root_seed: int, stream: int = 0) -> int:
 
 
 # --------------------------------------------------------------------------- settings
-
-
-def whole(v: Any, key: str, low: int = 1) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or v < low:
-        raise ConfigError(f"expected a whole number >= {low}, got {v!r}", key=key)
-    return int(v)
-
-
-def fraction(v: Any, key: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
-        raise ConfigError(f"expected a number in [0, 1], got {v!r}", key=key)
-    return float(v)
 
 
 def as_table(v: Any, key: str) -> dict[str, Any]:
@@ -107,14 +97,14 @@ def _budget_trials(budget: Mapping[str, Any], label: str, task: str, key: str = 
     t = budget.get(key)
     if isinstance(t, Mapping):
         if label in t:
-            return whole(t[label], f"budget.{key}.{label}")
+            return validation.whole(t[label], f"budget.{key}.{label}", minimum=1)
         if task in t:
-            return whole(t[task], f"budget.{key}.{task}")
+            return validation.whole(t[task], f"budget.{key}.{task}", minimum=1)
         raise ConfigError(f"no trials for run {label!r} (task {task})", key=f"budget.{key}",
                           fix=f"add {label} = N or {task} = N")
     if t is None:
         raise ConfigError("missing", key=f"budget.{key}")
-    return whole(t, f"budget.{key}")
+    return validation.whole(t, f"budget.{key}", minimum=1)
 
 
 def parse_run(raw: Any, where: str, params: Mapping[str, Any], budget: Mapping[str, Any],
@@ -132,24 +122,21 @@ def parse_run(raw: Any, where: str, params: Mapping[str, Any], budget: Mapping[s
         raise ConfigError(f"unknown agent {agent!r}", key=f"{where}.agent",
                           fix=f"use one of {', '.join(AGENTS)}")
     task = run.get("task", params.get("task"))
-    if task not in _TASKS:
-        raise ConfigError(f"expected one of {_TASKS}, got {task!r}", key=f"{where}.task")
-    variant = run.get("variant", params.get("variant", "thesis"))
-    if variant not in ("thesis", "paper"):
-        raise ConfigError(f"expected thesis or paper, got {variant!r}", key=f"{where}.variant")
+    validation.choice(task, _TASKS, f"{where}.task")
+    variant = validation.choice(run.get("variant", params.get("variant", "thesis")),
+                                ("thesis", "paper"), f"{where}.variant")
     label = str(run.get("label", agent))
     if not label.replace("_", "").replace("-", "").isalnum():
         raise ConfigError(f"use letters, digits, '_' and '-', got {label!r}", key=f"{where}.label")
     env = {**as_table(params.get("env"), "params.env"), **as_table(run.get("env"), f"{where}.env")}
-    observer = run.get("observer", False)
-    if not isinstance(observer, bool):
-        raise ConfigError(f"expected true or false, got {observer!r}", key=f"{where}.observer")
+    observer = validation.boolean(run.get("observer", False), f"{where}.observer")
     return RunSpec(label=label.replace("-", "_"), agent=agent, task=task,
                    trials=_budget_trials(budget, label, task, trials_key),
-                   seeds=whole(budget["seeds"], "budget.seeds"), variant=variant, env=env,
+                   seeds=validation.whole(budget["seeds"], "budget.seeds", minimum=1),
+                   variant=variant, env=env,
                    overrides=as_table(run.get("overrides"), f"{where}.overrides"),
                    observer=observer,
-                   takeover=fraction(run.get("takeover", 0.5), f"{where}.takeover"),
+                   takeover=validation.probability(run.get("takeover", 0.5), f"{where}.takeover"),
                    keep_model=keep_model, legend=str(run.get("legend", "")))
 
 
@@ -265,8 +252,7 @@ def get_runs(ctx: RunContext, specs: Sequence[RunSpec], desc: str = "training ru
             by_run.setdefault(d, {})[k] = res
         for d, (spec, slot) in todo.items():
             seeds = [by_run[d][k] for k in range(spec.seeds)]
-            cache.store(slot, lambda folder, spec=spec, seeds=seeds: _write_run(folder, spec, seeds),
-                        wall)
+            cache.store(slot, functools.partial(_write_run, spec=spec, seeds=seeds), wall)
         for i, slot in enumerate(slots):
             if i not in found:
                 found[i] = _load_run(specs[i], slot.path, True)
