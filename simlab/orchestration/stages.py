@@ -121,7 +121,7 @@ class PhysicsSettings:
     @classmethod
     def create(cls, **values: Any) -> PhysicsSettings:
         """Settings from keyword values (defaults for the rest), validated like a TOML's;
-        errors name the setting (``hours: expected a number > 0``)."""
+        errors name the setting (``hours: expected a finite number > 0``)."""
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = set(values) - names
         if unknown:
