@@ -29,7 +29,6 @@ the image first and the YAML last, and existing files are never replaced unless
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from dataclasses import dataclass
@@ -39,6 +38,7 @@ import numpy as np
 import yaml
 
 from discretize.gridmap import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, atomic_write_text, ensure_new
 
@@ -81,15 +81,6 @@ class MapYaml:
 
 
 # ---------------------------------------------------------------------------- YAML
-def _number(value: object, path: Path, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ConfigError(f"expected a number, got {value!r}", path=path, key=key)
-    value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f"expected a finite number, got {value!r}", path=path, key=key)
-    return value
-
-
 def read_map_yaml(path: str | os.PathLike[str]) -> MapYaml:
     """Parse and validate a map_server YAML file (the image is not read).
 
@@ -127,16 +118,14 @@ def read_map_yaml(path: str | os.PathLike[str]) -> MapYaml:
     if not image_path.is_absolute():
         image_path = path.parent / image_path
 
-    resolution = _number(doc["resolution"], path, "resolution")
-    if resolution <= 0:
-        raise ConfigError(f"expected a number > 0, got {resolution!r}", path=path, key="resolution")
+    resolution = validation.positive(doc["resolution"], "resolution", path=path)
 
     origin = doc["origin"]
     if not isinstance(origin, list | tuple) or len(origin) != 3:
         raise ConfigError(
             f"expected [x, y, yaw] (three numbers), got {origin!r}", path=path, key="origin"
         )
-    origin_t = tuple(_number(v, path, "origin") for v in origin)
+    origin_t = tuple(validation.number(v, "origin", path=path) for v in origin)
 
     negate = doc["negate"]
     if isinstance(negate, bool):
@@ -146,11 +135,8 @@ def read_map_yaml(path: str | os.PathLike[str]) -> MapYaml:
     else:
         raise ConfigError(f"expected 0 or 1, got {negate!r}", path=path, key="negate")
 
-    occ_t = _number(doc["occupied_thresh"], path, "occupied_thresh")
-    free_t = _number(doc["free_thresh"], path, "free_thresh")
-    for key, val in (("occupied_thresh", occ_t), ("free_thresh", free_t)):
-        if not 0.0 <= val <= 1.0:
-            raise ConfigError(f"expected a probability in [0, 1], got {val!r}", path=path, key=key)
+    occ_t = validation.probability(doc["occupied_thresh"], "occupied_thresh", path=path)
+    free_t = validation.probability(doc["free_thresh"], "free_thresh", path=path)
     if free_t >= occ_t:
         raise ConfigError(
             f"free_thresh ({free_t}) must be smaller than occupied_thresh ({occ_t})",

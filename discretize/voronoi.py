@@ -50,6 +50,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from discretize.gridmap import OccupancyMap
+from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write_json, ensure_new
 
@@ -331,8 +332,8 @@ class Discretizer:
             raise ConfigError(f"expected a cell radius > 0 m, got {radius!r}", key="radius")
         if radius is None and n_states is None:
             n_states = DEFAULT_N_STATES
-        if n_states is not None and (isinstance(n_states, bool) or int(n_states) != n_states or n_states < 1):
-            raise ConfigError(f"expected a whole number >= 1, got {n_states!r}", key="states")
+        if n_states is not None:
+            validation.whole(n_states, "states", minimum=1)
         if not (math.isfinite(robot_radius) and robot_radius >= 0):
             raise ConfigError(f"expected a radius >= 0 m, got {robot_radius!r}", key="robot_radius")
         eroded = eroded_free_mask(grid, robot_radius, component)

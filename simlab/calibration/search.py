@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab import validation
 from simlab.actions import ActionSet
 from simlab.calibration.metrics import (
     Floor,
@@ -138,22 +139,17 @@ class CalibrationConfig:
     progress: bool = True
 
     def __post_init__(self) -> None:
-        checks = (
-            ("hours_per_candidate", self.hours_per_candidate > 0, "> 0"),
-            ("candidates", int(self.candidates) >= 2, "an integer >= 2"),
-            ("workers", int(self.workers) >= 1, "an integer >= 1"),
-            ("seed", int(self.seed) >= 0, "an integer >= 0"),
-            ("simulator", self.simulator in ("physics", "kinematic"), "physics or kinematic"),
-            ("shrink", 0 < self.shrink <= 1, "in (0, 1]"),
-            ("step", self.step > 0, "> 0"),
-            ("n_boot", int(self.n_boot) >= 1, "an integer >= 1"),
-            ("unvisited", self.unvisited in ("report", "max"), "report or max"),
-            ("objective", self.objective in OBJECTIVES, " or ".join(OBJECTIVES)),
-        )
-        for name, ok, expected in checks:
-            if not ok:
-                raise ConfigError(f"must be {expected}, got {getattr(self, name)!r}",
-                                  key=f"calibration.{name}")
+        k = "calibration."
+        validation.positive(self.hours_per_candidate, k + "hours_per_candidate")
+        validation.whole(self.candidates, k + "candidates", minimum=2)
+        validation.whole(self.workers, k + "workers", minimum=1)
+        validation.whole(self.seed, k + "seed", minimum=0)
+        validation.choice(self.simulator, ("physics", "kinematic"), k + "simulator")
+        validation.number(self.shrink, k + "shrink", low=0.0, low_open=True, high=1.0)
+        validation.positive(self.step, k + "step")
+        validation.whole(self.n_boot, k + "n_boot", minimum=1)
+        validation.choice(self.unvisited, ("report", "max"), k + "unvisited")
+        validation.choice(self.objective, OBJECTIVES, k + "objective")
 
 
 @dataclass(frozen=True)
@@ -290,21 +286,20 @@ class CalibrationResult:
 
 
 class _Runner:
-    """In-process for one worker, else a spawn process pool (one arena per process)."""
+    """Simulates candidate tables on the one parallel layer: in this process for one
+    worker, else a :class:`~simlab.parallel.LocalExecutor` pool (one arena per process,
+    workers exit with us); tables come back in job order."""
 
     def __init__(self, workers: int) -> None:
-        from simlab.experiments.executors import worker_pool  # workers exit with us
+        from simlab.parallel import LocalExecutor
 
-        self._pool = None if workers == 1 else worker_pool(workers)
+        self._executor = LocalExecutor(workers)
 
     def map(self, jobs: list[_Job]) -> list[SimTable]:
-        if self._pool is None:
-            return [simulate_table(j) for j in jobs]
-        return list(self._pool.map(simulate_table, jobs))
+        return self._executor.map(simulate_table, [{"job": j} for j in jobs])
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(cancel_futures=True)
+        self._executor.close()
 
 
 def _sobol(dim: int, n: int, rng: np.random.Generator) -> NDArray[np.float64]:

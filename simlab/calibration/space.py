@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from simlab import validation
 from simlab.errors import ConfigError
 
 SCALES = ("linear", "log")
@@ -44,13 +45,10 @@ class ParamSpec:
     def __post_init__(self) -> None:
         key = f"parameters.{self.name}"
         for bound in ("low", "high"):
-            v = getattr(self, bound)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise ConfigError(f"{bound}: expected a finite number, got {v!r}", key=key)
+            validation.number(getattr(self, bound), f"{key}.{bound}")
         if not self.low < self.high:
             raise ConfigError(f"low ({self.low}) must be < high ({self.high})", key=key)
-        if self.scale not in SCALES:
-            raise ConfigError(f"scale: expected 'linear' or 'log', got {self.scale!r}", key=key)
+        validation.choice(self.scale, SCALES, f"{key}.scale")
         if self.scale == "log" and self.low <= 0:
             raise ConfigError("a log scale needs low > 0", key=key)
 

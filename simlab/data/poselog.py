@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab import validation
 from simlab.actions import ActionSet, parse_action_set
 from simlab.errors import ConfigError
 
@@ -160,8 +161,7 @@ class SegmentParams:
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ConfigError(f"expected a number >= 0, got {value!r}", key=name)
+            validation.positive(value, name, allow_zero=True)
         if self.move_speed <= 0 or self.turn_rate <= 0:
             raise ConfigError("move_speed and turn_rate must be > 0", key="segment")
 

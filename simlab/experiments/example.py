@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab import validation
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.io import atomic_write
@@ -39,12 +39,8 @@ def coin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
     Metrics: ``p_hat`` (mean over seeds), ``ci95`` (half-width of its normal 95 %
     confidence interval over seeds), ``p_true``, ``seeds``.
     """
-    p = params.get("p")
-    if not isinstance(p, int | float) or isinstance(p, bool) or not 0.0 <= p <= 1.0:
-        raise ConfigError(f"expected a probability in [0, 1], got {p!r}", key="params.p")
-    flips = budget.get("flips")
-    if isinstance(flips, bool) or not isinstance(flips, int) or flips < 1:
-        raise ConfigError(f"expected a whole number >= 1, got {flips!r}", key="budget.flips")
+    p = validation.probability(params.get("p"), "params.p")
+    flips = validation.whole(budget.get("flips"), "budget.flips", minimum=1)
     n = int(budget["seeds"])
     estimates = np.array(ctx.map(flip_coins, [{"p": float(p), "flips": flips, "seed": s}
                                               for s in ctx.seeds(n)], desc="coin seeds"))

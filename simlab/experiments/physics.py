@@ -225,28 +225,9 @@ def linearity_r2(reward_times: np.ndarray, duration: float, points: int = 200) -
     return 1.0 - ss_res / ss_tot if ss_tot > 0 else math.nan
 
 
-@runner("physics.replay")
-def replay_experiment(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
-                      ) -> RunResult:
-    """Thesis Fig. 4.10: the learned Q-tables replayed in physics with goal switching.
-
-    Per chain seed, two replays run in parallel (``ctx.map``): the greedy policy with the
-    settings' pose source, and the random policy (truth poses; a random policy ignores
-    them). Metrics: ``rate_per_hour`` and ``random_rate_per_hour`` (means over seeds,
-    rewards per robot hour), ``ratio_to_random`` (their ratio), ``ratio_to_random_mdp``
-    (over the random rate the MDP predicts), ``predicted_rate_per_hour`` (the MDP's rate
-    for the greedy policy at the dataset's pace, :mod:`simlab.replay.prediction`),
-    ``measured_over_predicted`` (pooled) and ``measured_over_predicted_worst`` (the seed
-    farthest from 1), ``rewards_over_expected`` (rewards over the MDP's expectation for
-    the same number of transitions from the start, transient included; mean over seeds),
-    ``linearity_r2_min`` (:func:`linearity_r2`, worst seed),
-    ``rewards``, ``transitions``, ``state_agrees_with_truth``, and with ``mcl``
-    ``mcl_position_error_m`` (mean at decisions).
-    """
-    from simlab.replay.plots import RewardCurve, plot_cumulative_reward
-
-    s = PhysicsSettings.from_tables(params, budget)
-    chain = _chain(ctx, s)
+def _replay_jobs(ctx: RunContext, s: PhysicsSettings, chain: PhysicsChain
+                 ) -> list[dict[str, Any]]:
+    """The ``replay_job`` keywords of every chain seed: greedy, then random (baseline)."""
     states = chain.states()
     map_yaml = chain.map().path / "map.yaml"
     jobs = []
@@ -262,10 +243,13 @@ def replay_experiment(params: dict[str, Any], budget: dict[str, Any], ctx: RunCo
         jobs.append({**common, "qtables": None, "policy": "random", "pose_source": "truth",
                      "seed": chain_seed(ctx.root_seed, "baseline", i),
                      "out": str(ctx.out / f"random_seed{i}"), "video": False})
-    ctx.log(f"{len(jobs)} replays of {s.replay_hours:g} robot hours on {ctx.workers} workers")
-    results = ctx.map(replay_job, jobs, desc="replays")
-    greedy, rand = results[0::2], results[1::2]
+    return jobs
 
+
+def _replay_metrics(s: PhysicsSettings, greedy: list[dict[str, Any]],
+                    rand: list[dict[str, Any]]) -> tuple[dict[str, Any], tuple[Any, ...]]:
+    """The metrics of :func:`replay_experiment` and the per-seed arrays behind them
+    (``rates``, ``rand_rates``, ``predicted``, ``pred_random``, ``r2``)."""
     rates = np.array([g["summary"]["result"]["rate_per_hour"] for g in greedy])
     rand_rates = np.array([r["summary"]["result"]["rate_per_hour"] for r in rand])
     predicted = np.array([g["summary"]["comparison"].get("predicted_rate_per_hour", math.nan)
@@ -303,23 +287,12 @@ def replay_experiment(params: dict[str, Any], budget: dict[str, Any], ctx: RunCo
         metrics["mcl_position_error_m"] = float(np.mean([e.get("position_mean_m", math.nan)
                                                          for e in errs]))
 
-    curves = [RewardCurve(f"greedy, seed {i} ({s.pose_source}): {rates[i]:.1f} /h",
-                          np.array(g["reward_times"]), g["robot_seconds"])
-              for i, g in enumerate(greedy)]
-    curves += [RewardCurve(f"random, seed {i}: {rand_rates[i]:.1f} /h",
-                           np.array(r["reward_times"]), r["robot_seconds"])
-               for i, r in enumerate(rand)]
-    figure = ctx.out / "cumulative_reward.png"
-    plot_cumulative_reward(
-        figure, curves,
-        [(f"MDP-predicted greedy: {np.mean(predicted):.1f} /h", float(np.mean(predicted))),
-         (f"MDP-predicted random: {np.mean(pred_random):.1f} /h", float(np.mean(pred_random)))],
-        hours=s.replay_hours,
-        title=f"{s.arena}: cumulative reward over {s.replay_hours:g} h of robot time")
-    figures = [figure]
-    gif = ctx.out / "replay_seed0" / "replay.gif"
-    if gif.exists():
-        figures.append(gif)
+    return metrics, (rates, rand_rates, predicted, pred_random, r2)
+
+
+def _replay_notes(s: PhysicsSettings, chain: PhysicsChain, greedy: list[dict[str, Any]],
+                  metrics: dict[str, Any]) -> list[str]:
+    """The notes of :func:`replay_experiment` (sim-to-model gap, per-seed warnings)."""
     notes = [
         f"Greedy replay of the mean-over-runs Q-tables ({s.pose_source} poses, obstacle "
         "detector, goal switching to another of the goals, no return to the start), random "
@@ -347,6 +320,56 @@ def replay_experiment(params: dict[str, Any], budget: dict[str, Any], ctx: RunCo
                          "filter lost track, so the robot acted on wrong states "
                          f"({g['summary']['result']['state_agrees_with_truth']:.0%} agree "
                          "with the true state).")
+    return notes
+
+
+@runner("physics.replay")
+def replay_experiment(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
+                      ) -> RunResult:
+    """Thesis Fig. 4.10: the learned Q-tables replayed in physics with goal switching.
+
+    Per chain seed, two replays run in parallel (``ctx.map``): the greedy policy with the
+    settings' pose source, and the random policy (truth poses; a random policy ignores
+    them). Metrics: ``rate_per_hour`` and ``random_rate_per_hour`` (means over seeds,
+    rewards per robot hour), ``ratio_to_random`` (their ratio), ``ratio_to_random_mdp``
+    (over the random rate the MDP predicts), ``predicted_rate_per_hour`` (the MDP's rate
+    for the greedy policy at the dataset's pace, :mod:`simlab.replay.prediction`),
+    ``measured_over_predicted`` (pooled) and ``measured_over_predicted_worst`` (the seed
+    farthest from 1), ``rewards_over_expected`` (rewards over the MDP's expectation for
+    the same number of transitions from the start, transient included; mean over seeds),
+    ``linearity_r2_min`` (:func:`linearity_r2`, worst seed),
+    ``rewards``, ``transitions``, ``state_agrees_with_truth``, and with ``mcl``
+    ``mcl_position_error_m`` (mean at decisions).
+    """
+    from simlab.replay.plots import RewardCurve, plot_cumulative_reward
+
+    s = PhysicsSettings.from_tables(params, budget)
+    chain = _chain(ctx, s)
+    jobs = _replay_jobs(ctx, s, chain)
+    ctx.log(f"{len(jobs)} replays of {s.replay_hours:g} robot hours on {ctx.workers} workers")
+    results = ctx.map(replay_job, jobs, desc="replays")
+    greedy, rand = results[0::2], results[1::2]
+
+    metrics, (rates, rand_rates, predicted, pred_random, r2) = _replay_metrics(s, greedy, rand)
+
+    curves = [RewardCurve(f"greedy, seed {i} ({s.pose_source}): {rates[i]:.1f} /h",
+                          np.array(g["reward_times"]), g["robot_seconds"])
+              for i, g in enumerate(greedy)]
+    curves += [RewardCurve(f"random, seed {i}: {rand_rates[i]:.1f} /h",
+                           np.array(r["reward_times"]), r["robot_seconds"])
+               for i, r in enumerate(rand)]
+    figure = ctx.out / "cumulative_reward.png"
+    plot_cumulative_reward(
+        figure, curves,
+        [(f"MDP-predicted greedy: {np.mean(predicted):.1f} /h", float(np.mean(predicted))),
+         (f"MDP-predicted random: {np.mean(pred_random):.1f} /h", float(np.mean(pred_random)))],
+        hours=s.replay_hours,
+        title=f"{s.arena}: cumulative reward over {s.replay_hours:g} h of robot time")
+    figures = [figure]
+    gif = ctx.out / "replay_seed0" / "replay.gif"
+    if gif.exists():
+        figures.append(gif)
+    notes = _replay_notes(s, chain, greedy, metrics)
     details = {"per_seed": [{"rate_per_hour": float(rates[i]),
                              "random_rate_per_hour": float(rand_rates[i]),
                              "predicted_rate_per_hour": float(predicted[i]),

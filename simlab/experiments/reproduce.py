@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.experiments.spec import BUDGETS, FAIL, ExperimentSpec, discover_experiments, select
 from simlab.io import atomic_write_json, atomic_write_text
@@ -212,8 +213,7 @@ def reproduce(
     if budget not in BUDGETS:
         raise ConfigError(f"unknown budget {budget!r}", key="budget",
                           fix=f"choose one of {', '.join(BUDGETS)}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
+    validation.whole(seed, "seed", minimum=0)
     specs = select(discover_experiments(experiments), only)
     if not specs:
         raise ConfigError("no experiment files found", path=experiments, key="experiments")
@@ -229,7 +229,7 @@ def reproduce(
     previous = _read_previous(out / RESULTS_JSON)
 
     from simlab import __version__
-    from simlab.experiments.executors import make_executor
+    from simlab.parallel import make_executor
 
     executor = make_executor(backend, workers=workers, address=address)
     say = log or (lambda _line: None)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from simlab import validation
 from simlab.errors import ConfigError
 
 BUDGETS = ("quick", "full")
@@ -223,17 +224,14 @@ def _parse_check(raw: Any, i: int, path: Path) -> Check:
     tol = raw.get("tol", 0.0)
     rel_tol = raw.get("rel_tol", 0.0)
     for key, v in (("tol", tol), ("rel_tol", rel_tol)):
-        if not _is_number(v) or v < 0:
-            raise ConfigError(f"expected a number >= 0, got {v!r}", path=path,
-                              key=f"{where}.{key}")
+        validation.number(v, f"{where}.{key}", low=0.0, path=path)
     if ("tol" in raw or "rel_tol" in raw) and op != "approx":
         raise ConfigError("tol/rel_tol apply to op = 'approx' only", path=path, key=where)
     if op == "approx" and tol == 0 and rel_tol == 0:
         raise ConfigError("'approx' needs tol or rel_tol > 0", path=path, key=where,
                           fix="use op = '==' for an exact comparison")
     factor = raw.get("factor", 1.0)
-    if not _is_number(factor):
-        raise ConfigError(f"expected a number, got {factor!r}", path=path, key=f"{where}.factor")
+    validation.number(factor, f"{where}.factor", path=path)
     if "factor" in raw and op not in METRIC_OPS:
         raise ConfigError(f"factor applies to {' and '.join(METRIC_OPS)} only", path=path,
                           key=f"{where}.factor")
@@ -286,9 +284,7 @@ def parse_experiment(data: Mapping[str, Any], path: str | os.PathLike[str]) -> E
         seeds = table.get("seeds")
         if seeds is None:
             raise ConfigError("missing", path=path, key=f"budget.{b}.seeds")
-        if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-            raise ConfigError(f"expected a whole number >= 1, got {seeds!r}", path=path,
-                              key=f"budget.{b}.seeds")
+        validation.whole(seeds, f"budget.{b}.seeds", minimum=1, path=path)
         budgets[b] = dict(table)
     raw_checks = data.get("expect", [])
     if not isinstance(raw_checks, list):

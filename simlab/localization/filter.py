@@ -48,6 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from discretize.gridmap import OccupancyMap
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.localization.likelihood import LikelihoodField, SensorModelParams
 from simlab.localization.motion import (
@@ -104,14 +105,9 @@ class MCLParams:
 
     def __post_init__(self) -> None:
         for name in ("n_particles", "n_beams"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-                raise ConfigError(f"must be a whole number >= 1, got {value!r}",
-                                  key=f"MCLParams.{name}")
+            validation.whole(getattr(self, name), f"MCLParams.{name}", minimum=1)
         for name in ("resample_threshold", "alpha_slow", "alpha_fast"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0 <= value <= 1):
-                raise ConfigError(f"must lie in [0, 1], got {value!r}", key=f"MCLParams.{name}")
+            validation.probability(getattr(self, name), f"MCLParams.{name}")
         if self.alpha_fast < self.alpha_slow:
             raise ConfigError(
                 f"alpha_fast ({self.alpha_fast}) must be >= alpha_slow ({self.alpha_slow})",
@@ -119,13 +115,9 @@ class MCLParams:
             )
         for name in ("range_noise", "inject_clearance", "update_min_distance",
                      "update_min_angle"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ConfigError(f"must be a number >= 0, got {value!r}", key=f"MCLParams.{name}")
+            validation.positive(getattr(self, name), f"MCLParams.{name}", allow_zero=True)
         for name in ("estimate_radius", "estimate_angle"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"must be a number > 0, got {value!r}", key=f"MCLParams.{name}")
+            validation.positive(getattr(self, name), f"MCLParams.{name}")
 
 
 def low_variance_resample(weights: NDArray[np.float64], n: int,

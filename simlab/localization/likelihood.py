@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from discretize.gridmap import OccupancyMap
+from simlab import validation
 from simlab.errors import ConfigError
 
 
@@ -57,15 +58,9 @@ class SensorModelParams:
 
     def __post_init__(self) -> None:
         for name in ("sigma_hit", "z_max", "max_distance"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"must be a number > 0, got {value!r}",
-                                  key=f"SensorModelParams.{name}")
+            validation.positive(getattr(self, name), f"SensorModelParams.{name}")
         for name in ("z_hit", "z_rand"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0 <= value <= 1):
-                raise ConfigError(f"must lie in [0, 1], got {value!r}",
-                                  key=f"SensorModelParams.{name}")
+            validation.probability(getattr(self, name), f"SensorModelParams.{name}")
         if self.z_rand <= 0:
             raise ConfigError("must be > 0 (else one stray return zeroes a particle)",
                               key="SensorModelParams.z_rand")

@@ -9,6 +9,16 @@ from simlab import __version__
 from simlab.io import atomic_write_text
 
 
+def train_ratios(record: dict[str, Any]) -> tuple[float | None, float | None]:
+    """Worst goal's (on-policy, greedy) return over the optimal, from a train record
+    (the ``summary`` of the ``train`` stage: ``{"goals": {goal: {"ratio", ...}}}``).
+    It lives here, not in the pipeline, so that the report never imports the pipeline."""
+    goals = record.get("goals", {}).values()
+    ratios = [g["ratio"] for g in goals if g.get("ratio") is not None]
+    greedy = [g["greedy_ratio"] for g in goals if g.get("greedy_ratio") is not None]
+    return (min(ratios) if ratios else None, min(greedy) if greedy else None)
+
+
 def _fig(out: Path, rel: str, caption: str) -> str:
     if not (out / rel).exists():
         return f"*({caption}: not produced)*\n"
@@ -17,9 +27,8 @@ def _fig(out: Path, rel: str, caption: str) -> str:
 
 def write_report(out: Path, s: Any, seed: int, state: dict[str, Any]) -> Path:
     """Write ``out/report.md`` from the stage records in ``state`` (see
-    :mod:`simlab.orchestration.pipeline`); ``s`` are the run's :class:`~simlab.orchestration.stages.PhysicsSettings`."""
-    from simlab.orchestration.pipeline import train_ratios
-
+    :mod:`simlab.orchestration.pipeline`); ``s`` are the run's
+    :class:`~simlab.orchestration.stages.PhysicsSettings`."""
     st = state["stages"]
     m, d, mdp, tr, rp = (st.get(k, {}) for k in ("map", "dataset", "mdp", "train", "replay"))
     n_states = st.get("states", {}).get("n_states")

@@ -13,15 +13,12 @@ Fig. 4.8 collected when their settings agree (the three TOMLs keep them equal; a
 checks it), a second ``simlab reproduce`` into the same folder reuses the whole chain, and
 ``simlab pipeline --resume`` continues where an interrupted run stopped.
 
-The key also holds :func:`code_fingerprint`, a hash of the source of every package the
-chain runs (physics, mapping, discretizer, data, agents, training, envs) and of the
-robot and arena files: after a change to that code a stage is rebuilt, never silently
-reused (folders of older code stay in the cache until ``DIR/_cache`` is deleted).
-
-A stage folder is complete when its ``_stage.json`` exists (written last, atomically);
-a folder without it (an interrupted build) is deleted and rebuilt, and a build that raises
-removes its folder at once (a failed start never blocks the rerun). A lock file per
-stage (``fcntl.flock``) keeps two processes from building the same stage at once.
+The stages live in a :class:`~simlab.orchestration.cache.StageCache` of scope
+``"physics"`` (the one cache of simlab, shared with the Visit-the-lab runs): its key also
+holds a fingerprint of the source of every package the chain runs and of the robot and
+arena files, so after a change to that code a stage is rebuilt, never silently reused;
+a folder is complete when its marker exists, interrupted or failed builds are removed
+and a lock per stage keeps two processes from building it at once (see that module).
 
 Seeds: stage ``k`` of chain seed ``i`` uses the integer
 ``SeedSequence(root_seed, spawn_key=(PHYSICS_SPAWN_KEY, k, i)).generate_state(1)[0]``:
@@ -54,29 +51,24 @@ key                 meaning                                                    d
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import fcntl
-import functools
-import hashlib
-import json
-import math
-import shutil
-import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json
+from simlab.orchestration.cache import MARKER, Stage, StageCache
+
+__all__ = ["MARKER", "PHYSICS_SPAWN_KEY", "STAGE_INDEX", "PhysicsChain", "PhysicsSettings",
+           "Stage", "chain_seed"]
 
 #: First element of every physics spawn key ("PHYS" in ASCII).
 PHYSICS_SPAWN_KEY = 0x50485953
 STAGE_INDEX = {"map": 0, "dataset": 1, "train": 2, "replay": 3, "baseline": 4}
-MARKER = "_stage.json"
 
 
 @dataclass(frozen=True)
@@ -129,7 +121,7 @@ class PhysicsSettings:
     @classmethod
     def create(cls, **values: Any) -> PhysicsSettings:
         """Settings from keyword values (defaults for the rest), validated like a TOML's;
-        errors name the setting (``hours: expected a number > 0``)."""
+        errors name the setting (``hours: expected a finite number > 0``)."""
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = set(values) - names
         if unknown:
@@ -146,22 +138,16 @@ class PhysicsSettings:
             key = where.get(name, name)
             kind = type(getattr(defaults, name))
             if kind is bool:
-                if not isinstance(v, bool):
-                    raise ConfigError(f"expected true or false, got {v!r}", key=key)
+                v = validation.boolean(v, key)
             elif kind is int:
-                if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                    raise ConfigError(f"expected a whole number >= 1, got {v!r}", key=key)
+                v = validation.whole(v, key, minimum=1)
             elif kind is float:
-                if (isinstance(v, bool) or not isinstance(v, int | float)
-                        or not math.isfinite(v) or v <= 0):
-                    raise ConfigError(f"expected a number > 0, got {v!r}", key=key)
-                v = float(v)
+                v = validation.positive(v, key)
             elif not isinstance(v, str) or (not v and name != "primitives"):
                 raise ConfigError(f"expected a non-empty string, got {v!r}", key=key)
             values[name] = v
-        if values["pose_source"] not in ("truth", "odometry", "mcl"):
-            raise ConfigError(f"expected truth, odometry or mcl, got {values['pose_source']!r}",
-                              key=where.get("pose_source", "pose_source"))
+        validation.choice(values["pose_source"], ("truth", "odometry", "mcl"),
+                          where.get("pose_source", "pose_source"))
         settings = cls(**{k: values[k] for k in names})
         settings.check_references(where)
         return settings
@@ -188,76 +174,11 @@ class PhysicsSettings:
                      fix="a smaller arena or a coarser map_resolution")
 
 
-def source_fingerprint(roots: Iterable[Path]) -> str:
-    """sha256 (16 hex digits) of the source under ``roots`` (files, or folders searched for
-    ``*.py``, ``*.urdf`` and ``*.toml``): names relative to each root's parent, and bytes.
-    A cached result keyed on it is never reused after the code it depends on changed."""
-    h = hashlib.sha256()
-    for root in roots:
-        files = [root] if root.is_file() else sorted(
-            p for p in root.rglob("*") if p.is_file() and p.suffix in (".py", ".urdf", ".toml"))
-        for f in files:
-            h.update(f"{root.name}/{f.relative_to(root.parent).as_posix()}\0".encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()[:16]
-
-
-@functools.lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """:func:`source_fingerprint` of what the physics chain's results depend on: the
-    ``*.py`` of ``simlab.physics``, ``simlab.data``, ``simlab.orchestration.mapping``, ``discretize``,
-    ``simlab.agents``, ``simlab.training``, ``simlab.envs``, ``simlab.replay``,
-    ``simlab.localization`` and the robot and arena assets. Computed once per process."""
-    import discretize
-    import simlab
-    from simlab.assets import asset_dir
-
-    pkg = Path(simlab.__file__).resolve().parent
-    return source_fingerprint([
-        pkg / "physics", pkg / "data", pkg / "mapping.py", pkg / "agents", pkg / "training",
-        pkg / "envs", pkg / "replay", pkg / "localization",
-        Path(discretize.__file__).resolve().parent, asset_dir("robots"), asset_dir("arenas")])
-
-
-def stage_key(stage: str, key: Mapping[str, Any], fingerprint: str) -> tuple[str, dict[str, Any]]:
-    """``(digest, full key)`` of a cached stage: ``key`` plus the stage name, the simlab
-    version and the ``fingerprint`` of the code it runs (16 hex digits of sha256)."""
-    from simlab import __version__
-
-    full = {"stage": stage, "simlab": __version__, "code": fingerprint, **key}
-    return hashlib.sha256(json.dumps(full, sort_keys=True).encode()).hexdigest()[:16], full
-
-
 def chain_seed(root_seed: int, stage: str, i: int) -> int:
     """The integer seed of ``stage`` for chain seed ``i`` (module docstring)."""
     seq = np.random.SeedSequence(int(root_seed),
                                  spawn_key=(PHYSICS_SPAWN_KEY, STAGE_INDEX[stage], int(i)))
     return int(seq.generate_state(1, np.uint32)[0])
-
-
-@contextlib.contextmanager
-def file_lock(path: Path) -> Iterator[None]:
-    """Hold an exclusive ``flock`` on ``path`` (created if needed) for the block: two
-    processes never build the same cached stage at once."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
-
-
-@dataclass(frozen=True)
-class Stage:
-    """A built stage: its folder, key, the numbers its build recorded, and whether this
-    call built it (False: found in the cache)."""
-
-    path: Path
-    key: str
-    summary: dict[str, Any]
-    built: bool
-    wall_seconds: float
 
 
 class PhysicsChain:
@@ -276,47 +197,20 @@ class PhysicsChain:
         self.root_seed = int(root_seed)
         self.backend = backend
         self.progress = progress
-        self._log = log or (lambda _m: None)
-        self._built: dict[str, Stage] = {}
+        self.cache = StageCache(self.root, "physics", log=log)
 
     # ------------------------------------------------------------------ machinery
 
     def cached_stage(self, stage: str, key: Mapping[str, Any],
                      build: Callable[[Path], dict[str, Any]]) -> Stage:
         """The folder of ``stage`` for ``key``: found complete in the cache, or made by
-        ``build(folder) -> summary`` (JSON-ready numbers recorded in ``_stage.json``)."""
-        digest, full_key = stage_key(stage, key, code_fingerprint())
-        d = self.root / f"{stage}-{digest}"
-        if d.name in self._built:
-            return self._built[d.name]
-        marker = d / MARKER
-        with file_lock(self.root / f".{stage}-{digest}.lock"):
-            if marker.exists():
-                rec = json.loads(marker.read_text())
-                st = Stage(d, digest, rec["summary"], False, 0.0)
-            else:
-                if d.exists():  # an interrupted build
-                    shutil.rmtree(d)
-                d.mkdir(parents=True)
-                t0 = time.perf_counter()
-                try:
-                    summary = build(d)
-                except BaseException:
-                    # a failed build leaves nothing behind: the rerun starts clean
-                    shutil.rmtree(d, ignore_errors=True)
-                    raise
-                wall = time.perf_counter() - t0
-                atomic_write_json(marker, {"key": full_key, "summary": summary,
-                                           "wall_seconds": wall})
-                st = Stage(d, digest, summary, True, wall)
-                self._log(f"{stage}: built in {wall:.0f} s ({d.name})")
-        self._built[d.name] = st
-        return st
+        ``build(folder) -> summary`` (JSON-ready numbers recorded in the marker)."""
+        return self.cache.get(stage, key, build)
 
     @property
     def stages(self) -> list[Stage]:
         """The stages this chain object built or found, in the order first needed."""
-        return list(self._built.values())
+        return self.cache.stages
 
     # ------------------------------------------------------------------ stages
 

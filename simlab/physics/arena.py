@@ -63,6 +63,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from simlab import validation
 from simlab.assets import resolve
 from simlab.errors import ConfigError
 
@@ -293,15 +294,8 @@ class _Checker:
             if default is not None:
                 return default
             raise self.fail(full, "missing key")
-        value = data[name]
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(full, f"expected a number, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(full, f"expected a finite number, got {value!r}")
-        if positive and value <= 0:
-            raise self.fail(full, f"expected a number > 0, got {value!r}")
-        return value
+        return validation.number(data[name], full, low=0.0 if positive else None,
+                                 low_open=positive, path=self.path)
 
     def vector(self, data: dict[str, Any], key: str, name: str, n: int, *,
                positive: bool = False) -> tuple[float, ...]:
@@ -313,11 +307,8 @@ class _Checker:
             raise self.fail(full, f"expected a list of {n} numbers, got {value!r}")
         out = []
         for v in value:
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise self.fail(full, f"expected a list of {n} numbers, got {value!r}")
-            if positive and v <= 0:
-                raise self.fail(full, f"expected numbers > 0, got {value!r}")
-            out.append(float(v))
+            out.append(validation.number(v, full, low=0.0 if positive else None,
+                                         low_open=positive, path=self.path))
         return tuple(out)
 
     def string(self, data: dict[str, Any], key: str, name: str, default: str | None = None) -> str:
@@ -351,9 +342,8 @@ def _parse_map(c: _Checker, data: dict[str, Any], path: Path
 
     table = c.table(data, "map", {"yaml", "unknown_as_wall", "occupied_min"})
     yaml_path = path.parent / c.string(table, "map", "yaml")
-    unknown_as_wall = table.get("unknown_as_wall", False)
-    if not isinstance(unknown_as_wall, bool):
-        raise c.fail("map.unknown_as_wall", f"expected true or false, got {unknown_as_wall!r}")
+    unknown_as_wall = validation.boolean(table.get("unknown_as_wall", False),
+                                         "map.unknown_as_wall", path=c.path)
     occupied_min = c.number(table, "map", "occupied_min", default=65.0)
     if not 0 < occupied_min <= 100:
         raise c.fail("map.occupied_min", f"expected a percentage in (0, 100], got {occupied_min}")
@@ -428,8 +418,7 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
     sx, sy, syaw_deg = c.vector(start_t, "start", "pose", 3)
     start = (sx, sy, math.radians(syaw_deg))
     clearance = c.number(start_t, "start", "clearance", default=START_CLEARANCE)
-    if clearance < 0:
-        raise c.fail("start.clearance", f"expected a number >= 0, got {clearance}")
+    validation.number(clearance, "start.clearance", low=0.0, path=c.path)
 
     hx, hy = size[0] / 2, size[1] / 2
     inside = lambda x, y: (-hx < x - center[0] < hx  # noqa: E731

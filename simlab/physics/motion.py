@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab import validation
 from simlab.actions import HEADINGS
 from simlab.directions import Direction
 from simlab.errors import ConfigError
@@ -155,20 +156,11 @@ class PrimitiveParams:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
+            key = f"PrimitiveParams.{f.name}"
             if f.name in _STRINGS:
-                if value not in _STRINGS[f.name]:
-                    choices = " or ".join(repr(v) for v in _STRINGS[f.name])
-                    raise ConfigError(f"must be {choices}, got {value!r}",
-                                      key=f"PrimitiveParams.{f.name}")
-                continue
-            if (isinstance(value, bool) or not isinstance(value, int | float)
-                    or not math.isfinite(value)):
-                raise ConfigError(f"must be a finite number, got {value!r}",
-                                  key=f"PrimitiveParams.{f.name}")
-            zero_ok = f.name in _ZERO_OK
-            if value < 0 or (value == 0 and not zero_ok):
-                raise ConfigError(f"must be {'>= 0' if zero_ok else '> 0'}, got {value!r}",
-                                  key=f"PrimitiveParams.{f.name}")
+                validation.choice(value, _STRINGS[f.name], key)
+            else:
+                validation.positive(value, key, allow_zero=f.name in _ZERO_OK)
         if self.slip >= 1.0:
             raise ConfigError(f"must be < 1 (a fraction of the distance), got {self.slip!r}",
                               key="PrimitiveParams.slip")

@@ -466,7 +466,7 @@ def train(
         else:
             from concurrent.futures import as_completed
 
-            from simlab.experiments.executors import worker_pool
+            from simlab.parallel import worker_pool
 
             # the one local pool: workers exit with this process; Ctrl-C cancels what has
             # not started instead of waiting for every seed to finish

@@ -63,7 +63,7 @@ def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
 
 
 def test_pipeline_settings_are_validated(tmp_path):
-    with pytest.raises(ConfigError, match="hours: expected a number > 0"):
+    with pytest.raises(ConfigError, match="hours: expected a finite number > 0"):
         PhysicsSettings.create(hours=0)
     with pytest.raises(ConfigError, match="pose_source"):
         PhysicsSettings.create(pose_source="gps")

@@ -190,10 +190,10 @@ def test_good_case_reads(tmp_path):
     [
         ({"resolution": _DROP}, "resolution", "missing required key"),
         ({"image": _DROP}, "image", "missing required key"),
-        ({"resolution": "fine"}, "resolution", "expected a number"),
+        ({"resolution": "fine"}, "resolution", "expected a finite number"),
         ({"resolution": -0.05}, "resolution", "> 0"),
         ({"origin": [0.0, 0.0]}, "origin", "three numbers"),
-        ({"origin": [0.0, "a", 0.0]}, "origin", "expected a number"),
+        ({"origin": [0.0, "a", 0.0]}, "origin", "expected a finite number"),
         ({"negate": 2}, "negate", "0 or 1"),
         ({"free_thresh": 0.7}, "free_thresh", "must be smaller"),
         ({"occupied_thresh": 1.5}, "occupied_thresh", "[0, 1]"),

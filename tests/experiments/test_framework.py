@@ -13,9 +13,9 @@ import pytest
 from simlab.cli import main
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult, experiment_seed
-from simlab.experiments.executors import LocalExecutor, make_executor
 from simlab.experiments.registry import get_runner, runner
 from simlab.experiments.reproduce import reproduce
+from simlab.parallel import LocalExecutor, make_executor
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "simlab" / "experiments" / "example.toml"
 

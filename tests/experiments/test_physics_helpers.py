@@ -79,14 +79,15 @@ def test_stage_cache_builds_once_and_rebuilds_an_interrupted_stage(tmp_path):
 
 
 def test_stage_cache_is_rebuilt_when_the_code_changes(tmp_path, monkeypatch):
-    import simlab.orchestration.stages as pc
+    import simlab.orchestration.cache as pc
 
     def build(d):
         return {}
 
     a = PhysicsChain(tmp_path, PhysicsSettings(), 0).cached_stage("toy", {"k": 1}, build)
-    assert json.loads((a.path / MARKER).read_text())["key"]["code"] == pc.code_fingerprint()
-    monkeypatch.setattr(pc, "code_fingerprint", lambda: "edited-physics")
+    assert (json.loads((a.path / MARKER).read_text())["key"]["code"]
+            == pc.code_fingerprint("physics"))
+    monkeypatch.setattr(pc, "code_fingerprint", lambda scope: "edited-physics")
     b = PhysicsChain(tmp_path, PhysicsSettings(), 0).cached_stage("toy", {"k": 1}, build)
     assert b.built and b.path != a.path
 

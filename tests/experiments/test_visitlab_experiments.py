@@ -11,7 +11,6 @@ import pytest
 
 from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, experiment_seed
-from simlab.experiments.executors import LocalExecutor
 from simlab.experiments.reproduce import reproduce
 from simlab.experiments.visitlab import (
     curve_metrics,
@@ -20,6 +19,7 @@ from simlab.experiments.visitlab import (
     parse_run,
     visitlab_seed,
 )
+from simlab.parallel import LocalExecutor
 from simlab.visitlab.actions import move_action
 from simlab.visitlab.grid import gridworld
 from simlab.visitlab.training import train

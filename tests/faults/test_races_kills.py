@@ -116,7 +116,7 @@ def test_ctrl_c_during_train_is_130_and_leaves_no_output(work: Path) -> None:
 
 def test_worker_initializer_exits_when_the_parent_is_gone() -> None:
     code = ("import os, time\n"
-            "from simlab.experiments.executors import exit_with_parent\n"
+            "from simlab.parallel import exit_with_parent\n"
             "exit_with_parent(os.getppid(), 0.05)\n"  # our parent lives: keep going
             "exit_with_parent(os.getppid() + 1_000_000, 0.05)\n"  # not our parent: exit
             "print('still here')\n")

@@ -80,7 +80,7 @@ def test_rasterize_matches_geometry():
     [
         (lambda s: s.replace("height = 0.25\n", ""), r"walls\.height: missing key"),
         (lambda s: s.replace("height = 0.25", 'height = "tall"'),
-         r"walls\.height: expected a number, got 'tall'"),
+         r"walls\.height: expected a finite number > 0, got 'tall'"),
         (lambda s: s.replace("height = 0.25", "height = 0.1"), r"walls\.height: .*LIDAR plane"),
         (lambda s: s.replace("size = [1.5, 1.5]", "size = [1.5]"),
          r"floor\.size: expected a list of 2 numbers"),
@@ -89,7 +89,7 @@ def test_rasterize_matches_geometry():
         (lambda s: s.replace("center = [0.0, 0.0]", "center = [2.0, 0.0]"),
          r"goals\[0\]\.center: .*outside the floor"),
         (lambda s: s.replace("radius = 0.15", "radius = -1"),
-         r"goals\[0\]\.radius: expected a number > 0"),
+         r"goals\[0\]\.radius: expected a finite number > 0"),
         (lambda s: s + '[[obstacles]]\nkind = "cone"\ncenter = [0.3, 0.3]\nheight = 0.3\n',
          r"obstacles\[0\]\.kind: unknown obstacle kind 'cone'"),
         (lambda s: s + '[[obstacles]]\nkind = "box"\ncenter = [0.0, 0.0]\nsize = [0.2, 0.2]\n'

@@ -1,0 +1,330 @@
+"""The one parallel layer of simlab: where jobs run (this process, local processes or Ray).
+
+Every caller (dataset collection, the experiments of ``simlab reproduce``, calibration,
+Visit-the-lab training, the replay's worker) gets its workers here:
+
+* :func:`worker_pool` — the ONE way simlab starts local worker processes: a
+  :class:`concurrent.futures.ProcessPoolExecutor` of ``N`` ``spawn`` processes (no PyBullet
+  client, thread or lock of the parent is inherited) whose workers exit with their parent
+  (:func:`exit_with_parent`); :func:`spawn_worker` is the pool of one (a single worker
+  process, e.g. for a replay that must not share this process's PyBullet client);
+* :func:`connect_ray` — the one place that imports Ray and starts or connects a runtime;
+* :func:`make_executor` — one API over the three places a job can run:
+  :class:`InProcessExecutor`, :class:`LocalExecutor` (a lazily created :func:`worker_pool`)
+  and :class:`RayExecutor` (Ray tasks of one CPU each). Each has
+  ``submit(fn, *args, **kwargs) -> handle``, ``wait(handles)`` (the finished ones, at
+  least one), ``map(fn, kwargs_list, desc=, progress=)`` (results in job order, with an
+  optional progress bar counting finished jobs), ``describe()`` and ``close()``, and is a
+  context manager.
+
+A job's result depends only on its function and arguments, so a deterministic job gives
+the same result on every executor (the tests of collection and of the experiments check
+it). Results come back to the driver, which alone writes files: a Ray cluster needs no
+shared file system. Ray is an optional extra (``pip install "simlab[ray]"``).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import os
+from collections.abc import Callable, Sequence
+from types import ModuleType
+from typing import Any
+
+from simlab import validation
+from simlab.errors import ConfigError
+
+#: Where jobs can run (``--backend``).
+BACKENDS = ("local", "ray")
+
+#: Seconds between two checks of a worker's parent (the longest an orphan lives).
+PARENT_POLL_SECONDS = 0.5
+
+
+# --------------------------------------------------------------------------- local processes
+
+
+def _watch_parent(parent_pid: int, interval: float) -> None:
+    import time
+
+    while os.getppid() == parent_pid:
+        time.sleep(interval)
+    os._exit(1)  # the parent died (SIGKILL, OOM killer): nobody will read our results
+
+
+def exit_with_parent(parent_pid: int, interval: float = PARENT_POLL_SECONDS) -> None:
+    """Process-pool initializer: end this worker as soon as ``parent_pid`` dies.
+
+    A SIGKILL of the driver (``collect``, ``pipeline``, ``reproduce``) gives its workers no
+    chance to be told; without this they run (and hold ~190 MB each) forever. Decision:
+    a daemon thread polling ``os.getppid()`` (portable to every POSIX, and unlike
+    ``PR_SET_PDEATHSIG`` not fooled by the death of the *thread* that spawned the worker);
+    the worker exits within ``interval`` seconds of its parent.
+    """
+    import threading
+
+    if os.getppid() != parent_pid:
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid, interval), daemon=True,
+                     name="simlab-parent-watchdog").start()
+
+
+def worker_pool(processes: int) -> cf.ProcessPoolExecutor:
+    """A pool of ``processes`` local worker processes: ``spawn`` context (no PyBullet
+    client, thread or lock of the parent inherited), each exiting with this process
+    (:func:`exit_with_parent`). The caller shuts it down."""
+    import multiprocessing
+
+    return cf.ProcessPoolExecutor(max_workers=processes,
+                                  mp_context=multiprocessing.get_context("spawn"),
+                                  initializer=exit_with_parent, initargs=(os.getpid(),))
+
+
+def spawn_worker() -> cf.ProcessPoolExecutor:
+    """A single fresh worker process (:func:`worker_pool` of one): for work that must run
+    outside this process (its own PyBullet client, its own numba threads)."""
+    return worker_pool(1)
+
+
+# --------------------------------------------------------------------------- Ray
+
+
+def connect_ray(address: str | None = None) -> tuple[ModuleType, bool]:
+    """Import Ray and make sure a runtime is up; returns ``(ray, owns_runtime)``.
+
+    With ``address`` (an existing cluster: ``"auto"``, ``"ray://head:10001"``...) it
+    connects there; without, it reuses a runtime this process already initialized or
+    starts a local one. ``owns_runtime`` is True when this call started or connected the
+    runtime, so the caller shuts it down when done, and never one it did not start.
+    """
+    try:
+        import ray
+    except ModuleNotFoundError:
+        raise ConfigError("the ray backend needs Ray", key="backend",
+                          fix='pip install "simlab[ray]", or use --backend local') from None
+    if address is not None:
+        if ray.is_initialized():
+            raise ConfigError(f"Ray is already initialized in this process; cannot connect "
+                              f"to {address!r}", key="address", fix="omit --address to reuse it")
+        ray.init(address=address)
+        return ray, True
+    if not ray.is_initialized():
+        ray.init(include_dashboard=False)
+        return ray, True
+    return ray, False
+
+
+def check_address(backend: str, address: str | None) -> None:
+    """``--address`` only makes sense with the Ray backend."""
+    if backend != "ray" and address is not None:
+        raise ConfigError("--address applies to the ray backend only", key="address",
+                          fix="add --backend ray or drop --address")
+
+
+# --------------------------------------------------------------------------- executors
+
+
+def _apply(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+    return fn(*args, **kwargs)
+
+
+class _Bar:
+    """A tqdm bar of finished jobs (nothing when disabled or for a single job)."""
+
+    def __init__(self, total: int, desc: str | None, enabled: bool) -> None:
+        self._bar = None
+        if enabled and total > 1:
+            from tqdm.auto import tqdm
+
+            self._bar = tqdm(total=total, desc=desc or "jobs", unit="job", dynamic_ncols=True,
+                             leave=False)
+
+    def update(self) -> None:
+        if self._bar is not None:
+            self._bar.update(1)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+def _serial_map(fn: Callable[..., Any], jobs: list[dict[str, Any]], bar: _Bar) -> list[Any]:
+    out = []
+    for kw in jobs:
+        out.append(fn(**kw))
+        bar.update()
+    return out
+
+
+class _Executor:
+    """What the three executors share: ``map`` with its progress bar, and the
+    context-manager protocol. Subclasses set ``name`` and ``workers``."""
+
+    name = ""
+    workers = 1
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:
+        raise NotImplementedError
+
+    def wait(self, handles: Sequence[Any]) -> list[tuple[Any, Any]]:
+        raise NotImplementedError
+
+    def map(self, fn: Callable[..., Any], kwargs_list: Sequence[dict[str, Any]], *,
+            desc: str | None = None, progress: bool = False) -> list[Any]:
+        """``[fn(**kw) for kw in kwargs_list]``, computed by the workers; results in job
+        order. ``progress`` shows a bar of finished jobs titled ``desc``."""
+        jobs = list(kwargs_list)
+        bar = _Bar(len(jobs), desc, progress)
+        try:
+            return self._map(fn, jobs, bar)
+        finally:
+            bar.close()
+
+    def _map(self, fn: Callable[..., Any], jobs: list[dict[str, Any]], bar: _Bar) -> list[Any]:
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return f"{self.name} ({self.workers} worker{'s' if self.workers != 1 else ''})"
+
+    def close(self) -> None:
+        """Release the workers (idempotent)."""
+
+    def __enter__(self) -> _Executor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class InProcessExecutor(_Executor):
+    """Runs each job at once, in this process (one worker; handy in tests and for jobs
+    whose arguments cannot be pickled). ``submit`` raises what the job raises."""
+
+    name = "in-process"
+
+    def __init__(self) -> None:
+        self._done: dict[int, Any] = {}
+        self._next = 0
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> int:
+        handle = self._next
+        self._next += 1
+        self._done[handle] = fn(*args, **kwargs)
+        return handle
+
+    def wait(self, handles: Sequence[int]) -> list[tuple[int, Any]]:
+        return [(h, self._done.pop(h)) for h in handles]
+
+    def _map(self, fn: Callable[..., Any], jobs: list[dict[str, Any]], bar: _Bar) -> list[Any]:
+        return _serial_map(fn, jobs, bar)
+
+
+class LocalExecutor(_Executor):
+    """A :func:`worker_pool` of ``workers`` processes (default: the machine's cores),
+    created on the first job that needs it and reused until :meth:`close` (process
+    start-up and imports are paid once). A map of a single job, or with one worker,
+    runs in this process."""
+
+    name = "local"
+
+    def __init__(self, workers: int | None = None) -> None:
+        if workers is None:
+            workers = os.cpu_count() or 1
+        self.workers = validation.whole(workers, "workers", minimum=1)
+        self._pool: cf.ProcessPoolExecutor | None = None
+
+    def _get_pool(self) -> cf.ProcessPoolExecutor:
+        if self._pool is None:
+            self._pool = worker_pool(self.workers)
+        return self._pool
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future[Any]:
+        return self._get_pool().submit(fn, *args, **kwargs)
+
+    def wait(self, handles: Sequence[cf.Future[Any]]) -> list[tuple[cf.Future[Any], Any]]:
+        done, _ = cf.wait(handles, return_when=cf.FIRST_COMPLETED)
+        return [(f, f.result()) for f in handles if f in done]
+
+    def _map(self, fn: Callable[..., Any], jobs: list[dict[str, Any]], bar: _Bar) -> list[Any]:
+        if len(jobs) <= 1 or self.workers == 1:
+            return _serial_map(fn, jobs, bar)
+        futures = [self.submit(fn, **kw) for kw in jobs]
+        try:
+            for _ in cf.as_completed(futures):
+                bar.update()
+            return [f.result() for f in futures]
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+class RayExecutor(_Executor):
+    """Ray tasks (one CPU each) on the runtime of :func:`connect_ray` (``address``, or
+    the one this process already initialized, or a new local one, shut down again by
+    :meth:`close`). ``workers`` is the cluster's CPU count."""
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None) -> None:
+        self._ray, self._owns = connect_ray(address)
+        self._remote = self._ray.remote(num_cpus=1)(_apply)
+        self.workers = int(self._ray.cluster_resources().get("CPU", 1))
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:
+        return self._remote.remote(fn, args, kwargs)
+
+    def wait(self, handles: Sequence[Any]) -> list[tuple[Any, Any]]:
+        ready, _ = self._ray.wait(list(handles), num_returns=1)
+        return [(ref, self._ray.get(ref)) for ref in ready]
+
+    def _map(self, fn: Callable[..., Any], jobs: list[dict[str, Any]], bar: _Bar) -> list[Any]:
+        if not jobs:
+            return []
+        fn_ref = self._ray.put(fn)  # shipped once, not once per job
+        refs = [self._remote.remote(fn_ref, (), kw) for kw in jobs]
+        pending = list(refs)
+        while pending:
+            done, pending = self._ray.wait(pending, num_returns=1)
+            for _ in done:
+                bar.update()
+        return self._ray.get(refs)
+
+    def describe(self) -> str:
+        return f"ray ({self.workers} CPUs)"
+
+    def close(self) -> None:
+        if self._owns:
+            self._ray.shutdown()
+            self._owns = False
+
+
+Executor = InProcessExecutor | LocalExecutor | RayExecutor
+
+
+def make_executor(backend: str = "local", *, workers: int | None = None,
+                  address: str | None = None, in_process_single: bool = False) -> Executor:
+    """The executor of ``backend`` (one of :data:`BACKENDS`).
+
+    ``local``: :class:`LocalExecutor` of ``workers`` processes (default: the cores), or
+    :class:`InProcessExecutor` when ``workers == 1`` and ``in_process_single`` (no worker
+    process at all). ``ray``: :class:`RayExecutor` on ``address`` (``workers`` must be
+    None: Ray uses its cluster's CPUs).
+    """
+    check_address(backend, address)
+    if backend == "local":
+        if in_process_single and workers == 1:
+            return InProcessExecutor()
+        return LocalExecutor(workers)
+    if backend == "ray":
+        if workers is not None:
+            raise ConfigError("--workers applies to the local backend only (Ray uses its "
+                              "cluster's CPUs)", key="workers")
+        return RayExecutor(address)
+    raise ConfigError(f"unknown backend {backend!r}", key="backend",
+                      fix=f"choose one of {', '.join(BACKENDS)}")
