@@ -189,21 +189,26 @@ class CommandConfig:
         return cls.from_mapping(values, path=config_path)
 
 
-def command(config_cls: type[C]) -> Callable[[Callable[[C], Any]], Callable[..., Any]]:
+def command(config_cls: type[C], *, extras: tuple[str, ...] = ()
+            ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Decorate ``fn(cfg)`` so it also takes the config's fields as arguments.
 
     ``fn(cfg)`` with a ``config_cls`` instance runs as is; ``fn(*args, **kwargs)`` builds
-    the config first, positional arguments taken in the order of the dataclass's fields
-    (``estimate(dataset, out, plot=False)``). ``help(fn)`` shows every option.
+    the config first, positional arguments taken in the order of ``ARGUMENTS`` (default:
+    the dataclass's fields) (``estimate(dataset, out, plot=False)``). ``extras`` name
+    keyword arguments that are not options but run-time objects (a log callback) and go to
+    ``fn`` beside the config. An unknown keyword is a :class:`ConfigError` naming it and
+    the known options. ``help(fn)`` shows every option.
     """
-    names = list(config_cls.ARGUMENTS) or [
-        f.name for f in dataclasses.fields(config_cls)]  # type: ignore[arg-type]
+    fields = [f.name for f in dataclasses.fields(config_cls)]  # type: ignore[arg-type]
+    names = list(config_cls.ARGUMENTS) or fields
 
-    def wrap(fn: Callable[[C], Any]) -> Callable[..., Any]:
+    def wrap(fn: Callable[..., Any]) -> Callable[..., Any]:
         @functools.wraps(fn)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
+            runtime = {k: kwargs.pop(k) for k in extras if k in kwargs}
             if len(args) == 1 and not kwargs and isinstance(args[0], config_cls):
-                return fn(args[0])
+                return fn(args[0], **runtime)
             if len(args) > len(names):
                 raise TypeError(f"{fn.__name__}() takes at most {len(names)} positional "
                                 f"arguments ({len(args)} given)")
@@ -211,9 +216,18 @@ def command(config_cls: type[C]) -> Callable[[Callable[[C], Any]], Callable[...,
                 if name in kwargs:
                     raise TypeError(f"{fn.__name__}() got multiple values for {name!r}")
                 kwargs[name] = value
-            return fn(config_cls(**kwargs))
+            unknown = sorted(set(kwargs) - set(fields))
+            if unknown:
+                raise ConfigError(f"unknown option(s) {', '.join(map(repr, unknown))} of "
+                                  f"{config_cls.COMMAND or fn.__name__}", key=unknown[0],
+                                  fix="known: " + ", ".join(fields))
+            return fn(config_cls(**kwargs), **runtime)
 
         params = list(inspect.signature(config_cls).parameters.values())
+        own = inspect.signature(fn).parameters
+        params += [inspect.Parameter(k, inspect.Parameter.KEYWORD_ONLY,
+                                     default=own[k].default if k in own else None)
+                   for k in extras]
         ret = inspect.signature(fn).return_annotation
         wrapper.__signature__ = inspect.Signature(params, return_annotation=ret)  # type: ignore[attr-defined]
         wrapper.config_class = config_cls  # type: ignore[attr-defined]
@@ -295,7 +309,7 @@ def _add_field(parser: argparse.ArgumentParser, f: dataclasses.Field, tp: Any) -
     required = f.default is _MISSING and f.default_factory is _MISSING
     default = None if required else f.default
     help_text = meta.get("help", "")
-    if not required and default is not None and base is not bool:
+    if not required and default not in (None, "") and base is not bool:
         shown = ",".join(map(str, default)) if isinstance(default, tuple) else default
         help_text += f" (default {shown})"
     kw: dict[str, Any] = {"help": help_text, "default": _UNSET}

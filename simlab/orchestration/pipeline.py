@@ -28,20 +28,64 @@ import os
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.io import atomic_write, atomic_write_json, exclusive_directory
+from simlab.options import CommandConfig, command, option
+from simlab.orchestration.report import train_ratios
 from simlab.orchestration.stages import PhysicsChain, PhysicsSettings, Stage
 
 #: Pipeline stage -> the link to its folder in the output folder.
 STAGES: dict[str, str] = {"map": "map", "states": "states", "dataset": "dataset", "mdp": "mdp",
                           "train": "qtables", "replay": "replay"}
 
-#: The pipeline writes the replay video unless told not to (the chain's default is off).
-PIPELINE_DEFAULTS: dict[str, Any] = {"video": True}
+_D = PhysicsSettings  # its class attributes are the chain's defaults, spelled once there
+
+
+@dataclass(frozen=True, kw_only=True)
+class PipelineConfig(CommandConfig):
+    """Every option of ``simlab pipeline`` (the physics settings are
+    :class:`~simlab.orchestration.stages.PhysicsSettings`'s, with its defaults)."""
+
+    COMMAND = "pipeline"
+    ARGUMENTS = ("arena", "out")
+    arena: str = option(_D.arena, "built-in arena name or .toml path")
+    out: Path = option(help="output directory (new or empty, or --resume)")
+    resume: bool = option(False, "continue a run in --out, reusing every stage whose settings "
+                                 "match")
+    seed: int = option(0, "root seed of every stage")
+    map_minutes: float = option(_D.map_minutes, "robot minutes of mapping exploration")
+    map_resolution: float = option(_D.map_resolution, "occupancy map cell size, metres",
+                                   cli=False)
+    states: int = option(_D.states, "Voronoi states")
+    hours: float = option(_D.hours, "simulated hours of random walk")
+    workers: int = option(_D.workers, "collection processes")
+    agent: str = option(_D.agent, "agent trained per goal")
+    episodes: int = option(_D.episodes, "training episodes per goal")
+    runs: int = option(_D.runs, "independent training runs per goal")
+    horizon: int = option(_D.horizon, "training episode length, decisions", cli=False)
+    replay_hours: float = option(_D.replay_hours, "simulated hours of closed-loop replay")
+    pose_source: str = option(_D.pose_source, "the replay's pose source",
+                              choices=("truth", "odometry", "mcl"))
+    # the pipeline writes the replay video unless told not to (the chain's default is off)
+    video: bool = option(True, "the replay GIF (--no-video skips it)")
+    seeds: int = option(_D.seeds, "replay seeds", cli=False)
+    primitives: str = option(_D.primitives, "[primitives] of the dataset walk, e.g. simlab "
+                             "calibrate's primitives.toml (default: built-in; replay uses "
+                             "the dataset's)", metavar="FILE.toml")
+    progress: bool = option(True, "progress bars (--no-progress hides them)")
+
+    def validate(self) -> None:
+        validation.whole(self.seed, "seed")
+
+    def physics_settings(self) -> PhysicsSettings:
+        """The chain's settings, validated (names and sizes checked before any work)."""
+        names = {f.name for f in fields(PhysicsSettings)}
+        return PhysicsSettings.create(**{k: v for k, v in self.to_dict().items() if k in names})
 
 
 @dataclass
@@ -93,26 +137,17 @@ def _link(link: Path, target: Path) -> None:
     os.replace(tmp, link)
 
 
-def pipeline(
-    arena: str = "table",
-    out: str | Path = "runs/table",
-    *,
-    seed: int = 0,
-    resume: bool = False,
-    progress: bool = True,
-    log: Callable[[str], None] | None = print,
-    **settings: Any,
-) -> PipelineResult:
-    """Run the physics pipeline on ``arena`` into ``out`` (see the module docstring).
+@command(PipelineConfig, extras=("log",))
+def pipeline(cfg: PipelineConfig, log: Callable[[str], None] | None = print) -> PipelineResult:
+    """Run the physics pipeline on ``cfg.arena`` into ``cfg.out`` (see the module docstring).
 
-    ``settings`` are :class:`~simlab.orchestration.stages.PhysicsSettings` fields (``hours=1.0`` for a
-    quick run; the defaults are the thesis's); ``seed`` the root seed of every stage;
-    ``log`` receives one line per stage (None: silent).
+    Takes a :class:`PipelineConfig` or its fields (``pipeline("table", "runs/x", hours=1.0)``
+    for a quick run; the defaults are the thesis's); ``seed`` is the root seed of every
+    stage; ``log`` receives one line per stage (None: silent).
     """
-    s = PhysicsSettings.create(**{**PIPELINE_DEFAULTS, **settings, "arena": arena})
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"expected a whole number >= 0, got {seed!r}", key="seed")
-    out = Path(out)
+    s = cfg.physics_settings()
+    seed, resume, progress = cfg.seed, cfg.resume, cfg.progress
+    out = cfg.out
     if out.exists() and not out.is_dir():
         raise ConfigError("exists and is not a directory", path=out, fix="choose another --out")
     created = not out.exists()
@@ -189,14 +224,6 @@ def _visits_figure(out: Path) -> None:
                             title=f"{disc.n_states} states, visits of the random walk")
     with atomic_write(out / "figures" / "states_visits.png", "wb") as fh:
         fh.write(png)
-
-
-def train_ratios(record: dict[str, Any]) -> tuple[float | None, float | None]:
-    """Worst goal's (on-policy, greedy) return over the optimal, from a train record."""
-    goals = record.get("goals", {}).values()
-    ratios = [g["ratio"] for g in goals if g.get("ratio") is not None]
-    greedy = [g["greedy_ratio"] for g in goals if g.get("greedy_ratio") is not None]
-    return (min(ratios) if ratios else None, min(greedy) if greedy else None)
 
 
 def _headline(name: str, r: dict[str, Any], s: PhysicsSettings) -> str:

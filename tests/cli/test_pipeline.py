@@ -67,7 +67,7 @@ def test_pipeline_settings_are_validated(tmp_path):
         PhysicsSettings.create(hours=0)
     with pytest.raises(ConfigError, match="pose_source"):
         PhysicsSettings.create(pose_source="gps")
-    with pytest.raises(ConfigError, match=r"unknown physics setting.*hourz"):
+    with pytest.raises(ConfigError, match=r"unknown option.*hourz"):
         pipeline("table", tmp_path / "x", log=None, hourz=1)
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("user data")
