@@ -107,10 +107,10 @@ class PhysicsWalker:
 
     def __init__(self, arena: Any, params: Any, pose_source: str,
                  pose_source_options: dict[str, Any], discretizer: Any = None) -> None:
-        from simlab.physics.motion import execute_primitive, noisy_pose
+        from simlab.physics.driver import DecisionDriver
+        from simlab.physics.motion import noisy_pose
         from simlab.physics.world import World
 
-        self._execute = execute_primitive
         self._noisy_pose = noisy_pose
         self.params = params
         self._state_of = None
@@ -130,17 +130,19 @@ class PhysicsWalker:
         self._on_scan: Callable[..., None] | None = (
             self.source.on_scan if self.source.needs_scans else None
         )
+        # the action is the primitive (0-15); the recorded poses come from the pose source
+        self.driver = DecisionDriver(self.world, params, on_scan=self._on_scan,
+                                     watch_state=self._state_of)
 
     def reset(self, pose: NDArray[np.float64] | None, source_rng: np.random.Generator) -> None:
         self.world.reset(pose=None if pose is None else np.asarray(pose, dtype=np.float64))
         self.source.reset(self.world, source_rng)
+        self.driver.scan_beams = getattr(self.source, "scan_beams", None)
         self._noise_rng = source_rng
         self._last_pose = None
 
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
-        res = self._execute(self.world, action, rng, self.params, on_scan=self._on_scan,
-                            scan_beams=getattr(self.source, "scan_beams", None),
-                            state_of=self._state_of)
+        res = self.driver.execute(action, rng).result
         before, after = self.source.poses(res)
         if self._pose_noise:
             # One noisy reading per pose: a transition starts where the previous one's
