@@ -34,25 +34,29 @@ class ReplayConfig(CommandConfig):
 
     arena: Any = option("table", "built-in arena name, .toml path (or, from Python, an "
                                  "ArenaConfig)")
-    states: Any | None = option(None, "states file written by `simlab discretize` (JSON; from "
-                               "Python also a discretizer)", metavar="JSON")
-    qtables: Any | None = option(None, "output directory of `simlab train` (q_<goal>.npz per goal; "
-                                "from Python also a mapping goal -> Q (S, A))", metavar="DIR")
+    states: Any | None = option(None, "states file written by `simlab discretize` (JSON; "
+                                      "required on the command line; from Python also a "
+                                      "discretizer)", metavar="JSON")
+    qtables: Any | None = option(None, "output directory of `simlab train` (q_<goal>.npz per "
+                                       "goal; from Python also a mapping goal -> Q (S, A))",
+                                 metavar="DIR")
     hours: float = option(3.0, "robot time to replay, driving + idle latency (h)")
     pose_source: str = option("truth", "pose the robot decides from", choices=POSE_SOURCES)
     seed: int = option(0, "root seed")
-    out: Any = option("runs/replay", "output directory", metavar="DIR")
+    out: Any = option("runs/replay", "output directory (required on the command line)",
+                      metavar="DIR")
     policy: str = option("greedy", "greedy: the Q-tables; random: uniform actions",
                          choices=POLICIES)
-    map: Any | None = option(None, "map_server map.yaml to localize on and draw (default: the "
-                            "arena's own geometry rasterised at 1 cm)", metavar="YAML")
+    map: Any | None = option(None, "map_server map.yaml to localize on and draw (default: "
+                                   "the arena's own geometry rasterised at 1 cm)",
+                             metavar="YAML")
     return_to_start: bool = option(False, "drive back to the start pose after each goal "
                                           "(thesis go_back_initial_pose)")
     video: bool = option(False, "also write replay.gif (and replay.mp4 with imageio-ffmpeg)")
     progress: bool = option(True, "show progress bars (robot hours)")
     overwrite: bool = option(False, "replace existing outputs")
-    mdp: Any | None = option(None, "mdp.npz for the predicted rate (default: the one the Q-tables "
-                            "were trained on)", metavar="NPZ")
+    mdp: Any | None = option(None, "mdp.npz for the predicted rate (default: the one the "
+                                   "Q-tables were trained on)", metavar="NPZ")
     baseline_hours: float | None = option(None, "random-policy baseline replay length (h; "
                                                 "default: --hours; 0: none)", metavar="H")
     retry_blocked: bool = option(True, "after a blocked primitive, exclude the refused action "
@@ -62,15 +66,16 @@ class ReplayConfig(CommandConfig):
                                         "earlier decision of the same goal episode; 0: off",
                                   metavar="M")
     epsilon: float = option(0.0, "probability of a uniformly random action per decision")
-    params: Any | None = option(None, "PrimitiveParams (default: those of the MDP's dataset)",
-                         cli=False)
+    params: Any | None = option(None, "PrimitiveParams (default: those of the MDP's "
+                                      "dataset)", cli=False)
     mcl_params: Any | None = option(None, "MCLParams of the mcl pose source (default values)",
-                             cli=False)
+                                    cli=False)
     max_frames: int = option(150, "at most this many video frames")
     action_set: Any | None = option(None, "ActionSet of in-memory Q-tables", cli=False)
-    goals: Any | None = option(None, "goals to switch between: arena goal names or state-id goals "
-                              "as train --goal-states names them (s18, s18+19), comma-"
-                              "separated; default: all of the arena's", metavar="NAMES")
+    goals: Any | None = option(None, "goals to switch between: arena goal names or state-id "
+                                     "goals as train --goal-states names them (s18, s18+19), "
+                                     "comma-separated; default: all of the arena's",
+                               metavar="NAMES")
     parallel: bool = option(True, "run the random baseline and the mcl filter in processes "
                                   "of their own when cores are idle (bit-identical results)")
 
