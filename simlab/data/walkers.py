@@ -31,8 +31,6 @@ a whole part at once (the walk itself is random, so it never needs the state).
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import math
 import resource
 import time
@@ -46,107 +44,31 @@ from numpy.typing import NDArray
 from simlab.actions import HEADINGS
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError
-
-#: Pose source name -> "module:factory". A factory is called as
-#: ``factory(world, **options)`` in the worker and returns a :class:`PoseSource`.
-#: ``mcl`` (LIDAR particle filter on the occupancy map) is provided by the replay work.
-POSE_SOURCES: dict[str, str] = {
-    "truth": "simlab.data.walkers:TruthPose",
-    "odometry": "simlab.data.walkers:OdometryPose",
-    "mcl": "simlab.replay.localization:make_pose_source",
-}
+from simlab.localization.sources import (  # noqa: F401 (the names stay importable here)
+    POSE_SOURCES,
+    SCANLESS_POSE_SOURCES,
+    OdometryPose,
+    PoseSource,
+    TruthPose,
+    check_pose_source_name,
+    make_pose_source,
+)
 
 SIMULATORS = ("physics", "kinematic")
 
 
-# --------------------------------------------------------------------------------------
-# Pose sources (what the dataset records as x, y, yaw; and so what s and s' are)
-# --------------------------------------------------------------------------------------
-
-
-class PoseSource(Protocol):
-    """Turns the robot's sensing into the poses a dataset records.
-
-    ``needs_scans``: whether :meth:`on_scan` must be called during primitives (5 Hz of
-    simulated time; it slows the walk down). ``reset`` is called after every world
-    reset with the part's pose-source Generator; ``poses`` returns the (before, after)
-    poses (3,) of one :class:`~simlab.physics.motion.PrimitiveResult`.
-    """
-
-    needs_scans: bool
-
-    def reset(self, world: Any, rng: np.random.Generator) -> None: ...
-
-    def on_scan(self, scan: Any, odom: NDArray[np.float64]) -> None: ...
-
-    def poses(self, result: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
-
-
-class TruthPose:
-    """The simulator's ground-truth pose of the wheel-axis centre."""
-
-    needs_scans = False
-
-    def __init__(self, world: Any = None) -> None:
-        del world
-
-    def reset(self, world: Any, rng: np.random.Generator) -> None:
-        del world, rng
-
-    def on_scan(self, scan: Any, odom: NDArray[np.float64]) -> None:
-        del scan, odom
-
-    def poses(self, result: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return np.asarray(result.pose_before), np.asarray(result.pose_after)
-
-
-class OdometryPose(TruthPose):
-    """Wheel-encoder odometry (drifts; restarts from the truth pose at each part)."""
-
-    def poses(self, result: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        return np.asarray(result.odom_before), np.asarray(result.odom_after)
-
-
-def make_pose_source(name: str, world: Any, options: dict[str, Any]) -> PoseSource:
-    """Build the pose source ``name`` for ``world`` (lazy import from :data:`POSE_SOURCES`)."""
-    try:
-        target = POSE_SOURCES[name]
-    except KeyError:
-        raise ConfigError(
-            f"unknown pose source {name!r}", key="pose_source",
-            fix=f"choose one of {', '.join(POSE_SOURCES)}",
-        ) from None
-    module_name, attr = target.split(":")
-    try:
-        factory = getattr(importlib.import_module(module_name), attr)
-    except (ModuleNotFoundError, AttributeError):
-        raise ConfigError(
-            f"pose source {name!r} is not available in this installation ({target} not found)",
-            key="pose_source", fix="use truth or odometry",
-        ) from None
-    return factory(world, **options)
+# Pose sources (what the dataset records as x, y, yaw; and so what s and s' are) are
+# defined in :mod:`simlab.localization.sources`; the names stay importable from here.
 
 
 def check_pose_source(name: str, simulator: str) -> None:
     """Raise ConfigError early (in the driver) for an unusable pose source."""
-    if name not in POSE_SOURCES:
-        raise ConfigError(
-            f"unknown pose source {name!r}", key="pose_source",
-            fix=f"choose one of {', '.join(POSE_SOURCES)}",
-        )
-    if simulator == "kinematic" and name not in ("truth", "odometry"):
+    check_pose_source_name(name)
+    if simulator == "kinematic" and name not in SCANLESS_POSE_SOURCES:
         raise ConfigError(
             f"the kinematic simulator has no LIDAR, so no {name!r} pose source",
             key="pose_source", fix="use truth or odometry, or --simulator physics",
         )
-    if name not in ("truth", "odometry"):
-        module_name = POSE_SOURCES[name].split(":")[0]
-        if importlib.util.find_spec(module_name) is None:
-            raise ConfigError(
-                f"pose source {name!r} is not available in this installation "
-                f"({module_name} not found)",
-                key="pose_source", fix="use truth or odometry",
-            )
 
 
 # --------------------------------------------------------------------------------------
@@ -185,10 +107,10 @@ class PhysicsWalker:
 
     def __init__(self, arena: Any, params: Any, pose_source: str,
                  pose_source_options: dict[str, Any], discretizer: Any = None) -> None:
-        from simlab.physics.motion import execute_primitive, noisy_pose
+        from simlab.physics.driver import DecisionDriver
+        from simlab.physics.motion import noisy_pose
         from simlab.physics.world import World
 
-        self._execute = execute_primitive
         self._noisy_pose = noisy_pose
         self.params = params
         self._state_of = None
@@ -208,17 +130,19 @@ class PhysicsWalker:
         self._on_scan: Callable[..., None] | None = (
             self.source.on_scan if self.source.needs_scans else None
         )
+        # the action is the primitive (0-15); the recorded poses come from the pose source
+        self.driver = DecisionDriver(self.world, params, on_scan=self._on_scan,
+                                     watch_state=self._state_of)
 
     def reset(self, pose: NDArray[np.float64] | None, source_rng: np.random.Generator) -> None:
         self.world.reset(pose=None if pose is None else np.asarray(pose, dtype=np.float64))
         self.source.reset(self.world, source_rng)
+        self.driver.scan_beams = getattr(self.source, "scan_beams", None)
         self._noise_rng = source_rng
         self._last_pose = None
 
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
-        res = self._execute(self.world, action, rng, self.params, on_scan=self._on_scan,
-                            scan_beams=getattr(self.source, "scan_beams", None),
-                            state_of=self._state_of)
+        res = self.driver.execute(action, rng).result
         before, after = self.source.poses(res)
         if self._pose_noise:
             # One noisy reading per pose: a transition starts where the previous one's
@@ -301,7 +225,7 @@ class KinematicWalker:
     """
 
     def __init__(self, arena: Any, params: KinematicParams, pose_source: str = "truth") -> None:
-        if pose_source not in ("truth", "odometry"):
+        if pose_source not in SCANLESS_POSE_SOURCES:
             raise ConfigError(
                 f"the kinematic simulator has no LIDAR, so no {pose_source!r} pose source",
                 key="pose_source", fix="use truth or odometry, or --simulator physics",

@@ -52,7 +52,8 @@ from gymnasium.error import ClosedEnvironmentError
 from simlab.actions import SIMLAB16, ActionSet
 from simlab.errors import ConfigError
 from simlab.physics.arena import ArenaConfig
-from simlab.physics.motion import PrimitiveParams, execute_primitive
+from simlab.physics.driver import DecisionDriver
+from simlab.physics.motion import PrimitiveParams
 from simlab.physics.render import render_topdown
 from simlab.physics.world import World
 
@@ -126,6 +127,8 @@ class TableArenaEnv(gym.Env):
             raise ValueError(f"action_set must be an ActionSet or its JSON record, "
                              f"got {action_set!r}")
         self._primitives = self.action_set.primitives()
+        # one decision = one primitive of the action set, noise from self.np_random
+        self._driver = DecisionDriver(self.world, self.params, primitives=self._primitives)
         self.action_space = spaces.Discrete(self.action_set.n_actions)
         self.goal = self.arena.goals[0]
         self._steps = 0
@@ -194,16 +197,17 @@ class TableArenaEnv(gym.Env):
         self._steps = 0
         self._time = 0.0
         self._trail = [world.pose()]
+        self._driver.observe()
         obs = self._observe()
         return obs, {"goal": self.goal.name, "time": 0.0, "odometry": world.odometry()}
 
     def step(self, action):
-        world = self._live()
+        self._live()  # ClosedEnvironmentError after close()
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an int in 0..{self.action_space.n - 1}, "
                              f"got {action!r}")
         primitive = int(self._primitives[int(action)])
-        res = execute_primitive(world, primitive, self.np_random, self.params)
+        res = self._driver.execute(int(action), self.np_random).result
         self._steps += 1
         self._time += res.duration + self.params.decision_latency
         self._trail.append(res.pose_after)

@@ -42,10 +42,12 @@ from gymnasium import spaces
 from simlab.actions import ActionSet, action_set_from_metadata
 from simlab.envs.table_arena import TableArenaEnv
 from simlab.errors import ConfigError
+from simlab.localization.sources import SCANLESS_POSE_SOURCES
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.motion import PrimitiveParams
 
-POSE_SOURCES = ("truth", "odometry")
+#: The pose sources of this env (no LIDAR filter): the shared list's scanless ones.
+POSE_SOURCES = SCANLESS_POSE_SOURCES
 
 
 def _discretizer(states: Any) -> Any:

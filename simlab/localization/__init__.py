@@ -10,23 +10,23 @@ that a map belongs to its arena). Nothing here imports PyBullet.
 
 from __future__ import annotations
 
-from simlab.localization.filter import MCLParams, ParticleFilter
-from simlab.localization.likelihood import LikelihoodField, SensorModelParams
-from simlab.localization.maps import arena_map, check_map_matches_arena, load_map_for_arena
-from simlab.localization.motion import OdometryMotionParams, sample_odometry_motion
-from simlab.localization.tracker import LocalizationLog, MCLPoseSource, MCLTracker
+from simlab.lazy import lazy_exports
 
-__all__ = [
-    "LikelihoodField",
-    "LocalizationLog",
-    "MCLParams",
-    "MCLPoseSource",
-    "MCLTracker",
-    "OdometryMotionParams",
-    "ParticleFilter",
-    "SensorModelParams",
-    "arena_map",
-    "check_map_matches_arena",
-    "load_map_for_arena",
-    "sample_odometry_motion",
-]
+# Lazy (PEP 562): the pose-source names (:mod:`~simlab.localization.sources`) are read by
+# the CLI's parsers, which must not pay for scipy and the filter at ``simlab --help``.
+_LAZY = {
+    "LikelihoodField": "simlab.localization.likelihood",
+    "LocalizationLog": "simlab.localization.tracker",
+    "MCLParams": "simlab.localization.filter",
+    "MCLPoseSource": "simlab.localization.tracker",
+    "MCLTracker": "simlab.localization.tracker",
+    "OdometryMotionParams": "simlab.localization.motion",
+    "ParticleFilter": "simlab.localization.filter",
+    "SensorModelParams": "simlab.localization.likelihood",
+    "arena_map": "simlab.localization.maps",
+    "check_map_matches_arena": "simlab.localization.maps",
+    "load_map_for_arena": "simlab.localization.maps",
+    "sample_odometry_motion": "simlab.localization.motion",
+}
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -14,7 +14,7 @@ truth is available (:meth:`MCLTracker.log`, :meth:`MCLTracker.error_stats`).
 
 :class:`MCLPoseSource` adapts the tracker to the pose-source protocol of the dataset
 walkers (:mod:`simlab.data.walkers`), so ``simlab collect --pose-source mcl`` records
-MCL poses; the factory is :func:`make_pose_source`.
+MCL poses; the factory is :func:`simlab.localization.sources.make_pose_source`.
 """
 
 from __future__ import annotations
@@ -238,8 +238,3 @@ class MCLPoseSource:
         before, self._before = self._before, after
         return before, after
 
-
-def make_pose_source(world: Any, **options: Any) -> MCLPoseSource:
-    """Factory of the ``mcl`` pose source: ``options`` are ``map`` (a map.yaml; default
-    the arena's own geometry), ``initial_std`` and fields of :class:`MCLParams`."""
-    return MCLPoseSource(world, **options)

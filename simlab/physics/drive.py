@@ -13,7 +13,8 @@ from tqdm import tqdm
 
 from simlab.io import atomic_write, ensure_new
 from simlab.physics.arena import ArenaConfig
-from simlab.physics.motion import N_ACTIONS, PrimitiveParams, execute_primitive
+from simlab.physics.driver import DecisionDriver
+from simlab.physics.motion import N_ACTIONS, PrimitiveParams
 from simlab.physics.render import render_topdown
 from simlab.physics.world import World
 
@@ -76,13 +77,16 @@ def drive(
     policy_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
     policy_rng, noise_rng = np.random.default_rng(policy_seq), np.random.default_rng(noise_seq)
     t0 = time.perf_counter()
+    def choose(_pose: NDArray[np.float64], _state: int | None) -> int:
+        return int(policy_rng.integers(N_ACTIONS))
+
     with World(arena, gui=gui) as world:
+        driver = DecisionDriver(world, params, watch_state=state_of)
         trail = [world.pose()]
         blocked = 0
         stepped = 0.0
         for _ in tqdm(range(steps), desc="drive", unit="primitive", disable=not progress):
-            res = execute_primitive(world, int(policy_rng.integers(N_ACTIONS)), noise_rng, params,
-                                    state_of=state_of)
+            res = driver.step(choose, noise_rng).result
             trail.append(res.pose_after)
             blocked += res.blocked
             stepped += res.duration

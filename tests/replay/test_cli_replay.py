@@ -47,15 +47,55 @@ def test_cli_summary_with_no_predicted_reward_prints_instead_of_crashing(monkeyp
     from types import SimpleNamespace
 
     import simlab.replay.replay as replay_module
+    from simlab.replay.summary import Comparison
 
-    summary = {
-        "policy": "greedy", "pose_source": "truth",
-        "result": {"rewards": 0, "robot_seconds": 360.0, "transitions": 80,
-                   "rate_per_hour": 0.0, "wall_seconds": 1.0},
-        "comparison": {"predicted_rate_per_hour": 0.0, "measured_over_predicted": None},
-        "localization": {}, "files": {"summary": "replay.json", "plot": "plot.png"},
-    }
-    monkeypatch.setattr(replay_module, "replay", lambda **kw: SimpleNamespace(summary=summary))
-    code = main(["replay", "--states", "s.json", "--out", str(tmp_path / "o"), "--no-progress"])
+    summary = SimpleNamespace(
+        policy="greedy", pose_source="truth",
+        result=SimpleNamespace(rewards=0, robot_seconds=360.0, transitions=80,
+                               rate_per_hour=0.0, wall_seconds=1.0),
+        comparison=Comparison(rate_per_hour=0.0, predicted_rate_per_hour=0.0,
+                              measured_over_predicted=None),
+        localization={}, files={"summary": "replay.json", "plot": "plot.png"},
+    )
+    seen = []
+    monkeypatch.setattr(replay_module, "replay",
+                        lambda cfg: seen.append(cfg) or SimpleNamespace(summary=summary))
+    code = main(["replay", "--states", "s.json", "--qtables", "q", "--out",
+                 str(tmp_path / "o"), "--no-progress"])
     assert code == 0
     assert "measured/predicted: undefined" in capsys.readouterr().out
+    assert seen[0].states == "s.json" and seen[0].progress is False
+
+
+def test_cli_options_are_the_config_fields(tmp_path) -> None:
+    """--random is --policy random; --config FILE gives options, the command line wins;
+    the primitive flags become params."""
+    import argparse
+    from pathlib import Path
+
+    from simlab.cli.replay import add_arguments, config_from_args
+    from simlab.replay.config import ReplayConfig
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    toml = tmp_path / "replay.toml"
+    toml.write_text('states = "s.json"\nout = "o"\nhours = 0.5\npose-source = "mcl"\n'
+                    'epsilon = 0.1\n')
+    cfg = config_from_args(parser.parse_args(["--config", str(toml), "--random",
+                                              "--hours", "2", "--decision-latency", "1.5"]))
+    assert (cfg.states, cfg.out, cfg.hours, cfg.pose_source, cfg.policy, cfg.epsilon) == (
+        "s.json", Path("o") if isinstance(cfg.out, Path) else "o", 2.0, "mcl", "random", 0.1)
+    assert cfg.params.decision_latency == 1.5
+    assert cfg.baseline == 0.0  # a random replay has no random baseline
+    plain = config_from_args(parser.parse_args(["--states", "s.json", "--qtables", "q",
+                                                "--out", "o"]))
+    assert plain == ReplayConfig(states="s.json", qtables="q", out="o")
+    assert plain.policy == "greedy" and plain.params is None and plain.baseline == 3.0
+
+
+def test_cli_requires_states_and_out(tmp_path, capsys) -> None:
+    code = main(["replay", "--qtables", "q", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "--states" in err
+    code = main(["replay", "--states", "s.json", "--random"])
+    assert code == 2 and "--out" in capsys.readouterr().err

@@ -7,8 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from simlab.replay import replay as replay_module
+from simlab.replay import scheduling as replay_module
 from simlab.replay.replay import replay
+from simlab.replay.summary import Schedule
 
 WALL_KEYS = {"wall_seconds", "real_time_factor_robot", "real_time_factor_stepped"}
 
@@ -47,14 +48,14 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
                                 video=pose_source == "mcl", max_frames=5)
     seq, par = runs[False], runs[True]
     assert seq.baseline is not None and par.baseline is not None
-    assert seq.summary["schedule"] == {"baseline_process": False, "mcl_process": False}
-    assert par.summary["schedule"] == {"baseline_process": True,
-                                       "mcl_process": pose_source == "mcl"}
+    assert seq.summary.schedule == Schedule(baseline_process=False, mcl_process=False)
+    assert par.summary.schedule == Schedule(baseline_process=True,
+                                            mcl_process=pose_source == "mcl")
     assert seq.baseline.log.n > 0 and seq.run.log.n > 0
     _logs_equal(seq.run.log, par.run.log)
     _logs_equal(seq.baseline.log, par.baseline.log)
     assert seq.baseline.stepped_seconds == par.baseline.stepped_seconds
-    assert _strip(seq.summary) == _strip(par.summary)
+    assert _strip(seq.summary.to_json()) == _strip(par.summary.to_json())
     assert seq.files["transitions"].read_bytes() == par.files["transitions"].read_bytes()
     if pose_source == "mcl":  # the filter ran in its own process: same updates, same frames
         assert seq.run.mcl_log.t.size > 0

@@ -27,7 +27,7 @@ def test_outputs_and_summary(truth_run) -> None:
         assert files[key].is_file()
     assert files["plot"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads(files["summary"].read_text())
-    assert summary == json.loads(json.dumps(truth_run.summary))
+    assert summary == json.loads(json.dumps(truth_run.summary.to_json()))
     table = pq.read_table(files["transitions"])
     assert table.num_rows == summary["result"]["transitions"] == truth_run.run.log.n
     assert summary["prediction"]["pace_source"] == "dataset"
@@ -72,12 +72,15 @@ def test_actions_are_greedy_except_counted_deviations(chain, truth_run) -> None:
 
 def test_learned_policy_beats_random_by_5x(truth_run) -> None:
     s = truth_run.summary
-    rate = s["result"]["rate_per_hour"]
-    physics_random = s["random_baseline"]["rate_per_hour"]
-    predicted_random = s["prediction"]["random"]["rate_per_hour"]
-    assert s["random_baseline"]["transitions"] > 100
+    rate = s.result.rate_per_hour
+    physics_random = s.random_baseline.rate_per_hour
+    predicted_random = s.prediction["random"]["rate_per_hour"]
+    assert s.random_baseline.stats.transitions > 100
     assert rate >= 5 * max(physics_random, predicted_random)
-    assert s["comparison"]["ratio_to_random"] is None or s["comparison"]["ratio_to_random"] >= 5
+    assert s.comparison.ratio_to_random is None or s.comparison.ratio_to_random >= 5
+    # the headline attributes are the flat numbers of replay.json
+    assert s.reward_rate_per_hour == s["reward_rate_per_hour"] == rate
+    assert s.random_rate_per_hour == s["random_rate_per_hour"] == physics_random
 
 
 def test_mcl_replay_localizes_within_5_cm(chain, tmp_path) -> None:
