@@ -65,7 +65,7 @@ def bench_replay(states: Path, qtables: Path, hours: float, repeats: int, root: 
         for i in range(repeats):
             res = replay("table", states, qtables, hours=hours, pose_source=source, seed=i,
                          out=root / f"{source}{i}", progress=False, baseline_hours=0)
-            r = res.summary["result"]
+            r = res.summary_dict["result"]
             robot.append(r["real_time_factor_robot"])
             stepped.append(r["real_time_factor_stepped"])
             walls.append(r["wall_seconds"])

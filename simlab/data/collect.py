@@ -67,6 +67,7 @@ from simlab.data.walkers import (
 )
 from simlab.errors import ConfigError
 from simlab.io import exclusive_directory
+from simlab.localization.sources import POSE_SOURCES
 from simlab.options import command, option
 from simlab.physics.primitive_options import PrimitiveOptions
 
@@ -303,7 +304,7 @@ class CollectConfig(PrimitiveOptions):
         None, "Ray cluster address (ray backend; default: start Ray locally)")
     part_size: int = option(DEFAULT_PART_SIZE, "transitions per part file")
     pose_source: str = option("truth", "poses that are recorded and discretized",
-                              choices=("truth", "odometry", "mcl"))
+                              choices=POSE_SOURCES)
     simulator: str = option("physics", "physics (PyBullet) or kinematic (physics-free "
                             "dry run)", choices=SIMULATORS)
     params: Any | None = option(None, "PrimitiveParams / KinematicParams / [primitives] TOML path "

@@ -201,7 +201,7 @@ def replay_job(**kwargs: Any) -> dict[str, Any]:
     from simlab.replay.replay import replay
 
     res = replay(**kwargs)
-    return {"summary": res.summary, "reward_times": res.run.log.reward_times.tolist(),
+    return {"summary": res.summary_dict, "reward_times": res.run.log.reward_times.tolist(),
             "robot_seconds": float(res.run.robot_seconds)}
 
 

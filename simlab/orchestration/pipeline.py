@@ -35,6 +35,7 @@ from typing import Any
 from simlab import validation
 from simlab.errors import ConfigError
 from simlab.io import atomic_write, atomic_write_json, exclusive_directory
+from simlab.localization.sources import POSE_SOURCES
 from simlab.options import CommandConfig, command, option
 from simlab.orchestration.report import train_ratios
 from simlab.orchestration.stages import PhysicsChain, PhysicsSettings, Stage
@@ -70,7 +71,7 @@ class PipelineConfig(CommandConfig):
     horizon: int = option(_D.horizon, "training episode length, decisions", cli=False)
     replay_hours: float = option(_D.replay_hours, "simulated hours of closed-loop replay")
     pose_source: str = option(_D.pose_source, "the replay's pose source",
-                              choices=("truth", "odometry", "mcl"))
+                              choices=POSE_SOURCES)
     # the pipeline writes the replay video unless told not to (the chain's default is off)
     video: bool = option(True, "the replay GIF (--no-video skips it)")
     seeds: int = option(_D.seeds, "replay seeds", cli=False)

@@ -61,6 +61,7 @@ import numpy as np
 
 from simlab import validation
 from simlab.errors import ConfigError
+from simlab.localization.sources import POSE_SOURCES
 from simlab.orchestration.cache import MARKER, Stage, StageCache
 
 __all__ = ["MARKER", "PHYSICS_SPAWN_KEY", "STAGE_INDEX", "PhysicsChain", "PhysicsSettings",
@@ -146,7 +147,7 @@ class PhysicsSettings:
             elif not isinstance(v, str) or (not v and name != "primitives"):
                 raise ConfigError(f"expected a non-empty string, got {v!r}", key=key)
             values[name] = v
-        validation.choice(values["pose_source"], ("truth", "odometry", "mcl"),
+        validation.choice(values["pose_source"], POSE_SOURCES,
                           where.get("pose_source", "pose_source"))
         settings = cls(**{k: values[k] for k in names})
         settings.check_references(where)
@@ -321,7 +322,8 @@ class PhysicsChain:
                          mdp=mdp.path / "mdp.npz")
             keys = ("reward_rate_per_hour", "random_rate_per_hour", "predicted_rate_per_hour",
                     "position_error_mean_m")
-            return {k: res.summary[k] for k in keys if k in res.summary}
+            return {k: getattr(res.summary, k) for k in keys
+                    if getattr(res.summary, k) is not None}
 
         return self.cached_stage("replay", {"parent": q.key, "mdp": mdp.key, "seed": seed,
                                             "hours": s.replay_hours,

@@ -114,11 +114,9 @@ def run_both(plan: RunPlan) -> tuple[RunOutcome, RunOutcome | None]:
             return main, None
         with _bar(plan.baseline_hours, "replay random baseline", plan.progress) as bar:
             return main, run(plan.baseline, plan.baseline_seqs, bar)
-    import concurrent.futures as cf
-    import multiprocessing
+    from simlab.parallel import spawn_worker
 
-    with cf.ProcessPoolExecutor(max_workers=1,
-                                mp_context=multiprocessing.get_context("spawn")) as pool:
+    with spawn_worker() as pool:  # exits with us, like every simlab worker
         future = pool.submit(_run_quiet, plan.baseline, plan.baseline_seqs)
         with _bar(plan.hours, plan.label + "; random baseline in parallel)",
                   plan.progress) as bar:

@@ -6,16 +6,13 @@ dict written to ``replay.json``, key for key and in the same order as before the
 summary was typed. Nested records that other modules define (the prediction of
 :mod:`simlab.replay.prediction`, the error summaries of
 :mod:`simlab.localization.tracker`, the primitive parameters) stay plain dicts.
-
-Decision (transition): :class:`ReplaySummary` also answers ``summary["key"]`` /
-``summary.get("key")`` / ``"key" in summary`` from :meth:`~ReplaySummary.to_json`, so
-callers that still read the dict keep working until they are converted.
+Callers read attributes (``summary.reward_rate_per_hour``, ``summary.result.rewards``);
+:meth:`~ReplaySummary.to_json` is the document for files and for code that wants JSON.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -209,20 +206,6 @@ class ReplaySummary:
         if self.pose_source != "truth":
             flat["position_error_mean_m"] = self.position_error_mean_m
         return flat
-
-    # -- transition: read access as the old dict -------------------------------------
-
-    def __getitem__(self, key: str) -> Any:
-        return self.to_json()[key]
-
-    def get(self, key: str, default: Any = None) -> Any:
-        return self.to_json().get(key, default)
-
-    def __contains__(self, key: object) -> bool:
-        return key in self.to_json()
-
-    def keys(self) -> Iterator[str]:
-        return iter(self.to_json())
 
 
 def _plain(value: Any) -> Any:

@@ -50,8 +50,8 @@ def test_eight_action_ccw_east_qtables_drive_the_robot_their_way(chain, tmp_path
     res = replay("table", chain.states, qdir, hours=0.04, seed=2, out=tmp_path / "out",
                  baseline_hours=0, progress=False)
     summary = res.summary
-    assert summary["action_set"] == CCW8.to_json()
-    assert summary["mdp"] == str(mdp)
+    assert summary.action_set == CCW8.to_json()
+    assert summary.mdp == str(mdp)
     log = res.run.log
     assert log.n > 10 and set(np.unique(log.a)) <= set(range(8))
     # Each unblocked move goes along its action's ccw-east heading (0 = East, 2 = North).
@@ -65,7 +65,7 @@ def test_eight_action_ccw_east_qtables_drive_the_robot_their_way(chain, tmp_path
     assert err.max() < 0.35
     # The greedy policy: the choice of the Q-tables (ties at random), so the greedy rate is
     # predicted with the 8-action model.
-    assert summary["prediction"]["greedy"]["rate_per_hour"] > 0
+    assert summary.prediction["greedy"]["rate_per_hour"] > 0
 
 
 def test_mismatched_action_sets_are_refused(chain, tmp_path) -> None:
@@ -106,4 +106,4 @@ def test_replay_never_executes_a_masked_action(chain, tmp_path) -> None:
     log = res.run.log
     assert log.n > 10
     assert valid[log.s, log.a].all()
-    assert res.summary["masked_pairs"] == int((~valid).sum()) * len(chain.goal_names)
+    assert res.summary.masked_pairs == int((~valid).sum()) * len(chain.goal_names)

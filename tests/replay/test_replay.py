@@ -86,9 +86,9 @@ def test_learned_policy_beats_random_by_5x(truth_run) -> None:
 def test_mcl_replay_localizes_within_5_cm(chain, tmp_path) -> None:
     res = replay("table", chain.states, chain.qtables, hours=0.08, pose_source="mcl", seed=4,
                  out=tmp_path / "mcl", progress=False, baseline_hours=0)
-    loc = res.summary["localization"]
+    loc = res.summary.localization
     assert loc["mcl"]["at_decisions"]["position_mean_m"] < 0.05
-    assert res.summary["position_error_mean_m"] == loc["mcl"]["at_decisions"]["position_mean_m"]
+    assert res.summary.position_error_mean_m == loc["mcl"]["at_decisions"]["position_mean_m"]
     assert loc["mcl"]["updates"]["n"] > 100
     assert "odometry" in loc
     table = pq.read_table(res.files["localization"])
@@ -102,7 +102,7 @@ def test_mcl_replay_localizes_within_5_cm(chain, tmp_path) -> None:
 def test_odometry_replay_steers_by_odometry(chain, tmp_path) -> None:
     res = replay("table", chain.states, chain.qtables, hours=0.03, pose_source="odometry",
                  seed=5, out=tmp_path / "odo", progress=False, baseline_hours=0)
-    assert res.summary["primitive_params"]["heading_source"] == "odometry"
+    assert res.summary.primitive_params["heading_source"] == "odometry"
     log = res.run.log
     np.testing.assert_allclose(log.est_after, log.odom_after)
 
@@ -132,8 +132,8 @@ def test_same_seed_same_replay(chain, tmp_path) -> None:
 def test_random_policy_needs_no_qtables(chain, tmp_path) -> None:
     res = replay("table", chain.states, None, hours=0.02, policy="random", mdp=chain.mdp,
                  seed=1, out=tmp_path / "rnd", progress=False)
-    assert res.baseline is None and "greedy" not in res.summary["prediction"]
-    assert res.summary["prediction"]["random"]["rate_per_hour"] > 0
+    assert res.baseline is None and "greedy" not in res.summary.prediction
+    assert res.summary.prediction["random"]["rate_per_hour"] > 0
 
 
 def test_video_gif(chain, tmp_path) -> None:
