@@ -67,13 +67,18 @@ __all__ = [
     "KIND_RMAX",
     "NO_MASK",
     "NO_MODEL",
+    "NO_OBSERVER_Q",
     "NO_TERMINAL",
     "AgentParams",
+    "Learner",
+    "Observer",
     "act",
     "agent_params",
     "as_mask",
     "as_terminal",
     "learn",
+    "learner_act",
+    "learner_learn",
     "masked_select",
     "plan",
     "synchronous_sweep",
@@ -89,7 +94,21 @@ AgentParams = namedtuple(
      "untried_uniform", "freeze"],
 )
 
+#: A passive Q-learning observer beside the acting agent: its ``Q`` (S, A) float64 (0
+#: rows: no observer), its ``params`` (:class:`AgentParams`, a Q-learner) and the episode
+#: (trial) from which it acts (-1: never; from then on only the observer learns).
+Observer = namedtuple("Observer", ["Q", "params", "takeover_episode"])
+
+#: One learning agent of a fused loop: its ``Q`` (S, A) float64, its ``model`` (a count
+#: or window model; :data:`NO_MODEL` for Q-learning), its ``params``
+#: (:class:`AgentParams`) and its ``observer`` (:class:`Observer`). :func:`learner_act`
+#: and :func:`learner_learn` are its steps; every fused loop (empirical MDP,
+#: Visit-the-lab tasks, combined architecture) calls them.
+Learner = namedtuple("Learner", ["Q", "model", "params", "observer"])
+
 NO_MASK = np.zeros((0, 0), dtype=np.bool_)
+#: The ``Observer.Q`` of "no observer".
+NO_OBSERVER_Q = np.zeros((0, 0), dtype=np.float64)
 NO_TERMINAL = np.zeros(0, dtype=np.bool_)
 #: A model stand-in for Q-learning (never read).
 NO_MODEL = count_model_new(1, 1, 1)
@@ -344,3 +363,31 @@ def _backup(model, Q, s, a, p, valid, terminal):
     known, new = model_q_value(model, s, a, V, p.gamma, max(p.m_known, 1))
     if known:
         Q[s, a] = new
+
+
+# --------------------------------------------------------------------------- learner (agent + observer)
+@njit(cache=True, inline="always")
+def learner_act(lr, s, episode, valid, rng):
+    """Action of :class:`Learner` ``lr`` in state ``s`` during ``episode``: the
+    observer's (its own selection rule) from its take-over episode on, else the actor's."""
+    ob = lr.observer
+    if ob.Q.shape[0] > 0 and 0 <= ob.takeover_episode <= episode:
+        return act(ob.Q, s, ob.params, valid, rng)
+    return act(lr.Q, s, lr.params, valid, rng)
+
+
+@njit(cache=True, inline="always")
+def learner_learn(lr, s, a, r, s_next, episode, valid, terminal, t):
+    """Learning of :class:`Learner` ``lr`` from ``(s, a, r, s_next)``; returns the actor's
+    step counter ``t`` after it.
+
+    The observer (if any) learns first, from every transition; after its take-over the
+    actor stops learning (no observation, no planning; ``t`` stops). Otherwise
+    :func:`learn` on the actor.
+    """
+    ob = lr.observer
+    if ob.Q.shape[0] > 0:
+        learn(lr.model, ob.Q, s, a, r, s_next, ob.params, valid, terminal, 0)
+        if 0 <= ob.takeover_episode <= episode:
+            return t
+    return learn(lr.model, lr.Q, s, a, r, s_next, lr.params, valid, terminal, t)

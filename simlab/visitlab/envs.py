@@ -13,6 +13,7 @@ default can be overridden by a keyword argument.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -35,6 +36,28 @@ VARIANTS = ("thesis", "paper")
 SOCIAL_GRID_SIZE = 41
 #: The paper code's social grid (paper rule 6): 140 x 140, the human at the centre.
 PAPER_SOCIAL_GRID_SIZE = 140
+
+#: What the fused navigation loop needs of a :class:`NavEnv` (``NavEnv.kernel_args()``):
+#: walls ``walls_h`` / ``walls_v``, ``labels`` (n_cells,) room label per cell,
+#: ``start_cell`` (-1: random), ``goal_label`` (-1: random), ``goal_labels`` (int64),
+#: ``max_steps`` steps per trial.
+NavKernelArgs = namedtuple("NavKernelArgs", ["walls_h", "walls_v", "labels", "start_cell",
+                                             "goal_label", "goal_labels", "max_steps"])
+#: What the fused social loop needs of a :class:`SocialEnv`: walls, ``los`` line-of-sight
+#: table, ``pcfg`` perception array, ``hp`` human array, ``redraw_p`` probability of a
+#: new required direction per step, ``robot_start`` / ``human_start`` cells (-1:
+#: random), ``max_steps``.
+SocialKernelArgs = namedtuple("SocialKernelArgs", ["walls_h", "walls_v", "los", "pcfg", "hp",
+                                                   "redraw_p", "robot_start", "human_start",
+                                                   "max_steps"])
+#: What the fused go-to-human loop needs of a :class:`GoToHumanEnv`: walls, ``los``,
+#: ``pcfg``, ``hp`` (zeros without a human), ``human_moves`` (a human is given),
+#: ``episode`` (index in ``dynamics.GTH_VARIANTS``), start cells and orientations,
+#: ``max_steps``.
+GthKernelArgs = namedtuple("GthKernelArgs", ["walls_h", "walls_v", "los", "pcfg", "hp",
+                                             "human_moves", "episode", "robot_cell",
+                                             "human_cell", "robot_ori", "human_ori",
+                                             "max_steps"])
 
 
 def _check_variant(variant: str) -> str:
@@ -218,13 +241,13 @@ class NavEnv(_VisitLabEnv):
         self.observation_space = spaces.Discrete(self.layout.n_labels * self.layout.n_cells)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
 
-    def kernel_args(self) -> tuple:
+    def kernel_args(self) -> NavKernelArgs:
         """The fixed inputs of the fused navigation loop
-        (:func:`simlab.visitlab.training.nav_train_chunk`), in its argument order:
-        walls, cell labels, start cell, goal label, goal labels, steps per trial."""
+        (:func:`simlab.visitlab.training.nav_train_chunk`) as a :data:`NavKernelArgs`."""
         lay = self.layout
-        return (lay.walls_h, lay.walls_v, lay.cell_labels, self.start_cell, self.goal_label,
-                np.array(lay.goal_labels, dtype=np.int64), self.max_steps)
+        return NavKernelArgs(lay.walls_h, lay.walls_v, lay.cell_labels, int(self.start_cell),
+                             int(self.goal_label), np.array(lay.goal_labels, dtype=np.int64),
+                             int(self.max_steps))
 
     def _obs(self) -> int:
         return int(dyn.nav_obs(self._st, self.layout.n_cells))
@@ -327,14 +350,14 @@ class SocialEnv(_VisitLabEnv):
         self.observation_space = spaces.Discrete(dyn.N_SOCIAL_STATES)
         self.action_space = spaces.Discrete(N_SOCIAL_ACTIONS)
 
-    def kernel_args(self) -> tuple:
+    def kernel_args(self) -> SocialKernelArgs:
         """The fixed inputs of the fused social loop
-        (:func:`simlab.visitlab.training.social_train_chunk`), in its argument order:
-        walls, line-of-sight table, perception array, human array, redraw probability,
-        robot and human start cells, steps per trial."""
+        (:func:`simlab.visitlab.training.social_train_chunk`) as a
+        :data:`SocialKernelArgs`."""
         lay = self.layout
-        return (lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp, self.redraw_p,
-                self.robot_start, self.human_start, self.max_steps)
+        return SocialKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
+                                float(self.redraw_p), int(self.robot_start),
+                                int(self.human_start), int(self.max_steps))
 
     def _obs(self) -> int:
         return int(dyn.social_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
@@ -459,13 +482,14 @@ class GoToHumanEnv(_VisitLabEnv):
         self.observation_space = spaces.Discrete(dyn.N_GTH_STATES)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
 
-    def kernel_args(self) -> tuple:
+    def kernel_args(self) -> GthKernelArgs:
         """The fixed inputs of the fused go-to-human loop
-        (:func:`simlab.visitlab.training.gth_train_chunk`), in its argument order."""
+        (:func:`simlab.visitlab.training.gth_train_chunk`) as a :data:`GthKernelArgs`."""
         lay = self.layout
-        return (lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
-                self.human is not None, self._episode_code, self.robot_cell, self.human_cell,
-                self.robot_ori, self.human_ori, self.max_steps)
+        return GthKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
+                             self.human is not None, int(self._episode_code),
+                             int(self.robot_cell), int(self.human_cell), int(self.robot_ori),
+                             int(self.human_ori), int(self.max_steps))
 
     def _obs(self) -> int:
         return int(dyn.gth_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
