@@ -1,16 +1,19 @@
 """Fused training loops: env step + agent update in one numba loop (thesis ch. 4).
 
 The loops call the dynamics kernels of :mod:`simlab.visitlab.dynamics` and the
-agent kernels of :mod:`simlab.agents.kernels` (action selection, Q-learning, the
-sparse count model and sliding-window model with Bellman backups and value
-iteration); no Python runs per step. Python calls a loop once per chunk of trials
+agent steps of :mod:`simlab.agents.core` (action selection, Q-learning, the sparse
+count model and sliding-window model with Bellman backups and value iteration),
+with the env's fixed inputs as one named record (``env.kernel_args()``); no Python
+runs per step. Python calls a loop once per chunk of trials
 (to drive a progress bar); the loop carries its step counter across chunks.
 
 Agents are the registry's (:mod:`simlab.agents.registry`: ``q-learning``,
 ``q-softmax``, ``mb-egreedy``, ``vi-softmax``, ``rmax``, ``sliding-window``,
-``passive-observer``) with their frozen configs; a loop step does exactly what
-the agent classes of :mod:`simlab.agents.agents` do in ``act`` then ``update``
-(same kernels, same random draws, same order — tested), so the fused loop and
+``passive-observer``) with their frozen configs; a loop step calls the agent core
+(:func:`simlab.agents.core.learner_act` / :func:`~simlab.agents.core.learner_learn`
+on a :class:`~simlab.agents.core.Learner` record) like the agent classes of
+:mod:`simlab.agents.agents` do in ``act`` then ``update`` (same steps, same random
+draws, same order — tested), so the fused loop and
 ``agent.fit(env)`` on the Gymnasium env give identical curves. On top of the
 registry presets, :func:`loop_agent_config` applies the settings of a variant:
 
@@ -20,14 +23,16 @@ registry presets, :func:`loop_agent_config` applies the settings of a variant:
 * ``thesis`` — model-based planning every 10,000 steps with at most 50 sweeps
   (thesis Fig. 4.1 caption);
 * ``paper`` — Q-learning alpha 0.5, one value-iteration sweep every 1000 steps,
-  R-max m = 5 on the social task (m = 1 otherwise), and the paper-exact planning
-  rules of :mod:`simlab.agents.core`: the sweep is synchronous over all pairs
+  R-max m = 5 on the social task (m = 1 otherwise), and the paper's planning
+  rules of :mod:`simlab.agents.core` (as issue 14 describes the published code): the sweep is synchronous over all pairs
   (rule 2), untried pairs are valued through a uniform model (rule 1, model-based
   agents) and R-max freezes a pair's model at its m-th visit (rule 7). Without
   them (the registry's presets, the thesis variant) the sweep is in place over the
   visited pairs and untried pairs stay at 0: that agent learns 2-6 times slower
   than the published code on the social task (issue 14), so only the paper
-  variant claims to plan like the paper.
+  variant follows the paper's planning rules. Neither variant is compared
+  side by side with the published code here: "like the paper" means the rules of
+  issue 14, not verified identical curves.
 
 then the caller's overrides (registry keys, ``"actor.plan_every"`` for nested ones).
 
