@@ -20,14 +20,17 @@ mean "none"):
   bootstrap (its value is 0: nothing follows); model-based agents pin the
   terminal state's Q row to 0 and planning treats its value as 0.
 
-Paper-exact planning options (issue 14; the thesis variant keeps them off):
+Planning options of the paper's rules (issue 14; the thesis variant keeps them off).
+They implement the rules as issue 14 describes the published code; simlab runs no
+side-by-side comparison with that code, so no claim of identical curves is made:
 
 * ``synchronous`` (rule 2) — :func:`plan` runs ``max_sweeps`` Jacobi sweeps over
   *all* (s, a): every backup reads the previous sweep's values. Thesis variant:
   Gauss-Seidel sweeps in place over the visited pairs only.
 * ``untried_uniform`` (rule 1) — a pair never tried keeps a uniform transition
   model over all states and reward 0, so a synchronous sweep values it at
-  ``gamma * mean(V)`` (optimistic exploration, as the published code). Thesis
+  ``gamma * mean(V)`` (optimistic exploration, the published code's rule as issue 14
+  reports it). Thesis
   variant: untried pairs keep their initial Q. Only used by synchronous sweeps.
 * ``freeze`` (rule 7, R-max) — a pair's model stops changing at its m-th visit.
   Thesis variant: counts keep accumulating after m visits.
@@ -49,15 +52,15 @@ from simlab.agents.config import (
     Selection,
 )
 from simlab.agents.kernels import (
-    SELECT_EPSILON_GREEDY,
-    SELECT_SOFTMAX,
+    ALL_VALID,
     count_model_new,
+    masked_select,
     model_backup,
     model_observe,
     model_q_value,
     model_value_iteration,
+    n_valid,
     q_learning_update,
-    select_action,
 )
 from simlab.errors import ConfigError
 
@@ -67,13 +70,18 @@ __all__ = [
     "KIND_RMAX",
     "NO_MASK",
     "NO_MODEL",
+    "NO_OBSERVER_Q",
     "NO_TERMINAL",
     "AgentParams",
+    "Learner",
+    "Observer",
     "act",
     "agent_params",
     "as_mask",
     "as_terminal",
     "learn",
+    "learner_act",
+    "learner_learn",
     "masked_select",
     "plan",
     "synchronous_sweep",
@@ -89,7 +97,21 @@ AgentParams = namedtuple(
      "untried_uniform", "freeze"],
 )
 
+#: A passive Q-learning observer beside the acting agent: its ``Q`` (S, A) float64 (0
+#: rows: no observer), its ``params`` (:class:`AgentParams`, a Q-learner) and the episode
+#: (trial) from which it acts (-1: never; from then on only the observer learns).
+Observer = namedtuple("Observer", ["Q", "params", "takeover_episode"])
+
+#: One learning agent of a fused loop: its ``Q`` (S, A) float64, its ``model`` (a count
+#: or window model; :data:`NO_MODEL` for Q-learning), its ``params``
+#: (:class:`AgentParams`) and its ``observer`` (:class:`Observer`). :func:`learner_act`
+#: and :func:`learner_learn` are its steps; every fused loop (empirical MDP,
+#: Visit-the-lab tasks, combined architecture) calls them.
+Learner = namedtuple("Learner", ["Q", "model", "params", "observer"])
+
 NO_MASK = np.zeros((0, 0), dtype=np.bool_)
+#: The ``Observer.Q`` of "no observer".
+NO_OBSERVER_Q = np.zeros((0, 0), dtype=np.float64)
 NO_TERMINAL = np.zeros(0, dtype=np.bool_)
 #: A model stand-in for Q-learning (never read).
 NO_MODEL = count_model_new(1, 1, 1)
@@ -140,93 +162,14 @@ def as_terminal(terminal: np.ndarray | None, n_states: int) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- selection
-@njit(cache=True)
-def _n_valid(vrow):
-    k = 0
-    for b in range(vrow.shape[0]):
-        if vrow[b]:
-            k += 1
-    return k
-
-
-@njit(cache=True)
-def _kth_valid(vrow, k):
-    for b in range(vrow.shape[0]):
-        if vrow[b]:
-            if k == 0:
-                return b
-            k -= 1
-    return vrow.shape[0] - 1
-
-
-@njit(cache=True)
-def _masked_greedy(q, vrow, rng):
-    best = -np.inf
-    n_best = 0
-    for b in range(q.shape[0]):
-        if vrow[b]:
-            if n_best == 0 or q[b] > best:
-                best = q[b]
-                n_best = 1
-            elif q[b] == best:
-                n_best += 1
-    k = 0 if n_best == 1 else rng.integers(0, n_best)
-    for b in range(q.shape[0]):
-        if vrow[b] and q[b] == best:
-            if k == 0:
-                return b
-            k -= 1
-    return q.shape[0] - 1
-
-
-@njit(cache=True)
-def _masked_softmax(q, vrow, tau, rng):
-    if tau <= 0.0:
-        return _masked_greedy(q, vrow, rng)
-    qmax = -np.inf
-    for b in range(q.shape[0]):
-        if vrow[b] and q[b] > qmax:
-            qmax = q[b]
-    total = 0.0
-    for b in range(q.shape[0]):
-        if vrow[b]:
-            total += np.exp((q[b] - qmax) / tau)
-    target = rng.random() * total
-    acc = 0.0
-    last = 0
-    for b in range(q.shape[0]):
-        if vrow[b]:
-            w = np.exp((q[b] - qmax) / tau)
-            if w > 0.0:
-                last = b
-                acc += w
-                if target < acc:
-                    return b
-    return last
-
-
-@njit(cache=True)
-def masked_select(q, vrow, method, epsilon, tau, rng):
-    """:func:`~simlab.agents.kernels.select_action` restricted to ``vrow`` (A,) bool.
-
-    Same draws as the unmasked kernel when every action is valid; all actions when
-    none is.
-    """
-    k = _n_valid(vrow)
-    if k == 0 or k == q.shape[0]:
-        return select_action(q, method, epsilon, tau, rng)
-    if method == SELECT_SOFTMAX:
-        return _masked_softmax(q, vrow, tau, rng)
-    if method == SELECT_EPSILON_GREEDY and epsilon > 0.0 and rng.random() < epsilon:
-        return _kth_valid(vrow, rng.integers(0, k))
-    return _masked_greedy(q, vrow, rng)
+# one implementation of every selection rule, with or without a mask: kernels.masked_*
 
 
 @njit(cache=True, inline="always")
 def act(Q, s, p, valid, rng):
     """Behaviour action in state ``s`` (``p.selection`` on ``Q[s]``, masked by ``valid``)."""
     if valid.shape[0] == 0:
-        return select_action(Q[s], p.selection, p.epsilon, p.tau, rng)
+        return masked_select(Q[s], ALL_VALID, p.selection, p.epsilon, p.tau, rng)
     return masked_select(Q[s], valid[s], p.selection, p.epsilon, p.tau, rng)
 
 
@@ -237,7 +180,7 @@ def _value(Q, s, valid, terminal):
     if terminal.shape[0] > 0 and terminal[s]:
         return 0.0
     best = -np.inf
-    if valid.shape[0] > 0 and _n_valid(valid[s]) > 0:
+    if valid.shape[0] > 0 and n_valid(valid[s], Q.shape[1]) > 0:
         for b in range(Q.shape[1]):
             if valid[s, b] and Q[s, b] > best:
                 best = Q[s, b]
@@ -344,3 +287,31 @@ def _backup(model, Q, s, a, p, valid, terminal):
     known, new = model_q_value(model, s, a, V, p.gamma, max(p.m_known, 1))
     if known:
         Q[s, a] = new
+
+
+# --------------------------------------------------------------------------- learner (agent + observer)
+@njit(cache=True, inline="always")
+def learner_act(lr, s, episode, valid, rng):
+    """Action of :class:`Learner` ``lr`` in state ``s`` during ``episode``: the
+    observer's (its own selection rule) from its take-over episode on, else the actor's."""
+    ob = lr.observer
+    if ob.Q.shape[0] > 0 and 0 <= ob.takeover_episode <= episode:
+        return act(ob.Q, s, ob.params, valid, rng)
+    return act(lr.Q, s, lr.params, valid, rng)
+
+
+@njit(cache=True, inline="always")
+def learner_learn(lr, s, a, r, s_next, episode, valid, terminal, t):
+    """Learning of :class:`Learner` ``lr`` from ``(s, a, r, s_next)``; returns the actor's
+    step counter ``t`` after it.
+
+    The observer (if any) learns first, from every transition; after its take-over the
+    actor stops learning (no observation, no planning; ``t`` stops). Otherwise
+    :func:`learn` on the actor.
+    """
+    ob = lr.observer
+    if ob.Q.shape[0] > 0:
+        learn(lr.model, ob.Q, s, a, r, s_next, ob.params, valid, terminal, 0)
+        if 0 <= ob.takeover_episode <= episode:
+            return t
+    return learn(lr.model, lr.Q, s, a, r, s_next, lr.params, valid, terminal, t)

@@ -203,41 +203,126 @@ SELECT_SOFTMAX = 2
 
 
 # --------------------------------------------------------------------------- selection
+#: The ``vrow`` of "every action valid" (a zero-length bool row).
+ALL_VALID = np.zeros(0, dtype=np.bool_)
+
+
+@njit(cache=True, inline="always")
+def _ok(vrow, b):
+    return vrow.shape[0] == 0 or vrow[b]
+
+
+@njit(cache=True)
+def n_valid(vrow, n_actions):
+    """Number of valid actions in ``vrow`` (A,) bool (``n_actions`` for :data:`ALL_VALID`)."""
+    if vrow.shape[0] == 0:
+        return n_actions
+    k = 0
+    for b in range(vrow.shape[0]):
+        if vrow[b]:
+            k += 1
+    return k
+
+
+@njit(cache=True)
+def _kth_valid(vrow, k):
+    if vrow.shape[0] == 0:
+        return k
+    for b in range(vrow.shape[0]):
+        if vrow[b]:
+            if k == 0:
+                return b
+            k -= 1
+    return vrow.shape[0] - 1
+
+
+@njit(cache=True)
+def masked_greedy(q, vrow, rng):
+    """Index of the largest ``q`` (A,) among the valid actions ``vrow`` (A,) bool, or all
+    actions for :data:`ALL_VALID`; among exact ties one drawn uniformly with ``rng``
+    (one draw, only when there is a tie). ``vrow`` must have a valid action."""
+    best = -np.inf
+    n_best = 0
+    for b in range(q.shape[0]):
+        if _ok(vrow, b):
+            if n_best == 0 or q[b] > best:
+                best = q[b]
+                n_best = 1
+            elif q[b] == best:
+                n_best += 1
+    k = 0 if n_best == 1 else rng.integers(0, n_best)
+    for b in range(q.shape[0]):
+        if _ok(vrow, b) and q[b] == best:
+            if k == 0:
+                return b
+            k -= 1
+    return q.shape[0] - 1  # unreachable (NaN-free q)
+
+
+@njit(cache=True)
+def masked_softmax(q, vrow, tau, rng):
+    """Boltzmann draw at temperature ``tau`` among the valid actions (see
+    :func:`softmax_action`); ``tau <= 0`` is :func:`masked_greedy`."""
+    if tau <= 0.0:
+        return masked_greedy(q, vrow, rng)
+    qmax = -np.inf
+    for b in range(q.shape[0]):
+        if _ok(vrow, b) and q[b] > qmax:
+            qmax = q[b]
+    total = 0.0
+    for b in range(q.shape[0]):
+        if _ok(vrow, b):
+            total += np.exp((q[b] - qmax) / tau)
+    target = rng.random() * total
+    acc = 0.0
+    last = 0
+    for b in range(q.shape[0]):
+        if _ok(vrow, b):
+            w = np.exp((q[b] - qmax) / tau)
+            if w > 0.0:
+                last = b
+                acc += w
+                if target < acc:
+                    return b
+    return last  # rounding: target == total
+
+
+@njit(cache=True)
+def masked_select(q, vrow, method, epsilon, tau, rng):
+    """Action selection ``method`` on ``q`` (A,) among the valid actions ``vrow`` (A,) bool
+    (:data:`ALL_VALID`: every action; a row without a valid action: every action).
+
+    An epsilon draw picks the ``k``-th valid action with ``k`` uniform among the ``n``
+    valid ones, exactly as an unmasked draw among ``A``: an all-True row gives the same
+    draws and actions as :data:`ALL_VALID`.
+    """
+    if vrow.shape[0] > 0 and n_valid(vrow, q.shape[0]) == 0:
+        return _select(q, ALL_VALID, method, epsilon, tau, rng)
+    return _select(q, vrow, method, epsilon, tau, rng)
+
+
+@njit(cache=True, inline="always")
+def _select(q, vrow, method, epsilon, tau, rng):
+    if method == SELECT_SOFTMAX:
+        return masked_softmax(q, vrow, tau, rng)
+    if method == SELECT_EPSILON_GREEDY and epsilon > 0.0 and rng.random() < epsilon:
+        return _kth_valid(vrow, rng.integers(0, n_valid(vrow, q.shape[0])))
+    return masked_greedy(q, vrow, rng)
+
+
 @njit(cache=True)
 def greedy_action(q, rng):
     """Index of ``max(q)``; among exact ties, one chosen uniformly with ``rng``.
 
     ``q`` is (A,) float64. Draws one random number only when there is a tie.
     """
-    A = q.shape[0]
-    best = q[0]
-    n_best = 1
-    for b in range(1, A):
-        v = q[b]
-        if v > best:
-            best = v
-            n_best = 1
-        elif v == best:
-            n_best += 1
-    if n_best == 1:
-        for b in range(A):
-            if q[b] == best:
-                return b
-    k = rng.integers(0, n_best)
-    for b in range(A):
-        if q[b] == best:
-            if k == 0:
-                return b
-            k -= 1
-    return A - 1  # unreachable (NaN-free q)
+    return masked_greedy(q, ALL_VALID, rng)
 
 
 @njit(cache=True)
 def epsilon_greedy_action(q, epsilon, rng):
     """With probability ``epsilon`` a uniform action, else :func:`greedy_action`."""
-    if epsilon > 0.0 and rng.random() < epsilon:
-        return rng.integers(0, q.shape[0])
-    return greedy_action(q, rng)
+    return masked_select(q, ALL_VALID, SELECT_EPSILON_GREEDY, epsilon, 0.0, rng)
 
 
 @njit(cache=True)
@@ -273,37 +358,13 @@ def softmax_action(q, tau, rng):
     has weight 1). Equal values get equal probability, so ties are random by
     construction. ``tau <= 0`` falls back to :func:`greedy_action`. No allocation.
     """
-    if tau <= 0.0:
-        return greedy_action(q, rng)
-    A = q.shape[0]
-    qmax = q[0]
-    for b in range(1, A):
-        if q[b] > qmax:
-            qmax = q[b]
-    total = 0.0
-    for b in range(A):
-        total += np.exp((q[b] - qmax) / tau)
-    target = rng.random() * total
-    acc = 0.0
-    last = 0
-    for b in range(A):
-        w = np.exp((q[b] - qmax) / tau)
-        if w > 0.0:
-            last = b
-            acc += w
-            if target < acc:
-                return b
-    return last  # rounding: target == total
+    return masked_softmax(q, ALL_VALID, tau, rng)
 
 
 @njit(cache=True)
 def select_action(q, method, epsilon, tau, rng):
     """Dispatch on ``method`` (``SELECT_GREEDY`` / ``SELECT_EPSILON_GREEDY`` / ``SELECT_SOFTMAX``)."""
-    if method == SELECT_SOFTMAX:
-        return softmax_action(q, tau, rng)
-    if method == SELECT_EPSILON_GREEDY:
-        return epsilon_greedy_action(q, epsilon, rng)
-    return greedy_action(q, rng)
+    return masked_select(q, ALL_VALID, method, epsilon, tau, rng)
 
 
 # --------------------------------------------------------------------------- learning

@@ -21,11 +21,17 @@ ENV_ENTRY_POINTS: dict[str, str] = {
 #: Episode limits registered with Gymnasium (``spec.max_episode_steps``; ``TimeLimit``
 #: truncates, ``gym.make(id, max_episode_steps=N)`` overrides), and the keyword that turns
 #: the env's own limit off so only the registered one applies. Thesis: 50-step trials.
-#: The Visit-the-lab envs keep their own limit (``max_steps``, which has no "off" value).
+#: The Visit-the-lab envs are registered with their thesis trial lengths (navigation 50,
+#: social and go-to-human 40) and ``max_steps=None``; ``gym.make(id, variant="paper")``
+#: therefore also gets these lengths unless ``max_episode_steps`` (or ``max_steps``)
+#: is given.
 ENV_LIMITS: dict[str, tuple[int, dict[str, None]]] = {
     "simlab/TableArena-v0": (50, {"max_steps": None}),
     "simlab/TableArenaStates-v0": (50, {"max_steps": None}),
     "simlab/EmpiricalMDP-v0": (50, {"horizon": None}),
+    "simlab/VisitLab-Nav-v0": (50, {"max_steps": None}),
+    "simlab/VisitLab-Social-v0": (40, {"max_steps": None}),
+    "simlab/VisitLab-GoToHuman-v0": (40, {"max_steps": None}),
 }
 
 

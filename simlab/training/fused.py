@@ -35,7 +35,7 @@ from numba import njit
 from simlab.agents import core
 from simlab.agents.kernels import sample_from_cdf
 
-__all__ = ["MdpTask", "Observer", "run_loop"]
+__all__ = ["MdpTask", "Observer", "run_learner", "run_loop"]
 
 #: The environment of :func:`run_loop`: ``cdf`` (S, A, S) cumulative ``T`` along
 #: ``s'``; ``reward_next`` (S,); ``start_cdf`` (S,); ``horizon`` steps per episode;
@@ -44,43 +44,41 @@ __all__ = ["MdpTask", "Observer", "run_loop"]
 MdpTask = namedtuple("MdpTask", ["cdf", "reward_next", "start_cdf", "horizon", "valid",
                                  "terminal"])
 
-#: A passive Q-learning observer: its ``Q`` (0 rows: none), its ``params``
-#: (:class:`~simlab.agents.core.AgentParams`) and the episode it takes over at (-1: never).
-Observer = namedtuple("Observer", ["Q", "params", "takeover_episode"])
+#: A passive Q-learning observer (:class:`simlab.agents.core.Observer`): its ``Q`` (0
+#: rows: none), its ``params`` and the episode it takes over at (-1: never).
+Observer = core.Observer
 
 
 @njit(cache=True)
-def run_loop(task, Q, model, p, observer, n_episodes, steps0, env_rng, agent_rng):
-    """Train agent ``(Q, model, p)`` for ``n_episodes`` on ``task``.
+def run_learner(task, lr, n_episodes, steps0, env_rng, agent_rng):
+    """Train :class:`~simlab.agents.core.Learner` ``lr`` for ``n_episodes`` on ``task``.
 
-    If ``observer.Q`` has rows, a Q-learner learns from every transition; from episode
-    ``observer.takeover_episode`` on it selects the actions and the actor stops
-    learning. Returns ``(rewards (n_episodes,), actor steps done in total)``.
+    Per step :func:`~simlab.agents.core.learner_act` then
+    :func:`~simlab.agents.core.learner_learn` (the observer, if any, learns from every
+    transition and acts from its take-over episode on). Returns ``(rewards
+    (n_episodes,), actor steps done in total)``.
     """
     totals = np.zeros(n_episodes)
-    watching = observer.Q.shape[0] > 0
-    takeover = observer.takeover_episode
     steps = steps0
     for ep in range(n_episodes):
-        acting = takeover < 0 or ep < takeover
         s = sample_from_cdf(task.start_cdf, env_rng)
         total = 0.0
         for _ in range(task.horizon):
-            if acting:
-                a = core.act(Q, s, p, task.valid, agent_rng)
-            else:
-                a = core.act(observer.Q, s, observer.params, task.valid, agent_rng)
+            a = core.learner_act(lr, s, ep, task.valid, agent_rng)
             s_next = sample_from_cdf(task.cdf[s, a], env_rng)
             r = task.reward_next[s_next]
-            if watching:
-                core.learn(model, observer.Q, s, a, r, s_next, observer.params, task.valid,
-                           task.terminal, 0)
-            if acting:
-                steps = core.learn(model, Q, s, a, r, s_next, p, task.valid, task.terminal,
-                                   steps)
+            steps = core.learner_learn(lr, s, a, r, s_next, ep, task.valid, task.terminal,
+                                       steps)
             total += r
             s = s_next
             if task.terminal.shape[0] > 0 and task.terminal[s]:
                 break
         totals[ep] = total
     return totals, steps
+
+
+def run_loop(task, Q, model, p, observer, n_episodes, steps0, env_rng, agent_rng):
+    """:func:`run_learner` of agent ``(Q, model, p)`` watched by ``observer`` (kept for
+    callers of the former signature; updates ``Q`` and ``model`` in place)."""
+    return run_learner(task, core.Learner(Q, model, p, observer), n_episodes, steps0,
+                       env_rng, agent_rng)

@@ -45,9 +45,9 @@ import numpy as np
 from simlab.agents.config import QLearningConfig
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
-from simlab.visitlab.combined import CombinedRun, CombinedTask, Modules, combined_chunk
+from simlab.visitlab.combined import CombinedRun, CombinedTask, Modules, combined_chunk, new_out
 from simlab.visitlab.humans import Human
-from simlab.visitlab.training import agent_arrays, model_from_state, model_state
+from simlab.visitlab.training import make_learner, model_from_state, model_state
 
 #: The training human of the adaptability study (see the module docstring).
 BASE_HUMAN = Human((0.0, 1.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0, name="easy, 2 cells/step")
@@ -82,16 +82,14 @@ def continue_learning(task: CombinedTask, modules: Modules, agent_cfg: Any, tria
     task.check_modules(modules)
     if isinstance(trials, bool) or not isinstance(trials, int | np.integer) or trials < 1:
         raise ConfigError(f"expected an integer >= 1, got {trials!r}", key="trials")
-    ap, Q, Q_obs, fresh = agent_arrays(agent_cfg, dyn.N_SOCIAL_STATES, 30)
-    Q[...] = modules.social_q
+    lr = make_learner(agent_cfg, dyn.N_SOCIAL_STATES, 30)
+    lr.Q[...] = modules.social_q
     if model is not None:
         if tuple(int(x) for x in model["shape"]) != (dyn.N_SOCIAL_STATES, 30):
             raise ConfigError(f"expected a social model (2560 x 30), got {tuple(model['shape'])}",
                               key="model")
-        fresh = model_from_state(dict(model))
-    goals = np.zeros(trials, dtype=np.float64)
-    rewards = np.zeros(trials, dtype=np.float64)
-    combined_chunk(*task.kernel_args(modules), True, Q, Q_obs, fresh, ap, gens[0], gens[1], 0, 0,
-                   goals, rewards, np.zeros((0, 0), dtype=np.int64))
-    final = None if isinstance(agent_cfg, QLearningConfig) else model_state(fresh)
-    return CombinedRun(goals, rewards, Q, final)
+        lr = lr._replace(model=model_from_state(dict(model)))
+    out = new_out(trials)
+    combined_chunk(task.kernel_args(modules), lr, True, gens[0], gens[1], 0, 0, out)
+    final = None if isinstance(agent_cfg, QLearningConfig) else model_state(lr.model)
+    return CombinedRun(out.goals, out.rewards, lr.Q, final)

@@ -50,7 +50,7 @@ sequence, the robot approaching, HELLO, COME, leading, the goal changing).
 
 Note for developers: :func:`combined_chunk` is compiled with ``cache=True`` and calls
 the kernels of :mod:`simlab.visitlab.dynamics` and the agent steps of
-:mod:`simlab.visitlab.training`; numba does not track dependencies between files, so
+:mod:`simlab.agents.core`; numba does not track dependencies between files, so
 after editing those delete the numba cache files (``simlab/visitlab/__pycache__/*.nbi``,
 ``*.nbc``).
 """
@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections import namedtuple
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -66,6 +67,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from simlab.agents import core
 from simlab.agents.kernels import greedy_action
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
@@ -74,7 +76,6 @@ from simlab.visitlab.grid import Layout, make_layout
 from simlab.visitlab.humans import Human
 from simlab.visitlab.humans import human as get_human
 from simlab.visitlab.perception import Perception, perception_for
-from simlab.visitlab.training import A_SELECT, _act, _learn
 
 #: Thesis speed coefficients w = (p1, p2, p3) (Section 3.1.1).
 THESIS_SPEED_WEIGHTS = (0.1, 0.1, 0.8)
@@ -83,6 +84,18 @@ PAPER_SPEED_WEIGHTS = (1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0)
 
 # columns of an episode record (one row per step, see record_episode)
 _GO_TO_HUMAN = 29
+
+#: What :func:`combined_chunk` needs of a world and its frozen modules
+#: (:meth:`CombinedTask.kernel_args`): walls, ``los`` table, ``labels`` (n_cells,) room
+#: per cell, ``goal_labels`` (int64), ``pcfg`` perception array, ``hp`` human array,
+#: ``nav_q`` / ``gth_q`` the frozen modules, ``weights`` (3,) speed coefficients,
+#: ``tie_tol``, ``robot_start`` / ``human_start`` (-1: random), ``max_steps``.
+CombinedKernelArgs = namedtuple("CombinedKernelArgs", [
+    "walls_h", "walls_v", "los", "labels", "goal_labels", "pcfg", "hp", "nav_q", "gth_q",
+    "weights", "tie_tol", "robot_start", "human_start", "max_steps"])
+#: Outputs of :func:`combined_chunk`, one entry per trial: ``goals`` (goal rooms reached)
+#: and ``rewards`` (social reward) float64 ``(n_trials,)``, and ``record`` (see there).
+CombinedOut = namedtuple("CombinedOut", ["goals", "rewards", "record"])
 
 
 # --------------------------------------------------------------------------- kernels
@@ -195,44 +208,46 @@ def combined_step(walls_h: np.ndarray, walls_v: np.ndarray, los: np.ndarray,
 
 
 @njit(cache=True)
-def combined_chunk(walls_h, walls_v, los, labels, goal_labels, pcfg, hp, nav_q, gth_q,
-                   weights, tie_tol, robot_start, human_start, n_steps, learn, Q, Q_obs, model,
-                   ap, env_rng, agent_rng, t, trial0, goals, rewards, record):
-    """Run ``len(goals)`` combined trials (global index from ``trial0``).
+def combined_chunk(world, lr, learn, env_rng, agent_rng, t, trial0, out):
+    """Run ``len(out.goals)`` combined trials (global index from ``trial0``) in ``world``
+    (:data:`CombinedKernelArgs`).
 
-    The social module acts with the agent arrays of :mod:`simlab.visitlab.training`
-    (``ap`` greedy for a frozen module) and learns from its social reward when
-    ``learn``. Fills ``goals`` (goal rooms reached) and ``rewards`` (social reward) per
-    trial. ``record`` ``(n_trials * (n_steps + 1), N_STATE + 4)`` int64, or ``(0, 0)``:
-    per step the world state before the step and ``action, executed, reward, goal
-    reached`` (a last row per trial holds the final state). Returns the step counter.
+    The social module is :class:`~simlab.agents.core.Learner` ``lr`` (greedy params for
+    a frozen module); it learns from its social reward when ``learn``. Fills ``out``
+    (:data:`CombinedOut`): ``goals`` and ``rewards`` per trial; ``record``
+    ``(n_trials * (max_steps + 1), N_STATE + 4)`` int64, or ``(0, 0)``: per step the
+    world state before the step and ``action, executed, reward, goal reached`` (a last
+    row per trial holds the final state). Returns the step counter.
     """
+    w = world
+    record = out.record
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     nst = dyn.N_STATE
     row_i = 0
-    for k in range(goals.shape[0]):
+    for k in range(out.goals.shape[0]):
         trial = trial0 + k
-        combined_reset(st, env_rng, labels, goal_labels, nav_q, weights, tie_tol,
-                       robot_start, human_start)
-        s = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
+        combined_reset(st, env_rng, w.labels, w.goal_labels, w.nav_q, w.weights, w.tie_tol,
+                       w.robot_start, w.human_start)
+        s = dyn.social_obs(w.walls_h, w.walls_v, w.los, w.pcfg, st)
         n_goals = 0
         total = 0.0
-        for _ in range(n_steps):
-            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
+        for _ in range(w.max_steps):
+            a = core.learner_act(lr, s, trial, core.NO_MASK, agent_rng)
             if record.shape[0] > 0:
                 record[row_i, :nst] = st
                 record[row_i, nst] = a
-            r, executed, reached = combined_step(walls_h, walls_v, los, labels, goal_labels,
-                                                 pcfg, hp, nav_q, gth_q, weights, tie_tol,
-                                                 st, a, env_rng)
+            r, executed, reached = combined_step(w.walls_h, w.walls_v, w.los, w.labels,
+                                                 w.goal_labels, w.pcfg, w.hp, w.nav_q, w.gth_q,
+                                                 w.weights, w.tie_tol, st, a, env_rng)
             if record.shape[0] > 0:
                 record[row_i, nst + 1] = executed
                 record[row_i, nst + 2] = int(r)
                 record[row_i, nst + 3] = 1 if reached else 0
                 row_i += 1
-            s_next = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
+            s_next = dyn.social_obs(w.walls_h, w.walls_v, w.los, w.pcfg, st)
             if learn:
-                t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
+                t = core.learner_learn(lr, s, a, r, s_next, trial, core.NO_MASK,
+                                       core.NO_TERMINAL, t)
             if reached:
                 n_goals += 1
             total += r
@@ -241,8 +256,8 @@ def combined_chunk(walls_h, walls_v, los, labels, goal_labels, pcfg, hp, nav_q, 
             record[row_i, :nst] = st
             record[row_i, nst:] = -1
             row_i += 1
-        goals[k] = n_goals
-        rewards[k] = total
+        out.goals[k] = n_goals
+        out.rewards[k] = total
     return t
 
 
@@ -323,10 +338,10 @@ class CombinedTask:
                                   key=key, fix="train the navigation module on this layout"
                                   if key == "nav_q" else None)
 
-    def kernel_args(self, modules: Modules) -> tuple:
-        """The leading arguments of :func:`combined_chunk` for ``modules``."""
+    def kernel_args(self, modules: Modules) -> CombinedKernelArgs:
+        """The world argument of :func:`combined_chunk` for ``modules``."""
         lay = self.layout
-        return (lay.walls_h, lay.walls_v, lay.los_table(), lay.cell_labels,
+        return CombinedKernelArgs(lay.walls_h, lay.walls_v, lay.los_table(), lay.cell_labels,
                 np.array(lay.goal_labels, dtype=np.int64), self.perception.to_array(),
                 self.human.to_array(), modules.nav_q, modules.gth_q,
                 np.array(self.speed_weights, dtype=np.float64), float(self.tie_tol),
@@ -355,20 +370,25 @@ class Modules:
             object.__setattr__(self, key, q)
 
 
-def frozen_params(epsilon: float = 0.0) -> np.ndarray:
-    """Agent parameters (:func:`~simlab.visitlab.training.agent_arrays` layout) of a
-    frozen module: greedy (ties at random) for ``epsilon`` 0, else epsilon-greedy
-    (``epsilon`` 1: uniformly random actions, the chance baseline)."""
+def frozen_learner(social_q: np.ndarray, epsilon: float = 0.0) -> core.Learner:
+    """A frozen social module acting on ``social_q`` (not copied): greedy (ties at
+    random) for ``epsilon`` 0, else epsilon-greedy (``epsilon`` 1: uniformly random
+    actions, the chance baseline). It never learns (call :func:`combined_chunk` with
+    ``learn=False``)."""
     from simlab.agents.kernels import SELECT_EPSILON_GREEDY, SELECT_GREEDY
-    from simlab.visitlab.training import _N_AP, A_EPS, A_TAKEOVER
 
     if not 0.0 <= float(epsilon) <= 1.0:
         raise ConfigError(f"expected a probability in [0, 1], got {epsilon!r}", key="epsilon")
-    ap = np.zeros(_N_AP, dtype=np.float64)
-    ap[A_SELECT] = SELECT_EPSILON_GREEDY if epsilon > 0 else SELECT_GREEDY
-    ap[A_EPS] = float(epsilon)
-    ap[A_TAKEOVER] = -1
-    return ap
+    selection = SELECT_EPSILON_GREEDY if epsilon > 0 else SELECT_GREEDY
+    p = core.AgentParams(core.KIND_MF, int(selection), 0.0, 0.0, float(epsilon), 0.0, 1, False,
+                         False, 0, 1, 0.0, False, False, False)
+    return core.Learner(social_q, core.NO_MODEL, p, core.Observer(core.NO_OBSERVER_Q, p, -1))
+
+
+def new_out(trials: int, record: np.ndarray | None = None) -> CombinedOut:
+    """Zeroed :data:`CombinedOut` for ``trials`` trials (no record unless given)."""
+    return CombinedOut(np.zeros(trials, dtype=np.float64), np.zeros(trials, dtype=np.float64),
+                       np.zeros((0, 0), dtype=np.int64) if record is None else record)
 
 
 @dataclass(frozen=True, eq=False)
@@ -392,17 +412,12 @@ def evaluate(task: CombinedTask, modules: Modules, trials: int,
     ``gens`` = ``(env_rng, agent_rng)`` (e.g. from
     :func:`~simlab.visitlab.training.seed_generators`).
     """
-    from simlab.agents.kernels import count_model_new
-
     task.check_modules(modules)
     _check_trials(trials)
-    goals = np.zeros(trials, dtype=np.float64)
-    rewards = np.zeros(trials, dtype=np.float64)
-    q = modules.social_q.copy()
-    combined_chunk(*task.kernel_args(modules), False, q, np.zeros((1, 1)),
-                   count_model_new(1, 1, 1), frozen_params(epsilon), gens[0], gens[1], 0, 0,
-                   goals, rewards, np.zeros((0, 0), dtype=np.int64))
-    return CombinedRun(goals, rewards)
+    out = new_out(trials)
+    combined_chunk(task.kernel_args(modules), frozen_learner(modules.social_q.copy(), epsilon),
+                   False, gens[0], gens[1], 0, 0, out)
+    return CombinedRun(out.goals, out.rewards)
 
 
 def _check_trials(trials: int) -> None:
@@ -442,17 +457,12 @@ def record_episodes(task: CombinedTask, modules: Modules, trials: int,
                     gens: tuple[np.random.Generator, np.random.Generator]) -> list[Episode]:
     """Run ``trials`` greedy trials like :func:`evaluate` (same streams, same goals) and
     return each one step by step."""
-    from simlab.agents.kernels import count_model_new
-
     task.check_modules(modules)
     _check_trials(trials)
     T = task.max_steps
     record = np.zeros((trials * (T + 1), dyn.N_STATE + 4), dtype=np.int64)
-    goals = np.zeros(trials, dtype=np.float64)
-    rewards = np.zeros(trials, dtype=np.float64)
-    combined_chunk(*task.kernel_args(modules), False, modules.social_q.copy(), np.zeros((1, 1)),
-                   count_model_new(1, 1, 1), frozen_params(), gens[0], gens[1], 0, 0, goals,
-                   rewards, record)
+    combined_chunk(task.kernel_args(modules), frozen_learner(modules.social_q.copy()), False,
+                   gens[0], gens[1], 0, 0, new_out(trials, record))
     out = []
     n = dyn.N_STATE
     for k in range(trials):

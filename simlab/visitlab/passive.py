@@ -11,7 +11,7 @@ social tasks), and how does the actor's exploration shape what the observer lear
 their learned values against the optimal values V*(s))?
 
 The loops are the fused ones of :mod:`simlab.visitlab.training`
-(:func:`~simlab.visitlab.training.observer_arrays` turns any actor — model-based
+(:func:`~simlab.visitlab.training.with_observer` turns any actor — model-based
 epsilon-greedy, value-iteration softmax, R-max — into a watched one), so an observer
 run costs what the actor's run costs. The observer is the ``q-learning`` agent of the
 variant (thesis: alpha 0.7, epsilon 0.05, Q starting at 0, so that after the take-over

@@ -22,8 +22,8 @@ Percepts of a robot R and a human H, each with a cell and a body orientation
   4 H looks at R and R looks at H; 3 H sees R and R looks at H; 2 H looks at R;
   1 H sees R; 0 otherwise (first matching rule wins).
 
-Paper-exact rules (issue 14), fields of :class:`Perception` switched on together by
-``PAPER_PERCEPTION`` and settable one by one (the kernels read them from the same
+The paper's rules (issue 14, as reported of the published code; not compared with
+it here), fields of :class:`Perception` switched on together by ``PAPER_PERCEPTION`` and settable one by one (the kernels read them from the same
 array):
 
 * ``continuous`` (rule 3) — sees / looks at are decided on the *continuous* bearing

@@ -1,16 +1,19 @@
 """Fused training loops: env step + agent update in one numba loop (thesis ch. 4).
 
 The loops call the dynamics kernels of :mod:`simlab.visitlab.dynamics` and the
-agent kernels of :mod:`simlab.agents.kernels` (action selection, Q-learning, the
-sparse count model and sliding-window model with Bellman backups and value
-iteration); no Python runs per step. Python calls a loop once per chunk of trials
+agent steps of :mod:`simlab.agents.core` (action selection, Q-learning, the sparse
+count model and sliding-window model with Bellman backups and value iteration),
+with the env's fixed inputs as one named record (``env.kernel_args()``); no Python
+runs per step. Python calls a loop once per chunk of trials
 (to drive a progress bar); the loop carries its step counter across chunks.
 
 Agents are the registry's (:mod:`simlab.agents.registry`: ``q-learning``,
 ``q-softmax``, ``mb-egreedy``, ``vi-softmax``, ``rmax``, ``sliding-window``,
-``passive-observer``) with their frozen configs; a loop step does exactly what
-the agent classes of :mod:`simlab.agents.agents` do in ``act`` then ``update``
-(same kernels, same random draws, same order — tested), so the fused loop and
+``passive-observer``) with their frozen configs; a loop step calls the agent core
+(:func:`simlab.agents.core.learner_act` / :func:`~simlab.agents.core.learner_learn`
+on a :class:`~simlab.agents.core.Learner` record) like the agent classes of
+:mod:`simlab.agents.agents` do in ``act`` then ``update`` (same steps, same random
+draws, same order — tested), so the fused loop and
 ``agent.fit(env)`` on the Gymnasium env give identical curves. On top of the
 registry presets, :func:`loop_agent_config` applies the settings of a variant:
 
@@ -20,14 +23,16 @@ registry presets, :func:`loop_agent_config` applies the settings of a variant:
 * ``thesis`` — model-based planning every 10,000 steps with at most 50 sweeps
   (thesis Fig. 4.1 caption);
 * ``paper`` — Q-learning alpha 0.5, one value-iteration sweep every 1000 steps,
-  R-max m = 5 on the social task (m = 1 otherwise), and the paper-exact planning
-  rules of :mod:`simlab.agents.core`: the sweep is synchronous over all pairs
+  R-max m = 5 on the social task (m = 1 otherwise), and the paper's planning
+  rules of :mod:`simlab.agents.core` (as issue 14 describes the published code): the sweep is synchronous over all pairs
   (rule 2), untried pairs are valued through a uniform model (rule 1, model-based
   agents) and R-max freezes a pair's model at its m-th visit (rule 7). Without
   them (the registry's presets, the thesis variant) the sweep is in place over the
   visited pairs and untried pairs stay at 0: that agent learns 2-6 times slower
   than the published code on the social task (issue 14), so only the paper
-  variant claims to plan like the paper.
+  variant follows the paper's planning rules. Neither variant is compared
+  side by side with the published code here: "like the paper" means the rules of
+  issue 14, not verified identical curves.
 
 then the caller's overrides (registry keys, ``"actor.plan_every"`` for nested ones).
 
@@ -59,26 +64,13 @@ from simlab.agents.config import (
     config_to_dict,
 )
 from simlab.agents.core import agent_params
-from simlab.agents.kernels import (
-    count_model_new,
-    q_learning_update,
-    rmax_q_init,
-    select_action,
-    window_model_new,
-)
+from simlab.agents.kernels import count_model_new, rmax_q_init, window_model_new
 from simlab.agents.registry import AGENTS, agent_config
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.perception import P_SHARE
 
 TASKS = ("nav", "social", "gotohuman")
-
-# indices into the agent parameter array handed to the loops
-(A_KIND, A_SELECT, A_ALPHA, A_GAMMA, A_EPS, A_TAU, A_PLAN_EVERY, A_SWEEPS, A_TOL, A_M_KNOWN,
- A_INCREMENTAL, A_REPLAN, A_OBSERVER, A_OBS_SELECT, A_OBS_ALPHA, A_OBS_GAMMA, A_OBS_EPS,
- A_OBS_TAU, A_TAKEOVER, A_SYNC, A_UNTRIED, A_FREEZE) = range(22)
-_N_AP = 22
-_KIND_MF, _KIND_MB, _KIND_RMAX = 0, 1, 2
 
 
 def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",
@@ -117,40 +109,24 @@ def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",
     return agent_config(name, changes)
 
 
-def agent_arrays(cfg: Any, n_states: int, n_actions: int, takeover_trial: int = -1
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
-    """Loop inputs of an agent config: ``(ap, Q, Q_observer, model)``.
+def make_learner(cfg: Any, n_states: int, n_actions: int, takeover_trial: int = -1
+                 ) -> core.Learner:
+    """The :class:`~simlab.agents.core.Learner` of an agent config for the fused loops.
 
-    ``ap`` float64 (19,) parameters (``A_*`` indices); ``Q`` the acting table with
-    the config's initial values; ``Q_observer`` the passive observer's table
-    (``(1, 1)`` when there is none); ``model`` a count or window model (a 1 x 1
-    stub for Q-learning). ``takeover_trial``: the trial from which a passive
-    observer acts (-1: never).
+    ``Q`` (S, A) float64 with the config's initial values (R-max: optimistic); the
+    model a count or window model (a 1 x 1 stub for Q-learning); ``params`` the
+    actor's :class:`~simlab.agents.core.AgentParams`. For the registry's
+    ``passive-observer`` the observer's Q-learner is attached and acts from trial
+    ``takeover_trial`` (-1: never); otherwise there is no observer.
     """
-    ap = np.zeros(_N_AP, dtype=np.float64)
-    ap[A_TAKEOVER] = -1
-    q_obs = np.zeros((1, 1), dtype=np.float64)
     actor = cfg.actor if isinstance(cfg, PassiveObserverConfig) else cfg
-    ap[A_GAMMA] = actor.gamma
     if isinstance(actor, QLearningConfig):
-        ap[A_KIND] = _KIND_MF
-        ap[A_SELECT] = int(actor.selection)
-        ap[A_ALPHA] = actor.alpha
-        ap[A_EPS], ap[A_TAU] = actor.epsilon, actor.tau
         q = np.full((n_states, n_actions), actor.initial_value)
         model = count_model_new(1, 1, 1)
     elif isinstance(actor, RMaxConfig):
-        ap[A_KIND] = _KIND_RMAX
-        ap[A_SELECT] = 0  # greedy
-        ap[A_M_KNOWN] = actor.m
-        ap[A_REPLAN] = 1.0 if actor.replan_when_known else 0.0
         q = rmax_q_init(n_states, n_actions, float(actor.r_max), float(actor.gamma))
         model = count_model_new(n_states, n_actions, actor.capacity)
     elif isinstance(actor, ModelBasedConfig):
-        ap[A_KIND] = _KIND_MB
-        ap[A_SELECT] = int(actor.selection)
-        ap[A_EPS], ap[A_TAU] = actor.epsilon, actor.tau
-        ap[A_M_KNOWN] = 1
         q = np.full((n_states, n_actions), actor.initial_value)
         if isinstance(actor, SlidingWindowConfig):
             cap = max(1, min(actor.capacity, n_states * n_actions))
@@ -159,76 +135,55 @@ def agent_arrays(cfg: Any, n_states: int, n_actions: int, takeover_trial: int = 
             model = count_model_new(n_states, n_actions, actor.capacity)
     else:
         raise ConfigError(f"unsupported agent config {type(cfg).__name__}", key="agent")
-    if not isinstance(actor, QLearningConfig):
-        p = agent_params(actor)
-        ap[A_SYNC], ap[A_UNTRIED], ap[A_FREEZE] = p.synchronous, p.untried_uniform, p.freeze
-        ap[A_INCREMENTAL] = 1.0 if actor.incremental else 0.0
-        ap[A_PLAN_EVERY] = actor.plan_every
-        ap[A_SWEEPS] = actor.max_sweeps
-        ap[A_TOL] = actor.tol
+    params = agent_params(actor)
+    lr = core.Learner(q, model, params, core.Observer(core.NO_OBSERVER_Q, params, -1))
     if isinstance(cfg, PassiveObserverConfig):
-        obs = cfg.observer
-        ap[A_OBSERVER] = 1.0
-        ap[A_OBS_SELECT] = int(obs.selection)
-        ap[A_OBS_ALPHA], ap[A_OBS_GAMMA] = obs.alpha, obs.gamma
-        ap[A_OBS_EPS], ap[A_OBS_TAU] = obs.epsilon, obs.tau
-        ap[A_TAKEOVER] = takeover_trial
-        q_obs = np.full((n_states, n_actions), obs.initial_value)
-    return ap, q, q_obs, model
+        lr = with_observer(lr, cfg.observer, takeover_trial)
+    return lr
+
+
+def with_observer(lr: core.Learner, observer: QLearningConfig, takeover_trial: int
+                  ) -> core.Learner:
+    """``lr`` watched by a passive Q-learner ``observer`` (its Q starts at the config's
+    initial value, shape of ``lr.Q``), which acts from trial ``takeover_trial`` on
+    (``-1``: never).
+
+    Works for any acting agent (model-based, R-max, Q-learning): the fused loops update
+    the observer on every transition the actor makes and, from the take-over on, let
+    the observer act (its own selection rule) while the actor stops learning. The
+    registry's ``passive-observer`` is this with an epsilon-greedy model-based actor;
+    :mod:`simlab.visitlab.passive` uses it with R-max too.
+    """
+    if not isinstance(observer, QLearningConfig):
+        raise ConfigError(f"expected a QLearningConfig, got {type(observer).__name__}",
+                          key="observer")
+    q_obs = np.full(lr.Q.shape, observer.initial_value)
+    return lr._replace(observer=core.Observer(q_obs, agent_params(observer),
+                                              int(takeover_trial)))
 
 
 # --------------------------------------------------------------------------- kernels
 
 
 @njit(cache=True)
-def _act(Q, Q_obs, ap, s, trial, rng):
-    """Action of the agent (the observer's once it has taken over)."""
-    if ap[A_OBSERVER] > 0.0 and 0 <= ap[A_TAKEOVER] <= trial:
-        return select_action(Q_obs[s], int(ap[A_OBS_SELECT]), ap[A_OBS_EPS], ap[A_OBS_TAU], rng)
-    return select_action(Q[s], int(ap[A_SELECT]), ap[A_EPS], ap[A_TAU], rng)
-
-
-@njit(cache=True)
-def _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial):
-    """The agent's update after step ``t`` (1-based count of the acting agent's steps)."""
-    if ap[A_OBSERVER] > 0.0:
-        q_learning_update(Q_obs, s, a, r, s_next, ap[A_OBS_ALPHA], ap[A_OBS_GAMMA])
-        if 0 <= ap[A_TAKEOVER] <= trial:
-            return t  # after the take-over only the observer learns
-    if ap[A_KIND] == _KIND_MF:  # the core's Q-learning step without building the record
-        q_learning_update(Q, s, a, r, s_next, ap[A_ALPHA], ap[A_GAMMA])
-        return t + 1
-    return core.learn(model, Q, s, a, r, s_next, _actor_params(ap), core.NO_MASK,
-                      core.NO_TERMINAL, t)
-
-
-@njit(cache=True, inline="always")
-def _actor_params(ap):
-    """The acting agent's :class:`~simlab.agents.core.AgentParams` from ``ap``."""
-    return core.AgentParams(
-        int(ap[A_KIND]), int(ap[A_SELECT]), ap[A_ALPHA], ap[A_GAMMA], ap[A_EPS], ap[A_TAU],
-        int(ap[A_M_KNOWN]), ap[A_INCREMENTAL] > 0.0, ap[A_REPLAN] > 0.0,
-        int(ap[A_PLAN_EVERY]), int(ap[A_SWEEPS]), ap[A_TOL], ap[A_SYNC] > 0.0,
-        ap[A_UNTRIED] > 0.0, ap[A_FREEZE] > 0.0)
-
-
-@njit(cache=True)
-def nav_train_chunk(walls_h, walls_v, labels, start_cell, goal_label, goal_labels, n_steps,
-                    Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns):
-    """Run ``len(returns)`` navigation trials (global index from ``trial0``), learning;
-    fills ``returns``; returns the updated step counter ``t``."""
-    n_cells = labels.shape[0]
+def nav_train_chunk(env, lr, env_rng, agent_rng, t, trial0, returns):
+    """Run ``len(returns)`` navigation trials (global index from ``trial0``) of
+    :class:`~simlab.agents.core.Learner` ``lr`` on ``env``
+    (:data:`~simlab.visitlab.envs.NavKernelArgs`), learning; fills ``returns``; returns
+    the updated step counter ``t``."""
+    n_cells = env.labels.shape[0]
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.nav_reset(st, env_rng, n_cells, start_cell, goal_label, goal_labels)
+        dyn.nav_reset(st, env_rng, n_cells, env.start_cell, env.goal_label, env.goal_labels)
         s = dyn.nav_obs(st, n_cells)
         total = 0.0
-        for _ in range(n_steps):
-            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
-            r = dyn.nav_step(walls_h, walls_v, labels, st, a)
+        for _ in range(env.max_steps):
+            a = core.learner_act(lr, s, trial, core.NO_MASK, agent_rng)
+            r = dyn.nav_step(env.walls_h, env.walls_v, env.labels, st, a)
             s_next = dyn.nav_obs(st, n_cells)
-            t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
+            t = core.learner_learn(lr, s, a, r, s_next, trial, core.NO_MASK, core.NO_TERMINAL,
+                                   t)
             total += r
             s = s_next
         returns[k] = total
@@ -236,21 +191,25 @@ def nav_train_chunk(walls_h, walls_v, labels, start_cell, goal_label, goal_label
 
 
 @njit(cache=True)
-def social_train_chunk(walls_h, walls_v, los, pcfg, hp, redraw_p, robot_start, human_start,
-                       n_steps, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns):
-    """Run ``len(returns)`` social trials, learning; fills ``returns``; returns ``t``."""
-    n_cells = walls_v.shape[0] * walls_h.shape[1]
+def social_train_chunk(env, lr, env_rng, agent_rng, t, trial0, returns):
+    """Run ``len(returns)`` social trials on ``env``
+    (:data:`~simlab.visitlab.envs.SocialKernelArgs`), learning; fills ``returns``;
+    returns ``t``."""
+    wh, wv, los, pcfg = env.walls_h, env.walls_v, env.los, env.pcfg
+    n_cells = wv.shape[0] * wh.shape[1]
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.social_reset(st, env_rng, n_cells, robot_start, human_start, pcfg[P_SHARE] != 0)
-        s = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
+        dyn.social_reset(st, env_rng, n_cells, env.robot_start, env.human_start,
+                         pcfg[P_SHARE] != 0)
+        s = dyn.social_obs(wh, wv, los, pcfg, st)
         total = 0.0
-        for _ in range(n_steps):
-            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
-            r = dyn.social_step(walls_h, walls_v, los, pcfg, hp, redraw_p, st, a, env_rng)
-            s_next = dyn.social_obs(walls_h, walls_v, los, pcfg, st)
-            t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
+        for _ in range(env.max_steps):
+            a = core.learner_act(lr, s, trial, core.NO_MASK, agent_rng)
+            r = dyn.social_step(wh, wv, los, pcfg, env.hp, env.redraw_p, st, a, env_rng)
+            s_next = dyn.social_obs(wh, wv, los, pcfg, st)
+            t = core.learner_learn(lr, s, a, r, s_next, trial, core.NO_MASK, core.NO_TERMINAL,
+                                   t)
             total += r
             s = s_next
         returns[k] = total
@@ -258,23 +217,25 @@ def social_train_chunk(walls_h, walls_v, los, pcfg, hp, redraw_p, robot_start, h
 
 
 @njit(cache=True)
-def gth_train_chunk(walls_h, walls_v, los, pcfg, hp, human_moves, episode, robot_cell, human_cell,
-                    robot_ori, human_ori, n_steps, Q, Q_obs, model, ap, env_rng, agent_rng, t,
-                    trial0, returns):
-    """Run ``len(returns)`` go-to-human trials, learning; fills ``returns``; returns ``t``."""
-    n_cells = walls_v.shape[0] * walls_h.shape[1]
+def gth_train_chunk(env, lr, env_rng, agent_rng, t, trial0, returns):
+    """Run ``len(returns)`` go-to-human trials on ``env``
+    (:data:`~simlab.visitlab.envs.GthKernelArgs`), learning; fills ``returns``;
+    returns ``t``."""
+    wh, wv, los, pcfg = env.walls_h, env.walls_v, env.los, env.pcfg
+    n_cells = wv.shape[0] * wh.shape[1]
     st = np.zeros(dyn.N_STATE, dtype=np.int64)
     for k in range(returns.shape[0]):
         trial = trial0 + k
-        dyn.gth_reset(st, env_rng, n_cells, episode, robot_cell, human_cell, robot_ori, human_ori,
-                      pcfg[P_SHARE] != 0)
-        s = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
+        dyn.gth_reset(st, env_rng, n_cells, env.episode, env.robot_cell, env.human_cell,
+                      env.robot_ori, env.human_ori, pcfg[P_SHARE] != 0)
+        s = dyn.gth_obs(wh, wv, los, pcfg, st)
         total = 0.0
-        for _ in range(n_steps):
-            a = _act(Q, Q_obs, ap, s, trial, agent_rng)
-            r = dyn.gth_step(walls_h, walls_v, los, pcfg, hp, human_moves, st, a, env_rng)
-            s_next = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
-            t = _learn(Q, Q_obs, model, ap, s, a, r, s_next, t, trial)
+        for _ in range(env.max_steps):
+            a = core.learner_act(lr, s, trial, core.NO_MASK, agent_rng)
+            r = dyn.gth_step(wh, wv, los, pcfg, env.hp, env.human_moves, st, a, env_rng)
+            s_next = dyn.gth_obs(wh, wv, los, pcfg, st)
+            t = core.learner_learn(lr, s, a, r, s_next, trial, core.NO_MASK, core.NO_TERMINAL,
+                                   t)
             total += r
             s = s_next
         returns[k] = total
@@ -306,9 +267,10 @@ class _Runner:
         self.kernel = {"nav": nav_train_chunk, "social": social_train_chunk,
                        "gotohuman": gth_train_chunk}[task]
 
-    def run(self, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0, returns) -> int:
-        return int(self.kernel(*self.fixed, Q, Q_obs, model, ap, env_rng, agent_rng, t, trial0,
-                               returns))
+    def run(self, lr: core.Learner, gens: tuple[np.random.Generator, np.random.Generator],
+            t: int, trial0: int, returns: np.ndarray) -> int:
+        """Run ``len(returns)`` trials from global trial ``trial0``; returns ``t``."""
+        return int(self.kernel(self.fixed, lr, gens[0], gens[1], t, trial0, returns))
 
 
 def seed_generators(seed: int, n_seeds: int) -> list[tuple[np.random.Generator, np.random.Generator]]:
@@ -506,28 +468,6 @@ def train(
 # --------------------------------------------------------------------------- one seed, observers, models
 
 
-def observer_arrays(ap: np.ndarray, observer: QLearningConfig, takeover_trial: int,
-                    n_states: int, n_actions: int) -> np.ndarray:
-    """Make ``ap`` (from :func:`agent_arrays`) the parameters of an actor watched by a
-    passive Q-learner ``observer``; returns the observer's Q table ``(S, A)``.
-
-    Works for any acting agent (model-based, R-max, Q-learning): the fused loops update
-    the observer on every transition the actor makes and, from trial ``takeover_trial``
-    on (``-1``: never), let the observer act (its own selection rule) while the actor
-    stops learning. The registry's ``passive-observer`` is this with an epsilon-greedy
-    model-based actor; :mod:`simlab.visitlab.passive` uses it with R-max too.
-    """
-    if not isinstance(observer, QLearningConfig):
-        raise ConfigError(f"expected a QLearningConfig, got {type(observer).__name__}",
-                          key="observer")
-    ap[A_OBSERVER] = 1.0
-    ap[A_OBS_SELECT] = int(observer.selection)
-    ap[A_OBS_ALPHA], ap[A_OBS_GAMMA] = observer.alpha, observer.gamma
-    ap[A_OBS_EPS], ap[A_OBS_TAU] = observer.epsilon, observer.tau
-    ap[A_TAKEOVER] = int(takeover_trial)
-    return np.full((n_states, n_actions), observer.initial_value)
-
-
 def model_state(model: Any) -> dict[str, np.ndarray]:
     """A count model as plain arrays (picklable, npz-ready): the observed triples
     ``s``, ``a``, ``s_next``, ``count`` (n,) int64 in the model's order, ``r_sum``
@@ -596,7 +536,7 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
     The building block of :func:`train` for callers that spread seeds over their own
     workers (``simlab reproduce``): with ``gens = seed_generators(seed, n)[i]`` it gives
     exactly seed ``i`` of ``train(..., seeds=n, seed=seed)``. ``observer`` adds a
-    passive Q-learner (:func:`observer_arrays`) taking over after ``takeover_fraction``
+    passive Q-learner (:func:`with_observer`) taking over after ``takeover_fraction``
     of the trials (1.0: it only watches). ``initial_q`` starts the actor's Q (the
     observer's for the registry's ``passive-observer``); ``keep_model`` returns the
     actor's count model as arrays. ``on_chunk(n)`` is called after each chunk of ``n``
@@ -604,7 +544,6 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
     """
     env = make_env(task, variant=variant, **(env_kwargs or {}))
     runner = _Runner(env, task)
-    env_rng, agent_rng = gens
     registry_observer = isinstance(cfg, PassiveObserverConfig)
     if registry_observer and observer is not None:
         raise ConfigError("the passive-observer agent already has an observer", key="observer")
@@ -613,18 +552,18 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
         raise ConfigError(f"expected a fraction in [0, 1], got {fraction!r}",
                           key="takeover_fraction")
     takeover = round(fraction * trials) if (registry_observer or observer is not None) else -1
-    ap, Q, Q_obs, model = agent_arrays(cfg, runner.n_states, runner.n_actions, takeover)
+    lr = make_learner(cfg, runner.n_states, runner.n_actions, takeover)
     if observer is not None:
-        Q_obs = observer_arrays(ap, observer, takeover, runner.n_states, runner.n_actions)
+        lr = with_observer(lr, observer, takeover)
     if initial_q is not None:
-        target = Q_obs if registry_observer else Q
+        target = lr.observer.Q if registry_observer else lr.Q
         target[...] = initial_q
     returns = np.zeros(trials, dtype=np.float64)
     chunk = max(1, min(trials, 200_000 // env.max_steps))
     t = 0
     for lo in range(0, trials, chunk):
         hi = min(trials, lo + chunk)
-        t = runner.run(Q, Q_obs, model, ap, env_rng, agent_rng, t, lo, returns[lo:hi])
+        t = runner.run(lr, gens, t, lo, returns[lo:hi])
         if on_chunk is not None:
             on_chunk(hi - lo)
     has_observer = registry_observer or observer is not None
@@ -633,5 +572,5 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
         actor = cfg.actor if registry_observer else cfg
         if isinstance(actor, QLearningConfig):
             raise ConfigError("a Q-learner has no model to keep", key="keep_model")
-        kept = model_state(model)
-    return SeedRun(returns, Q, Q_obs if has_observer else None, kept, int(t))
+        kept = model_state(lr.model)
+    return SeedRun(returns, lr.Q, lr.observer.Q if has_observer else None, kept, int(t))

@@ -187,3 +187,38 @@ def test_evaluate_q_with_terminal_and_mask():
 def test_bad_mask_shape_is_a_config_error():
     with pytest.raises(ConfigError, match="valid"):
         QLearningAgent(3, 2, rng=np.random.default_rng(0), valid=np.ones((2, 2), bool))
+
+
+def _learner_with_observer(takeover):
+    S, A = 3, 2
+    actor = core.agent_params(QLearningConfig(alpha=0.5, gamma=0.5, epsilon=0.0))
+    watcher = core.agent_params(QLearningConfig(alpha=0.25, gamma=0.5, epsilon=0.0))
+    obs = core.Observer(np.zeros((S, A)), watcher, takeover)
+    return core.Learner(np.zeros((S, A)), core.NO_MODEL, actor, obs)
+
+
+def test_learner_observer_learns_beside_the_actor_then_takes_over():
+    lr = _learner_with_observer(takeover=2)
+    t = core.learner_learn(lr, 0, 1, 1.0, 2, 1, core.NO_MASK, core.NO_TERMINAL, 7)
+    # episode 1 < take-over 2: both learn (own alpha), the actor's clock advances
+    assert t == 8
+    assert lr.Q[0, 1] == 0.5 and lr.observer.Q[0, 1] == 0.25
+    t = core.learner_learn(lr, 0, 1, 1.0, 2, 2, core.NO_MASK, core.NO_TERMINAL, t)
+    # from the take-over on only the observer learns; the actor's clock stops
+    assert t == 8
+    assert lr.Q[0, 1] == 0.5 and lr.observer.Q[0, 1] == 0.25 + 0.25 * (1.0 - 0.25)
+    # and the observer acts (greedy on its own Q) while the actor would pick otherwise
+    lr.Q[1] = (1.0, 0.0)
+    lr.observer.Q[1] = (0.0, 1.0)
+    rng = np.random.default_rng(0)
+    assert core.learner_act(lr, 1, 1, core.NO_MASK, rng) == 0
+    assert core.learner_act(lr, 1, 2, core.NO_MASK, rng) == 1
+
+
+def test_learner_without_observer_is_plain_act_and_learn():
+    lr = _learner_with_observer(takeover=-1)._replace(
+        observer=core.Observer(core.NO_OBSERVER_Q, core.agent_params(QLearningConfig()), 0))
+    t = core.learner_learn(lr, 0, 1, 1.0, 2, 5, core.NO_MASK, core.NO_TERMINAL, 0)
+    assert t == 1 and lr.Q[0, 1] == 0.5
+    lr.Q[1] = (0.0, 3.0)
+    assert core.learner_act(lr, 1, 5, core.NO_MASK, np.random.default_rng(0)) == 1

@@ -198,10 +198,15 @@ def test_count_model_backup_and_value_iteration_match_dense_planning():
     assert np.all(m.n_sa > 0)
     # one backup by hand
     Q = rng.normal(size=(S, A))
+    before = Q[4, 1]
     expected = R[4, 1] + gamma * T[4, 1] @ Q.max(1)
     delta = K.count_model_backup(m, Q, 4, 1, gamma, 1)
     assert Q[4, 1] == pytest.approx(expected)
-    assert delta >= 0
+    assert delta == pytest.approx(abs(expected - before))  # the change it made, not just >= 0
+    assert delta > 0
+    kept = Q.copy()  # a pair below m_known visits is skipped: no change, delta 0
+    assert K.count_model_backup(m, Q, 4, 1, gamma, int(m.n_sa[4, 1]) + 1) == 0.0
+    assert np.array_equal(Q, kept)
     # sweeps converge to the dense fixed point
     Qd = np.zeros((S, A))
     for _ in range(2000):

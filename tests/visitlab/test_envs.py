@@ -231,3 +231,30 @@ def test_reset_options_place_the_episode_and_only_that_episode() -> None:
 def test_bad_reset_options_name_the_key(make, options, match) -> None:
     with pytest.raises(ConfigError, match=match):
         make().reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize(("env_id", "limit"), [("simlab/VisitLab-Nav-v0", 50),
+                                               ("simlab/VisitLab-Social-v0", 40),
+                                               ("simlab/VisitLab-GoToHuman-v0", 40)])
+def test_registered_limit_and_max_episode_steps_truncate(env_id, limit):
+    env = gym.make(env_id)
+    assert env.spec.max_episode_steps == limit
+    assert env.unwrapped.max_steps is None  # the env's own limit is off
+    for n in (limit, 7, limit + 13):  # the registered one, and overrides below and above
+        env = gym.make(env_id, max_episode_steps=n)
+        env.reset(seed=0)
+        flags = [env.step(0)[3] for _ in range(n)]
+        assert flags == [False] * (n - 1) + [True]
+
+
+def test_env_without_own_limit_never_truncates_and_cannot_train():
+    from simlab.visitlab.training import train
+
+    env = NavEnv(max_steps=None)
+    env.reset(seed=0)
+    assert not any(env.step(24)[3] for _ in range(200))
+    assert NavEnv(variant="paper").max_steps == 20 and NavEnv().max_steps == 50
+    with pytest.raises(ConfigError, match="max_steps"):
+        NavEnv(max_steps=0)
+    with pytest.raises(ConfigError, match="trial length"):
+        train("nav", "q-learning", trials=2, seeds=1, progress=False, max_steps=None)

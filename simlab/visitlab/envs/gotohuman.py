@@ -1,0 +1,165 @@
+"""The Visit-the-lab go-to-human env (card in the class docstring)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from simlab.errors import ConfigError
+from simlab.visitlab import dynamics as dyn
+from simlab.visitlab.actions import N_MOVE_ACTIONS
+from simlab.visitlab.envs.base import (
+    VARIANT_STEPS,
+    GthKernelArgs,
+    _cell_option,
+    _centre,
+    _check_steps,
+    _check_variant,
+    _direction_option,
+    _fused_steps,
+    _reset_options,
+    _resolve_human,
+    _VisitLabEnv,
+)
+from simlab.visitlab.grid import Layout, gridworld, make_layout
+from simlab.visitlab.humans import Human
+from simlab.visitlab.perception import Perception, perception_for
+from simlab.visitlab.render import Scene
+
+
+class GoToHumanEnv(_VisitLabEnv):
+    """``simlab/VisitLab-GoToHuman-v0`` — reach the human's facing field (SPEC B5).
+
+    **Description**
+        The robot must get in front of a human: into the human's facing field, with
+        line of sight, at distance class 1-3. ``episode`` (thesis Fig. 4.4):
+        ``"random"`` — positions and orientations drawn each episode;
+        ``"fixed_positions"`` — robot at ``robot_cell``, human at ``human_cell``,
+        orientations random; ``"fixed"`` — positions and orientations fixed
+        (``robot_ori``, ``human_ori``). Defaults: robot at (2, 2) facing DOWN, human at
+        the centre facing UP. The human stands still unless ``human`` is given (a
+        preset name or :class:`Human`): then it walks and turns like a human who is
+        not engaged (r_H, O_H, s_H).
+
+    **Actions**
+        ``Discrete(25)``: moves 0-23 and STAY 24.
+
+    **Observations**
+        ``Discrete(320)``: ``ravel_multi_index((human_orientation, distance, angle),
+        (8, 5, 8))`` (:func:`decode_gth`).
+
+    **Rewards**
+        +1 per step that ends with the robot in the human's facing field (with line
+        of sight) at distance class 1-3, else 0.
+
+    **Termination**
+        Never terminated. Truncated after ``max_steps`` steps (``"variant"``: the
+        variant's length; ``None``: no limit of the env's own, Gymnasium's
+        ``TimeLimit`` of the registration truncates).
+
+    **Variants**
+        ``thesis`` — Manhattan distance classes, 40 steps; ``paper`` — Chebyshev
+        classes, 20 steps. Both: a 24 x 24 grid without inner walls.
+    """
+
+    def __init__(
+        self,
+        variant: str = "thesis",
+        episode: str = "random",
+        layout: Layout | str | None = None,
+        human: Human | str | None = None,
+        robot_cell: int | tuple[int, int] = (2, 2),
+        human_cell: int | tuple[int, int] | str = "center",
+        robot_ori: int = 1,
+        human_ori: int = 0,
+        max_steps: int | str | None = VARIANT_STEPS,
+        perception: Perception | None = None,
+        layout_seed: int | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        super().__init__(render_mode)
+        self.variant = _check_variant(variant)
+        thesis = variant == "thesis"
+        if episode not in dyn.GTH_VARIANTS:
+            raise ConfigError(f"expected one of {dyn.GTH_VARIANTS}, got {episode!r}", key="episode")
+        self.episode = episode
+        self._episode_code = dyn.GTH_VARIANTS.index(episode)
+        self.layout = gridworld(24, 24) if layout is None else make_layout(layout, seed=layout_seed)
+        self.perception = perception if perception is not None else perception_for(variant)
+        self.human = None if human is None else _resolve_human(human, "easy")
+        named = {"center": _centre(self.layout), "centre": _centre(self.layout)}
+        self.robot_cell = _cell_option(robot_cell, self.layout, "robot_cell", {})
+        self.human_cell = _cell_option(human_cell, self.layout, "human_cell", named)
+        if self.robot_cell == self.human_cell:
+            raise ConfigError("robot and human cannot start on the same cell", key="robot_cell")
+        self.robot_ori = _direction_option(robot_ori, "robot_ori")
+        self.human_ori = _direction_option(human_ori, "human_ori")
+        self.max_steps = _check_steps(max_steps, 40 if thesis else 20)
+        self._hp = (self.human.to_array() if self.human is not None
+                    else np.zeros(8, dtype=np.float64))
+        self._pcfg = self.perception.to_array()
+        self._los = self.layout.los_table()
+        self.observation_space = spaces.Discrete(dyn.N_GTH_STATES)
+        self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
+
+    def kernel_args(self) -> GthKernelArgs:
+        """The fixed inputs of the fused go-to-human loop
+        (:func:`simlab.visitlab.training.gth_train_chunk`) as a :data:`GthKernelArgs`."""
+        lay = self.layout
+        return GthKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
+                             self.human is not None, int(self._episode_code),
+                             int(self.robot_cell), int(self.human_cell), int(self.robot_ori),
+                             int(self.human_ori), _fused_steps(self.max_steps))
+
+    def _obs(self) -> int:
+        return int(dyn.gth_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
+                               self._st))
+
+    def _info(self) -> dict[str, Any]:
+        st = self._st
+        info = self._positions()
+        _, dist, angle, sees, looks, r_looks = self._percepts()
+        info.update(distance_class=int(dist), angle=int(angle), h_sees_r=bool(sees),
+                    h_looks_at_r=bool(looks), r_looks_at_h=bool(r_looks),
+                    in_facing_field=bool(looks) and 1 <= dist <= 3,
+                    human_moved=int(st[dyn.S_HUMAN_MOVE]))
+        return info
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Options: ``robot_cell``, ``human_cell`` (cell or ``(row, col)``), ``robot_ori``,
+        ``human_ori`` (0-7), for this episode only (the episode variant decides which of
+        them a reset draws at random instead)."""
+        opt = _reset_options(options, {"robot_cell": self.robot_cell,
+                                       "human_cell": self.human_cell,
+                                       "robot_ori": self.robot_ori, "human_ori": self.human_ori})
+        named = {"center": _centre(self.layout), "centre": _centre(self.layout)}
+        robot = _cell_option(opt["robot_cell"], self.layout, "options.robot_cell", {})
+        human = _cell_option(opt["human_cell"], self.layout, "options.human_cell", named)
+        if robot == human and not self.perception.share_cells:
+            raise ConfigError("robot and human cannot start on the same cell",
+                              key="options.robot_cell")
+        r_ori = _direction_option(opt["robot_ori"], "options.robot_ori")
+        h_ori = _direction_option(opt["human_ori"], "options.human_ori")
+        super().reset(seed=seed)
+        self._t = 0
+        dyn.gth_reset(self._st, self.np_random, self.layout.n_cells, self._episode_code,
+                      robot, human, r_ori, h_ori, self.perception.share_cells)
+        return self._obs(), self._info()
+
+    def step(self, action: int):
+        if not self.action_space.contains(action):
+            raise ConfigError(f"expected an action in 0..24, got {action!r}", key="action")
+        reward = dyn.gth_step(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
+                              self._hp, self.human is not None, self._st, int(action),
+                              self.np_random)
+        self._t += 1
+        return self._obs(), float(reward), False, self._truncated(), self._info()
+
+    def _scene(self) -> Scene:
+        info = self._info()
+        return Scene(info["robot_cell"], info["robot_orientation"], info["human_cell"],
+                     info["human_orientation"],
+                     caption=f"t={self._t} dist={info['distance_class']} "
+                             f"facing={info['in_facing_field']}")
