@@ -229,8 +229,8 @@ def main() -> None:
     print(f"numba compile in this process: {ct.seconds:.1f} s"
           + (f"; the training waited {cpu.get('train_wait', 0.0):.1f} s for the warm-up"
              if warm else ""))
-    if warm is not None and warm.process.exitcode not in (0, None):
-        print(f"warning: the warm-up process failed (exit code {warm.process.exitcode})")
+    if warm is not None and warm.done and not warm.ok:
+        print(f"warning: the warm-up failed ({warm.future.exception()!r})")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,6 @@ is never slower than compiling again).
 
 from __future__ import annotations
 
-import multiprocessing
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -78,30 +77,41 @@ def warm_kernels(agent: str | None = "vi-softmax", mcl: bool = True) -> float:
 
 @dataclass
 class Warmup:
-    """Handle of a warm-up process (see :func:`start_warmup`)."""
+    """Handle of a warm-up worker (see :func:`start_warmup`)."""
 
-    process: Any
+    future: Any
+    pool: Any
     started: float
 
     def wait(self, timeout: float | None = None) -> bool:
         """Wait up to ``timeout`` s (None: until it ends); True when it has ended."""
-        self.process.join(timeout)
-        return not self.process.is_alive()
+        import concurrent.futures as cf
+
+        cf.wait([self.future], timeout=timeout)
+        if self.future.done():
+            self.pool.shutdown(wait=True)
+        return self.future.done()
 
     @property
     def done(self) -> bool:
-        return not self.process.is_alive()
+        return self.future.done()
+
+    @property
+    def ok(self) -> bool:
+        """True when the warm-up ended without an error."""
+        return self.future.done() and self.future.exception() is None
 
 
 def start_warmup(agent: str | None = "vi-softmax", mcl: bool = True) -> Warmup:
-    """Start :func:`warm_kernels` in a daemon ``spawn`` process and return at once.
+    """Start :func:`warm_kernels` in a fresh worker process and return at once.
 
     Call it before the physics stages (``simlab pipeline``: before the map) and, before
-    training, ``wait()`` on the handle. A failure in the process is harmless: the
-    stages then compile as they would without it.
+    training, ``wait()`` on the handle. A failure in the worker is harmless: the
+    stages then compile as they would without it. The worker is a
+    :func:`simlab.parallel.spawn_worker` (it exits with its parent).
     """
-    ctx = multiprocessing.get_context("spawn")
-    proc = ctx.Process(target=warm_kernels, args=(agent, mcl), daemon=True,
-                       name="simlab-numba-warmup")
-    proc.start()
-    return Warmup(process=proc, started=time.perf_counter())
+    from simlab.parallel import spawn_worker
+
+    pool = spawn_worker()
+    return Warmup(future=pool.submit(warm_kernels, agent, mcl), pool=pool,
+                  started=time.perf_counter())

@@ -79,8 +79,9 @@ def test_learned_policy_beats_random_by_5x(truth_run) -> None:
     assert rate >= 5 * max(physics_random, predicted_random)
     assert s.comparison.ratio_to_random is None or s.comparison.ratio_to_random >= 5
     # the headline attributes are the flat numbers of replay.json
-    assert s.reward_rate_per_hour == s["reward_rate_per_hour"] == rate
-    assert s.random_rate_per_hour == s["random_rate_per_hour"] == physics_random
+    flat = s.to_json()
+    assert s.reward_rate_per_hour == flat["reward_rate_per_hour"] == rate
+    assert s.random_rate_per_hour == flat["random_rate_per_hour"] == physics_random
 
 
 def test_mcl_replay_localizes_within_5_cm(chain, tmp_path) -> None:
@@ -216,8 +217,8 @@ def test_a_subset_of_goals_and_a_state_id_goal(chain, tmp_path) -> None:
                  out=tmp_path / "o", progress=False, mdp=chain.mdp,
                  goals=["NE", f"s{target}"], baseline_hours=0.0)
     s = res.summary
-    assert s["goal_names"] == ["NE", f"s{target}"]
-    assert set(s["result"]["goals_reached"]) == {"NE", f"s{target}"}
+    assert list(s.goal_names) == ["NE", f"s{target}"]
+    assert set(s.result.goals_reached) == {"NE", f"s{target}"}
     import pyarrow.parquet as pq
 
     log = pq.read_table(res.files["transitions"]).to_pydict()
