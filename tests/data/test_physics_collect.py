@@ -92,7 +92,7 @@ def test_sigkill_then_resume_equals_uninterrupted_run(tmp_path: Path,
     try:
         # Wait (bounded, so a broken run cannot hang the suite) for the first parts.
         deadline = time.monotonic() + 300
-        while len(list(out.glob("part-*.parquet"))) < 3:
+        while len(list(out.glob("parts/part-*.parquet"))) < 3:
             if proc.poll() is not None:
                 pytest.fail(f"collect ended before it could be killed: {proc.stderr.read()!r}")
             if time.monotonic() > deadline:
