@@ -12,14 +12,14 @@ estimate`` and the rest read exactly like a collected one::
                   action_set=parse_action_set(8, "ccw-east"), pose_source="log",
                   provenance={"log": "run3.txt", "robot": "turtlebot3 #2"}))
 
-Layout and columns are those of :mod:`simlab.data.schema`: parts in ``DIR/parts/``, the path
-that pyarrow, pandas, Polars, DuckDB and Ray Data all read, manifest at ``DIR/_manifest.json``. Each :class:`TransitionArrays`
-is one independent walk (a ``worker``); it is cut into parts of ``part_size`` rows, every
-part written atomically (temporary name, fsync, rename), and the manifest — which is what
-makes the directory a dataset — is written **last**, so an interrupted write never looks
-like a complete dataset. The manifest holds the :class:`~simlab.actions.ActionSet` as
-``action_set``, the pose source, the discretizer (hash, centres) and the caller's free-form
-``provenance``.
+Layout and columns are those of :mod:`simlab.data.schema`: parts in ``DIR/parts/`` (the one
+path pyarrow, pandas, Polars, DuckDB and Ray Data all read), manifest at
+``DIR/_manifest.json``. Each :class:`TransitionArrays` is one independent walk (a
+``worker``); it is cut into parts of ``part_size`` rows, every part written atomically
+(temporary name, fsync, rename), and the manifest — which is what makes the directory a
+dataset — is written **last**, so an interrupted write never looks like a complete dataset.
+The manifest holds the :class:`~simlab.actions.ActionSet` as ``action_set``, the pose
+source, the discretizer (hash, centres) and the caller's free-form ``provenance``.
 
 Decisions: a writer run produces a complete dataset (``complete: true``) and cannot be
 resumed (there is nothing to re-run); ``seed`` is recorded as given (0 by default: data

@@ -27,6 +27,11 @@ def _columns(directory: Path) -> dict[str, np.ndarray]:
             if name != "pose_source"}
 
 
+def _files(directory: Path) -> list[str]:
+    """Every file and folder under ``directory``, as sorted relative paths."""
+    return sorted(p.relative_to(directory).as_posix() for p in directory.rglob("*"))
+
+
 def _snapshot(directory: Path) -> dict[str, tuple[bytes, int]]:
     return {p.relative_to(directory).as_posix(): (p.read_bytes(), p.stat().st_mtime_ns)
             for p in sorted(directory.rglob("*")) if p.is_file()}
@@ -141,7 +146,7 @@ def test_resume_after_a_crash_equals_the_uninterrupted_run(tmp_path: Path,
     result = collect_kinematic(crashed, resume=True, **options)
     assert result.parts_written == result.parts - 3
     assert read_dataset(crashed).equals(read_dataset(tmp_path / "full"))
-    assert sorted(os.listdir(crashed)) == sorted(os.listdir(tmp_path / "full"))
+    assert _files(crashed) == _files(tmp_path / "full")
     assert read_manifest(crashed)["complete"]
 
 
@@ -172,7 +177,7 @@ def test_resume_after_a_kill_during_the_first_manifest_write(
         collect_kinematic(out)
     collect_kinematic(out, resume=True)
     assert read_dataset(out).equals(read_dataset(tmp_path / "ref"))
-    assert sorted(os.listdir(out)) == sorted(os.listdir(tmp_path / "ref"))
+    assert _files(out) == _files(tmp_path / "ref")
 
 
 def test_non_empty_directory_without_resume_is_refused(tmp_path: Path,
