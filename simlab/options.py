@@ -1,0 +1,329 @@
+"""Command options as one frozen, validated, documented dataclass (CleanRL's ``Args``).
+
+A command's options are spelled once, as the fields of a dataclass::
+
+    @dataclass(frozen=True, kw_only=True)
+    class EstimateConfig(CommandConfig):
+        dataset: Path | None = option(None, "dataset directory written by `simlab collect`",
+                                      positional=True)
+        out: Path = option(help="model file mdp.npz")
+        plot: bool = option(True, "write the entropy bar plot")
+
+and everything else is generated from them:
+
+* ``EstimateConfig.add_arguments(parser)`` — the argparse options (``--out``, ``--no-plot``
+  for a bool that defaults to true, ``--n-states`` for ``n_states``), each with its help
+  text and default, plus ``--config FILE`` (a TOML file of the same fields; options given
+  on the command line win over the file, the file over the defaults);
+* ``EstimateConfig.from_args(namespace)`` and ``EstimateConfig.from_toml(path)``;
+* :func:`command` — the Python function takes the config (``estimate(cfg)``) or the same
+  fields as arguments (``estimate(dataset, out=..., plot=False)``), so the function's
+  signature is the dataclass's.
+
+Fields are checked at construction by their annotation (``int`` a whole number, ``float``
+a finite number, ``bool`` true/false, ``str``, ``Path`` — strings become paths —, with
+``| None`` allowing None, ``tuple[...]`` from lists) and then by the class's own
+``validate()`` (ranges, choices, combinations), so a config that exists is a valid config.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import inspect
+import numbers
+import operator
+import os
+import types
+import typing
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, ClassVar, TypeVar
+
+from simlab.errors import ConfigError
+
+__all__ = ["CommandConfig", "command", "option"]
+
+C = TypeVar("C", bound="CommandConfig")
+
+_MISSING = dataclasses.MISSING
+
+
+class _Unset:
+    """argparse default of every generated option: "not given on the command line"."""
+
+    def __repr__(self) -> str:
+        return "<not given>"
+
+
+_UNSET = _Unset()
+
+
+def option(default: Any = _MISSING, help: str = "", *, positional: bool = False,
+           choices: tuple[Any, ...] | None = None, metavar: str | None = None,
+           flag: str | None = None, cli: bool = True, parse: Callable[[str], Any] | None = None
+           ) -> Any:
+    """A documented field of a :class:`CommandConfig`.
+
+    ``default`` — omitted: the option is required. ``help`` — one line for ``--help``
+    (units in it). ``positional`` — an argument without ``--`` (optional when it has a
+    default). ``choices`` — the allowed values (argparse and construction both refuse
+    others). ``flag`` — the option's name on the command line when it is not the field's
+    name with dashes. ``cli=False`` — settable from Python and TOML only. ``parse`` — how the
+    command line's string becomes the field's value (default: by the annotation).
+    """
+    meta = {"help": help, "positional": positional, "choices": choices, "metavar": metavar,
+            "flag": flag, "cli": cli, "parse": parse}
+    if isinstance(default, list | dict | set):
+        raise TypeError("mutable defaults: use a tuple")
+    return dataclasses.field(default=default, metadata=meta)
+
+
+class CommandConfig:
+    """Base of every command's options (subclasses are ``@dataclass(frozen=True,
+    kw_only=True)``: keyword-only, so a required field may follow one with a default).
+
+    Subclasses set ``COMMAND`` (the subcommand's name, for messages) and may define
+    ``validate(self)`` for checks beyond the field types (it may also normalise values
+    with ``object.__setattr__``).
+    """
+
+    COMMAND: ClassVar[str] = ""
+
+    # -- construction -----------------------------------------------------------------
+
+    def __post_init__(self) -> None:
+        hints = _hints(type(self))
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            new = _coerce(value, hints[f.name], f.name)
+            choices = f.metadata.get("choices")
+            if choices is not None and new is not None and new not in choices:
+                raise ConfigError(f"expected one of {', '.join(map(str, choices))}; "
+                                  f"got {value!r}", key=f.name)
+            if new is not value:
+                object.__setattr__(self, f.name, new)
+        self.validate()
+
+    def validate(self) -> None:
+        """Checks beyond the field types (override)."""
+
+    @classmethod
+    def from_mapping(cls: type[C], values: Mapping[str, Any], *,
+                     path: str | os.PathLike[str] | None = None) -> C:
+        """Build from a mapping of field names (TOML keys may use dashes or underscores);
+        unknown keys and missing required fields name the file and the key."""
+        known = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        kwargs: dict[str, Any] = {}
+        for key, value in values.items():
+            name = key.replace("-", "_")
+            if name not in known:
+                raise ConfigError(f"unknown option {key!r}", path=path, key=key,
+                                  fix="known options: " + ", ".join(sorted(known)))
+            kwargs[name] = value
+        missing = [f.name for f in known.values() if f.name not in kwargs
+                   and f.default is _MISSING and f.default_factory is _MISSING]
+        if missing:
+            flags = ", ".join(f"{m} (--{m.replace('_', '-')})" for m in missing)
+            raise ConfigError(f"missing required option(s): {flags}", path=path,
+                              key=missing[0])
+        try:
+            return cls(**kwargs)
+        except ConfigError as exc:
+            if path is None or exc.path is not None:
+                raise
+            raise ConfigError(exc.problem, path=path, key=exc.key, fix=exc.fix) from None
+
+    @classmethod
+    def from_toml(cls: type[C], path: str | os.PathLike[str], table: str | None = None) -> C:
+        """Read the options from a TOML file (the whole file, or one ``[table]``)."""
+        from simlab.io import read_toml
+
+        data = read_toml(path)
+        if table is not None:
+            if not isinstance(data.get(table), dict):
+                raise ConfigError(f"no [{table}] table", path=path, key=table)
+            data = data[table]
+        return cls.from_mapping(data, path=path)
+
+    def replace(self: C, **changes: Any) -> C:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Field values as JSON/TOML-friendly Python (paths as strings, tuples as lists)."""
+        return {f.name: _plain(getattr(self, f.name))
+                for f in dataclasses.fields(self)}  # type: ignore[arg-type]
+
+    # -- command line -----------------------------------------------------------------
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser, *, config_file: bool = True) -> None:
+        """Add one argparse option per field (an option not given stays a marker in the
+        namespace so that :meth:`from_args` can tell it from one given)."""
+        hints = _hints(cls)
+        for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+            if f.metadata.get("cli", True):
+                _add_field(parser, f, hints[f.name])
+        if config_file:
+            parser.add_argument("--config", default=None, metavar="FILE",
+                                help="TOML file of these options (keys as the long option "
+                                     "names); options on the command line win")
+
+    @classmethod
+    def from_args(cls: type[C], args: argparse.Namespace) -> C:
+        """Defaults, then ``--config FILE``, then the options given on the command line."""
+        values: dict[str, Any] = {}
+        config_path = getattr(args, "config", None)
+        if config_path is not None:
+            from simlab.io import read_toml
+
+            values.update({k.replace("-", "_"): v for k, v in read_toml(config_path).items()})
+        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        values.update({k: v for k, v in vars(args).items()
+                       if k in names and v is not _UNSET})
+        return cls.from_mapping(values, path=config_path)
+
+
+def command(config_cls: type[C]) -> Callable[[Callable[[C], Any]], Callable[..., Any]]:
+    """Decorate ``fn(cfg)`` so it also takes the config's fields as arguments.
+
+    ``fn(cfg)`` with a ``config_cls`` instance runs as is; ``fn(*args, **kwargs)`` builds
+    the config first, positional arguments taken in the order of the dataclass's fields
+    (``estimate(dataset, out, plot=False)``). ``help(fn)`` shows every option.
+    """
+    names = [f.name for f in dataclasses.fields(config_cls)]  # type: ignore[arg-type]
+
+    def wrap(fn: Callable[[C], Any]) -> Callable[..., Any]:
+        @functools.wraps(fn)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            if len(args) == 1 and not kwargs and isinstance(args[0], config_cls):
+                return fn(args[0])
+            if len(args) > len(names):
+                raise TypeError(f"{fn.__name__}() takes at most {len(names)} positional "
+                                f"arguments ({len(args)} given)")
+            for name, value in zip(names, args, strict=False):
+                if name in kwargs:
+                    raise TypeError(f"{fn.__name__}() got multiple values for {name!r}")
+                kwargs[name] = value
+            return fn(config_cls(**kwargs))
+
+        params = list(inspect.signature(config_cls).parameters.values())
+        ret = inspect.signature(fn).return_annotation
+        wrapper.__signature__ = inspect.Signature(params, return_annotation=ret)  # type: ignore[attr-defined]
+        wrapper.config_class = config_cls  # type: ignore[attr-defined]
+        return wrapper
+
+    return wrap
+
+
+# -- helpers ------------------------------------------------------------------------------
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _split_optional(tp: Any) -> tuple[Any, bool]:
+    """``X | None`` -> (X, True); ``X`` -> (X, False)."""
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        optional = len(args) < len(typing.get_args(tp))
+        return (args[0] if len(args) == 1 else functools.reduce(operator.or_, args)), optional
+    return tp, False
+
+
+def _coerce(value: Any, tp: Any, name: str) -> Any:
+    base, optional = _split_optional(tp)
+    if value is None:
+        if optional:
+            return None
+        raise ConfigError("a value is required", key=name)
+    origin = typing.get_origin(base)
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"expected a list, got {value!r}", key=name)
+        args = typing.get_args(base)
+        item = args[0] if args else Any
+        return tuple(_coerce(v, item, name) for v in value)
+    if base is bool:
+        if isinstance(value, bool):
+            return value
+        raise ConfigError(f"expected true or false, got {value!r}", key=name)
+    if base is int:
+        if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+            return int(value)
+        raise ConfigError(f"expected a whole number, got {value!r}", key=name)
+    if base is float:
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
+            return float(value)
+        raise ConfigError(f"expected a number, got {value!r}", key=name)
+    if base is str:
+        if isinstance(value, str):
+            return value
+        raise ConfigError(f"expected a text, got {value!r}", key=name)
+    if base is Path:
+        if isinstance(value, Path):
+            return value
+        if isinstance(value, str | os.PathLike) and str(value):
+            return Path(value)
+        raise ConfigError(f"expected a path, got {value!r}", key=name)
+    return value  # Any, unions of several types, records: the class's validate() checks
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _flag_name(f: dataclasses.Field) -> str:
+    return "--" + (f.metadata.get("flag") or f.name.replace("_", "-"))
+
+
+def _add_field(parser: argparse.ArgumentParser, f: dataclasses.Field, tp: Any) -> None:
+    base, _optional = _split_optional(tp)
+    meta = f.metadata
+    required = f.default is _MISSING and f.default_factory is _MISSING
+    default = None if required else f.default
+    help_text = meta.get("help", "")
+    if not required and default is not None and base is not bool:
+        shown = ",".join(map(str, default)) if isinstance(default, tuple) else default
+        help_text += f" (default {shown})"
+    kw: dict[str, Any] = {"help": help_text, "default": _UNSET}
+    if meta.get("metavar"):
+        kw["metavar"] = meta["metavar"]
+    if meta.get("choices") is not None:
+        kw["choices"] = meta["choices"]
+    if base is bool:
+        kw.pop("metavar", None)
+        if default is True:
+            flag = "--no-" + (meta.get("flag") or f.name.replace("_", "-"))
+            parser.add_argument(flag, dest=f.name, action="store_false", **kw)
+        else:
+            parser.add_argument(_flag_name(f), dest=f.name, action="store_true", **kw)
+        return
+    kw["type"] = meta.get("parse") or _parser_for(base)
+    if typing.get_origin(base) is tuple:
+        kw["nargs"] = "+"
+    if meta.get("positional"):
+        if not required:
+            kw["nargs"] = "?"
+        parser.add_argument(f.name, **kw)
+        return
+    if required:  # not argparse-required: --config FILE may give it
+        kw["help"] += " (required)"
+    parser.add_argument(_flag_name(f), dest=f.name, **kw)
+
+
+def _parser_for(base: Any) -> Callable[[str], Any]:
+    if typing.get_origin(base) is tuple:
+        args = typing.get_args(base)
+        return _parser_for(args[0] if args else str)
+    if base in (int, float, Path):
+        return base
+    return str

@@ -1,0 +1,160 @@
+"""The checks every input goes through: whole numbers, numbers in a range, probabilities,
+choices, true/false, files and directories.
+
+One home for the messages, so that every bad value reads the same way wherever it comes
+from (a CLI option, a TOML table, a Python keyword): each check raises
+:class:`~simlab.errors.ConfigError` naming the field (``key``), the file when there is one
+(``path``), what was expected and what was found, and returns the value in its canonical
+type (``int`` for whole numbers, ``float`` for numbers, :class:`~pathlib.Path` for paths).
+
+NumPy scalars count as the Python numbers they hold; ``True``/``False`` are never numbers
+(a TOML ``seed = true`` is a mistake, not 1).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab.errors import ConfigError
+
+__all__ = [
+    "boolean",
+    "choice",
+    "discount",
+    "existing_dir",
+    "existing_file",
+    "number",
+    "positive",
+    "probability",
+    "whole",
+]
+
+Where = str | os.PathLike[str] | None
+
+
+def _is_whole(value: Any) -> bool:
+    # 3.0 is refused like 3.5: a float where a count belongs is a mistake worth a message
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def whole(value: Any, key: str, *, minimum: int | None = 0, maximum: int | None = None,
+          path: Where = None, fix: str | None = None) -> int:
+    """``value`` as an ``int`` in ``[minimum, maximum]`` (``None``: unbounded).
+
+    Accepts Python and NumPy integers; refuses booleans, floats (also ``3.0``) and strings.
+    """
+    if not _is_whole(value) or (minimum is not None and int(value) < minimum) \
+            or (maximum is not None and int(value) > maximum):
+        raise ConfigError(f"expected a whole number{_range(minimum, maximum)}, got {value!r}",
+                          key=key, path=path, fix=fix)
+    return int(value)
+
+
+def number(value: Any, key: str, *, low: float | None = None, high: float | None = None,
+           low_open: bool = False, high_open: bool = False, path: Where = None,
+           fix: str | None = None) -> float:
+    """``value`` as a finite ``float`` in the interval given by ``low``/``high``.
+
+    ``low_open``/``high_open`` exclude the bound itself (``low=0, low_open=True``: > 0).
+    """
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) \
+        and math.isfinite(float(value))
+    if ok:
+        v = float(value)
+        ok = (low is None or (v > low if low_open else v >= low)) and \
+             (high is None or (v < high if high_open else v <= high))
+    if not ok:
+        raise ConfigError(f"expected a finite number{_interval(low, high, low_open, high_open)}"
+                          f", got {value!r}", key=key, path=path, fix=fix)
+    return float(value)
+
+
+def positive(value: Any, key: str, *, allow_zero: bool = False, path: Where = None,
+             fix: str | None = None) -> float:
+    """A finite number > 0 (``>= 0`` with ``allow_zero``)."""
+    return number(value, key, low=0.0, low_open=not allow_zero, path=path, fix=fix)
+
+
+def probability(value: Any, key: str, *, path: Where = None, fix: str | None = None) -> float:
+    """A probability in [0, 1]."""
+    if not (isinstance(value, numbers.Real) and not isinstance(value, bool)
+            and 0.0 <= float(value) <= 1.0):
+        raise ConfigError(f"expected a probability in [0, 1], got {value!r}", key=key,
+                          path=path, fix=fix)
+    return float(value)
+
+
+def discount(value: Any, key: str = "gamma", *, path: Where = None) -> float:
+    """A discount factor in [0, 1)."""
+    if not (isinstance(value, numbers.Real) and not isinstance(value, bool)
+            and 0.0 <= float(value) < 1.0):
+        raise ConfigError(f"expected a discount factor in [0, 1), got {value!r}", key=key,
+                          path=path)
+    return float(value)
+
+
+def boolean(value: Any, key: str, *, path: Where = None) -> bool:
+    """``True`` or ``False`` (NumPy booleans too; never 0/1 or strings)."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    raise ConfigError(f"expected true or false, got {value!r}", key=key, path=path)
+
+
+def choice(value: Any, allowed: Iterable[str], key: str, *, path: Where = None) -> str:
+    """One of ``allowed`` (exact, case-sensitive)."""
+    allowed = tuple(allowed)
+    if not isinstance(value, str) or value not in allowed:
+        raise ConfigError(f"expected one of {', '.join(allowed)}; got {value!r}", key=key,
+                          path=path)
+    return value
+
+
+def existing_file(value: Any, key: str, *, what: str = "file") -> Path:
+    """A path to an existing regular file."""
+    p = _path(value, key)
+    if not p.is_file():
+        problem = f"{what} not found" if not p.exists() else f"expected a {what}, found a " \
+            "directory" if p.is_dir() else f"expected a {what}"
+        raise ConfigError(problem, path=p, key=key, fix="check the path")
+    return p
+
+
+def existing_dir(value: Any, key: str, *, what: str = "directory") -> Path:
+    """A path to an existing directory."""
+    p = _path(value, key)
+    if not p.is_dir():
+        problem = f"{what} not found" if not p.exists() else f"expected a {what}, found a file"
+        raise ConfigError(problem, path=p, key=key, fix="check the path")
+    return p
+
+
+def _path(value: Any, key: str) -> Path:
+    if not isinstance(value, str | os.PathLike) or not str(value):
+        raise ConfigError(f"expected a path, got {value!r}", key=key)
+    return Path(value)
+
+
+def _range(minimum: int | None, maximum: int | None) -> str:
+    if minimum is not None and maximum is not None:
+        return f" in [{minimum}, {maximum}]"
+    if minimum is not None:
+        return f" >= {minimum}"
+    if maximum is not None:
+        return f" <= {maximum}"
+    return ""
+
+
+def _interval(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
+    parts = []
+    if low is not None:
+        parts.append(f"{'>' if low_open else '>='} {low:g}")
+    if high is not None:
+        parts.append(f"{'<' if high_open else '<='} {high:g}")
+    return (" " + " and ".join(parts)) if parts else ""
