@@ -20,6 +20,7 @@ def _state(out):
     return json.loads((out / "pipeline.json").read_text())
 
 
+@pytest.mark.slow
 def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["pipeline", "--out", str(out), *TINY]) == 0

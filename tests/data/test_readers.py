@@ -114,7 +114,9 @@ def test_parts_directory_holds_only_the_listed_parts(two_worker_dataset: Path) -
     assert parts_path(two_worker_dataset) == two_worker_dataset / PARTS_DIR
 
 
-@pytest.mark.parametrize("reader", list(READERS))
+@pytest.mark.parametrize("reader", [  # Ray starts a local cluster (~10 s): the slow tier
+    pytest.param(name, marks=pytest.mark.slow) if name.startswith("ray") else name
+    for name in READERS])
 def test_every_reader_reads_the_documented_path(two_worker_dataset: Path, reader: str) -> None:
     """Same row count and the same ``x`` column as simlab's own reader, at ``DIR/parts``."""
     table = read_dataset(two_worker_dataset)

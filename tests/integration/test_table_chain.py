@@ -20,6 +20,9 @@ from simlab.data.collect import collect
 from simlab.data.estimate import estimate
 from simlab.orchestration.mapping import build_map
 
+#: Every test shares the module's 10-hour physics chain (about a minute of CPU): the slow tier.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def table_chain(tmp_path_factory):
