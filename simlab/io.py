@@ -25,16 +25,21 @@ os.umask(_UMASK)
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[Any]]:
+def atomic_write(path: str | os.PathLike[str], mode: str = "wb", *,
+                 tmp_dir: str | os.PathLike[str] | None = None) -> Iterator[IO[Any]]:
     """Open a temporary file beside ``path``; rename it onto ``path`` on success.
 
     The temporary file lives in the same directory (so the rename is atomic on
     POSIX) and is removed if the block raises. The data is flushed and fsynced
     before the rename so that a power cut cannot leave an empty file behind.
+    ``tmp_dir`` puts the temporary file in another directory of the same file system
+    instead (still an atomic rename), e.g. to keep a directory that other programs
+    list free of partial files.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    where = path.parent if tmp_dir is None else Path(tmp_dir)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=where)
     tmp = Path(tmp_name)
     try:
         os.fchmod(fd, 0o666 & ~_UMASK)

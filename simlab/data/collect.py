@@ -39,7 +39,7 @@ import pyarrow as pa
 
 from simlab import validation as v
 from simlab.data.backends import BACKENDS, make_backend
-from simlab.data.dataset import validate_part, write_part
+from simlab.data.dataset import unlisted_parts, validate_part, write_part
 from simlab.data.inputs import load_arena_config, load_discretizer
 from simlab.data.manifest import (
     check_resumable,
@@ -53,7 +53,6 @@ from simlab.data.schema import (
     MANIFEST_NAME,
     N_ACTIONS,
     TRUTH_COLUMNS,
-    parse_part_name,
     schema_to_json,
     transition_schema,
 )
@@ -200,8 +199,7 @@ def _prepare_directory(out: Path, manifest: dict[str, Any], resume: bool) -> dic
 
 
 def _orphans(out: Path, manifest: dict[str, Any]) -> set[str]:
-    listed = {str(e["file"]) for e in manifest["parts"]}
-    return {n for n in os.listdir(out) if parse_part_name(n) is not None and n not in listed}
+    return set(unlisted_parts(out, manifest))
 
 
 # --------------------------------------------------------------------------------------

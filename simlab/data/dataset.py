@@ -4,6 +4,11 @@ Reading goes through the manifest: only the parts it lists are read, in (worker,
 part) order, and with ``validate=True`` each one is checked against it (SHA-256,
 row count, column names and types, discretizer hash, index ranges). Any problem is a
 :class:`~simlab.errors.DataError` that names the file.
+
+Other tools read the parts directory ``DIR/parts`` (:func:`parts_path`): pyarrow, pandas,
+Polars, DuckDB (``read_parquet``) and Ray Data all take that one path; see
+:mod:`simlab.data.schema` for the layout and the exact calls. Datasets written before the
+``parts/`` directory existed (parts directly in ``DIR``) are still read here.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import pyarrow.parquet as pq
 
 from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.data.manifest import file_sha256, manifest_path, read_manifest
-from simlab.data.schema import N_ACTIONS, parse_part_name, part_name
+from simlab.data.schema import N_ACTIONS, PARTS_DIR, parse_part_name, part_file, part_name
 from simlab.errors import DataError
 from simlab.io import atomic_write
 
@@ -49,6 +54,14 @@ def encode_part(table: pa.Table, discretizer_hash: str) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
+def _old_layout(directory: Path) -> bool:
+    """The dataset keeps its parts directly in ``directory`` (the first layout)."""
+    try:
+        return any(parse_part_name(name) is not None for name in os.listdir(directory))
+    except FileNotFoundError:
+        return False
+
+
 def write_part(
     directory: str | os.PathLike[str],
     worker: int,
@@ -58,15 +71,21 @@ def write_part(
 ) -> dict[str, Any]:
     """Write one part atomically; return its manifest entry (file, worker, part, rows, sha256).
 
-    The bytes go to a ``.``-prefixed temporary file in the same directory, are fsynced
-    and renamed, so a crash leaves either no part or a complete one.
+    The part goes to ``DIR/parts/`` (``file`` is the path relative to ``DIR``). Its bytes
+    go to a ``.``-prefixed temporary file in ``DIR`` itself, are fsynced and renamed into
+    ``parts/``, so a crash leaves either no part or a complete one and ``parts/`` never
+    holds a partial file (Polars and DuckDB read every file of it). A dataset started in
+    the first layout (parts directly in ``DIR``, e.g. resumed by ``collect --resume``)
+    keeps it, so that its parts stay in one directory.
     """
+    directory = Path(directory)
     data = encode_part(table, discretizer_hash)
     name = part_name(worker, part)
-    with atomic_write(Path(directory) / name, "wb") as fh:
+    rel = name if _old_layout(directory) else part_file(worker, part)
+    with atomic_write(directory / rel, "wb", tmp_dir=directory) as fh:
         fh.write(data)
     return {
-        "file": name,
+        "file": rel,
         "worker": int(worker),
         "part": int(part),
         "rows": int(table.num_rows),
@@ -81,6 +100,38 @@ def parquet_files(directory: str | os.PathLike[str]) -> list[Path]:
     manifest = read_manifest(directory)
     parts = sorted(manifest["parts"], key=lambda e: (int(e["worker"]), int(e["part"])))
     return [directory / str(e["file"]) for e in parts]
+
+
+def parts_path(directory: str | os.PathLike[str]) -> Path:
+    """The path to give pyarrow, pandas, Polars, DuckDB (``read_parquet``) and Ray Data.
+
+    ``DIR/parts`` for datasets written by this simlab; ``DIR`` for a dataset of the first
+    layout (parts directly beside the manifest: Arrow, pandas and Ray read ``DIR``, DuckDB
+    and Polars need the glob ``DIR/part-*.parquet`` there). Decided from the manifest's
+    ``file`` entries; a dataset with no part yet gets ``DIR/parts``.
+    """
+    directory = Path(directory)
+    files = [str(e["file"]) for e in read_manifest(directory)["parts"]]
+    if files and all("/" not in f for f in files):
+        return directory
+    return directory / PARTS_DIR
+
+
+def unlisted_parts(directory: str | os.PathLike[str], manifest: Mapping[str, Any]) -> list[str]:
+    """Part files on disk (in ``DIR`` or ``DIR/parts``) that the manifest does not list,
+    as paths relative to ``DIR`` (the manifest's ``file`` spelling), sorted."""
+    directory = Path(directory)
+    listed = {str(e["file"]) for e in manifest["parts"]}
+    found = []
+    for sub in ("", PARTS_DIR):
+        folder = directory / sub if sub else directory
+        if not folder.is_dir():
+            continue
+        for name in os.listdir(folder):
+            rel = f"{sub}/{name}" if sub else name
+            if parse_part_name(name) is not None and rel not in listed:
+                found.append(rel)
+    return sorted(found)
 
 
 class IncompleteDatasetWarning(UserWarning):
@@ -248,11 +299,15 @@ def open_dataset(
 ) -> TransitionDataset:
     """Read a dataset directory: its manifest and all listed parts as one table.
 
+    Both layouts are read: parts in ``DIR/parts/`` (current) or directly in ``DIR``
+    (datasets written before it); the manifest's ``file`` entries say where.
+
     Args:
         directory: a directory written by :func:`simlab.data.collect.collect` or
             :func:`simlab.data.writer.write_dataset` (e.g. ``simlab import-log``).
         validate: check every part (SHA-256, rows, schema, discretizer tag, index
-            ranges) and refuse ``part-*.parquet`` files the manifest does not list.
+            ranges) and refuse ``part-*.parquet`` files (in ``DIR`` or ``DIR/parts``) the
+            manifest does not list.
         expected_discretizer: if given, the content hash the dataset's discretizer must
             have (e.g. ``Discretizer.content_hash()`` of the states file in use).
 
@@ -269,13 +324,12 @@ def open_dataset(
         )
     entries = _sorted_entries(manifest)
     if validate:
-        listed = {str(e["file"]) for e in entries}
-        for path in sorted(directory.iterdir()):
-            if parse_part_name(path.name) is not None and path.name not in listed:
-                raise DataError(
-                    f"{path}: part not listed in the manifest (left by an interrupted run? "
-                    "`simlab collect --resume` finishes it)"
-                )
+        stray = unlisted_parts(directory, manifest)
+        if stray:
+            raise DataError(
+                f"{directory / stray[0]}: part not listed in the manifest (left by an interrupted "
+                "run? `simlab collect --resume` finishes it)"
+            )
         tables = [validate_part(directory, e, manifest) for e in entries]
     else:
         tables = [_read_part(directory / str(e["file"])).replace_schema_metadata(None)

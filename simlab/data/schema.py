@@ -2,28 +2,39 @@
 
 A dataset is a directory::
 
-    DIR/_manifest.json             provenance, parameters, seeds, per-part checksums
-    DIR/part-w000-00000.parquet    worker 0, part 0 (names sort by worker, then part)
-    DIR/part-w000-00001.parquet
-    DIR/part-w001-00000.parquet
+    DIR/_manifest.json                   provenance, parameters, seeds, per-part checksums
+    DIR/parts/part-w000-00000.parquet    worker 0, part 0 (names sort by worker, then part)
+    DIR/parts/part-w000-00001.parquet
+    DIR/parts/part-w001-00000.parquet
     ...
 
-The manifest's name starts with an underscore on purpose: Arrow (and so pandas, Ray
-Data and Polars) skip ``_``- and ``.``-prefixed files when they discover a dataset,
-so ``pyarrow.dataset.dataset(DIR, format="parquet").to_table()`` and
-``pandas.read_parquet(DIR)`` read every part as one table. A file called
-``manifest.json`` would make them fail ("Parquet magic bytes not found"). DuckDB reads
-``'DIR/*.parquet'``. Temporary files of an interrupted write also start with ``.``.
+**One path for every reader: ``DIR/parts``.** The parts directory holds Parquet files and
+nothing else (the temporary file of a part being written lives in ``DIR``, renamed into
+``parts/`` when complete), so these all read the same rows (``tests/data/test_readers.py``
+checks each one that is installed)::
 
-**How each reader reads a dataset** (tested in ``tests/data/test_format.py`` for every
-reader installed): the directory ``DIR`` itself for the readers that discover a dataset
-the Arrow way (``pyarrow.parquet.read_table(DIR)``, ``pyarrow.dataset.dataset(DIR)``,
-``pandas.read_parquet(DIR)``, ``ray.data.read_parquet(DIR)``), and the glob
-``DIR/part-*.parquet`` for the readers that take globs (``duckdb.read_parquet``,
-``polars.read_parquet``; Polars' directory listing does not skip ``_``-files). No single
-string serves both kinds (Arrow does not expand globs, DuckDB does not list directories),
-so the layout is unchanged and :func:`simlab.data.dataset.parquet_files` gives the part
-paths, in (worker, part) order, for anything else.
+    pyarrow.parquet.read_table("DIR/parts")          pandas.read_parquet("DIR/parts")
+    polars.read_parquet("DIR/parts")                 polars.scan_parquet("DIR/parts")
+    duckdb.sql("SELECT * FROM read_parquet('DIR/parts')")       # DuckDB >= 2.0
+    ray.data.read_parquet("DIR/parts")
+
+(DuckDB before 2.0 does not list directories: ``read_parquet('DIR/parts/*.parquet')``.)
+
+Decision (issue 15): with the parts beside the manifest no single string served every
+reader (Arrow does not expand globs, Polars refuses a directory holding ``_manifest.json``,
+DuckDB's ``FROM 'path'`` shorthand wants a file extension), hence the sub-directory; the
+manifest stays at ``DIR/_manifest.json``, where simlab looks for it. Rows come in file-name
+order within a reader's listing, which is (worker, part) order; :func:`simlab.data.dataset.
+parquet_files` gives the part paths the manifest lists, in that order, for anything else.
+simlab itself reads a dataset through its manifest (:func:`simlab.data.dataset.open_dataset`),
+which also reads datasets of the first layout (parts directly in ``DIR``: the manifest's
+``file`` entries are paths relative to ``DIR`` either way); for those the reader path is
+``DIR`` itself (Arrow, pandas, Ray) or ``DIR/part-*.parquet`` (DuckDB, Polars), and
+:func:`simlab.data.dataset.parts_path` returns the right directory for both layouts.
+
+The manifest's name starts with an underscore on purpose: Arrow (and so pandas and Ray Data)
+skip ``_``- and ``.``-prefixed files when they discover a dataset, so
+``pyarrow.parquet.read_table(DIR)`` also reads every part (recursively); Polars does not.
 
 Units and meanings are in each part's Parquet schema: every field carries ``unit`` and
 ``description`` metadata (:data:`COLUMN_DOCS`), and the schema metadata key
@@ -55,7 +66,9 @@ import re
 
 import pyarrow as pa
 
-#: Version of the directory layout; bump on incompatible changes.
+#: Version of the directory layout; bump on incompatible changes. Moving the parts into
+#: ``parts/`` kept version 1: the manifest's ``file`` entries are paths relative to the
+#: dataset directory, so readers of either layout resolve both.
 FORMAT_VERSION = 1
 #: ``format`` field of every manifest.
 FORMAT_NAME = "simlab.transitions"
@@ -101,6 +114,9 @@ COLUMN_DOCS: dict[str, tuple[str, str]] = {
     "yaw_next_true": ("rad", "ground-truth heading after"),
 }
 
+#: Sub-directory of a dataset that holds the parts (see the module docstring).
+PARTS_DIR = "parts"
+
 _PART_RE = re.compile(r"^part-w(\d{3})-(\d{5})\.parquet$")
 
 
@@ -109,6 +125,12 @@ def part_name(worker: int, part: int) -> str:
     if not 0 <= worker <= 999 or not 0 <= part <= 99_999:
         raise ValueError(f"worker {worker} / part {part} outside the file-name range")
     return f"part-w{worker:03d}-{part:05d}.parquet"
+
+
+def part_file(worker: int, part: int) -> str:
+    """Path of a part relative to the dataset directory, as the manifest's ``file`` records
+    it (``parts/part-w000-00000.parquet``, POSIX separators)."""
+    return f"{PARTS_DIR}/{part_name(worker, part)}"
 
 
 def parse_part_name(name: str) -> tuple[int, int] | None:

@@ -12,13 +12,14 @@ estimate`` and the rest read exactly like a collected one::
                   action_set=parse_action_set(8, "ccw-east"), pose_source="log",
                   provenance={"log": "run3.txt", "robot": "turtlebot3 #2"}))
 
-Layout and columns are those of :mod:`simlab.data.schema`. Each :class:`TransitionArrays`
-is one independent walk (a ``worker``); it is cut into parts of ``part_size`` rows, every
-part written atomically (temporary name, fsync, rename), and the manifest — which is what
-makes the directory a dataset — is written **last**, so an interrupted write never looks
-like a complete dataset. The manifest holds the :class:`~simlab.actions.ActionSet` as
-``action_set``, the pose source, the discretizer (hash, centres) and the caller's free-form
-``provenance``.
+Layout and columns are those of :mod:`simlab.data.schema`: parts in ``DIR/parts/`` (the one
+path pyarrow, pandas, Polars, DuckDB and Ray Data all read), manifest at
+``DIR/_manifest.json``. Each :class:`TransitionArrays` is one independent walk (a
+``worker``); it is cut into parts of ``part_size`` rows, every part written atomically
+(temporary name, fsync, rename), and the manifest — which is what makes the directory a
+dataset — is written **last**, so an interrupted write never looks like a complete dataset.
+The manifest holds the :class:`~simlab.actions.ActionSet` as ``action_set``, the pose
+source, the discretizer (hash, centres) and the caller's free-form ``provenance``.
 
 Decisions: a writer run produces a complete dataset (``complete: true``) and cannot be
 resumed (there is nothing to re-run); ``seed`` is recorded as given (0 by default: data
@@ -45,6 +46,7 @@ from simlab.data.inputs import load_discretizer
 from simlab.data.manifest import manifest_path, new_manifest, write_manifest
 from simlab.data.schema import (
     NO_TRUTH_SOURCES,
+    PARTS_DIR,
     POSE_SOURCE_NAMES,
     TRUTH_COLUMNS,
     parse_part_name,
@@ -213,14 +215,22 @@ def _clear(out: Path, overwrite: bool) -> None:
     if not overwrite:
         raise ConfigError("output directory is not empty", path=out,
                           fix="choose another --out or pass --overwrite")
+    parts_dir = out / PARTS_DIR
+    inner = sorted(parts_dir.iterdir()) if parts_dir.is_dir() else []
     foreign = [p.name for p in entries
-               if p.name != manifest_path(out).name and parse_part_name(p.name) is None]
-    if foreign:
-        raise ConfigError(f"directory holds files that are not a dataset's ({foreign[0]}, ...);"
-                          " not replacing it", path=out, fix="choose another --out")
+               if p.name != manifest_path(out).name and parse_part_name(p.name) is None
+               and p != parts_dir]
+    foreign += [f"{PARTS_DIR}/{p.name}" for p in inner
+                if parse_part_name(p.name) is None and not p.name.startswith(".")]
+    if foreign or (parts_dir.exists() and not parts_dir.is_dir()):
+        raise ConfigError(f"directory holds files that are not a dataset's "
+                          f"({(foreign or [PARTS_DIR])[0]}, ...); not replacing it", path=out,
+                          fix="choose another --out")
     manifest_path(out).unlink(missing_ok=True)
-    for p in entries:
+    for p in inner + [p for p in entries if p != parts_dir]:
         p.unlink(missing_ok=True)
+    if parts_dir.is_dir():
+        parts_dir.rmdir()
 
 
 def _jsonable(obj: Any) -> Any:

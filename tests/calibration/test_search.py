@@ -24,6 +24,7 @@ SPACE = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),
                         ParamSpec("clearance", 0.0, 0.5)))
 
 
+@pytest.mark.slow
 def test_hidden_kinematic_parameters_are_recovered(lattice16) -> None:
     hidden = KinematicParams(drive_time=1.2, clearance=0.25)
     real = real_table(hidden_walk(lattice16, hidden, CCW8, 10.0, 99, "kinematic"), CCW8)
@@ -81,6 +82,7 @@ def test_same_seed_same_search_and_common_random_numbers(lattice9) -> None:
     np.testing.assert_array_equal(again.candidates[0].sim.counts, a.candidates[0].sim.counts)
 
 
+@pytest.mark.slow
 def test_parallel_candidates_are_reproducible(lattice9) -> None:
     """Two processes: same seed -> same search; the initial design does not depend on the
     number of workers (refinement rounds do: their size is the number of workers)."""

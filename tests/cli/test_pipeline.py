@@ -20,6 +20,7 @@ def _state(out):
     return json.loads((out / "pipeline.json").read_text())
 
 
+@pytest.mark.slow
 def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["pipeline", "--out", str(out), *TINY]) == 0
@@ -33,6 +34,12 @@ def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
     replay_result = json.loads((out / "replay" / "replay.json").read_text())["result"]
     hours = replay_result["robot_seconds"] / 3600.0
     assert hours > 0 and replay_result["transitions"] > 0
+    # ... and the rewards it counts are the goal rewards of the replay's own transition log
+    import pyarrow.parquet as pq
+
+    log = pq.read_table(out / "replay" / "transitions.parquet", columns=["reward"])
+    assert log.num_rows == replay_result["transitions"]
+    assert replay_result["rewards"] == int(log.column("reward").to_numpy().sum())
     assert state["stages"]["replay"]["reward_rate_per_hour"] == pytest.approx(
         replay_result["rewards"] / hours)
     report = (out / "report.md").read_text()

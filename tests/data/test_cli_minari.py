@@ -32,12 +32,12 @@ def test_collect_estimate_cli(tmp_path: Path, grid_states_file: Path,
     assert summary["transitions"] == 300
 
     # second collect into the same directory: one-line error, exit 2, nothing touched
-    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     code = main(["collect", "--states", str(grid_states_file), "--transitions", "300",
                  "--out", str(out), "--simulator", "kinematic", "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "--resume" in err
-    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
 
 
 def test_estimate_cli_errors_are_one_line(tmp_path: Path, dataset_copy: Path,

@@ -13,7 +13,7 @@ import pytest
 from simlab.data.collect import CollectResult
 from simlab.data.dataset import open_dataset, read_dataset
 from simlab.data.manifest import read_manifest, write_manifest
-from simlab.data.schema import MANIFEST_NAME, TRUTH_COLUMNS, part_name
+from simlab.data.schema import MANIFEST_NAME, TRUTH_COLUMNS, part_file, part_name
 from simlab.data.walkers import KinematicParams
 from simlab.errors import ConfigError, DataError
 from simlab.io import exclusive_directory
@@ -27,8 +27,14 @@ def _columns(directory: Path) -> dict[str, np.ndarray]:
             if name != "pose_source"}
 
 
+def _files(directory: Path) -> list[str]:
+    """Every file and folder under ``directory``, as sorted relative paths."""
+    return sorted(p.relative_to(directory).as_posix() for p in directory.rglob("*"))
+
+
 def _snapshot(directory: Path) -> dict[str, tuple[bytes, int]]:
-    return {p.name: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(directory.iterdir())}
+    return {p.relative_to(directory).as_posix(): (p.read_bytes(), p.stat().st_mtime_ns)
+            for p in sorted(directory.rglob("*")) if p.is_file()}
 
 
 def test_same_seed_same_table_other_seed_other_table(tmp_path: Path,
@@ -140,7 +146,7 @@ def test_resume_after_a_crash_equals_the_uninterrupted_run(tmp_path: Path,
     result = collect_kinematic(crashed, resume=True, **options)
     assert result.parts_written == result.parts - 3
     assert read_dataset(crashed).equals(read_dataset(tmp_path / "full"))
-    assert sorted(os.listdir(crashed)) == sorted(os.listdir(tmp_path / "full"))
+    assert _files(crashed) == _files(tmp_path / "full")
     assert read_manifest(crashed)["complete"]
 
 
@@ -171,7 +177,7 @@ def test_resume_after_a_kill_during_the_first_manifest_write(
         collect_kinematic(out)
     collect_kinematic(out, resume=True)
     assert read_dataset(out).equals(read_dataset(tmp_path / "ref"))
-    assert sorted(os.listdir(out)) == sorted(os.listdir(tmp_path / "ref"))
+    assert _files(out) == _files(tmp_path / "ref")
 
 
 def test_non_empty_directory_without_resume_is_refused(tmp_path: Path,
@@ -250,7 +256,7 @@ def test_resume_with_another_discretizer_is_refused(tmp_path: Path, collect_kine
 def test_resume_over_a_corrupted_part_names_it(tmp_path: Path, collect_kinematic: Collect) -> None:
     out = tmp_path / "ds"
     collect_kinematic(out)
-    part = out / part_name(0, 2)
+    part = out / part_file(0, 2)
     part.write_bytes(part.read_bytes()[:100])
     before = _snapshot(out)
     with pytest.raises(DataError) as exc:

@@ -218,7 +218,7 @@ def test_estimate_with_states_of_another_discretizer_is_refused(
 
 def test_estimate_of_a_corrupted_dataset_names_the_part(tmp_path: Path,
                                                         dataset_copy: Path) -> None:
-    part = sorted(dataset_copy.glob("part-*.parquet"))[-1]
+    part = sorted(dataset_copy.glob("parts/part-*.parquet"))[-1]
     part.write_bytes(part.read_bytes()[:-10])
     with pytest.raises(DataError) as exc:
         estimate(dataset_copy, tmp_path / "mdp.npz")

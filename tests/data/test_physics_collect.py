@@ -92,7 +92,7 @@ def test_sigkill_then_resume_equals_uninterrupted_run(tmp_path: Path,
     try:
         # Wait (bounded, so a broken run cannot hang the suite) for the first parts.
         deadline = time.monotonic() + 300
-        while len(list(out.glob("part-*.parquet"))) < 3:
+        while len(list(out.glob("parts/part-*.parquet"))) < 3:
             if proc.poll() is not None:
                 pytest.fail(f"collect ended before it could be killed: {proc.stderr.read()!r}")
             if time.monotonic() > deadline:
@@ -113,8 +113,8 @@ def test_sigkill_then_resume_equals_uninterrupted_run(tmp_path: Path,
     collect("table", table_states_file, out=tmp_path / "full", transitions=400, seed=9,
             workers=2, part_size=20, progress=False)
     assert read_dataset(out).equals(read_dataset(tmp_path / "full"))
-    assert sorted(p.name for p in out.iterdir()) == sorted(
-        p.name for p in (tmp_path / "full").iterdir())
+    assert sorted(p.relative_to(out) for p in out.rglob("*")) == sorted(
+        p.relative_to(tmp_path / "full") for p in (tmp_path / "full").rglob("*"))
 
 
 @pytest.mark.slow

@@ -129,7 +129,7 @@ def test_existing_output_needs_overwrite_and_is_replaced_whole(tmp_path: Path) -
     assert manifest_path(tmp_path / "ds").read_bytes() == before
     write_dataset(tmp_path / "ds", _walk(3, rng), info, overwrite=True)
     ds = open_dataset(tmp_path / "ds")  # validates: no stray parts of the old dataset
-    assert ds.table.num_rows == 3 and len(list((tmp_path / "ds").glob("part-*"))) == 1
+    assert ds.table.num_rows == 3 and len(list((tmp_path / "ds").glob("parts/part-*"))) == 1
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     with pytest.raises(ConfigError, match="not a dataset's"):

@@ -28,6 +28,7 @@ def test_finite_and_rep117_scan_conversions() -> None:
     assert raw.tolist() == [-np.inf, np.float32(0.5), np.inf, np.inf]
 
 
+@pytest.mark.slow
 def test_observations_finite_and_inside_the_space_over_2000_random_steps() -> None:
     env = gym.make("simlab/TableArena-v0", arena="table_obstacles",
                    max_episode_steps=500).unwrapped

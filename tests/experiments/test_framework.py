@@ -101,6 +101,7 @@ def test_registry_rejects_keys_outside_the_groups_and_double_registration():
     assert get_runner("example.coin").__name__ == "coin"
 
 
+@pytest.mark.slow
 def test_example_reproduce_is_deterministic_and_independent_of_workers(tmp_path):
     a = reproduce(tmp_path / "a", experiments=EXAMPLE, workers=2, progress=False, log=None)
     b = reproduce(tmp_path / "b", experiments=EXAMPLE, workers=1, progress=False, log=None)

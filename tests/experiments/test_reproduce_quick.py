@@ -17,6 +17,9 @@ from simlab.cli import main
 from simlab.experiments.reproduce import reproduce
 from simlab.experiments.spec import PASS, discover_experiments
 
+#: Every test shares the module's quick reproduce run (minutes of CPU): the slow tier.
+pytestmark = pytest.mark.slow
+
 SPECS = discover_experiments()
 NAMES = [s.name for s in SPECS]
 

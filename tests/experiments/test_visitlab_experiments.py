@@ -140,6 +140,7 @@ def test_figures_share_their_model_based_runs(nav_pair):
                                                  "q_softmax"}
 
 
+@pytest.mark.slow
 def test_ray_backend_gives_the_same_visitlab_metrics(nav_pair, tmp_path):
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False)

@@ -98,8 +98,8 @@ def test_sigkill_of_collect_ends_its_workers_and_resume_gives_the_same_data(
                           str(work / "whole")], cwd=work, capture_output=True, text=True,
                          env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
     assert ref.returncode == 0, ref.stderr
-    parts = {p.name: p.read_bytes() for p in (work / "killed").glob("*.parquet")}
-    assert parts == {p.name: p.read_bytes() for p in (work / "whole").glob("*.parquet")}
+    parts = {p.name: p.read_bytes() for p in (work / "killed").rglob("*.parquet")}
+    assert parts and parts == {p.name: p.read_bytes() for p in (work / "whole").rglob("*.parquet")}
 
 
 @pytest.mark.slow

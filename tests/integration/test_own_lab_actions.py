@@ -78,6 +78,7 @@ def best_headings(Q: np.ndarray, aset, tol: float = 1e-9) -> list[frozenset[floa
     return out
 
 
+@pytest.mark.slow
 def test_ccw_east_gives_the_simlab_policy_in_headings(tmp_path: Path) -> None:
     counts = grid_counts()
     ccw = load_mdp(estimate_cli(tmp_path, "ccw", counts, "ccw-east"))

@@ -20,6 +20,9 @@ from simlab.data.collect import collect
 from simlab.data.estimate import estimate
 from simlab.orchestration.mapping import build_map
 
+#: Every test shares the module's 10-hour physics chain (about a minute of CPU): the slow tier.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def table_chain(tmp_path_factory):
@@ -32,11 +35,22 @@ def table_chain(tmp_path_factory):
     return {"root": root, "states": states.discretizer, "collect": data, "mdp": mdp}
 
 
-def test_ten_hour_walk_matches_the_thesis_dataset(table_chain):
+def test_calibration_guard_decision_latency_gives_8448_transitions_in_10_hours(table_chain):
+    """Calibration guard of ``PrimitiveParams.decision_latency = 3.02`` s
+    (:mod:`simlab.physics.motion`), not a reproduced result.
+
+    The latency was chosen so that a 10-hour walk gives about the thesis's 8,448
+    transitions (36,000 s / (3.02 s idle + ~1.24 s mean primitive)); the count follows from
+    it by construction. The guard fails when the primitives' durations drift (physics rate,
+    speeds, braking, detector), which means the latency must be recalibrated, not that the
+    thesis stops being reproduced.
+    """
     data = table_chain["collect"]
     assert table_chain["states"].n_states == 41
-    # thesis: 8,448 transitions in about 10 h (the decision latency is calibrated for it)
     assert data.transitions == pytest.approx(8448, rel=0.05)
+
+
+def test_ten_hour_walk_visits_95_percent_of_state_action_pairs(table_chain):
     coverage = table_chain["mdp"].summary["coverage"]
     assert coverage["fraction_visited"] >= 0.95
 

@@ -33,6 +33,7 @@ def _logs_equal(a, b) -> None:
             assert x == y, f.name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pose_source", ["truth", "mcl"])
 def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
     # both extra processes (baseline, filter), even on a busy or 1-core runner

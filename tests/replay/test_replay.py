@@ -121,6 +121,7 @@ def test_return_to_start_after_each_goal(chain, tmp_path) -> None:
     assert log.t[rewarded[0] + 1] > log.t[rewarded[0]] + log.duration[rewarded[0]] + log.latency
 
 
+@pytest.mark.slow
 def test_same_seed_same_replay(chain, tmp_path) -> None:
     runs = [replay("table", chain.states, chain.qtables, hours=0.02, seed=seed,
                    out=tmp_path / f"s{i}", progress=False, baseline_hours=0)
