@@ -129,3 +129,19 @@ def test_occluded_human_does_not_see_the_robot(obstacles_world):
     vis = line_of_sight(obstacles_world, human[:2])
     assert percepts(obstacles_world.pose(), human, vis, P).level == 0
     assert percepts(obstacles_world.pose(), human, True, P).level == 4
+
+
+def test_render_draws_the_human_and_its_fields():
+    from simlab.physics.render import TopDown
+    from simlab.social.render import FACING, render_social
+
+    with World("table") as world:
+        img = render_social(world.arena, world.robot_spec, (-0.5, -0.5, 0.0), (0.0, 0.0, 0.0))
+        canvas = TopDown(world.arena)
+    assert img.shape == canvas.image.shape
+    ahead = canvas.px([0.3, 0.0])    # in the facing wedge
+    behind = canvas.px([-0.2, 0.1])  # behind the human: plain floor
+    col = img[ahead[1], ahead[0]].astype(int)
+    assert col[2] > col[0]  # tinted blue (FACING) over the floor
+    assert np.array_equal(img[behind[1], behind[0]], [238, 232, 220])
+    assert FACING[2] > FACING[0]
