@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.actions import HEADINGS
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper, action_index
 from simlab.physics.robot import wrap_angle
 from simlab.social.perception import bearing, quantise_direction
@@ -100,6 +101,45 @@ def turn_to(world: Any, target: float, params: PrimitiveParams,
     return world.time - t0
 
 
+def human_in_corridor(robot_xy: NDArray[np.float64], heading: float, action: int,
+                      human_xy: NDArray[np.float64], human_radius: float, spec: Any,
+                      params: PrimitiveParams) -> bool:
+    """Whether the human's disc meets the obstacle detector's corridor of ``action``
+    driven along ``heading`` (rad) from ``robot_xy``: the rectangle, in the robot frame,
+    from the robot's origin to ``x_max + distance + detector_margin`` ahead and
+    ``detector_side_margin`` wider than the footprint (:mod:`simlab.physics.motion`).
+    The human has no PyBullet body, so this stands in for the LIDAR returns of its legs."""
+    c, s = math.cos(heading), math.sin(heading)
+    dx, dy = float(human_xy[0]) - float(robot_xy[0]), float(human_xy[1]) - float(robot_xy[1])
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    _, x_max, y_min, y_max = spec.footprint
+    x1 = x_max + params.nominal_distance(action) + params.detector_margin
+    y0, y1 = y_min - params.detector_side_margin, y_max + params.detector_side_margin
+    qx, qy = min(max(lx, 0.0), x1), min(max(ly, y0), y1)
+    return math.hypot(lx - qx, ly - qy) <= human_radius
+
+
+def execute_social_primitive(driver: Any, action: int, rng: np.random.Generator,
+                             human_xy: NDArray[np.float64] | None = None,
+                             human_radius: float = 0.0) -> tuple[float, bool]:
+    """Run motion primitive ``action`` with ``driver``; returns (seconds stepped, blocked).
+
+    If the human's disc is in the detector's corridor of the primitive's heading
+    (:func:`human_in_corridor`) the robot only turns to the heading and the primitive is
+    blocked, as the real detector would be by a person in front of the robot.
+    """
+    world = driver.world
+    if human_xy is not None:
+        heading = float(HEADINGS[action % 8])
+        if human_in_corridor(world.pose()[:2], heading, action, human_xy, human_radius,
+                             world.robot_spec, driver.params):
+            t = turn_to(world, heading, driver.params, ScanStepper(world, rng, None))
+            driver.observe()
+            return t, True
+    res = driver.execute(action, rng).result
+    return float(res.duration), bool(res.blocked)
+
+
 @dataclass(frozen=True)
 class OptionResult:
     """Outcome of GO_TO_HUMAN's drive: ``primitives`` executed, ``duration`` stepped (s),
@@ -112,7 +152,9 @@ class OptionResult:
 
 
 def go_to_point(driver: Any, target_xy: NDArray[np.float64], rng: np.random.Generator,
-                tolerance: float, max_primitives: int) -> OptionResult:
+                tolerance: float, max_primitives: int,
+                human_xy: NDArray[np.float64] | None = None,
+                human_radius: float = 0.0) -> OptionResult:
     """Drive the robot of ``driver`` (a :class:`~simlab.physics.driver.DecisionDriver`) to
     within ``tolerance`` m of ``target_xy`` with motion primitives.
 
@@ -121,24 +163,54 @@ def go_to_point(driver: Any, target_xy: NDArray[np.float64], rng: np.random.Gene
     such move shortens the distance, the direction being at most 22.5 deg off). Stops when
     reached, blocked or after ``max_primitives``. Decision: the primitives of an option do
     not pay the decision latency (the option is one decision of the social module).
+
+    With ``human_xy``, the human's disc blocks primitives like an obstacle
+    (:func:`execute_social_primitive`), and if the straight line to the target passes
+    within ``clearance = swept_radius + human_radius + 0.12`` m of the human the robot first
+    drives to a waypoint that far beside the human, on the side the line passes (the 0.12 m
+    cover the detector corridor's half width beyond the swept radius and the up to 22.5 deg
+    by which the 8 directions miss the bearing).
     """
     world, p = driver.world, driver.params
-    fast = action_index(1, 0)
-    fast_dist = p.nominal_distance(fast)
+    fast_dist = p.nominal_distance(action_index(1, 0))
+    goals = [np.asarray(target_xy, dtype=float)]
+    if human_xy is not None:
+        way = _detour(world.pose()[:2], goals[0], np.asarray(human_xy, dtype=float),
+                      world.robot_spec.swept_radius + human_radius + 0.12)
+        if way is not None:
+            goals.insert(0, way)
     n, duration, blocked = 0, 0.0, False
-    while n < max_primitives:
+    while n < max_primitives and goals:
         xy = world.pose()[:2]
-        d = math.hypot(target_xy[0] - xy[0], target_xy[1] - xy[1])
+        d = math.hypot(goals[0][0] - xy[0], goals[0][1] - xy[1])
         if d <= tolerance:
-            break
-        direction = quantise_direction(bearing(xy, target_xy))
+            goals.pop(0)
+            continue
+        direction = quantise_direction(bearing(xy, goals[0]))
         action = action_index(1 if d > fast_dist else 0, direction)
-        res = driver.execute(action, rng).result
+        t, blocked = execute_social_primitive(driver, action, rng, human_xy, human_radius)
         n += 1
-        duration += res.duration
-        if res.blocked:
-            blocked = True
+        duration += t
+        if blocked:
             break
     xy = world.pose()[:2]
     reached = math.hypot(target_xy[0] - xy[0], target_xy[1] - xy[1]) <= tolerance
     return OptionResult(primitives=n, duration=duration, blocked=blocked, reached=reached)
+
+
+def _detour(start: NDArray[np.float64], goal: NDArray[np.float64],
+            human: NDArray[np.float64], clearance: float) -> NDArray[np.float64] | None:
+    """A waypoint ``clearance`` m beside the human if the segment start-goal passes nearer
+    than ``clearance`` to it, else None."""
+    seg = goal - start
+    length2 = float(seg @ seg)
+    if length2 < 1e-12:
+        return None
+    t = min(1.0, max(0.0, float((human - start) @ seg) / length2))
+    closest = start + t * seg
+    gap = closest - human
+    if math.hypot(gap[0], gap[1]) >= clearance:
+        return None
+    if math.hypot(gap[0], gap[1]) < 1e-9:  # straight through the centre: go left of it
+        gap = np.array([-seg[1], seg[0]])
+    return human + clearance * gap / math.hypot(gap[0], gap[1])

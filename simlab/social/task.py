@@ -14,7 +14,8 @@ re-stated here on continuous poses:
    appropriate distance -> 5; at level 3 it fails with probability F_H (one draw), at
    level 4 it always succeeds. COME at 5 -> 7 with probability 1 - P_H, else 6 (one
    draw). POINTING at 6 -> 7. Any other use does nothing.
-4. **The robot acts** (:mod:`simlab.social.actions`): a primitive; STAY or a signal
+4. **The robot acts** (:mod:`simlab.social.actions`): a primitive (blocked by the
+   human's disc in its corridor, ``human_blocks``); STAY or a signal
    (``signal_time`` s standing still); LOOK_H (turn to face the human); GO_TO_HUMAN only
    if the human is not engaged after 2: drives to ``gth_cells`` cells ahead of the human's
    gaze, then turns to face the human (decision: the grid leaves a random orientation,
@@ -51,7 +52,14 @@ from simlab.errors import ConfigError
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper
 from simlab.physics.world import World
-from simlab.social.actions import N_SOCIAL_ACTIONS, SIGNALS, SocialAction, go_to_point, turn_to
+from simlab.social.actions import (
+    N_SOCIAL_ACTIONS,
+    SIGNALS,
+    SocialAction,
+    execute_social_primitive,
+    go_to_point,
+    turn_to,
+)
 from simlab.social.human import HumanBody, follow_step, idle_step, is_free, look_at, random_pose
 from simlab.social.perception import (
     Percepts,
@@ -82,6 +90,9 @@ class SocialConfig:
         gth_cells: GO_TO_HUMAN's target distance ahead of the human's gaze, in cells.
         gth_tolerance: distance (m) at which GO_TO_HUMAN's drive counts as arrived.
         gth_max_primitives: most primitives one GO_TO_HUMAN may drive.
+        human_blocks: the human's disc blocks a primitive whose detector corridor it meets
+            (the robot turns, does not drive), and GO_TO_HUMAN detours around it; the
+            human has no PyBullet body, so the LIDAR itself never sees it.
     """
 
     arena: str = "table"
@@ -94,6 +105,7 @@ class SocialConfig:
     gth_cells: float = 2.0
     gth_tolerance: float = 0.05
     gth_max_primitives: int = 20
+    human_blocks: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "human", human_preset(self.human))
@@ -101,6 +113,7 @@ class SocialConfig:
         validation.probability(self.redraw_p, "SocialConfig.redraw_p")
         validation.positive(self.gth_cells, "SocialConfig.gth_cells")
         validation.positive(self.gth_tolerance, "SocialConfig.gth_tolerance")
+        validation.boolean(self.human_blocks, "SocialConfig.human_blocks")
         validation.whole(self.gth_max_primitives, "SocialConfig.gth_max_primitives", minimum=1)
         for key, kind in (("body", HumanBody), ("perception", SocialPerception),
                           ("primitives", PrimitiveParams)):
@@ -267,8 +280,10 @@ class SocialTable:
         cfg, w = self.config, self.world
         latency = cfg.primitives.decision_latency
         if a < N_ACTIONS:
-            res = self.driver.execute(a, self._noise).result
-            return res.duration + latency, bool(res.blocked)
+            t, blocked = execute_social_primitive(
+                self.driver, a, self._noise, self.human_pose[:2] if cfg.human_blocks else None,
+                cfg.body.radius)
+            return t + latency, blocked
         if a == SocialAction.LOOK_H:
             stepper = ScanStepper(w, self._noise, None)
             t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
@@ -302,7 +317,8 @@ class SocialTable:
             return cfg.signal_time + cfg.primitives.decision_latency
         target = start + dist * u
         res = go_to_point(self.driver, target, self._noise, cfg.gth_tolerance,
-                          cfg.gth_max_primitives)
+                          cfg.gth_max_primitives,
+                          self.human_pose[:2] if cfg.human_blocks else None, cfg.body.radius)
         stepper = ScanStepper(w, self._noise, None)
         t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
         self.driver.observe()

@@ -168,3 +168,40 @@ def test_presets_and_bad_settings():
         HumanBody(min_separation=0.3, follow_gap=0.2)
     with pytest.raises(ConfigError, match="redraw_p"):
         SocialConfig(redraw_p=1.5)
+
+
+def test_human_in_front_blocks_a_primitive():
+    # human 0.25 m ahead (+y) of a robot facing +y; the fast UP primitive would reach it
+    r, h = np.array([0.0, -0.3, math.pi / 2]), np.array([0.0, -0.05, 0.0])
+    for blocks, moved in ((True, False), (False, True)):
+        with SocialTable(SocialConfig(human_blocks=blocks)) as env:
+            env.reset(0, robot_pose=r, human_pose=h)
+            _, _, info = env.step(action_index(1, 0))
+            assert info.blocked is not moved
+            dist = float(np.hypot(*(info.robot_pose[:2] - r[:2])))
+            assert (dist > 0.08) is moved
+
+
+def test_human_corridor_border():
+    from simlab.physics.motion import PrimitiveParams
+    from simlab.physics.robot import load_robot_spec
+    from simlab.social.actions import human_in_corridor
+
+    spec, p = load_robot_spec("turtlebot3_burger"), PrimitiveParams()
+    a = action_index(0, 3)  # slow RIGHT: heading 0
+    reach = spec.footprint[1] + p.nominal_distance(a) + p.detector_margin
+    radius = 0.06
+    at = np.array([reach + radius, 0.0])
+    assert human_in_corridor((0.0, 0.0), 0.0, a, at, radius, spec, p)
+    assert not human_in_corridor((0.0, 0.0), 0.0, a, np.array([reach + radius + 1e-6, 0.0]), radius, spec, p)
+    assert not human_in_corridor((0.0, 0.0), math.pi, a, at, radius, spec, p)  # behind
+
+
+def test_go_to_human_detours_around_the_human(table):
+    # the robot stands behind the human, who faces away: the target is past the human
+    h = np.array([0.0, -0.1, math.pi / 2])
+    table.reset(0, robot_pose=np.array([0.0, -0.45, math.pi / 2]), human_pose=h)
+    _, _, info = table.step(int(SocialAction.GO_TO_HUMAN))
+    assert info.level == 4 and info.percepts.h_looks and info.percepts.r_looks
+    assert info.robot_pose[1] > h[1] + 0.15  # in front of the human now
+    assert np.array_equal(info.human_pose, h)
