@@ -34,6 +34,7 @@ from simlab.actions import HEADINGS
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper, action_index
 from simlab.physics.robot import wrap_angle
 from simlab.social.perception import bearing, quantise_direction
+from simlab.social.planning import plan_path
 
 
 class SocialAction(IntEnum):
@@ -164,21 +165,24 @@ def go_to_point(driver: Any, target_xy: NDArray[np.float64], rng: np.random.Gene
     reached, blocked or after ``max_primitives``. Decision: the primitives of an option do
     not pay the decision latency (the option is one decision of the social module).
 
-    With ``human_xy``, the human's disc blocks primitives like an obstacle
-    (:func:`execute_social_primitive`), and if the straight line to the target passes
-    within ``clearance = swept_radius + human_radius + 0.12`` m of the human the robot first
-    drives to a waypoint that far beside the human, on the side the line passes (the 0.12 m
-    cover the detector corridor's half width beyond the swept radius and the up to 22.5 deg
-    by which the 8 directions miss the bearing).
+    The path is planned (:func:`simlab.social.planning.plan_path`) around the arena's
+    obstacles, kept ``clearance`` m away: the front of the footprint plus a slow
+    primitive's detector corridor (so the obstacle detector does not stop the robot at a
+    waypoint near an obstacle). With ``human_xy`` the human's disc is an obstacle too, and
+    it blocks primitives like one (:func:`execute_social_primitive`). Without a path the
+    robot heads straight for the target.
     """
     world, p = driver.world, driver.params
     fast_dist = p.nominal_distance(action_index(1, 0))
-    goals = [np.asarray(target_xy, dtype=float)]
-    if human_xy is not None:
-        way = _detour(world.pose()[:2], goals[0], np.asarray(human_xy, dtype=float),
-                      world.robot_spec.swept_radius + human_radius + 0.12)
-        if way is not None:
-            goals.insert(0, way)
+    spec = world.robot_spec
+    clearance = spec.footprint[1] + p.nominal_distance(action_index(0, 0)) \
+        + p.detector_margin + 0.01
+    discs = [] if human_xy is None else [(np.asarray(human_xy, dtype=float)[:2],
+                                          human_radius)]
+    target = np.asarray(target_xy, dtype=float)
+    goals = plan_path(world.arena, world.pose()[:2], target, clearance, discs=discs)
+    if goals is None:
+        goals = [target]
     n, duration, blocked = 0, 0.0, False
     while n < max_primitives and goals:
         xy = world.pose()[:2]
@@ -197,20 +201,3 @@ def go_to_point(driver: Any, target_xy: NDArray[np.float64], rng: np.random.Gene
     reached = math.hypot(target_xy[0] - xy[0], target_xy[1] - xy[1]) <= tolerance
     return OptionResult(primitives=n, duration=duration, blocked=blocked, reached=reached)
 
-
-def _detour(start: NDArray[np.float64], goal: NDArray[np.float64],
-            human: NDArray[np.float64], clearance: float) -> NDArray[np.float64] | None:
-    """A waypoint ``clearance`` m beside the human if the segment start-goal passes nearer
-    than ``clearance`` to it, else None."""
-    seg = goal - start
-    length2 = float(seg @ seg)
-    if length2 < 1e-12:
-        return None
-    t = min(1.0, max(0.0, float((human - start) @ seg) / length2))
-    closest = start + t * seg
-    gap = closest - human
-    if math.hypot(gap[0], gap[1]) >= clearance:
-        return None
-    if math.hypot(gap[0], gap[1]) < 1e-9:  # straight through the centre: go left of it
-        gap = np.array([-seg[1], seg[0]])
-    return human + clearance * gap / math.hypot(gap[0], gap[1])

@@ -104,7 +104,7 @@ class SocialConfig:
     redraw_p: float = 0.2
     gth_cells: float = 2.0
     gth_tolerance: float = 0.05
-    gth_max_primitives: int = 20
+    gth_max_primitives: int = 30
     human_blocks: bool = True
 
     def __post_init__(self) -> None:
