@@ -190,6 +190,9 @@ class SocialTable:
         if human_pose is None:
             human_pose = random_pose(w, rng, self.config.body, avoid_xy=w.pose()[:2])
         self.human_pose = np.array(human_pose, dtype=float)
+        if self.human_pose.shape != (3,) or not np.all(np.isfinite(self.human_pose)):
+            raise ValueError(f"human_pose must be 3 finite numbers (x, y, theta), got "
+                             f"{human_pose!r}")
         self.required_direction = int(rng.integers(0, 8))
         self.engaged = 0
         self.time = 0.0
