@@ -46,7 +46,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("simlab.agents",),
     ("simlab.data",),
     ("simlab.training",),
-    ("simlab.envs", "simlab.replay", "simlab.visitlab"),
+    ("simlab.envs", "simlab.replay", "simlab.visitlab", "simlab.social"),
     ("simlab.orchestration", "simlab.experiments", "simlab.calibration", "simlab.ros"),
     ("simlab.cli", "simlab.commands", "simlab.__main__"),
 )

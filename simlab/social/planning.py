@@ -1,0 +1,108 @@
+"""A small grid path planner for GO_TO_HUMAN's drive (issue 18).
+
+The grid's GO_TO_HUMAN places the robot in front of the human; in physics the robot must
+drive there with its 8-direction primitives around the arena's obstacles and the human.
+:func:`plan_path` runs Dijkstra on an 8-connected grid of ``step`` m over the table, whose
+free nodes keep ``clearance`` m from walls and obstacles (analytic, from the arena
+description: :func:`simlab.social.human.is_free`) and from extra discs (the human); a
+diagonal step is refused if either orthogonal neighbour is blocked (no corner cutting).
+The path's moves are the 8 primitive directions, so the primitives follow it exactly up to
+their own heading error. Waypoints are the path's turning points.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.physics.arena import ArenaConfig
+from simlab.social.human import is_free
+
+_MOVES = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
+
+
+def free_grid(arena: ArenaConfig, clearance: float, step: float,
+              discs: Sequence[tuple[NDArray[np.float64], float]] = ()
+              ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
+    """Free nodes (nx, ny) bool and the node coordinates xs (nx,), ys (ny,) in m."""
+    cx, cy = arena.center
+    nx, ny = (max(1, math.floor(arena.size[k] / step)) for k in (0, 1))
+    xs = cx - arena.size[0] / 2 + (np.arange(nx) + 0.5) * arena.size[0] / nx
+    ys = cy - arena.size[1] / 2 + (np.arange(ny) + 0.5) * arena.size[1] / ny
+    free = np.zeros((nx, ny), dtype=bool)
+    for i, x in enumerate(xs):
+        for j, y in enumerate(ys):
+            ok = is_free(arena, (x, y), clearance)
+            for centre, r in discs:
+                ok = ok and math.hypot(x - centre[0], y - centre[1]) > r + clearance
+            free[i, j] = ok
+    return free, xs, ys
+
+
+def _nearest_free(free: NDArray[np.bool_], xs: NDArray[np.float64], ys: NDArray[np.float64],
+                  xy: NDArray[np.float64]) -> tuple[int, int] | None:
+    idx = np.argwhere(free)
+    if idx.size == 0:
+        return None
+    d = (xs[idx[:, 0]] - xy[0]) ** 2 + (ys[idx[:, 1]] - xy[1]) ** 2
+    i, j = idx[int(np.argmin(d))]
+    return int(i), int(j)
+
+
+def plan_path(arena: ArenaConfig, start: NDArray[np.float64], goal: NDArray[np.float64],
+              clearance: float, step: float = 0.05,
+              discs: Sequence[tuple[NDArray[np.float64], float]] = ()
+              ) -> list[NDArray[np.float64]] | None:
+    """Waypoints (each (2,), m) from ``start`` to the free node nearest ``goal`` (the
+    last waypoint is ``goal`` itself when it is free), or None if no path exists.
+
+    ``discs``: extra round obstacles ``(centre (2,), radius)``.
+    """
+    free, xs, ys = free_grid(arena, clearance, step, discs)
+    s = _nearest_free(free, xs, ys, start)
+    g = _nearest_free(free, xs, ys, goal)
+    if s is None or g is None:
+        return None
+    dist = {s: 0.0}
+    prev: dict[tuple[int, int], tuple[int, int]] = {}
+    heap = [(0.0, s)]
+    nx, ny = free.shape
+    while heap:
+        d, node = heapq.heappop(heap)
+        if node == g:
+            break
+        if d > dist.get(node, math.inf):
+            continue
+        i, j = node
+        for di, dj in _MOVES:
+            a, b = i + di, j + dj
+            if not (0 <= a < nx and 0 <= b < ny and free[a, b]):
+                continue
+            if di and dj and not (free[i + di, j] and free[i, j + dj]):
+                continue
+            nd = d + (math.sqrt(2.0) if di and dj else 1.0)
+            if nd < dist.get((a, b), math.inf):
+                dist[(a, b)] = nd
+                prev[(a, b)] = node
+                heapq.heappush(heap, (nd, (a, b)))
+    if g not in dist:
+        return None
+    nodes = [g]
+    while nodes[-1] != s:
+        nodes.append(prev[nodes[-1]])
+    nodes.reverse()
+    points = [np.array([xs[i], ys[j]]) for i, j in nodes]
+    # keep the turning points (and the first node when the start is off the grid)
+    way = [points[k] for k in range(1, len(points) - 1)
+           if tuple(np.subtract(nodes[k + 1], nodes[k])) != tuple(np.subtract(nodes[k],
+                                                                              nodes[k - 1]))]
+    way.insert(0, points[0])
+    goal = np.asarray(goal, dtype=float)
+    gi, gj = g
+    last = goal if math.hypot(goal[0] - xs[gi], goal[1] - ys[gj]) < step else points[-1]
+    way.append(last)
+    return way

@@ -1,0 +1,328 @@
+"""The social task on the table: a TurtleBot and a kinematic human (issue 18, part 1).
+
+:class:`SocialTable` runs the grid's social module (thesis 2.1.2, paper Fig. 4; SPEC B3)
+with the robot in PyBullet and the human of :mod:`simlab.social.human`. One decision
+step, in the grid's order (``simlab.visitlab.dynamics.social_step``, thesis variant),
+re-stated here on continuous poses:
+
+1. **Percepts** of the observed state (:func:`simlab.social.perception.percepts`, line of
+   sight by a ray test): percept level 0-4, distance class, angle. Appropriate = class 1-3.
+2. **Attention** (thesis 2.1.2): an engaged human (level >= 5) disengages when the
+   distance is not appropriate, or with probability L_H (one draw per engaged step); the
+   level falls back to the percept level.
+3. **Social actions** (thesis 2.1.2, Table 2.2): HELLO at level 3 or 4 with an
+   appropriate distance -> 5; at level 3 it fails with probability F_H (one draw), at
+   level 4 it always succeeds. COME at 5 -> 7 with probability 1 - P_H, else 6 (one
+   draw). POINTING at 6 -> 7. Any other use does nothing.
+4. **The robot acts** (:mod:`simlab.social.actions`): a primitive (blocked by the
+   human's disc in its corridor, ``human_blocks``); STAY or a signal
+   (``signal_time`` s standing still); LOOK_H (turn to face the human); GO_TO_HUMAN only
+   if the human is not engaged after 2: drives to ``gth_cells`` cells ahead of the human's
+   gaze, then turns to face the human (decision: the grid leaves a random orientation,
+   since its option does not choose one; a physical robot that walked up to someone
+   faces them).
+5. **The human reacts**: engaged -> it looks at the robot; at level 7, unless the robot
+   signalled (HELLO/COME/POINTING), it walks toward where it saw the robot at the start of
+   the step at a speed drawn from s_H, stopping ``follow_gap`` before the robot, then
+   looks at it again (:func:`simlab.social.human.follow_step`). Not engaged: random
+   move / turn (:func:`simlab.social.human.idle_step`).
+6. **Reward** +1 if the level is 7 and the human moved (>= 1 mm) in the required
+   direction of the observed state (the displacement's nearest direction).
+7. With probability ``redraw_p`` (paper: 0.2) a new required direction (uniform of 8).
+
+Randomness: ``reset(seed)`` spawns two streams from ``SeedSequence(seed)``: the task's
+(placements, human, attention, required direction) and the physics noise (LIDAR noise of
+the primitives' obstacle checks). Same seed and actions -> the same observations.
+
+Time: every decision adds the primitive parameters' ``decision_latency`` to the
+simulated time beside what was stepped (or ``signal_time`` for STAY and the signals).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab import validation
+from simlab.actions import HEADINGS
+from simlab.errors import ConfigError
+from simlab.physics.driver import DecisionDriver
+from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper
+from simlab.physics.world import World
+from simlab.social.actions import (
+    N_SOCIAL_ACTIONS,
+    SIGNALS,
+    SocialAction,
+    execute_social_primitive,
+    go_to_point,
+    turn_to,
+)
+from simlab.social.human import HumanBody, follow_step, idle_step, is_free, look_at, random_pose
+from simlab.social.perception import (
+    Percepts,
+    SocialPerception,
+    bearing,
+    line_of_sight,
+    percepts,
+    social_obs_index,
+)
+from simlab.visitlab.humans import Human
+from simlab.visitlab.humans import human as human_preset
+
+Pose = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SocialConfig:
+    """Settings of the physics social task.
+
+    Attributes:
+        arena: built-in arena name or TOML path.
+        human: a preset name of :mod:`simlab.visitlab.humans` or a :class:`Human`.
+        body: geometry of the projected human (cell size, radius, gaps; m).
+        perception: fields (deg) and distance bounds (m).
+        primitives: parameters of the motion primitives (and the decision latency).
+        signal_time: decision time (s) of STAY, HELLO, COME and POINTING.
+        redraw_p: per-step probability of redrawing the required direction (paper 0.2).
+        gth_cells: GO_TO_HUMAN's target distance ahead of the human's gaze, in cells.
+        gth_tolerance: distance (m) at which GO_TO_HUMAN's drive counts as arrived.
+        gth_max_primitives: most primitives one GO_TO_HUMAN may drive.
+        human_blocks: the human's disc blocks a primitive whose detector corridor it meets
+            (the robot turns, does not drive), and GO_TO_HUMAN detours around it; the
+            human has no PyBullet body, so the LIDAR itself never sees it.
+    """
+
+    arena: str = "table"
+    human: str | Human = "easy"
+    body: HumanBody = field(default_factory=HumanBody)
+    perception: SocialPerception = field(default_factory=SocialPerception)
+    primitives: PrimitiveParams = field(default_factory=PrimitiveParams)
+    signal_time: float = 1.0
+    redraw_p: float = 0.2
+    gth_cells: float = 2.0
+    gth_tolerance: float = 0.05
+    gth_max_primitives: int = 30
+    human_blocks: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "human", human_preset(self.human))
+        validation.positive(self.signal_time, "SocialConfig.signal_time", allow_zero=True)
+        validation.probability(self.redraw_p, "SocialConfig.redraw_p")
+        validation.positive(self.gth_cells, "SocialConfig.gth_cells")
+        validation.positive(self.gth_tolerance, "SocialConfig.gth_tolerance")
+        validation.boolean(self.human_blocks, "SocialConfig.human_blocks")
+        validation.whole(self.gth_max_primitives, "SocialConfig.gth_max_primitives", minimum=1)
+        for key, kind in (("body", HumanBody), ("perception", SocialPerception),
+                          ("primitives", PrimitiveParams)):
+            if not isinstance(getattr(self, key), kind):
+                raise ConfigError(f"expected a {kind.__name__}, got {getattr(self, key)!r}",
+                                  key=f"SocialConfig.{key}")
+
+
+@dataclass(frozen=True)
+class SocialStepInfo:
+    """What one step did: ``level`` the interaction level after it (0-7),
+    ``percepts`` after it, ``moved`` the human's direction (-1: stayed), ``duration``
+    simulated seconds (stepped + latency or signal time), ``blocked`` a primitive was
+    blocked, ``robot_pose`` and ``human_pose`` (3,) after it, ``time`` the total (s)."""
+
+    level: int
+    percepts: Percepts
+    moved: int
+    duration: float
+    blocked: bool
+    robot_pose: Pose
+    human_pose: Pose
+    time: float
+
+
+class SocialTable:
+    """The robot and a human on the table (module docstring). Call :meth:`reset` first.
+
+    ``world``: an existing :class:`~simlab.physics.world.World` (not closed by this
+    object), else one is built from ``config.arena`` and closed by :meth:`close`.
+    """
+
+    n_actions = N_SOCIAL_ACTIONS
+
+    def __init__(self, config: SocialConfig | None = None, world: World | None = None) -> None:
+        self.config = config or SocialConfig()
+        self._own_world = world is None
+        self.world = world if world is not None else World(self.config.arena)
+        self.human_pose: Pose = np.zeros(3)
+        self.engaged = 0
+        self.required_direction = 0
+        self.time = 0.0
+        self._rng: np.random.Generator | None = None
+        self._noise: np.random.Generator | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+    def close(self) -> None:
+        if self._own_world:
+            self.world.close()
+
+    def __enter__(self) -> SocialTable:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def reset(self, seed: int, robot_pose: Pose | None = None,
+              human_pose: Pose | None = None) -> int:
+        """New episode; returns the social observation (0-2559).
+
+        Random (when not given): the robot's position uniform on the free table (kept its
+        swept radius from walls and obstacles) with one of the 8 headings, the human's
+        (:func:`~simlab.social.human.random_pose`), the required direction. Human not
+        engaged.
+        """
+        task_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
+        self._rng = rng = np.random.default_rng(task_seq)
+        self._noise = np.random.default_rng(noise_seq)
+        w = self.world
+        if robot_pose is None:
+            robot_pose = self._random_robot_pose(rng)
+        w.reset(np.asarray(robot_pose, dtype=float))
+        self.driver = DecisionDriver(w, self.config.primitives)
+        if human_pose is None:
+            human_pose = random_pose(w, rng, self.config.body, avoid_xy=w.pose()[:2])
+        self.human_pose = np.array(human_pose, dtype=float)
+        if self.human_pose.shape != (3,) or not np.all(np.isfinite(self.human_pose)):
+            raise ValueError(f"human_pose must be 3 finite numbers (x, y, theta), got "
+                             f"{human_pose!r}")
+        self.required_direction = int(rng.integers(0, 8))
+        self.engaged = 0
+        self.time = 0.0
+        return self.observation()
+
+    def _random_robot_pose(self, rng: np.random.Generator) -> Pose:
+        a = self.world.arena
+        clearance = self.world.robot_spec.swept_radius + 0.02
+        for _ in range(1000):
+            x = a.center[0] + rng.uniform(-a.size[0] / 2, a.size[0] / 2)
+            y = a.center[1] + rng.uniform(-a.size[1] / 2, a.size[1] / 2)
+            if is_free(a, (x, y), clearance):
+                return np.array([x, y, float(HEADINGS[int(rng.integers(0, 8))])])
+        raise ConfigError("no free robot position found", key="arena")
+
+    # ------------------------------------------------------------------ perception
+    def percepts(self) -> Percepts:
+        """Percepts of the current state (true robot pose, ray-tested line of sight)."""
+        robot = self.world.pose()
+        visible = line_of_sight(self.world, self.human_pose[:2], robot[:2])
+        return percepts(robot, self.human_pose, visible, self.config.perception)
+
+    def level(self, perc: Percepts | None = None) -> int:
+        """Interaction level 0-7: the engagement (5-7) if engaged, else the percept level."""
+        return self.engaged if self.engaged >= 5 else (perc or self.percepts()).level
+
+    def observation(self, perc: Percepts | None = None) -> int:
+        """Social observation 0-2559 (the grid's index)."""
+        perc = perc or self.percepts()
+        return social_obs_index(self.level(perc), perc.distance_class,
+                                self.required_direction, perc.angle)
+
+    # ------------------------------------------------------------------ step
+    def step(self, action: int) -> tuple[int, float, SocialStepInfo]:
+        """One decision (module docstring); returns (observation, reward, info)."""
+        if self._rng is None:
+            raise RuntimeError("call reset(seed) before step()")
+        a = int(action)
+        if not 0 <= a < N_SOCIAL_ACTIONS:
+            raise ValueError(f"action must be in 0..{N_SOCIAL_ACTIONS - 1}, got {action}")
+        rng, hp = self._rng, self.config.human
+        perc = self.percepts()
+        e = self._attention(perc, a, rng, hp)
+        robot_before = self.world.pose()
+        duration, blocked = self._robot_acts(a, e)
+        robot_after = self.world.pose()
+        moved = -1
+        if e >= 5:
+            look_at(self.human_pose, robot_after[:2])
+            if e == 7 and a not in SIGNALS:
+                self.human_pose, moved = follow_step(self.world, self.human_pose,
+                                                     robot_before[:2], robot_after[:2], hp,
+                                                     self.config.body, rng)
+        else:
+            self.human_pose, moved = idle_step(self.world, self.human_pose, hp,
+                                               self.config.body, robot_after[:2], rng)
+        self.engaged = e
+        reward = 1.0 if (e == 7 and moved == self.required_direction) else 0.0
+        if rng.random() < self.config.redraw_p:
+            self.required_direction = int(rng.integers(0, 8))
+        self.time += duration
+        after = self.percepts()
+        info = SocialStepInfo(level=self.level(after), percepts=after, moved=moved,
+                              duration=duration, blocked=blocked, robot_pose=robot_after,
+                              human_pose=self.human_pose.copy(), time=self.time)
+        return self.observation(after), reward, info
+
+    def _attention(self, perc: Percepts, a: int, rng: np.random.Generator, hp: Human) -> int:
+        """Steps 2 and 3: the engagement after attention loss and the social action."""
+        e = self.engaged
+        if e >= 5 and (rng.random() < hp.lose_attention or not perc.appropriate):
+            e = 0
+        level = e if e >= 5 else perc.level
+        if a == SocialAction.HELLO:
+            if level in (3, 4) and perc.appropriate:
+                u = rng.random()
+                if level == 4 or u >= hp.fail_hello:
+                    e = 5
+        elif a == SocialAction.COME:
+            if e == 5:
+                e = 7 if rng.random() >= hp.pointing_need else 6
+        elif a == SocialAction.POINTING and e == 6:
+            e = 7
+        return e
+
+    def _robot_acts(self, a: int, e: int) -> tuple[float, bool]:
+        """Step 4; returns (simulated seconds, blocked)."""
+        cfg, w = self.config, self.world
+        latency = cfg.primitives.decision_latency
+        if a < N_ACTIONS:
+            t, blocked = execute_social_primitive(
+                self.driver, a, self._noise, self.human_pose[:2] if cfg.human_blocks else None,
+                cfg.body.radius)
+            return t + latency, blocked
+        if a == SocialAction.LOOK_H:
+            stepper = ScanStepper(w, self._noise, None)
+            t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
+            self.driver.observe()
+            return t + latency, False
+        if a == SocialAction.GO_TO_HUMAN:
+            if e >= 5:
+                return cfg.signal_time + latency, False
+            return self._go_to_human(), False
+        return cfg.signal_time + latency, False
+
+    def _go_to_human(self) -> float:
+        """GO_TO_HUMAN's drive and turn; returns the simulated seconds. The target lies
+        ``gth_cells`` cells along the human's gaze, brought back by walls or obstacles on
+        the gaze (one LIDAR-plane ray) to keep the robot's swept radius clear of them; if
+        less than ``min_separation + gth_tolerance`` is left (the human faces a wall)
+        nothing happens, as
+        on the grid when the landing cell is the human's own."""
+        cfg, w = self.config, self.world
+        theta = float(self.human_pose[2])
+        u = np.array([math.cos(theta), math.sin(theta)])
+        dist = cfg.gth_cells * cfg.body.cell_size
+        clear = w.robot_spec.swept_radius + 0.02
+        z = float(w.robot_spec.lidar_offset[2])
+        start = self.human_pose[:2]
+        end = start + (dist + clear) * u
+        hit = w.client.rayTest([start[0], start[1], z], [end[0], end[1], z])[0]
+        if hit[0] >= 0 and hit[0] != w.body:
+            dist = min(dist, hit[2] * (dist + clear) - clear)
+        if dist < cfg.body.min_separation + cfg.gth_tolerance:
+            return cfg.signal_time + cfg.primitives.decision_latency
+        target = start + dist * u
+        res = go_to_point(self.driver, target, self._noise, cfg.gth_tolerance,
+                          cfg.gth_max_primitives,
+                          self.human_pose[:2] if cfg.human_blocks else None, cfg.body.radius)
+        stepper = ScanStepper(w, self._noise, None)
+        t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
+        self.driver.observe()
+        return res.duration + t + cfg.primitives.decision_latency
