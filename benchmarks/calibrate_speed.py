@@ -78,7 +78,7 @@ def main() -> None:
         simulate_counts,
     )
     from simlab.data.counts import load_counts
-    from simlab.data.inputs import load_discretizer
+    from simlab.physics.inputs import load_discretizer
     from simlab.physics.motion import PrimitiveParams
 
     aset = parse_action_set(args.n_actions, args.convention)

@@ -19,7 +19,7 @@ _FUNCTIONS: dict[str, str] = {
     "collect": "simlab.data.collect:collect",
     "import_log": "simlab.data.poselog:import_log",
     "estimate": "simlab.data.estimate:estimate",
-    "export_minari": "simlab.data.minari_export:export_minari",
+    "export_minari": "simlab.envs.minari_export:export_minari",
     "export_bag": "simlab.ros.export:export_bag",
     "import_bag": "simlab.ros.importer:import_bag",
     "train": "simlab.training.train:train",

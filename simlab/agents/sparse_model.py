@@ -312,7 +312,7 @@ def count_model_transition_row(m, s, a, out):
 
 
 @njit(cache=True)
-def _row_max(Q, s):
+def row_max(Q, s):
     best = Q[s, 0]
     for b in range(1, Q.shape[1]):
         if Q[s, b] > best:
@@ -357,7 +357,7 @@ def count_model_backup(m, Q, s, a, gamma, m_known):
     acc = 0.0
     k = m.head[s, a]
     while k != -1:
-        acc += m.succ_count[k] * _row_max(Q, m.succ_state[k])
+        acc += m.succ_count[k] * row_max(Q, m.succ_state[k])
         k = m.succ_link[k]
     new = m.r_sum[s, a] / n + gamma * acc / n
     delta = abs(new - Q[s, a])
@@ -423,7 +423,7 @@ def count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
     A = m.n_actions
     V = np.empty(S, dtype=np.float64)
     for s in range(S):
-        V[s] = _row_max(Q, s)
+        V[s] = row_max(Q, s)
     floor = max(m_known, 1)
     sweeps = 0
     while sweeps < max_sweeps:
@@ -446,7 +446,7 @@ def count_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
                 if new > V[s]:
                     V[s] = new
                 elif old == V[s]:
-                    V[s] = _row_max(Q, s)
+                    V[s] = row_max(Q, s)
         if delta <= tol:
             break
     return sweeps

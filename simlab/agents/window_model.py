@@ -26,7 +26,7 @@ from numba import njit
 from numba.core import types
 from numba.experimental import structref
 
-from simlab.agents.sparse_model import _row_max
+from simlab.agents.sparse_model import row_max
 
 __all__ = [
     "WindowModel",
@@ -280,7 +280,7 @@ def window_model_backup(m, Q, s, a, gamma, m_known):
         return 0.0
     acc = 0.0
     for i in range(h):
-        acc += m.win_reward[k, i] + gamma * _row_max(Q, m.win_state[k, i])
+        acc += m.win_reward[k, i] + gamma * row_max(Q, m.win_state[k, i])
     new = acc / h
     delta = abs(new - Q[s, a])
     Q[s, a] = new
@@ -299,7 +299,7 @@ def window_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
     A = m.n_actions
     V = np.empty(S, dtype=np.float64)
     for s in range(S):
-        V[s] = _row_max(Q, s)
+        V[s] = row_max(Q, s)
     floor = max(m_known, 1)
     sweeps = 0
     while sweeps < max_sweeps:
@@ -325,7 +325,7 @@ def window_model_value_iteration(m, Q, gamma, max_sweeps, tol, m_known):
                 if new > V[s]:
                     V[s] = new
                 elif old == V[s]:
-                    V[s] = _row_max(Q, s)
+                    V[s] = row_max(Q, s)
         if delta <= tol:
             break
     return sweeps

@@ -93,7 +93,7 @@ def calibrate_files(
         overwrite: replace existing outputs.
     """
     from simlab.data.counts import load_counts
-    from simlab.data.inputs import load_arena_config, load_discretizer
+    from simlab.physics.inputs import load_arena_config, load_discretizer
 
     config = CalibrationConfig() if config is None else config
     aset = SIMLAB16 if action_set is None else action_set

@@ -229,7 +229,7 @@ def simulate_counts(arena: Any, states: Any, params: Any, *, hours: float, seed:
     What a candidate's evaluation does; also a way to make a synthetic "real" table with
     hidden parameters (tests, benchmarks).
     """
-    from simlab.data.inputs import load_arena_config, load_discretizer
+    from simlab.physics.inputs import load_arena_config, load_discretizer
 
     disc = load_discretizer(states)
     return simulate_table(_Job(index=0, arena=load_arena_config(arena), states=disc,
@@ -446,7 +446,7 @@ def search(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace, b
     """
     from tqdm.auto import tqdm
 
-    from simlab.data.inputs import load_arena_config, load_discretizer
+    from simlab.physics.inputs import load_arena_config, load_discretizer
 
     rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(1)[0])
     disc = load_discretizer(states)
@@ -506,8 +506,8 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         ConfigError: inconsistent inputs, before any simulation.
     """
     from simlab.calibration.space import default_space
-    from simlab.data.inputs import load_arena_config, load_discretizer
     from simlab.data.walkers import check_pose_source
+    from simlab.physics.inputs import load_arena_config, load_discretizer
 
     config = CalibrationConfig() if config is None else config
     t0 = time.perf_counter()

@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from simlab.data.minari_export import export_minari
+    from simlab.envs.minari_export import export_minari
 
     result = export_minari(args.dataset, args.dataset_id, episode_length=args.episode_length,
                            goal=args.goal, overwrite=args.overwrite, arena=args.arena)

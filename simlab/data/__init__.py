@@ -8,7 +8,8 @@ Layers, one per module:
   dataset directory as one :class:`pyarrow.Table`;
 * :mod:`simlab.data.walkers` — what runs inside a worker: the physics random walk,
   a physics-free kinematic stand-in, pose sources;
-* :mod:`simlab.data.backends` — local process pool and Ray;
+* :mod:`simlab.data.backends` — the dataset parts as jobs of the one parallel layer
+  (:mod:`simlab.parallel`: in-process, local processes or Ray);
 * :mod:`simlab.data.collect` — the ``simlab collect`` driver (budgets, exact resume);
 * :mod:`simlab.data.estimate` — counts, T = n(s,a,s')/n(s,a), entropy, coverage,
   ``simlab estimate``;
@@ -17,7 +18,6 @@ Layers, one per module:
 * :mod:`simlab.data.counts` — import of external count tables (real-robot logs);
 * :mod:`simlab.data.goals` — which Markov states belong to which goal area;
 * :mod:`simlab.data.plots` — the mean-entropy-per-action bar plot (thesis Fig. 4.8);
-* :mod:`simlab.data.minari_export` — the walk as a Minari dataset.
 
 Importing this package is cheap; the names in ``__all__`` load their module on first
 use. The two commands are :func:`simlab.data.collect.collect` and
@@ -41,7 +41,6 @@ _LAZY: dict[str, str] = {
     "TransitionDataset": "simlab.data.dataset",
     "load_counts": "simlab.data.counts",
     "goal_state_masks": "simlab.data.goals",
-    "export_minari": "simlab.data.minari_export",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, _LAZY)

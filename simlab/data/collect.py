@@ -40,7 +40,6 @@ import pyarrow as pa
 from simlab import validation as v
 from simlab.data.backends import BACKENDS, make_backend
 from simlab.data.dataset import unlisted_parts, validate_part, write_part
-from simlab.data.inputs import load_arena_config, load_discretizer
 from simlab.data.manifest import (
     check_resumable,
     file_sha256,
@@ -68,6 +67,7 @@ from simlab.errors import ConfigError
 from simlab.io import exclusive_directory
 from simlab.localization.sources import POSE_SOURCES
 from simlab.options import command, option
+from simlab.physics.inputs import load_arena_config, load_discretizer
 from simlab.physics.primitive_options import PrimitiveOptions
 
 #: Default transitions per part: small enough that a crash loses little, large enough

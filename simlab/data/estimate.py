@@ -42,11 +42,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from simlab import validation
 from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions
-from simlab.data.inputs import load_arena_config, load_discretizer
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError
 from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 from simlab.options import command, option
+from simlab.physics.inputs import load_arena_config, load_discretizer
 
 #: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
 HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)

@@ -42,7 +42,6 @@ import pyarrow as pa
 
 from simlab.actions import SIMLAB16, ActionSet
 from simlab.data.dataset import write_part
-from simlab.data.inputs import load_discretizer
 from simlab.data.manifest import manifest_path, new_manifest, write_manifest
 from simlab.data.schema import (
     NO_TRUTH_SOURCES,
@@ -55,6 +54,7 @@ from simlab.data.schema import (
 )
 from simlab.errors import ConfigError
 from simlab.io import exclusive_directory
+from simlab.physics.inputs import load_discretizer
 
 #: Rows per part file unless told otherwise.
 DEFAULT_PART_SIZE = 10_000

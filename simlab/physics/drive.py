@@ -70,7 +70,7 @@ def drive(
     params = params or PrimitiveParams()
     state_of = None
     if params.mode == "until_state_change":
-        from simlab.data.inputs import load_discretizer
+        from simlab.physics.inputs import load_discretizer
 
         disc = load_discretizer(states)
         state_of = lambda xy: int(np.asarray(disc.state_of(np.asarray(xy)[None, :2]))[0])  # noqa: E731

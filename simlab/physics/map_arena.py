@@ -100,7 +100,7 @@ def arena_from_map(
         raise ConfigError("no free pixel is far enough from the walls for the robot",
                           path=map_yaml, fix="check the map's thresholds")
     if states is not None:
-        from simlab.data.inputs import load_discretizer
+        from simlab.physics.inputs import load_discretizer
 
         centres = np.asarray(load_discretizer(states).centres, dtype=float)
         goals = [(f"s{i}", float(x), float(y)) for i, (x, y) in enumerate(centres)]

@@ -167,10 +167,10 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     """Arena, states, goals, Q-tables, MDP, map and primitive parameters, all checked
     before anything runs (ConfigError naming the file)."""
     from simlab.data.goals import goal_state_masks, select_goals
-    from simlab.data.inputs import load_arena_config, load_discretizer
     from simlab.localization.filter import MCLParams
     from simlab.localization.likelihood import LikelihoodField
     from simlab.localization.maps import load_map_for_arena
+    from simlab.physics.inputs import load_arena_config, load_discretizer
     from simlab.replay.inputs import discover_mdp, load_model, load_qtables, primitive_params_for
     from simlab.statecheck import check_centres_in_arena
 

@@ -63,17 +63,7 @@ ALLOWED: dict[tuple[str, str, str], str] = {
 
 #: Violations on main that another engineer's change removes (issue 16); delete the entry
 #: with that change.
-PENDING: set[tuple[str, str, str]] = {
-    ("simlab.data.walkers", "string", "simlab.replay.localization"),
-    # reported to the lead (files of other engineers):
-    ("simlab.agents.window_model", "private", "simlab.agents.sparse_model._row_max"),
-    ("simlab.data.minari_export", "import", "simlab.envs"),
-    ("simlab.physics.drive", "import", "simlab.data.inputs"),
-    ("simlab.physics.map_arena", "import", "simlab.data.inputs"),
-    ("simlab.visitlab.combined", "private", "simlab.visitlab.training._act"),
-    ("simlab.visitlab.combined", "private", "simlab.visitlab.training._learn"),
-    ("simlab.visitlab.combined", "private", "simlab.visitlab.training._N_AP"),
-}
+PENDING: set[tuple[str, str, str]] = set()
 
 
 @dataclass(frozen=True)

@@ -76,7 +76,7 @@ def minari_home(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 def test_minari_export_loads_back(kinematic_dataset: Path, minari_home: Path) -> None:
     import minari
 
-    from simlab.data.minari_export import export_minari
+    from simlab.envs.minari_export import export_minari
 
     result = export_minari(kinematic_dataset, "simlab/kin-walk-v0", episode_length=128,
                            goal="C")
@@ -119,7 +119,7 @@ def test_minari_round_trip_recovers_a_working_env(kinematic_dataset: Path,
                                                   minari_home: Path) -> None:
     import minari
 
-    from simlab.data.minari_export import export_minari
+    from simlab.envs.minari_export import export_minari
 
     export_minari(kinematic_dataset, "simlab/trip-v0", episode_length=64, goal="C")
     data = minari.load_dataset("simlab/trip-v0")
@@ -154,7 +154,7 @@ def test_minari_failed_export_leaves_no_partial_dataset(kinematic_dataset: Path,
     import minari
     from minari.dataset._storages.arrow_storage import ArrowStorage
 
-    from simlab.data.minari_export import export_minari
+    from simlab.envs.minari_export import export_minari
 
     export_minari(kinematic_dataset, "simlab/keep-v0", episode_length=64)
     write = ArrowStorage.update_episodes
@@ -179,7 +179,7 @@ def test_minari_export_without_a_loadable_arena_records_no_env_spec(
         kinematic_dataset: Path, minari_home: Path) -> None:
     import minari
 
-    from simlab.data.minari_export import export_minari
+    from simlab.envs.minari_export import export_minari
 
     with pytest.warns(UserWarning, match="--arena"):
         export_minari(kinematic_dataset, "simlab/noarena-v0", arena="no-such-arena")
@@ -191,7 +191,7 @@ def test_minari_export_of_an_incomplete_dataset_warns(dataset_copy: Path,
     import json
 
     from simlab.data.dataset import IncompleteDatasetWarning
-    from simlab.data.minari_export import export_minari
+    from simlab.envs.minari_export import export_minari
 
     manifest = dataset_copy / "_manifest.json"
     m = json.loads(manifest.read_text())

@@ -58,7 +58,7 @@ GthKernelArgs = namedtuple("GthKernelArgs", ["walls_h", "walls_v", "los", "pcfg"
                                              "max_steps"])
 
 
-def _check_variant(variant: str) -> str:
+def check_variant(variant: str) -> str:
     if variant not in VARIANTS:
         raise ConfigError(f"expected one of {VARIANTS}, got {variant!r}", key="variant")
     return variant
@@ -68,7 +68,7 @@ def _check_variant(variant: str) -> str:
 VARIANT_STEPS = "variant"
 
 
-def _check_steps(max_steps: Any, default: int) -> int | None:
+def check_steps(max_steps: Any, default: int) -> int | None:
     """Trial length: ``"variant"`` -> ``default``; ``None`` -> no limit of the env's own
     (it never truncates; Gymnasium's ``TimeLimit`` does, see
     :data:`simlab.envs.ENV_LIMITS`); else an integer >= 1."""
@@ -82,7 +82,7 @@ def _check_steps(max_steps: Any, default: int) -> int | None:
     return int(max_steps)
 
 
-def _fused_steps(max_steps: int | None) -> int:
+def fused_steps(max_steps: int | None) -> int:
     """The trial length of a fused loop (which needs one)."""
     if max_steps is None:
         raise ConfigError("the fused training loops need a trial length", key="max_steps",
@@ -90,7 +90,7 @@ def _fused_steps(max_steps: int | None) -> int:
     return int(max_steps)
 
 
-def _cell_option(value: Any, layout: Layout, key: str, named: dict[str, int]) -> int:
+def cell_option(value: Any, layout: Layout, key: str, named: dict[str, int]) -> int:
     """A cell index, or a named choice (``"random"`` -> -1, ``"center"`` -> the centre)."""
     if isinstance(value, str):
         if value in named:
@@ -106,7 +106,7 @@ def _cell_option(value: Any, layout: Layout, key: str, named: dict[str, int]) ->
     return int(value)
 
 
-def _goal_option(goal: Any, layout: Layout) -> int:
+def goal_option(goal: Any, layout: Layout) -> int:
     """A goal label of ``layout``, or ``"random"`` -> -1."""
     if goal == "random":
         return -1
@@ -117,13 +117,13 @@ def _goal_option(goal: Any, layout: Layout) -> int:
                       key="goal")
 
 
-def _direction_option(value: Any, key: str) -> int:
+def direction_option(value: Any, key: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 0 <= value < 8:
         raise ConfigError(f"expected a direction 0-7, got {value!r}", key=key)
     return int(value)
 
 
-def _reset_options(options: dict | None, defaults: dict[str, Any]) -> dict[str, Any]:
+def reset_options(options: dict | None, defaults: dict[str, Any]) -> dict[str, Any]:
     """``defaults`` updated by ``reset(options=...)``; unknown keys are refused by name.
 
     Options apply to the episode that this ``reset`` starts only (Gymnasium's convention);
@@ -137,7 +137,7 @@ def _reset_options(options: dict | None, defaults: dict[str, Any]) -> dict[str, 
     return {**defaults, **options}
 
 
-def _centre(layout: Layout) -> int:
+def centre(layout: Layout) -> int:
     return layout.cell(layout.height // 2, layout.width // 2)
 
 
@@ -156,7 +156,7 @@ def decode_gth(obs: int) -> tuple[int, int, int]:
     return tuple(int(x) for x in np.unravel_index(int(obs), dyn.GTH_DIMS))  # type: ignore[return-value]
 
 
-class _VisitLabEnv(gym.Env):
+class VisitLabEnv(gym.Env):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["ansi", "rgb_array"], "render_fps": 4}
 
     layout: Layout
@@ -214,5 +214,5 @@ class _VisitLabEnv(gym.Env):
         return out
 
 
-def _resolve_human(value: Human | str | None, default: str) -> Human:
+def resolve_human(value: Human | str | None, default: str) -> Human:
     return get_human(default if value is None else value)

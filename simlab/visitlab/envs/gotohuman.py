@@ -13,15 +13,15 @@ from simlab.visitlab.actions import N_MOVE_ACTIONS
 from simlab.visitlab.envs.base import (
     VARIANT_STEPS,
     GthKernelArgs,
-    _cell_option,
-    _centre,
-    _check_steps,
-    _check_variant,
-    _direction_option,
-    _fused_steps,
-    _reset_options,
-    _resolve_human,
-    _VisitLabEnv,
+    VisitLabEnv,
+    cell_option,
+    centre,
+    check_steps,
+    check_variant,
+    direction_option,
+    fused_steps,
+    reset_options,
+    resolve_human,
 )
 from simlab.visitlab.grid import Layout, gridworld, make_layout
 from simlab.visitlab.humans import Human
@@ -29,7 +29,7 @@ from simlab.visitlab.perception import Perception, perception_for
 from simlab.visitlab.render import Scene
 
 
-class GoToHumanEnv(_VisitLabEnv):
+class GoToHumanEnv(VisitLabEnv):
     """``simlab/VisitLab-GoToHuman-v0`` — reach the human's facing field (SPEC B5).
 
     **Description**
@@ -80,7 +80,7 @@ class GoToHumanEnv(_VisitLabEnv):
         render_mode: str | None = None,
     ) -> None:
         super().__init__(render_mode)
-        self.variant = _check_variant(variant)
+        self.variant = check_variant(variant)
         thesis = variant == "thesis"
         if episode not in dyn.GTH_VARIANTS:
             raise ConfigError(f"expected one of {dyn.GTH_VARIANTS}, got {episode!r}", key="episode")
@@ -88,15 +88,15 @@ class GoToHumanEnv(_VisitLabEnv):
         self._episode_code = dyn.GTH_VARIANTS.index(episode)
         self.layout = gridworld(24, 24) if layout is None else make_layout(layout, seed=layout_seed)
         self.perception = perception if perception is not None else perception_for(variant)
-        self.human = None if human is None else _resolve_human(human, "easy")
-        named = {"center": _centre(self.layout), "centre": _centre(self.layout)}
-        self.robot_cell = _cell_option(robot_cell, self.layout, "robot_cell", {})
-        self.human_cell = _cell_option(human_cell, self.layout, "human_cell", named)
+        self.human = None if human is None else resolve_human(human, "easy")
+        named = {"center": centre(self.layout), "centre": centre(self.layout)}
+        self.robot_cell = cell_option(robot_cell, self.layout, "robot_cell", {})
+        self.human_cell = cell_option(human_cell, self.layout, "human_cell", named)
         if self.robot_cell == self.human_cell:
             raise ConfigError("robot and human cannot start on the same cell", key="robot_cell")
-        self.robot_ori = _direction_option(robot_ori, "robot_ori")
-        self.human_ori = _direction_option(human_ori, "human_ori")
-        self.max_steps = _check_steps(max_steps, 40 if thesis else 20)
+        self.robot_ori = direction_option(robot_ori, "robot_ori")
+        self.human_ori = direction_option(human_ori, "human_ori")
+        self.max_steps = check_steps(max_steps, 40 if thesis else 20)
         self._hp = (self.human.to_array() if self.human is not None
                     else np.zeros(8, dtype=np.float64))
         self._pcfg = self.perception.to_array()
@@ -111,7 +111,7 @@ class GoToHumanEnv(_VisitLabEnv):
         return GthKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
                              self.human is not None, int(self._episode_code),
                              int(self.robot_cell), int(self.human_cell), int(self.robot_ori),
-                             int(self.human_ori), _fused_steps(self.max_steps))
+                             int(self.human_ori), fused_steps(self.max_steps))
 
     def _obs(self) -> int:
         return int(dyn.gth_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
@@ -131,17 +131,17 @@ class GoToHumanEnv(_VisitLabEnv):
         """Options: ``robot_cell``, ``human_cell`` (cell or ``(row, col)``), ``robot_ori``,
         ``human_ori`` (0-7), for this episode only (the episode variant decides which of
         them a reset draws at random instead)."""
-        opt = _reset_options(options, {"robot_cell": self.robot_cell,
+        opt = reset_options(options, {"robot_cell": self.robot_cell,
                                        "human_cell": self.human_cell,
                                        "robot_ori": self.robot_ori, "human_ori": self.human_ori})
-        named = {"center": _centre(self.layout), "centre": _centre(self.layout)}
-        robot = _cell_option(opt["robot_cell"], self.layout, "options.robot_cell", {})
-        human = _cell_option(opt["human_cell"], self.layout, "options.human_cell", named)
+        named = {"center": centre(self.layout), "centre": centre(self.layout)}
+        robot = cell_option(opt["robot_cell"], self.layout, "options.robot_cell", {})
+        human = cell_option(opt["human_cell"], self.layout, "options.human_cell", named)
         if robot == human and not self.perception.share_cells:
             raise ConfigError("robot and human cannot start on the same cell",
                               key="options.robot_cell")
-        r_ori = _direction_option(opt["robot_ori"], "options.robot_ori")
-        h_ori = _direction_option(opt["human_ori"], "options.human_ori")
+        r_ori = direction_option(opt["robot_ori"], "options.robot_ori")
+        h_ori = direction_option(opt["human_ori"], "options.human_ori")
         super().reset(seed=seed)
         self._t = 0
         dyn.gth_reset(self._st, self.np_random, self.layout.n_cells, self._episode_code,

@@ -13,20 +13,20 @@ from simlab.visitlab.actions import N_MOVE_ACTIONS
 from simlab.visitlab.envs.base import (
     VARIANT_STEPS,
     NavKernelArgs,
-    _cell_option,
-    _check_steps,
-    _check_variant,
-    _fused_steps,
-    _goal_option,
-    _reset_options,
-    _VisitLabEnv,
+    VisitLabEnv,
+    cell_option,
+    check_steps,
+    check_variant,
+    fused_steps,
+    goal_option,
+    reset_options,
 )
 from simlab.visitlab.grid import Layout, make_layout
 from simlab.visitlab.perception import perception_for
 from simlab.visitlab.render import Scene
 
 
-class NavEnv(_VisitLabEnv):
+class NavEnv(VisitLabEnv):
     """``simlab/VisitLab-Nav-v0`` — navigation to a goal room (thesis 2.1.1, SPEC B1).
 
     **Description**
@@ -74,7 +74,7 @@ class NavEnv(_VisitLabEnv):
         render_mode: str | None = None,
     ) -> None:
         super().__init__(render_mode)
-        self.variant = _check_variant(variant)
+        self.variant = check_variant(variant)
         thesis = variant == "thesis"
         if layout is None:
             layout = "gridworld" if thesis else "paper"
@@ -82,11 +82,11 @@ class NavEnv(_VisitLabEnv):
         self.perception = perception_for(variant)
         if start is None:
             start = self.layout.start_cell if thesis else "random"
-        self.start_cell = _cell_option(start, self.layout, "start", {"random": -1})
+        self.start_cell = cell_option(start, self.layout, "start", {"random": -1})
         if goal is None:
             goal = self.layout.goal_labels[-1] if thesis else "random"
-        self.goal_label = _goal_option(goal, self.layout)
-        self.max_steps = _check_steps(max_steps, 50 if thesis else 20)
+        self.goal_label = goal_option(goal, self.layout)
+        self.max_steps = check_steps(max_steps, 50 if thesis else 20)
         self._goal_labels = np.array(self.layout.goal_labels, dtype=np.int64)
         self.observation_space = spaces.Discrete(self.layout.n_labels * self.layout.n_cells)
         self.action_space = spaces.Discrete(N_MOVE_ACTIONS)
@@ -97,7 +97,7 @@ class NavEnv(_VisitLabEnv):
         lay = self.layout
         return NavKernelArgs(lay.walls_h, lay.walls_v, lay.cell_labels, int(self.start_cell),
                              int(self.goal_label), np.array(lay.goal_labels, dtype=np.int64),
-                             _fused_steps(self.max_steps))
+                             fused_steps(self.max_steps))
 
     def _obs(self) -> int:
         return int(dyn.nav_obs(self._st, self.layout.n_cells))
@@ -113,10 +113,10 @@ class NavEnv(_VisitLabEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Options: ``start`` (cell, ``(row, col)`` or ``"random"``), ``goal`` (label or
         ``"random"``), for this episode only."""
-        opt = _reset_options(options, {"start": self.start_cell, "goal": self.goal_label})
-        start = -1 if opt["start"] == -1 else _cell_option(opt["start"], self.layout,
+        opt = reset_options(options, {"start": self.start_cell, "goal": self.goal_label})
+        start = -1 if opt["start"] == -1 else cell_option(opt["start"], self.layout,
                                                            "options.start", {"random": -1})
-        goal = -1 if opt["goal"] == -1 else _goal_option(opt["goal"], self.layout)
+        goal = -1 if opt["goal"] == -1 else goal_option(opt["goal"], self.layout)
         super().reset(seed=seed)
         self._t = 0
         dyn.nav_reset(self._st, self.np_random, self.layout.n_cells, start, goal,

@@ -14,14 +14,14 @@ from simlab.visitlab.envs.base import (
     SOCIAL_GRID_SIZE,
     VARIANT_STEPS,
     SocialKernelArgs,
-    _cell_option,
-    _centre,
-    _check_steps,
-    _check_variant,
-    _fused_steps,
-    _reset_options,
-    _resolve_human,
-    _VisitLabEnv,
+    VisitLabEnv,
+    cell_option,
+    centre,
+    check_steps,
+    check_variant,
+    fused_steps,
+    reset_options,
+    resolve_human,
 )
 from simlab.visitlab.grid import Layout, gridworld, make_layout
 from simlab.visitlab.humans import Human
@@ -29,7 +29,7 @@ from simlab.visitlab.perception import Perception, perception_for
 from simlab.visitlab.render import Scene
 
 
-class SocialEnv(_VisitLabEnv):
+class SocialEnv(VisitLabEnv):
     """``simlab/VisitLab-Social-v0`` — get the human's attention and lead them (SPEC B3).
 
     **Description**
@@ -84,17 +84,17 @@ class SocialEnv(_VisitLabEnv):
         render_mode: str | None = None,
     ) -> None:
         super().__init__(render_mode)
-        self.variant = _check_variant(variant)
+        self.variant = check_variant(variant)
         thesis = variant == "thesis"
-        self.human = _resolve_human(human, "easy" if thesis else "H1")
+        self.human = resolve_human(human, "easy" if thesis else "H1")
         size = SOCIAL_GRID_SIZE if thesis else PAPER_SOCIAL_GRID_SIZE
         self.layout = (gridworld(size, size, (1, 1)) if layout is None
                        else make_layout(layout, seed=layout_seed))
         self.perception = perception if perception is not None else perception_for(variant)
-        named = {"random": -1, "center": _centre(self.layout), "centre": _centre(self.layout)}
-        self.human_start = _cell_option(human_start, self.layout, "human_start", named)
-        self.robot_start = _cell_option(robot_start, self.layout, "robot_start", {"random": -1})
-        self.max_steps = _check_steps(max_steps, 40 if thesis else 20)
+        named = {"random": -1, "center": centre(self.layout), "centre": centre(self.layout)}
+        self.human_start = cell_option(human_start, self.layout, "human_start", named)
+        self.robot_start = cell_option(robot_start, self.layout, "robot_start", {"random": -1})
+        self.max_steps = check_steps(max_steps, 40 if thesis else 20)
         if not 0.0 <= float(redraw_p) <= 1.0:
             raise ConfigError(f"expected a probability in [0, 1], got {redraw_p!r}", key="redraw_p")
         self.redraw_p = float(redraw_p)
@@ -112,7 +112,7 @@ class SocialEnv(_VisitLabEnv):
         lay = self.layout
         return SocialKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
                                 float(self.redraw_p), int(self.robot_start),
-                                int(self.human_start), _fused_steps(self.max_steps))
+                                int(self.human_start), fused_steps(self.max_steps))
 
     def _obs(self) -> int:
         return int(dyn.social_obs(self.layout.walls_h, self.layout.walls_v, self._los, self._pcfg,
@@ -141,12 +141,12 @@ class SocialEnv(_VisitLabEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Options: ``robot_start``, ``human_start`` (cell, ``(row, col)`` or ``"random"``;
         the human also ``"center"``), for this episode only."""
-        opt = _reset_options(options, {"robot_start": self.robot_start,
+        opt = reset_options(options, {"robot_start": self.robot_start,
                                        "human_start": self.human_start})
-        named = {"random": -1, "center": _centre(self.layout), "centre": _centre(self.layout)}
-        robot = _cell_option(opt["robot_start"], self.layout, "options.robot_start",
+        named = {"random": -1, "center": centre(self.layout), "centre": centre(self.layout)}
+        robot = cell_option(opt["robot_start"], self.layout, "options.robot_start",
                              {"random": -1}) if opt["robot_start"] != -1 else -1
-        human = _cell_option(opt["human_start"], self.layout, "options.human_start",
+        human = cell_option(opt["human_start"], self.layout, "options.human_start",
                              named) if opt["human_start"] != -1 else -1
         super().reset(seed=seed)
         self._t = 0

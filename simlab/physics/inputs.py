@@ -1,4 +1,9 @@
-"""Turn command-line style inputs (names, paths) into arena and discretizer objects."""
+"""Turn command-line style inputs (names, paths) into arena and discretizer objects.
+
+Below every command that takes an arena or a states file (physics drive, map arenas,
+collection, estimation, replay, calibration); it needs only the arena loader and the
+Voronoi discretizer, both at or below the physics layer.
+"""
 
 from __future__ import annotations
 
