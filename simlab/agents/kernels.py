@@ -241,10 +241,13 @@ def masked_greedy(q, vrow, rng):
     """Index of the largest ``q`` (A,) among the valid actions ``vrow`` (A,) bool, or all
     actions for :data:`ALL_VALID`; among exact ties one drawn uniformly with ``rng``
     (one draw, only when there is a tie). ``vrow`` must have a valid action."""
+    # "every action valid" decided once, outside the loops: the compiler then unswitches
+    # them and the unmasked case runs the plain loop (as fast as a mask-free kernel)
+    every = vrow.shape[0] == 0
     best = -np.inf
     n_best = 0
     for b in range(q.shape[0]):
-        if _ok(vrow, b):
+        if every or vrow[b]:
             if n_best == 0 or q[b] > best:
                 best = q[b]
                 n_best = 1
@@ -252,7 +255,7 @@ def masked_greedy(q, vrow, rng):
                 n_best += 1
     k = 0 if n_best == 1 else rng.integers(0, n_best)
     for b in range(q.shape[0]):
-        if _ok(vrow, b) and q[b] == best:
+        if (every or vrow[b]) and q[b] == best:
             if k == 0:
                 return b
             k -= 1
@@ -265,19 +268,20 @@ def masked_softmax(q, vrow, tau, rng):
     :func:`softmax_action`); ``tau <= 0`` is :func:`masked_greedy`."""
     if tau <= 0.0:
         return masked_greedy(q, vrow, rng)
+    every = vrow.shape[0] == 0  # hoisted: see masked_greedy
     qmax = -np.inf
     for b in range(q.shape[0]):
-        if _ok(vrow, b) and q[b] > qmax:
+        if (every or vrow[b]) and q[b] > qmax:
             qmax = q[b]
     total = 0.0
     for b in range(q.shape[0]):
-        if _ok(vrow, b):
+        if every or vrow[b]:
             total += np.exp((q[b] - qmax) / tau)
     target = rng.random() * total
     acc = 0.0
     last = 0
     for b in range(q.shape[0]):
-        if _ok(vrow, b):
+        if every or vrow[b]:
             w = np.exp((q[b] - qmax) / tau)
             if w > 0.0:
                 last = b

@@ -165,43 +165,67 @@ def export_minari(
     or ``~/.minari/datasets``) in Minari's Arrow format.
     """
     try:
-        import minari
+        import minari  # noqa: F401  (present? checked before any work)
         from gymnasium import spaces
-        from minari.data_collector import EpisodeBuffer
     except ModuleNotFoundError:
         raise ConfigError("exporting to Minari needs minari", key="minari",
                           fix='pip install "simlab[minari]"') from None
-    from minari.namespace import create_namespace, list_local_namespaces
     from minari.storage import get_dataset_path
 
+    from simlab import validation
     from simlab.data.dataset import open_dataset
 
-    namespace, _, _ = check_dataset_id(dataset_id)
-    from simlab.data.goals import goal_state_masks, goals_from_manifest
-
+    check_dataset_id(dataset_id)
     ds = open_dataset(dataset, validate=True)
     ds.warn_if_incomplete("the Minari dataset")
     if episode_length is None:
         episode_length = int(ds.manifest["parameters"].get("part_size", 250))
-    if isinstance(episode_length, bool) or int(episode_length) != episode_length \
-            or episode_length < 1:
-        raise ConfigError(f"expected a whole number >= 1, got {episode_length!r}",
-                          key="episode_length")
+    episode_length = validation.whole(episode_length, "episode_length", minimum=1)
     if ds.table.num_rows == 0:
         raise ConfigError("the dataset has no transitions yet", path=ds.directory)
-    reward_states = None
-    if goal is not None:
-        goals = goals_from_manifest(ds.manifest["arena"].get("goals", []))
-        names, masks = goal_state_masks(goals, ds.centres)
-        if goal not in names:
-            raise ConfigError(f"unknown goal {goal!r}", key="goal",
-                              fix=f"the dataset's arena has {', '.join(names)}")
-        reward_states = masks[list(names).index(goal)]
-
+    reward_states = _goal_states(ds, goal)
     target = get_dataset_path(dataset_id)
     if target.exists() and not overwrite:
         raise ConfigError(f"a Minari dataset {dataset_id!r} already exists", path=target,
                           fix="choose another --id or pass --overwrite")
+    episodes = _episodes(ds, reward_states, episode_length)
+    _publish(dataset_id, target, episodes, dict(
+        env=_env_spec(ds, arena, goal, episode_length),
+        observation_space=spaces.Discrete(ds.n_states),
+        action_space=spaces.Discrete(ds.n_actions),
+        algorithm_name="epsilon-greedy, epsilon = 1 (uniform random actions)",
+        author=author,
+        author_email=author_email,
+        code_permalink="simlab collect",
+        description=_description(ds.manifest, goal),
+        data_format="arrow",
+    ))
+    return MinariExportResult(
+        dataset_id=dataset_id,
+        episodes=len(episodes),
+        steps=int(sum(len(e.actions) for e in episodes)),
+        path=str(target),
+    )
+
+
+def _goal_states(ds: Any, goal: str | None) -> np.ndarray | None:
+    """(S,) bool: the states of goal area ``goal`` of the dataset's arena (None: no goal)."""
+    if goal is None:
+        return None
+    from simlab.data.goals import goal_state_masks, goals_from_manifest
+
+    goals = goals_from_manifest(ds.manifest["arena"].get("goals", []))
+    names, masks = goal_state_masks(goals, ds.centres)
+    if goal not in names:
+        raise ConfigError(f"unknown goal {goal!r}", key="goal",
+                          fix=f"the dataset's arena has {', '.join(names)}")
+    return masks[list(names).index(goal)]
+
+
+def _episodes(ds: Any, reward_states: np.ndarray | None, episode_length: int) -> list[Any]:
+    """The dataset's rows cut into Minari episode buffers (observations are states; the
+    pose, blocked flag and clock ride in ``infos``; the last step of each is truncated)."""
+    from minari.data_collector import EpisodeBuffer
 
     worker = ds.column("worker")
     s = ds.column("s").astype(np.int64)
@@ -213,16 +237,15 @@ def export_minari(
     t = ds.column("t")
     t_next = t + ds.column("duration")
     episodes: list[Any] = []
-    for i, (lo, hi) in enumerate(_episode_bounds(worker, s, s_next, int(episode_length))):
+    for i, (lo, hi) in enumerate(_episode_bounds(worker, s, s_next, episode_length)):
         n = hi - lo
-        obs = np.concatenate([s[lo:lo + 1], s_next[lo:hi]])
         rewards = (np.zeros(n) if reward_states is None
                    else reward_states[s_next[lo:hi]].astype(np.float64))
         truncations = np.zeros(n, dtype=bool)
         truncations[-1] = True
         episodes.append(EpisodeBuffer(
             id=i,
-            observations=obs,
+            observations=np.concatenate([s[lo:lo + 1], s_next[lo:hi]]),
             actions=a[lo:hi].copy(),
             rewards=rewards,
             terminations=np.zeros(n, dtype=bool),
@@ -233,8 +256,11 @@ def export_minari(
                 "t": np.concatenate([t[lo:lo + 1], t_next[lo:hi]]).reshape(-1, 1),
             },
         ))
-    m = ds.manifest
-    description = (
+    return episodes
+
+
+def _description(m: dict[str, Any], goal: str | None) -> str:
+    return (
         f"epsilon = 1 random walk of a TurtleBot3 Burger in the {m['arena']['name']!r} arena "
         f"({m.get('simulator', 'physics')} simulator, pose source {m['pose_source']}); "
         f"{m['discretizer']['n_states']} Voronoi states (discretizer "
@@ -242,26 +268,23 @@ def export_minari(
         f"direction). Seed {m['seed']}, {m['workers']} workers. "
         + (f"Reward: 1 when s' is in goal {goal!r}." if goal else "Rewards are 0.")
     )
-    env_spec = _env_spec(ds, arena, goal, int(episode_length))
+
+
+def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str, Any]) -> None:
+    """Create the Minari dataset in a temporary datasets root beside Minari's and move it
+    into place only once it is complete (an existing one is replaced only then)."""
+    import minari
+    from minari.namespace import create_namespace, list_local_namespaces
+    from minari.storage import get_dataset_path
+
+    namespace, _, _ = check_dataset_id(dataset_id)
     root = get_dataset_path()  # Minari's datasets root (created if missing)
     tmp_root = Path(tempfile.mkdtemp(prefix=f".{root.name}.simlab-", dir=root.parent))
     try:
         with warnings.catch_warnings(), _datasets_root(tmp_root):
             warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\..*")
             try:
-                minari.create_dataset_from_buffers(
-                    dataset_id,
-                    episodes,
-                    env=env_spec,
-                    observation_space=spaces.Discrete(ds.n_states),
-                    action_space=spaces.Discrete(ds.n_actions),
-                    algorithm_name="epsilon-greedy, epsilon = 1 (uniform random actions)",
-                    author=author,
-                    author_email=author_email,
-                    code_permalink="simlab collect",
-                    description=description,
-                    data_format="arrow",
-                )
+                minari.create_dataset_from_buffers(dataset_id, episodes, **meta)
             except ValueError as exc:
                 raise ConfigError(str(exc), key="dataset_id") from None
         if target.exists():  # overwrite: replaced only once the new one is complete
@@ -272,9 +295,3 @@ def export_minari(
         os.replace(tmp_root / dataset_id, target)
     finally:
         shutil.rmtree(tmp_root, ignore_errors=True)
-    return MinariExportResult(
-        dataset_id=dataset_id,
-        episodes=len(episodes),
-        steps=int(sum(len(e.actions) for e in episodes)),
-        path=str(target),
-    )

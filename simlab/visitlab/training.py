@@ -388,62 +388,26 @@ def train(
         env_kwargs: passed to the env (e.g. ``human="medium"``, ``layout="lab"``,
             ``episode="fixed"``, ``max_steps=40``).
     """
-    if task not in TASKS:
-        raise ConfigError(f"expected one of {TASKS}, got {task!r}", key="task")
+    from simlab import validation
+    from simlab.guards import array_bytes, check_memory
+
+    validation.choice(task, TASKS, "task")
     if trials is None:
         trials = {"nav": 2000, "social": 40_000, "gotohuman": 2000}[task]
     for key, value in (("trials", trials), ("seeds", seeds), ("workers", workers)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-            raise ConfigError(f"expected an integer >= 1, got {value!r}", key=key)
+        validation.whole(value, key, minimum=1)
     env = make_env(task, variant=variant, **env_kwargs)
     cfg = loop_agent_config(agent, task, variant, agent_overrides)
     n_states, n_actions = env.observation_space.n, env.action_space.n
-    q0s: list[np.ndarray | None] = [None] * seeds
-    if initial_q is not None:
-        q = np.asarray(initial_q, dtype=np.float64)
-        if q.shape == (n_states, n_actions):
-            q0s = [q] * seeds
-        elif q.shape == (seeds, n_states, n_actions):
-            q0s = list(q)
-        else:
-            raise ConfigError(f"expected shape {(n_states, n_actions)} or "
-                              f"{(seeds, n_states, n_actions)}, got {q.shape}", key="initial_q")
-    from simlab.guards import array_bytes, check_memory
-
+    q0s = _initial_qs(initial_q, seeds, n_states, n_actions)
     check_memory(array_bytes((seeds, trials)) + array_bytes((seeds, n_states, n_actions)),
                  what=f"learning curves of {seeds} seeds x {trials} trials and their Q-tables",
                  key="trials", fix="fewer --trials or --seeds")
-    gens = seed_generators(seed, seeds)
-    returns = np.zeros((seeds, trials), dtype=np.float64)
-    qs = np.zeros((seeds, n_states, n_actions), dtype=np.float64)
+    jobs = [(task, variant, env_kwargs, cfg, trials, g, q0)
+            for g, q0 in zip(seed_generators(seed, seeds), q0s, strict=True)]
     start = time.perf_counter()
-    from tqdm.auto import tqdm
-
-    with tqdm(total=seeds * trials, disable=not progress, unit="trial",
-              desc=f"{task} {agent}") as bar:
-        if workers == 1 or seeds == 1:
-            for i in range(seeds):
-                returns[i], qs[i] = _seed_curve(task, variant, env_kwargs, cfg, trials, gens[i],
-                                                q0s[i], bar.update)
-        else:
-            from concurrent.futures import as_completed
-
-            from simlab.parallel import worker_pool
-
-            # the one local pool: workers exit with this process; Ctrl-C cancels what has
-            # not started instead of waiting for every seed to finish
-            pool = worker_pool(min(workers, seeds))
-            try:
-                futures = {pool.submit(_seed_curve, task, variant, env_kwargs, cfg, trials,
-                                       gens[i], q0s[i]): i for i in range(seeds)}
-                for fut in as_completed(futures):
-                    i = futures[fut]
-                    returns[i], qs[i] = fut.result()
-                    bar.update(trials)
-            except BaseException:
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
-            pool.shutdown(wait=True)
+    returns, qs = _run_seeds(jobs, (n_states, n_actions), workers,
+                             progress and f"{task} {agent}")
     wall = time.perf_counter() - start
     human = getattr(env, "human", None)
     label = agent if human is None or task != "social" else f"{agent} / {human.name}"
@@ -463,6 +427,53 @@ def train(
                        for k, v in env_kwargs.items()},
     }
     return TrainResult(label, returns, qs, config, wall)
+
+
+def _initial_qs(initial_q: np.ndarray | None, seeds: int, n_states: int, n_actions: int
+                ) -> list[np.ndarray | None]:
+    """One starting Q-table per seed (None: the agent's own initial values)."""
+    if initial_q is None:
+        return [None] * seeds
+    q = np.asarray(initial_q, dtype=np.float64)
+    if q.shape == (n_states, n_actions):
+        return [q] * seeds
+    if q.shape == (seeds, n_states, n_actions):
+        return list(q)
+    raise ConfigError(f"expected shape {(n_states, n_actions)} or "
+                      f"{(seeds, n_states, n_actions)}, got {q.shape}", key="initial_q")
+
+
+def _run_seeds(jobs: list[tuple[Any, ...]], shape: tuple[int, int], workers: int,
+               desc: str | bool) -> tuple[np.ndarray, np.ndarray]:
+    """Each job's ``_seed_curve`` (in this process, or on ``workers`` processes of the one
+    worker pool: results do not depend on it) -> returns (seeds, trials), Q (seeds, S, A)."""
+    from tqdm.auto import tqdm
+
+    seeds, trials = len(jobs), jobs[0][4]
+    returns = np.zeros((seeds, trials), dtype=np.float64)
+    qs = np.zeros((seeds, *shape), dtype=np.float64)
+    with tqdm(total=seeds * trials, disable=not desc, unit="trial", desc=desc or None) as bar:
+        if workers == 1 or seeds == 1:
+            for i, job in enumerate(jobs):
+                returns[i], qs[i] = _seed_curve(*job, bar.update)
+            return returns, qs
+        from concurrent.futures import as_completed
+
+        from simlab.parallel import worker_pool
+
+        # workers exit with this process; Ctrl-C cancels what has not started instead of
+        # waiting for every seed to finish
+        pool = worker_pool(min(workers, seeds))
+        try:
+            futures = {pool.submit(_seed_curve, *job): i for i, job in enumerate(jobs)}
+            for fut in as_completed(futures):
+                returns[futures[fut]], qs[futures[fut]] = fut.result()
+                bar.update(trials)
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
+    return returns, qs
 
 
 # --------------------------------------------------------------------------- one seed, observers, models
