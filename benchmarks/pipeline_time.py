@@ -25,7 +25,14 @@ The numba compile time of the run (``numba:compile`` events of this process; com
 in worker processes are not seen) is printed separately, as is the load average before
 and after (the machine may be shared: compare runs made one after the other).
 
+``--profile FILE`` runs the pipeline under :mod:`cProfile` (this process only: the map, the
+in-process replay runs and the stages' writing; the dataset's workers are not seen), writes
+the statistics to ``FILE`` (read them with :mod:`pstats`) and prints the functions with the
+most own time. The profiler slows Python-heavy code more than the physics: use it to find
+where the non-physics time goes, not for the ratios.
+
     python benchmarks/pipeline_time.py [--quick] [--out DIR] [--bare-seconds 30] [--warmup]
+                                       [--profile FILE]
 """
 
 from __future__ import annotations
@@ -165,6 +172,9 @@ def main() -> None:
     ap.add_argument("--warmup", action="store_true",
                     help="start simlab.orchestration.warmup.start_warmup() with the pipeline and wait for "
                          "it before training (what `simlab pipeline` does once wired)")
+    ap.add_argument("--profile", default=None, metavar="FILE",
+                    help="run the pipeline under cProfile and write its statistics here "
+                         "(default: no profile)")
     args = ap.parse_args()
 
     from simlab.commands import pipeline
@@ -189,7 +199,15 @@ def main() -> None:
             lines.append(f"{time.perf_counter() - t0:8.1f} s  {msg}")
 
         with CompileTimer() as ct:
-            pipeline(args.arena, out, seed=args.seed, progress=False, log=log, **settings)
+            if args.profile:
+                import cProfile
+
+                with cProfile.Profile() as prof:
+                    pipeline(args.arena, out, seed=args.seed, progress=False, log=log,
+                             **settings)
+                prof.dump_stats(args.profile)
+            else:
+                pipeline(args.arena, out, seed=args.seed, progress=False, log=log, **settings)
         total = time.perf_counter() - t0
         rate1, cpu_rate1 = bare_rate(args.arena, args.bare_seconds)
         rec = json.loads((out / "pipeline.json").read_text())
@@ -229,6 +247,11 @@ def main() -> None:
     print(f"numba compile in this process: {ct.seconds:.1f} s"
           + (f"; the training waited {cpu.get('train_wait', 0.0):.1f} s for the warm-up"
              if warm else ""))
+    if args.profile:
+        import pstats
+
+        print(f"profile (this process) written to {args.profile}; most own time:")
+        pstats.Stats(args.profile).sort_stats("tottime").print_stats(15)
     if warm is not None and warm.done and not warm.ok:
         print(f"warning: the warm-up failed ({warm.future.exception()!r})")
 

@@ -241,6 +241,7 @@ class ParticleFilter:
         self.n_resamples = 0
         self.n_injected = 0
         self.initialised = False
+        self._beam_subsets: dict[int, NDArray[np.int64]] = {}
 
     # ------------------------------------------------------------------ initialisation
     def _reset_stats(self) -> None:
@@ -293,9 +294,16 @@ class ParticleFilter:
         self._estimate = compose(self._estimate, relative(odom_prev, odom_now))
 
     def beam_subset(self, n_total: int) -> NDArray[np.int64]:
-        """Indices of the ``n_beams`` beams used out of a scan of ``n_total``."""
-        k = min(self.params.n_beams, n_total)
-        return np.floor(np.arange(k) * (n_total / k)).astype(np.int64)
+        """Indices of the ``n_beams`` beams used out of a scan of ``n_total`` (read-only;
+        computed once per scan size, as every update asks for them)."""
+        n_total = int(n_total)
+        idx = self._beam_subsets.get(n_total)
+        if idx is None:
+            k = min(self.params.n_beams, n_total)
+            idx = np.floor(np.arange(k) * (n_total / k)).astype(np.int64)
+            idx.setflags(write=False)
+            self._beam_subsets[n_total] = idx
+        return idx
 
     def update(self, scan: ScanLike) -> bool:
         """Weight the particles by ``scan``, store the estimate and resample if needed.

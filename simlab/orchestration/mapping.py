@@ -37,9 +37,12 @@ from discretize.occupancy import MapAccuracy, OccupancyGrid, map_accuracy
 from simlab import validation as v
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_json, output_transaction
+from simlab.localization.sources import SCANLESS_POSE_SOURCES
 from simlab.options import CommandConfig, command, option
 
-POSE_SOURCES = ("truth", "odometry")
+#: The pose sources the mapping run offers (those that need no LIDAR, the one list of
+#: :mod:`simlab.localization.sources`; kept under this name for callers).
+POSE_SOURCES = SCANLESS_POSE_SOURCES
 
 
 @dataclass(frozen=True)
@@ -206,10 +209,16 @@ class _Exploration:
 
 def _explore(cfg: MapConfig, arena_cfg: Any, params: Any, grid: OccupancyGrid) -> _Exploration:
     """Drive uniformly random primitives until ``minutes`` of robot time, integrating every
-    LIDAR scan into ``grid``."""
+    LIDAR scan into ``grid``.
+
+    The decision step is the physics' :class:`~simlab.physics.driver.DecisionDriver`
+    (choose a uniform primitive, execute it with the scan callback); it draws the random
+    numbers in the order of the loop it replaced, so seeded maps are unchanged.
+    """
     from tqdm import tqdm
 
-    from simlab.physics.motion import N_ACTIONS, execute_primitive
+    from simlab.physics.driver import DecisionDriver
+    from simlab.physics.motion import N_ACTIONS
     from simlab.physics.world import World
 
     action_seq, noise_seq = np.random.SeedSequence(int(cfg.seed)).spawn(2)
@@ -225,14 +234,18 @@ def _explore(cfg: MapConfig, arena_cfg: Any, params: Any, grid: OccupancyGrid) -
     n_actions = n_blocked = 0
     with World(arena_cfg) as world:
         integrate(world.scan(noise_rng), world.odometry())
+        driver = DecisionDriver(world, params, on_scan=integrate)
+
+        def choose(_pose: Any, _state: Any) -> int:
+            return int(action_rng.integers(0, N_ACTIONS))
+
         robot_time = 0.0
         with tqdm(total=round(budget), unit="s", desc="exploring",
                   disable=not cfg.progress) as bar:
             while robot_time < budget:
-                action = int(action_rng.integers(0, N_ACTIONS))
-                result = execute_primitive(world, action, noise_rng, params, on_scan=integrate)
+                step = driver.step(choose, noise_rng)
                 n_actions += 1
-                n_blocked += int(result.blocked)
+                n_blocked += int(step.result.blocked)
                 new_time = world.time + n_actions * params.decision_latency
                 bar.update(min(round(new_time), round(budget)) - bar.n)
                 robot_time = new_time
