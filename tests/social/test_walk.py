@@ -1,0 +1,95 @@
+"""The social random walk as a dataset (issue 18, part 2): determinism, decoding, T rows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simlab.data.dataset import open_dataset
+from simlab.data.estimate import count_transitions, transition_matrix
+from simlab.social.actions import N_SOCIAL_ACTIONS
+from simlab.social.walk import (
+    ACTION_NAMES,
+    N_SOCIAL_STATES,
+    SocialStates,
+    WalkConfig,
+    decode_social,
+    social_walk,
+    write_social_dataset,
+)
+
+CFG = WalkConfig(steps=60, episode_steps=20, workers=2, seed=11)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("social") / "ds"
+    result, walks = write_social_dataset(out, CFG, part_size=25)
+    return out, result, walks
+
+
+def test_same_seed_same_dataset(dataset, tmp_path):
+    out, _, _ = dataset
+    write_social_dataset(tmp_path / "again", CFG, part_size=25)
+    a, b = open_dataset(out).table, open_dataset(tmp_path / "again").table
+    assert a.equals(b)
+    other = social_walk(WalkConfig(steps=60, episode_steps=20, workers=2, seed=12))
+    assert not np.array_equal(other[0].a, a.column("a").to_numpy()[:60])
+
+
+def test_manifest_records_social_states_and_22_actions(dataset):
+    out, result, _ = dataset
+    ds = open_dataset(out)
+    assert ds.n_states == N_SOCIAL_STATES == 2560
+    assert ds.n_actions == N_SOCIAL_ACTIONS == 22
+    assert ds.action_set is None and ds.action_names == ACTION_NAMES
+    assert ds.discretizer_hash == SocialStates().content_hash()
+    assert result.rows == len(ds.table) == 120
+    assert ds.manifest["parameters"]["state_space"] == "social"
+
+
+def test_states_decode_to_valid_social_tuples(dataset):
+    out, _, walks = dataset
+    ds = open_dataset(out)
+    for col in ("s", "s_next"):
+        d = decode_social(ds.column(col))
+        assert d.shape == (120, 4)
+        assert np.all((d >= 0) & (d < np.array([8, 5, 8, 8])))
+    # the walk's own rows and the dataset's agree; a step continues from the last s'
+    w = walks[0]
+    np.testing.assert_array_equal(ds.column("s")[:60], w.s)
+    same_episode = w.episode[1:] == w.episode[:-1]
+    np.testing.assert_array_equal(w.s[1:][same_episode], w.s_next[:-1][same_episode])
+    # level 5-7 needs a HELLO first: an episode starts unengaged
+    starts = np.r_[True, ~same_episode]
+    assert np.all(decode_social(w.s[starts])[:, 0] < 5)
+    assert np.all(np.diff(w.t) >= 0) and np.all(w.duration > 0)
+
+
+def test_decode_inverts_the_index():
+    from simlab.social.perception import social_obs_index
+
+    for tup in [(0, 0, 0, 0), (7, 4, 7, 7), (3, 2, 5, 1)]:
+        assert tuple(decode_social(social_obs_index(*tup))) == tup
+    with pytest.raises(ValueError):
+        decode_social(2560)
+
+
+def test_estimated_rows_sum_to_one_over_visited_pairs(dataset):
+    """The estimator's counting and normalisation on the visited sub-space (the full
+    2560 x 22 x 2560 table is 1.2 GB; `simlab estimate` builds it, not a unit test)."""
+    ds = open_dataset(dataset[0])
+    s, a, s2 = ds.column("s"), ds.column("a"), ds.column("s_next")
+    seen, idx = np.unique(np.r_[s, s2], return_inverse=True)
+    counts = count_transitions(idx[:len(s)], a, idx[len(s):], len(seen), N_SOCIAL_ACTIONS)
+    T, visited = transition_matrix(counts)
+    assert visited.sum() == len(set(zip(s.tolist(), a.tolist(), strict=True)))
+    np.testing.assert_allclose(T[visited].sum(axis=1), 1.0, atol=1e-12)
+    assert counts.sum() == len(s)
+
+
+def test_bad_walk_config():
+    from simlab.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        WalkConfig(steps=0)
