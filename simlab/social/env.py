@@ -28,7 +28,6 @@ import copy
 from typing import Any, ClassVar
 
 import gymnasium as gym
-import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ClosedEnvironmentError
 

@@ -21,7 +21,7 @@ def _rollout(env, seed, n, actions_seed=0):
     obs, _ = env.reset(seed=seed)
     out = [obs]
     for _ in range(n):
-        obs, r, term, trunc, info = env.step(int(rng.integers(22)))
+        obs, r, _term, trunc, info = env.step(int(rng.integers(22)))
         out.append((obs, r, trunc, tuple(np.round(info["robot_pose"], 9))))
     return out
 
