@@ -93,3 +93,41 @@ def test_bad_walk_config():
 
     with pytest.raises(ConfigError):
         WalkConfig(steps=0)
+
+
+def test_sparse_model_matches_the_dense_estimator():
+    from simlab.data.estimate import entropy_bits, mean_entropy_per_action
+    from simlab.social.compare import sparse_from_counts, sparse_model
+
+    rng = np.random.default_rng(0)
+    S, A = 6, 4
+    s, a, s2 = rng.integers(0, S, 300), rng.integers(0, A, 300), rng.integers(0, S, 300)
+    s2[s == 0] = 5  # deterministic rows, and ties elsewhere are likely
+    counts = count_transitions(s, a, s2, S, A)
+    T, visited = transition_matrix(counts)
+    m = sparse_model(s, a, s2, n_states=S, n_actions=A)
+    np.testing.assert_array_equal(m.pairs, np.flatnonzero(visited.ravel()))
+    np.testing.assert_array_equal(m.mode, T.reshape(S * A, S).argmax(axis=1)[m.pairs])
+    np.testing.assert_allclose(m.entropy, entropy_bits(T).ravel()[m.pairs], atol=1e-12)
+    np.testing.assert_allclose(m.mean_entropy_per_action(),
+                               mean_entropy_per_action(entropy_bits(T), visited), atol=1e-12)
+    np.testing.assert_allclose(m.coverage_per_state(), visited.mean(axis=1))
+    assert np.array_equal(sparse_from_counts(counts).mode, m.mode)
+
+
+def test_compare_with_itself_and_the_grid(dataset, tmp_path):
+    from simlab.social.compare import compare, grid_walk, plot_comparison, sparse_model
+
+    ds = open_dataset(dataset[0])
+    phys = sparse_model(ds.column("s"), ds.column("a"), ds.column("s_next"))
+    same = compare(phys, phys)
+    assert same.agreement == 1.0 and same.common_pairs == len(phys.pairs)
+    np.testing.assert_array_equal(same.coverage[0], same.coverage[1])
+    g1, g2 = grid_walk(200, 4), grid_walk(200, 4)
+    for x, y in zip(g1, g2, strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert np.all(decode_social(g1[0])[:, 0] <= 7) and g1[1].max() < 22
+    r = compare(phys, sparse_model(*g1))
+    assert r.coverage.shape == (2, 2560) and r.entropy.shape == (2, 22)
+    assert r.visited_pairs == (len(phys.pairs), len(sparse_model(*g1).pairs))
+    assert plot_comparison(r, tmp_path / "cmp.png").stat().st_size > 0
