@@ -131,3 +131,46 @@ def test_compare_with_itself_and_the_grid(dataset, tmp_path):
     assert r.coverage.shape == (2, 2560) and r.entropy.shape == (2, 22)
     assert r.visited_pairs == (len(phys.pairs), len(sparse_model(*g1).pairs))
     assert plot_comparison(r, tmp_path / "cmp.png").stat().st_size > 0
+
+
+class _TinyStates:
+    """Four states, for datasets of named actions small enough to estimate densely."""
+
+    n_states = 4
+    centres = np.zeros((4, 2))
+
+    def state_of(self, xy):
+        raise ValueError("not used")
+
+    def content_hash(self):
+        return "tiny-states"
+
+
+def test_estimate_reads_a_dataset_of_named_actions(tmp_path):
+    import json
+
+    from simlab.data.estimate import EstimateConfig, estimate
+    from simlab.data.mdp import load_mdp
+    from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
+    from simlab.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="action_names"):
+        DatasetInfo(discretizer=_TinyStates(), action_names=("a", "a"))
+    s, a, s2 = np.array([0, 0, 1, 2, 3, 0]), np.array([2, 2, 0, 1, 2, 2]), \
+        np.array([1, 2, 2, 3, 0, 1])
+    walk = TransitionArrays(t=np.arange(6.0), a=a, pose=np.zeros((6, 3)),
+                            pose_next=np.zeros((6, 3)), blocked=np.zeros(6, bool),
+                            duration=np.ones(6), s=s, s_next=s2)
+    info = DatasetInfo(discretizer=_TinyStates(), action_names=("x", "y", "z"))
+    write_dataset(tmp_path / "ds", walk, info)
+    with pytest.raises(ConfigError, match="outside"):
+        write_dataset(tmp_path / "bad", TransitionArrays(
+            t=[0.0], a=[3], pose=np.zeros((1, 3)), pose_next=np.zeros((1, 3)),
+            blocked=[False], duration=[1.0], s=[0], s_next=[0]), info)
+    res = estimate(EstimateConfig(dataset=tmp_path / "ds", out=tmp_path / "mdp.npz",
+                                  plot=False))
+    assert res.summary["action_set"] is None and res.summary["n_actions"] == 3
+    mdp = load_mdp(tmp_path / "mdp.npz")
+    assert mdp.action_set is None and mdp.T.shape == (4, 3, 4)
+    np.testing.assert_allclose(mdp.T[0, 2], [0, 2 / 3, 1 / 3, 0])
+    assert json.loads((tmp_path / "ds" / "_manifest.json").read_text())["action_set"] is None
