@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -266,3 +267,57 @@ def goal_rate_ratio(learned: list[ClosedLoopRun], random: list[ClosedLoopRun]) -
         return sum(r.goals_reached for r in runs) / max(sum(r.hours for r in runs), 1e-12)
     lr, rr = rate(learned), rate(random)
     return math.inf if rr == 0 else lr / rr
+
+
+def closed_loop_frames(run: ClosedLoopRun, config: ClosedLoopConfig | None = None,
+                       start: int = 0, count: int = 120, stride: int = 1,
+                       pixels_per_metre: float = 200.0, trail: int = 20
+                       ) -> list[NDArray[np.uint8]]:
+    """RGB frames (HEADER_PX + H, W, 3) of decisions ``start, start + stride, ...`` of
+    ``run`` (at most ``count``; frame 0 is the state before decision ``start``): the table
+    with the pursued goal highlighted, the human with its visual/facing fields and its last
+    ``trail`` positions, the robot; the caption gives time, level, action, goals reached."""
+    from simlab.physics.arena import load_arena
+    from simlab.physics.robot import load_robot_spec
+    from simlab.social.render import closed_loop_frame
+
+    cfg = config or ClosedLoopConfig()
+    validation.whole(count, "count", minimum=1)
+    validation.whole(stride, "stride", minimum=1)
+    validation.whole(start, "start", minimum=0)
+    arena, spec = load_arena(cfg.social.arena), load_robot_spec("turtlebot3_burger")
+    n = run.time.size
+    robots = np.vstack([run.start_robot[None], run.robot])
+    humans = np.vstack([run.start_human[None], run.human])
+    levels = np.concatenate([[0], run.level])
+    frames = []
+    for k in range(min(start, n), n + 1, stride):
+        if len(frames) >= count:
+            break
+        goal = run.goal_names[int(run.goal[min(k, n - 1)])] if n else None
+        reached = int(np.searchsorted(run.goal_times, run.time[k - 1], side="right")) if k else 0
+        t = float(run.time[k - 1]) if k else 0.0
+        act = f" a={int(run.action[k - 1])}" if k else ""
+        caption = (f"{run.policy} t={t:7.1f}s level={int(levels[k])}{act} goal={goal} "
+                   f"reached={reached}")
+        frames.append(closed_loop_frame(arena, spec, robots[k], humans[k], int(levels[k]),
+                                        goal, caption, cfg.social.body, cfg.social.perception,
+                                        humans[max(0, k - trail):k + 1, :2], pixels_per_metre))
+    return frames
+
+
+def write_closed_loop_gif(frames: list[NDArray[np.uint8]], path: str | Path,
+                          fps: float = 4.0) -> Path:
+    """Write ``frames`` as a looping GIF at ``path`` atomically (:func:`simlab.io.atomic_write`;
+    an existing file is replaced: callers check with :func:`simlab.io.ensure_new`)."""
+    import imageio.v3 as iio
+
+    from simlab.io import atomic_write
+
+    if not frames:
+        raise ValueError("no frames to write")
+    validation.positive(fps, "fps")
+    path = Path(path)
+    with atomic_write(path, "wb") as fh:
+        iio.imwrite(fh, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
+    return path
