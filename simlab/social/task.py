@@ -93,7 +93,8 @@ class SocialConfig:
         gth_offsets_deg: angles (deg) off the human's gaze at which GO_TO_HUMAN tries its
             target, in order, until one leaves room (default ``(0,)``: straight ahead
             only, as on the grid). E.g. ``(0, 30, -30)`` lets a robot walk up to a human
-            who faces a wall from the side, still inside the +-45 deg facing field.
+            who faces a wall from the side (it may end in the visual field, level 3,
+            when the wall keeps it from the target).
         human_blocks: the human's disc blocks a primitive whose detector corridor it meets
             (the robot turns, does not drive), and GO_TO_HUMAN detours around it; the
             human has no PyBullet body, so the LIDAR itself never sees it.
