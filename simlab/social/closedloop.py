@@ -23,7 +23,14 @@ with the robot in PyBullet and the kinematic human of :mod:`simlab.social`. Ever
    primitive was blocked is not chosen again until the observation changes; the next
    best is taken. A greedy table otherwise repeats a no-op forever (e.g. driving into
    the human standing in the required direction, which on the grid's rarely visited
-   states was never learned).
+   states was never learned). Decision (``epsilon``, default 0.05): with that
+   probability the action is uniform over the 22 instead (one draw of the policy stream
+   per decision, then one more for the action). The greedy table alone cycles for hours
+   through a few states the grid never meets (a physics step is a third of a cell, the
+   follower stops 0.25 m short), e.g. the robot trapped in a corner by the following
+   human, stepping back and forth. Measured, 6 seeds x 0.25 h, goals reached with the
+   human (random policy: 4): greedy 22, epsilon 0.05: 41, 0.1: 35; a tabu memory
+   (skip actions already chosen at a revisited observation) got 10.
 3. **Delegation**: GO_TO_HUMAN is the physics option of :class:`SocialTable` (planned
    drive into the human's facing field; the default tries 0, +30, -30 deg off the gaze,
    ``SocialConfig.gth_offsets_deg``, so a human facing a wall can still be approached).
@@ -73,6 +80,8 @@ class ClosedLoopConfig:
         max_decisions: safety cap on decisions per run (0: none; the run stops at
             ``hours``).
         skip_idle: do not repeat an action that changed nothing (module docstring).
+        epsilon: probability of a uniformly random action instead of the social module's
+            (module docstring, step 2); 0 is the pure greedy table.
     """
 
     social: SocialConfig = field(
@@ -81,6 +90,7 @@ class ClosedLoopConfig:
     engaged_level: int = 5
     max_decisions: int = 0
     skip_idle: bool = True
+    epsilon: float = 0.05
 
     def __post_init__(self) -> None:
         if not isinstance(self.social, SocialConfig):
@@ -94,6 +104,7 @@ class ClosedLoopConfig:
                               key="ClosedLoopConfig.engaged_level")
         validation.whole(self.max_decisions, "ClosedLoopConfig.max_decisions", minimum=0)
         validation.boolean(self.skip_idle, "ClosedLoopConfig.skip_idle")
+        validation.probability(self.epsilon, "ClosedLoopConfig.epsilon")
 
 
 @dataclass
@@ -233,7 +244,7 @@ def _loop(env: SocialTable, q: NDArray[np.float64] | None, seed: int, hours: flo
             excluded.clear()
         last_obs = obs
         robot0, human0 = env.world.pose().copy(), env.human_pose.copy()
-        if q is None:
+        if q is None or (cfg.epsilon and policy_rng.random() < cfg.epsilon):
             a = int(policy_rng.integers(0, N_SOCIAL_ACTIONS))
         else:
             a = _greedy(q[obs], policy_rng, excluded if cfg.skip_idle else frozenset())

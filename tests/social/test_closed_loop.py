@@ -88,8 +88,9 @@ def test_goals_count_only_with_the_engaged_human_inside(q_social, table):
 
 
 def test_combined_loop_leads_the_human_far_above_random(q_social, table):
-    # 6 seeds x 0.25 simulated hours each policy. Measured (training seed 0): combined
-    # 22 goals, random 4 (ratio 5.5); training seeds 1 and 3: 27 and 37 goals.
+    # 6 seeds x 0.25 simulated hours each policy. Measured (training seed 0, epsilon 0.05):
+    # combined 41 goals (7, 4, 6, 7, 10, 7), random 4 (0, 1, 1, 1, 0, 1): ratio 10;
+    # the pure greedy loop (epsilon 0) got 22.
     seeds = range(6)
     learned = [run_closed_loop(q_social, s, 0.25, CFG, table) for s in seeds]
     random = [run_closed_loop(None, s, 0.25, CFG, table) for s in seeds]
