@@ -1,5 +1,6 @@
 """Top-down pictures of the social task: the table, the robot and the human's disc with
-its visual and facing fields (issue 18; the later GIF builds on :func:`render_social`).
+its visual and facing fields (issue 18); :func:`closed_loop_frame` draws one frame of the
+closed loop's GIF (:func:`simlab.social.closedloop.write_closed_loop_gif`).
 
 Fields are drawn as wedges of radius ``field_reach`` (m, default the last distance bound:
 beyond it the human is "too far" anyway), clipped to nothing: a field drawn through a wall
@@ -67,3 +68,28 @@ def render_social(arena: ArenaConfig, spec: RobotSpec, robot_pose: Sequence[floa
                level)
     canvas.draw_robot(robot_pose, spec)
     return canvas.image
+
+
+HEADER_PX = 22
+
+
+def closed_loop_frame(arena: ArenaConfig, spec: RobotSpec, robot_pose: Sequence[float],
+                      human_pose: Sequence[float], level: int, goal: str | None,
+                      caption: str = "", body: HumanBody | None = None,
+                      perception: SocialPerception | None = None,
+                      trail: NDArray[np.float64] | None = None,
+                      pixels_per_metre: float = 200.0) -> NDArray[np.uint8]:
+    """One frame of a closed-loop run: RGB (HEADER_PX + H, W, 3) uint8, a white header
+    with ``caption`` above the arena with the active ``goal`` area highlighted, the
+    human's recent path ``trail`` (n, 2) (m), the human with its visual and facing fields
+    (red disc when engaged) and the robot."""
+    canvas = TopDown(arena, pixels_per_metre).draw_arena(active_goal=goal)
+    if trail is not None and len(trail) >= 2:
+        canvas.draw_trail(np.asarray(trail, dtype=float)[:, :2], color=HUMAN, thickness=1)
+    draw_human(canvas, human_pose, body or HumanBody(), perception or SocialPerception(),
+               level)
+    canvas.draw_robot(robot_pose, spec)
+    header = np.full((HEADER_PX, canvas.width, 3), 255, dtype=np.uint8)
+    cv2.putText(header, caption, (4, HEADER_PX - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                (0, 0, 0), 1, cv2.LINE_AA)
+    return np.concatenate([header, canvas.image], axis=0)

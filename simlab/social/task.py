@@ -90,6 +90,11 @@ class SocialConfig:
         gth_cells: GO_TO_HUMAN's target distance ahead of the human's gaze, in cells.
         gth_tolerance: distance (m) at which GO_TO_HUMAN's drive counts as arrived.
         gth_max_primitives: most primitives one GO_TO_HUMAN may drive.
+        gth_offsets_deg: angles (deg) off the human's gaze at which GO_TO_HUMAN tries its
+            target, in order, until one leaves room (default ``(0,)``: straight ahead
+            only, as on the grid). E.g. ``(0, 30, -30)`` lets a robot walk up to a human
+            who faces a wall from the side (it may end in the visual field, level 3,
+            when the wall keeps it from the target).
         human_blocks: the human's disc blocks a primitive whose detector corridor it meets
             (the robot turns, does not drive), and GO_TO_HUMAN detours around it; the
             human has no PyBullet body, so the LIDAR itself never sees it.
@@ -105,6 +110,7 @@ class SocialConfig:
     gth_cells: float = 2.0
     gth_tolerance: float = 0.05
     gth_max_primitives: int = 30
+    gth_offsets_deg: tuple[float, ...] = (0.0,)
     human_blocks: bool = True
 
     def __post_init__(self) -> None:
@@ -115,6 +121,12 @@ class SocialConfig:
         validation.positive(self.gth_tolerance, "SocialConfig.gth_tolerance")
         validation.boolean(self.human_blocks, "SocialConfig.human_blocks")
         validation.whole(self.gth_max_primitives, "SocialConfig.gth_max_primitives", minimum=1)
+        offsets = tuple(validation.number(v, "SocialConfig.gth_offsets_deg", low=-180.0,
+                                          high=180.0) for v in self.gth_offsets_deg)
+        if not offsets:
+            raise ConfigError("expected at least one angle", key="SocialConfig.gth_offsets_deg",
+                              fix="e.g. (0.0,)")
+        object.__setattr__(self, "gth_offsets_deg", offsets)
         for key, kind in (("body", HumanBody), ("perception", SocialPerception),
                           ("primitives", PrimitiveParams)):
             if not isinstance(getattr(self, key), kind):
@@ -300,13 +312,32 @@ class SocialTable:
 
     def _go_to_human(self) -> float:
         """GO_TO_HUMAN's drive and turn; returns the simulated seconds. The target lies
-        ``gth_cells`` cells along the human's gaze, brought back by walls or obstacles on
-        the gaze (one LIDAR-plane ray) to keep the robot's swept radius clear of them; if
-        less than ``min_separation + gth_tolerance`` is left (the human faces a wall)
-        nothing happens, as
+        ``gth_cells`` cells along the human's gaze (turned by the first of
+        ``gth_offsets_deg`` that leaves room), brought back by walls or obstacles on
+        that line (one LIDAR-plane ray) to keep the robot's swept radius clear of them; if
+        less than ``min_separation + gth_tolerance`` is left on every line (the human
+        faces a wall) nothing happens, as
         on the grid when the landing cell is the human's own."""
         cfg, w = self.config, self.world
-        theta = float(self.human_pose[2])
+        target = None
+        for offset in cfg.gth_offsets_deg:
+            target = self._gth_target(float(self.human_pose[2]) + math.radians(offset))
+            if target is not None:
+                break
+        if target is None:
+            return cfg.signal_time + cfg.primitives.decision_latency
+        res = go_to_point(self.driver, target, self._noise, cfg.gth_tolerance,
+                          cfg.gth_max_primitives,
+                          self.human_pose[:2] if cfg.human_blocks else None, cfg.body.radius)
+        stepper = ScanStepper(w, self._noise, None)
+        t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
+        self.driver.observe()
+        return res.duration + t + cfg.primitives.decision_latency
+
+    def _gth_target(self, theta: float) -> Pose | None:
+        """GO_TO_HUMAN's target along the line from the human at angle ``theta`` (rad), or
+        None if it leaves too little room."""
+        cfg, w = self.config, self.world
         u = np.array([math.cos(theta), math.sin(theta)])
         dist = cfg.gth_cells * cfg.body.cell_size
         clear = w.robot_spec.swept_radius + 0.02
@@ -317,12 +348,5 @@ class SocialTable:
         if hit[0] >= 0 and hit[0] != w.body:
             dist = min(dist, hit[2] * (dist + clear) - clear)
         if dist < cfg.body.min_separation + cfg.gth_tolerance:
-            return cfg.signal_time + cfg.primitives.decision_latency
-        target = start + dist * u
-        res = go_to_point(self.driver, target, self._noise, cfg.gth_tolerance,
-                          cfg.gth_max_primitives,
-                          self.human_pose[:2] if cfg.human_blocks else None, cfg.body.radius)
-        stepper = ScanStepper(w, self._noise, None)
-        t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
-        self.driver.observe()
-        return res.duration + t + cfg.primitives.decision_latency
+            return None
+        return start + dist * u
