@@ -26,6 +26,7 @@ _FUNCTIONS: dict[str, str] = {
     "replay": "simlab.replay.replay:replay",
     "calibrate": "simlab.calibration.command:calibrate_files",
     "pipeline": "simlab.orchestration.pipeline:pipeline",
+    "social_pipeline": "simlab.social.pipeline:social_pipeline",
     "visitlab_train": "simlab.visitlab.training:train",
     "reproduce": "simlab.experiments.reproduce:reproduce",
 }

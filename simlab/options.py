@@ -309,7 +309,7 @@ def _add_field(parser: argparse.ArgumentParser, f: dataclasses.Field, tp: Any) -
     required = f.default is _MISSING and f.default_factory is _MISSING
     default = None if required else f.default
     help_text = meta.get("help", "")
-    if not required and default not in (None, "") and base is not bool:
+    if not required and default not in (None, "", ()) and base is not bool:
         shown = ",".join(map(str, default)) if isinstance(default, tuple) else default
         help_text += f" (default {shown})"
     kw: dict[str, Any] = {"help": help_text, "default": _UNSET}

@@ -42,6 +42,7 @@ SUBCOMMANDS: dict[str, str] = {
     "replay": "replay",
     "calibrate": "calibrate",
     "pipeline": "pipeline",
+    "social-pipeline": "social_pipeline",
     "visitlab": "visitlab",
     "reproduce": "reproduce",
 }

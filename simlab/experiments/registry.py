@@ -24,6 +24,7 @@ else:
 RUNNER_MODULES: dict[str, str] = {
     "example": "simlab.experiments.example",
     "physics": "simlab.experiments.physics",
+    "social": "simlab.experiments.social",
     "visitlab": "simlab.experiments.visitlab",
 }
 
