@@ -384,6 +384,7 @@ def _fmt_bounds(size: tuple[float, ...], center: tuple[float, float]) -> str:
 
 
 def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
+    """The whole arena TOML -> a checked :class:`ArenaConfig` (errors name file and key)."""
     c = _Checker(path)
     unknown = set(data) - _TOP_KEYS
     if unknown:
@@ -405,25 +406,52 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
     else:
         floor = c.table(data, "floor", {"size"})
         size = c.vector(floor, "floor", "size", 2, positive=True)
+    wall_height, wall_thickness = _parse_walls(c, data)
+    start_t = c.table(data, "start", {"pose", "clearance"})
+    sx, sy, syaw_deg = c.vector(start_t, "start", "pose", 3)
+    start = (sx, sy, math.radians(syaw_deg))
+    clearance = c.number(start_t, "start", "clearance", default=START_CLEARANCE)
+    validation.number(clearance, "start.clearance", low=0.0, path=c.path)
+    arena = ArenaConfig(
+        name=name,
+        size=(size[0], size[1]),
+        wall_height=wall_height,
+        wall_thickness=wall_thickness,
+        start=start,
+        goals=_parse_goals(c, data, size, center),
+        obstacles=_parse_obstacles(c, data, size, center),
+        description=description,
+        source=str(path),
+        source_sha256=sha,
+        center=center,
+        map_walls=map_walls,
+    )
+    _check_placements(c, arena, clearance)
+    return arena
 
+
+def _parse_walls(c: _Checker, data: dict[str, Any]) -> tuple[float, float]:
+    """``[walls]``: height (above the LIDAR plane) and thickness, metres."""
     walls = c.table(data, "walls", {"height", "thickness"})
     wall_height = c.number(walls, "walls", "height", positive=True)
     if wall_height <= LIDAR_PLANE_HEIGHT:
         raise c.fail("walls.height", f"{wall_height} m is not above the LIDAR plane "
                      f"({LIDAR_PLANE_HEIGHT} m): the walls would be invisible",
                      fix="use e.g. 0.25")
-    wall_thickness = c.number(walls, "walls", "thickness", positive=True)
+    return wall_height, c.number(walls, "walls", "thickness", positive=True)
 
-    start_t = c.table(data, "start", {"pose", "clearance"})
-    sx, sy, syaw_deg = c.vector(start_t, "start", "pose", 3)
-    start = (sx, sy, math.radians(syaw_deg))
-    clearance = c.number(start_t, "start", "clearance", default=START_CLEARANCE)
-    validation.number(clearance, "start.clearance", low=0.0, path=c.path)
 
-    hx, hy = size[0] / 2, size[1] / 2
-    inside = lambda x, y: (-hx < x - center[0] < hx  # noqa: E731
-                           and -hy < y - center[1] < hy)
+def _on_floor(c: _Checker, key: str, xy: tuple[float, float], size: Any, center: Any) -> None:
+    """Refuse a centre outside the floor rectangle."""
+    if not (-size[0] / 2 < xy[0] - center[0] < size[0] / 2
+            and -size[1] / 2 < xy[1] - center[1] < size[1] / 2):
+        raise c.fail(f"{key}.center", f"({xy[0]}, {xy[1]}) is outside the floor "
+                     f"{_fmt_bounds(size, center)}")
 
+
+def _parse_goals(c: _Checker, data: dict[str, Any], size: Any, center: Any
+                 ) -> tuple[GoalArea, ...]:
+    """``[[goals]]``: at least one, unique names, centres on the floor."""
     goals_raw = data.get("goals")
     if not isinstance(goals_raw, list) or not goals_raw:
         raise c.fail("goals", "expected at least one [[goals]] table")
@@ -442,11 +470,14 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
             raise c.fail(f"{key}.name", f"duplicate goal name {gname!r}")
         seen.add(gname)
         gx, gy = c.vector(g, key, "center", 2)
-        if not inside(gx, gy):
-            raise c.fail(f"{key}.center", f"({gx}, {gy}) is outside the floor "
-                         f"{_fmt_bounds(size, center)}")
+        _on_floor(c, key, (gx, gy), size, center)
         goals.append(GoalArea(gname, gx, gy, c.number(g, key, "radius", positive=True)))
+    return tuple(goals)
 
+
+def _parse_obstacles(c: _Checker, data: dict[str, Any], size: Any, center: Any
+                     ) -> tuple[Obstacle, ...]:
+    """``[[obstacles]]``: boxes (size, yaw in degrees) and cylinders (radius) on the floor."""
     obstacles = []
     obstacles_raw = data.get("obstacles", [])
     if not isinstance(obstacles_raw, list):
@@ -467,9 +498,7 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
             raise c.fail(key, f"unknown key(s) {sorted(unknown)} for a {kind}",
                          fix=f"allowed: {sorted(allowed)}")
         ox, oy = c.vector(o, key, "center", 2)
-        if not inside(ox, oy):
-            raise c.fail(f"{key}.center", f"({ox}, {oy}) is outside the floor "
-                         f"{_fmt_bounds(size, center)}")
+        _on_floor(c, key, (ox, oy), size, center)
         height = c.number(o, key, "height", positive=True)
         if kind == "box":
             bsize = c.vector(o, key, "size", 2, positive=True)
@@ -480,31 +509,25 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
                 Obstacle("cylinder", ox, oy, height, radius=c.number(o, key, "radius",
                                                                     positive=True))
             )
+    return tuple(obstacles)
 
-    arena = ArenaConfig(
-        name=name,
-        size=(size[0], size[1]),
-        wall_height=wall_height,
-        wall_thickness=wall_thickness,
-        start=start,
-        goals=tuple(goals),
-        obstacles=tuple(obstacles),
-        description=description,
-        source=str(path),
-        source_sha256=sha,
-        center=center,
-        map_walls=map_walls,
-    )
-    if arena.occupied(np.array(start[:2])):
-        raise c.fail("start.pose", f"start position {start[:2]} is inside an obstacle or wall")
+
+def _check_placements(c: _Checker, arena: ArenaConfig, clearance: float) -> None:
+    """The start in free space (with ``clearance`` m around it on a map arena) and no goal
+    centre inside an obstacle or on a wall pixel."""
+    sx, sy = arena.start[:2]
+    if arena.occupied(np.array([sx, sy])):
+        raise c.fail("start.pose", f"start position {arena.start[:2]} is inside an obstacle "
+                     "or wall")
+    map_walls = arena.map_walls
     if map_walls is not None:
         ang = np.linspace(0.0, 2 * math.pi, 48, endpoint=False)
         rad = np.linspace(0.0, clearance, 6)[1:, None]
         disc = np.stack([sx + rad * np.cos(ang), sy + rad * np.sin(ang)], axis=-1)
         hit = disc[arena.occupied(disc)]
         if hit.size:
-            raise c.fail("start.pose", f"the robot at {start[:2]} would overlap a wall (e.g. at "
-                         f"({hit[0][0]:.3f}, {hit[0][1]:.3f})) within {clearance} m",
+            raise c.fail("start.pose", f"the robot at {arena.start[:2]} would overlap a wall "
+                         f"(e.g. at ({hit[0][0]:.3f}, {hit[0][1]:.3f})) within {clearance} m",
                          fix="move the start into free space (map coordinates), or lower "
                              "[start] clearance")
     for i, g in enumerate(arena.goals):
@@ -512,4 +535,3 @@ def _parse(data: dict[str, Any], path: Path, sha: str) -> ArenaConfig:
             raise c.fail(f"goals[{i}].center", f"goal {g.name!r} centre is inside an obstacle")
         if map_walls is not None and map_walls.contains(np.array([g.x, g.y])):
             raise c.fail(f"goals[{i}].center", f"goal {g.name!r} centre is on a wall pixel")
-    return arena
