@@ -28,8 +28,9 @@ def run(args: argparse.Namespace) -> int:
     if mdp.n_actions == 16:
         line += (f"; mean entropy slow {mdp.slow_mean_entropy:.3f} bits, "
                  f"fast {mdp.fast_mean_entropy:.3f} bits")
-    line += f"; {result.summary['action_set']['n_actions']} actions " \
-            f"({result.summary['action_set']['convention']})"
+    aset = result.summary["action_set"]
+    line += (f"; {aset['n_actions']} actions ({aset['convention']})" if aset is not None
+             else "; named actions, not motion primitives")
     if result.summary["masked_pairs"]:
         line += (f"; {result.summary['masked_pairs']} untried (s, a) of visited states masked "
                  "for planners (--unvisited self-loop for the old rule)")

@@ -158,14 +158,23 @@ class TransitionDataset:
         return int(self.manifest["discretizer"]["n_states"])
 
     @property
-    def action_set(self) -> ActionSet:
-        """What action ``a`` means: the manifest's ``action_set`` (:data:`SIMLAB16` if absent)."""
+    def action_set(self) -> ActionSet | None:
+        """What action ``a`` means: the manifest's ``action_set`` (:data:`SIMLAB16` if absent);
+        None for a dataset of named non-primitive actions (:attr:`action_names`)."""
+        if self.action_names is not None:
+            return None
         return manifest_action_set(self.manifest, where=str(manifest_path(self.directory)))
 
     @property
+    def action_names(self) -> tuple[str, ...] | None:
+        """Names of the actions when they are not motion primitives (the manifest's
+        ``parameters.action_names`` with ``action_set: null``), else None."""
+        return manifest_action_names(self.manifest)
+
+    @property
     def n_actions(self) -> int:
-        """Number of actions A (8 or 16), from :attr:`action_set`."""
-        return self.action_set.n_actions
+        """Number of actions A (8 or 16, or the number of :attr:`action_names`)."""
+        return manifest_n_actions(self.manifest, where=str(manifest_path(self.directory)))
 
     @property
     def centres(self) -> np.ndarray:
@@ -205,6 +214,23 @@ def manifest_action_set(manifest: Mapping[str, Any], *, where: str = "manifest")
     record = manifest["action_set"]
     n = record.get("n_actions", N_ACTIONS) if isinstance(record, Mapping) else N_ACTIONS
     return action_set_from_metadata(manifest, int(n), where=where)
+
+
+def manifest_action_names(manifest: Mapping[str, Any]) -> tuple[str, ...] | None:
+    """``parameters.action_names`` of a manifest without an ``action_set`` record (datasets
+    of non-primitive actions, e.g. the social task's 22), else None."""
+    names = manifest.get("parameters", {}).get("action_names")
+    if manifest.get("action_set") is not None or not isinstance(names, list) or not names:
+        return None
+    return tuple(str(n) for n in names)
+
+
+def manifest_n_actions(manifest: Mapping[str, Any], *, where: str = "manifest") -> int:
+    """Number of actions of a dataset manifest (named actions, else its action set)."""
+    names = manifest_action_names(manifest)
+    if names is not None:
+        return len(names)
+    return manifest_action_set(manifest, where=where).n_actions
 
 
 def _expected_fields(manifest: Mapping[str, Any]) -> dict[str, str]:
@@ -282,7 +308,7 @@ def validate_part(
     table = _read_part(path)
     if table.num_rows != entry["rows"]:
         raise DataError(f"{path}: {table.num_rows} rows, the manifest says {entry['rows']}")
-    n_actions = manifest_action_set(manifest, where=str(manifest_path(directory))).n_actions
+    n_actions = manifest_n_actions(manifest, where=str(manifest_path(directory)))
     _check_values(path, table, entry, int(manifest["discretizer"]["n_states"]), n_actions)
     return table.replace_schema_metadata(None)
 

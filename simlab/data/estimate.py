@@ -335,7 +335,7 @@ class _Source:
     """What the dataset or the count table gives the model (arrays as loaded)."""
 
     counts: NDArray[np.int64]
-    action_set: ActionSet
+    action_set: ActionSet | None
     summary: dict[str, Any]
     states_hash: str | None = None
     centres: NDArray[np.float64] | None = None
@@ -408,13 +408,18 @@ def _from_dataset(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
     ds = open_dataset(dataset, validate=True,
                       expected_discretizer=None if disc is None else disc.content_hash())
     S, A = ds.n_states, ds.n_actions
-    action_set = getattr(ds, "action_set", None) or SIMLAB16
-    if cfg.action_set is not None and cfg.action_set != action_set:
+    names = getattr(ds, "action_names", None)
+    action_set = None if names is not None else (getattr(ds, "action_set", None) or SIMLAB16)
+    if action_set is None:  # named non-primitive actions (e.g. the social task's 22)
+        if cfg.action_set is not None:
+            raise ConfigError("the dataset's actions are not motion primitives",
+                              path=dataset, key="action_set", fix="leave action_set out")
+    elif cfg.action_set is not None and cfg.action_set != action_set:
         raise ConfigError(
             f"the dataset records {action_set.describe()}, not {cfg.action_set.describe()}",
             path=dataset, key="action_set",
             fix="leave --n-actions/--convention/--speed out for a dataset")
-    if action_set.n_actions != A:
+    if action_set is not None and action_set.n_actions != A:
         raise ConfigError(f"the dataset has {A} actions but records "
                           f"{action_set.describe()}", path=dataset, key="action_set")
     ds.warn_if_incomplete("the model")
@@ -480,13 +485,18 @@ def _from_counts(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
         bounds=None if arena_cfg is None else [float(v) for v in arena_cfg.bounds])
 
 
+def _action_set_json(src: _Source) -> dict[str, Any] | None:
+    """The action set record; None for a dataset of named non-primitive actions."""
+    return None if src.action_set is None else src.action_set.to_json()
+
+
 def _model_arrays(mdp: CountModel, src: _Source, unvisited: str
                   ) -> tuple[dict[str, Any], dict[str, list[int]] | None]:
     """The arrays of ``mdp.npz`` and the goal states (None without centres or goals)."""
     from simlab.data.goals import goal_state_masks
 
     # the states fingerprint: train and replay check it against their states file
-    meta = {"action_set": src.action_set.to_json(), "unvisited": unvisited}
+    meta = {"action_set": _action_set_json(src), "unvisited": unvisited}
     if src.states_hash is not None:
         meta["states_hash"] = src.states_hash
     arrays: dict[str, Any] = {
@@ -529,7 +539,7 @@ def _summary(mdp: CountModel, src: _Source, unvisited: str,
             "overall_mean_visited": float(mdp.entropy[mdp.visited].mean())
             if mdp.visited.any() else None,
         },
-        "action_set": src.action_set.to_json(),
+        "action_set": _action_set_json(src),
         "unvisited": unvisited,
         "unvisited_rule": (
             "T[s, a, s] = 1, flagged visited[s, a] = False; "

@@ -141,6 +141,9 @@ class DatasetInfo:
         simulator: what produced the motion (``real`` for a real robot).
         parameters: extra ``parameters`` entries (free-form, JSON-able).
         seed: recorded seed (0 when nothing was random).
+        action_names: for actions that are not motion primitives (e.g. the 22 actions of
+            the social task): one name per action index. The manifest then records
+            ``action_set: null`` and ``parameters.action_names``; ``action_set`` is ignored.
     """
 
     discretizer: Any
@@ -152,8 +155,15 @@ class DatasetInfo:
     simulator: str = "real"
     parameters: Mapping[str, Any] = field(default_factory=dict)
     seed: int = 0
+    action_names: Sequence[str] | None = None
 
     def __post_init__(self) -> None:
+        if self.action_names is not None:
+            names = tuple(str(n) for n in self.action_names)
+            if not names or len(set(names)) != len(names):
+                raise ConfigError("expected distinct, non-empty action names",
+                                  key="action_names")
+            object.__setattr__(self, "action_names", names)
         if self.pose_source not in POSE_SOURCE_NAMES:
             raise ConfigError(f"unknown pose source {self.pose_source!r}", key="pose_source",
                               fix=f"choose one of {', '.join(POSE_SOURCE_NAMES)}")
@@ -288,7 +298,8 @@ def write_dataset(
                               key=f"walk {w}: truth")
     disc = load_discretizer(info.discretizer)
     n_states, aset = int(disc.n_states), info.action_set
-    states = [_states(walk, disc, n_states, aset.n_actions, w) for w, walk in enumerate(walks)]
+    n_actions = aset.n_actions if info.action_names is None else len(info.action_names)
+    states = [_states(walk, disc, n_states, n_actions, w) for w, walk in enumerate(walks)]
     schema = transition_schema(info.pose_source)
     manifest = new_manifest(
         simlab_version=__version__, arena=info.arena, robot=info.robot,
@@ -296,10 +307,12 @@ def write_dataset(
         discretizer={"hash": disc.content_hash(), "n_states": n_states,
                      "centres": np.asarray(disc.centres, dtype=np.float64).tolist()},
         seed=int(info.seed), workers=len(walks),
-        parameters={**dict(info.parameters), "n_actions": aset.n_actions,
-                    "part_size": int(part_size)},
+        parameters={**dict(info.parameters), "n_actions": n_actions,
+                    "part_size": int(part_size),
+                    **({} if info.action_names is None
+                       else {"action_names": list(info.action_names)})},
         schema=schema_to_json(schema))
-    manifest["action_set"] = aset.to_json()
+    manifest["action_set"] = aset.to_json() if info.action_names is None else None
     manifest["provenance"] = dict(info.provenance)
     manifest["writer"] = "simlab.data.writer"
     out = Path(out)

@@ -25,6 +25,7 @@ ENV_ENTRY_POINTS: dict[str, str] = {
     "simlab/VisitLab-Nav-v0": "simlab.visitlab.envs:NavEnv",
     "simlab/VisitLab-Social-v0": "simlab.visitlab.envs:SocialEnv",
     "simlab/VisitLab-GoToHuman-v0": "simlab.visitlab.envs:GoToHumanEnv",
+    "simlab/TableSocial-v0": "simlab.social.env:TableSocialEnv",
 }
 
 #: Episode limits registered with Gymnasium (``spec.max_episode_steps``; ``TimeLimit``
@@ -41,6 +42,7 @@ ENV_LIMITS: dict[str, tuple[int, dict[str, None]]] = {
     "simlab/VisitLab-Nav-v0": (50, {"max_steps": None}),
     "simlab/VisitLab-Social-v0": (40, {"max_steps": None}),
     "simlab/VisitLab-GoToHuman-v0": (40, {"max_steps": None}),
+    "simlab/TableSocial-v0": (40, {"max_steps": None}),
 }
 
 

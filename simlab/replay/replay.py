@@ -183,11 +183,12 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     goal_names = tuple(str(g) for g in goal_names)
     qt = None if cfg.qtables is None else load_qtables(cfg.qtables, goal_names, disc.n_states,
                                                        states_src, action_set=cfg.action_set)
+    _check_hashes(disc, qt, None, states_src)  # the Q-tables first: the user's own input
     mdp_source = cfg.mdp if cfg.mdp is not None else (None if qt is None else discover_mdp(qt))
     model = None if mdp_source is None else load_model(
         mdp_source, disc, goal_names, goal_masks,
         action_set=None if qt is None else qt.action_set)
-    _check_hashes(disc, qt, mdp_source, states_src)
+    _check_hashes(disc, None, mdp_source, states_src)
     action_set, valid = _actions_and_mask(qt, model)
     grid, map_check = load_map_for_arena(cfg.map, arena_cfg)
     params, params_source = primitive_params_for(model, cfg.params)

@@ -52,6 +52,7 @@ from simlab import validation
 from simlab.actions import HEADINGS
 from simlab.errors import ConfigError
 from simlab.physics.robot import wrap_angle
+from simlab.visitlab.perception import percept_level
 
 #: Social observation dims (interaction 0-7, distance 0-4, required direction, angle).
 SOCIAL_DIMS = (8, 5, 8, 8)
@@ -197,16 +198,7 @@ def percepts(robot_pose: NDArray[np.float64] | tuple[float, float, float],
     h_sees = visible and in_field(human_pose[2], to_robot, p.visual)
     h_looks = visible and in_field(human_pose[2], to_robot, p.facing)
     r_looks = visible and in_field(robot_pose[2], to_human, p.facing)
-    if h_looks and r_looks:
-        level = 4
-    elif h_sees and r_looks:
-        level = 3
-    elif h_looks:
-        level = 2
-    elif h_sees:
-        level = 1
-    else:
-        level = 0
+    level = int(percept_level(bool(h_sees), bool(h_looks), bool(r_looks)))
     return Percepts(level=level, distance_class=distance_class(d, p),
                     angle=quantise_direction(to_human), distance=d, visible=bool(visible),
                     h_sees=bool(h_sees), h_looks=bool(h_looks), r_looks=bool(r_looks))

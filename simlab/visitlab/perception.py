@@ -264,6 +264,22 @@ def line_of_sight(
 
 
 @njit(cache=True)
+def percept_level(h_sees: bool, h_looks: bool, r_looks: bool) -> int:
+    """The percept level 0-4 (thesis 2.1.2) from who sees whom: 4 both look at each other,
+    3 the human sees a robot that looks at it, 2 the human looks at the robot, 1 the human
+    sees it, 0 not perceived. Shared by the grid and the physics social task."""
+    if h_looks and r_looks:
+        return 4
+    if h_sees and r_looks:
+        return 3
+    if h_looks:
+        return 2
+    if h_sees:
+        return 1
+    return 0
+
+
+@njit(cache=True)
 def percepts(
     walls_h: np.ndarray,
     walls_v: np.ndarray,
@@ -300,17 +316,7 @@ def percepts(
         h_sees = visible and h_gap <= pcfg[P_VISUAL]
         h_looks = visible and h_gap <= pcfg[P_FACING]
         r_looks = visible and sector_gap(robot_ori, angle) <= pcfg[P_FACING]
-    if h_looks and r_looks:
-        level = 4
-    elif h_sees and r_looks:
-        level = 3
-    elif h_looks:
-        level = 2
-    elif h_sees:
-        level = 1
-    else:
-        level = 0
-    return level, dist, angle, h_sees, h_looks, r_looks
+    return percept_level(h_sees, h_looks, r_looks), dist, angle, h_sees, h_looks, r_looks
 
 
 

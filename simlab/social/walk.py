@@ -1,0 +1,195 @@
+"""The social random walk: an empirical social MDP's data, as a simlab dataset (issue 18, 3).
+
+:func:`social_walk` drives :class:`~simlab.social.task.SocialTable` with actions drawn
+uniformly from the 22 social actions and records every decision: the observed social
+state ``s`` (0-2559, the grid's index of interaction level, distance class, required
+direction and angle; :func:`decode_social`), the action, ``s'``, the social reward, the
+start time and duration (simulated s), the robot's and the human's poses before and after,
+and whether a primitive was blocked. :func:`write_social_dataset` writes it through the
+public writer :func:`simlab.data.writer.write_dataset`, so ``simlab estimate``, the entropy
+and the coverage read it like any navigation dataset.
+
+Decisions (the issue left them open):
+
+* **Episodes.** The walk restarts (new random robot and human poses, new required
+  direction) every ``episode_steps`` decisions (default 40, the grid's social trial
+  length), so that the data covers the table rather than one corner of it; transitions
+  never cross a restart, the clock runs on.
+* **Seeds.** Worker ``w`` draws from ``SeedSequence(seed).spawn(workers)[w]``: one stream
+  for the actions, one for the episodes' seeds of :meth:`SocialTable.reset`. Same seed,
+  workers and budget -> the same dataset (content). Workers run one after the other on one
+  PyBullet world (each episode resets it), so their count changes the data, not speed.
+* **Columns.** The dataset schema is the navigation one: ``x, y, yaw`` are the robot's
+  poses (true pose, ``pose_source="truth"``); ``s, s_next`` are the social states. The
+  human's poses and the rewards do not fit the schema; they stay in the returned
+  :class:`SocialWalk` (and the dataset's provenance records the total reward).
+* **States record.** The dataset's discretizer is :class:`SocialStates`: 2560 states whose
+  ``centres`` are chart coordinates, not metres (x = level * 5 + distance class,
+  y = required direction * 8 + angle), and which has no poses -> states mapping.
+* **Actions.** 22 actions are not an :class:`~simlab.actions.ActionSet` (8 or 16
+  primitives): the manifest records ``action_set: null`` and ``parameters.action_names``
+  (:data:`ACTION_NAMES`), the writer's ``DatasetInfo.action_names``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab import validation
+from simlab.physics.motion import N_ACTIONS
+from simlab.social.actions import N_SOCIAL_ACTIONS, SocialAction
+from simlab.social.perception import SOCIAL_DIMS
+from simlab.social.task import SocialConfig, SocialTable
+
+#: Number of social states (levels 8 x distance classes 5 x directions 8 x angles 8).
+N_SOCIAL_STATES = int(np.prod(SOCIAL_DIMS))
+
+_DIRS = ("up", "down", "left", "right", "up-left", "up-right", "down-left", "down-right")
+#: Name of every social action, index order (the manifest's ``parameters.action_names``).
+ACTION_NAMES: tuple[str, ...] = tuple(
+    f"{'slow' if a < 8 else 'fast'}-{_DIRS[a % 8]}" for a in range(N_ACTIONS)
+) + tuple(a.name for a in SocialAction)
+
+
+def decode_social(s: NDArray[np.int64] | int) -> NDArray[np.int64]:
+    """Social state index -> ``(..., 4)`` ``(level, distance class, required direction,
+    angle)``; raises ValueError outside 0..2559."""
+    arr = np.asarray(s, dtype=np.int64)
+    if arr.size and (arr.min() < 0 or arr.max() >= N_SOCIAL_STATES):
+        raise ValueError(f"social states are 0..{N_SOCIAL_STATES - 1}, got {arr.min()}.."
+                         f"{arr.max()}")
+    return np.stack(np.unravel_index(arr, SOCIAL_DIMS), axis=-1).astype(np.int64)
+
+
+class SocialStates:
+    """The 2560 social states as a dataset discretizer (module docstring, "States record")."""
+
+    n_states = N_SOCIAL_STATES
+
+    @property
+    def centres(self) -> NDArray[np.float64]:
+        """Chart coordinates ``(2560, 2)``: (level * 5 + distance, direction * 8 + angle)."""
+        d = decode_social(np.arange(N_SOCIAL_STATES))
+        return np.stack([d[:, 0] * 5 + d[:, 1], d[:, 2] * 8 + d[:, 3]], axis=1).astype(float)
+
+    def state_of(self, xy: NDArray[np.float64]) -> NDArray[np.int64]:
+        raise ValueError("social states do not follow from poses; give s and s_next")
+
+    def content_hash(self) -> str:
+        """Fixed fingerprint of the social index (its dimensions and order)."""
+        return hashlib.sha256(f"simlab-social-states{SOCIAL_DIMS}".encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class WalkConfig:
+    """A social random walk: ``steps`` decisions per worker, restarts every
+    ``episode_steps``, ``workers`` independent walks, the task's ``social`` settings."""
+
+    steps: int = 1000
+    episode_steps: int = 40
+    workers: int = 1
+    seed: int = 0
+    social: SocialConfig = field(default_factory=SocialConfig)
+
+    def __post_init__(self) -> None:
+        validation.whole(self.steps, "WalkConfig.steps", minimum=1)
+        validation.whole(self.episode_steps, "WalkConfig.episode_steps", minimum=1)
+        validation.whole(self.workers, "WalkConfig.workers", minimum=1)
+        validation.whole(self.seed, "WalkConfig.seed", minimum=0)
+
+
+@dataclass(frozen=True)
+class SocialWalk:
+    """One worker's transitions, ``N`` rows: ``s, a, s_next`` int64; ``reward``, ``t``
+    (start, s), ``duration`` (s) float64; ``blocked`` bool; ``robot``, ``robot_next``,
+    ``human``, ``human_next`` ``(N, 3)`` poses (m, m, rad); ``episode`` int64."""
+
+    s: NDArray[np.int64]
+    a: NDArray[np.int64]
+    s_next: NDArray[np.int64]
+    reward: NDArray[np.float64]
+    t: NDArray[np.float64]
+    duration: NDArray[np.float64]
+    blocked: NDArray[np.bool_]
+    robot: NDArray[np.float64]
+    robot_next: NDArray[np.float64]
+    human: NDArray[np.float64]
+    human_next: NDArray[np.float64]
+    episode: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.s)
+
+    @property
+    def simulated_hours(self) -> float:
+        """Simulated time of the walk (h)."""
+        return float(self.duration.sum()) / 3600.0
+
+
+def _walk_one(table: SocialTable, cfg: WalkConfig, seq: np.random.SeedSequence) -> SocialWalk:
+    """One worker's walk on ``table`` (see the module docstring)."""
+    act_seq, ep_seq = seq.spawn(2)
+    act_rng, ep_rng = np.random.default_rng(act_seq), np.random.default_rng(ep_seq)
+    rows: dict[str, list] = {k: [] for k in SocialWalk.__dataclass_fields__}
+    clock, episode, obs = 0.0, -1, 0
+    for k in range(cfg.steps):
+        if k % cfg.episode_steps == 0:
+            episode += 1
+            obs = table.reset(int(ep_rng.integers(0, 2**63 - 1)))
+        a = int(act_rng.integers(0, N_SOCIAL_ACTIONS))
+        robot, human = table.world.pose(), table.human_pose.copy()
+        nxt, reward, info = table.step(a)
+        for key, value in (("s", obs), ("a", a), ("s_next", nxt), ("reward", reward),
+                           ("t", clock), ("duration", info.duration),
+                           ("blocked", info.blocked), ("robot", robot),
+                           ("robot_next", info.robot_pose), ("human", human),
+                           ("human_next", info.human_pose), ("episode", episode)):
+            rows[key].append(value)
+        clock += info.duration
+        obs = nxt
+    dtypes = {"s": np.int64, "a": np.int64, "s_next": np.int64, "episode": np.int64,
+              "blocked": bool}
+    return SocialWalk(**{k: np.asarray(v, dtype=dtypes.get(k, np.float64)).reshape(
+        (cfg.steps, 3) if k in ("robot", "robot_next", "human", "human_next") else (cfg.steps,))
+        for k, v in rows.items()})
+
+
+def social_walk(cfg: WalkConfig) -> list[SocialWalk]:
+    """Run the random walk: one :class:`SocialWalk` per worker (module docstring)."""
+    seqs = np.random.SeedSequence(cfg.seed).spawn(cfg.workers)
+    with SocialTable(cfg.social) as table:
+        return [_walk_one(table, cfg, seq) for seq in seqs]
+
+
+def write_social_dataset(out: str | os.PathLike[str], cfg: WalkConfig, *,
+                         overwrite: bool = False, part_size: int = 10_000
+                         ) -> tuple[object, list[SocialWalk]]:
+    """Walk and write the simlab dataset into ``out``; returns (the writer's
+    :class:`~simlab.data.writer.WriteResult`, the walks)."""
+    from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
+
+    walks = social_walk(cfg)
+    arrays = [TransitionArrays(t=w.t, a=w.a, pose=w.robot, pose_next=w.robot_next,
+                               blocked=w.blocked, duration=w.duration, s=w.s, s_next=w.s_next)
+              for w in walks]
+    social = cfg.social
+    human = social.human
+    info = DatasetInfo(
+        discretizer=SocialStates(), pose_source="truth", action_names=ACTION_NAMES,
+        arena={"name": str(social.arena), "kind": "social"}, simulator="physics",
+        robot={"model": "turtlebot3_burger"}, seed=cfg.seed,
+        parameters={"state_space": "social", "social_dims": list(SOCIAL_DIMS),
+                    "steps": cfg.steps, "episode_steps": cfg.episode_steps,
+                    "human": dataclasses.asdict(human),
+                    "redraw_p": social.redraw_p, "signal_time": social.signal_time},
+        provenance={"walk": "simlab.social.walk.social_walk (uniform over 22 actions)",
+                    "reward_total": float(sum(w.reward.sum() for w in walks)),
+                    "simulated_hours": sum(w.simulated_hours for w in walks)})
+    result = write_dataset(out, arrays, info, overwrite=overwrite, part_size=part_size)
+    return result, walks
