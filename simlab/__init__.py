@@ -8,8 +8,10 @@ Two halves share one agent library (:mod:`simlab.agents`):
 * the tabular half (:mod:`simlab.visitlab`): the "Visit the lab" human-robot
   interaction simulation.
 
-Importing :mod:`simlab` registers the Gymnasium environments (``simlab/...-v0``);
-the heavy modules are imported only when an environment is made.
+Importing :mod:`simlab` registers the Gymnasium environments (``simlab/...-v0``) as soon
+as Gymnasium is imported (at once if it already is; :func:`simlab.envs.register_when_imported`),
+so importing simlab does not import Gymnasium; the heavy modules are imported only when an
+environment is made.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ try:
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+src"
 
-from simlab.envs import register_envs as _register_envs
+from simlab.envs import register_when_imported as _register_when_imported
 
-_register_envs()
+_register_when_imported()
 
 __all__ = ["__version__"]

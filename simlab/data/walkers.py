@@ -41,8 +41,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.actions import HEADINGS
-from simlab.data.schema import N_ACTIONS
+from simlab.actions import HEADINGS, SIMLAB16
 from simlab.errors import ConfigError
 from simlab.localization.sources import (  # noqa: F401 (the names stay importable here)
     POSE_SOURCES,
@@ -53,6 +52,10 @@ from simlab.localization.sources import (  # noqa: F401 (the names stay importab
     check_pose_source_name,
     make_pose_source,
 )
+
+#: Number of motion primitives (= :data:`simlab.data.schema.N_ACTIONS`), taken from the action
+#: set so that a worker process does not import the schema's PyArrow (0.1 s; issue 17).
+N_ACTIONS = SIMLAB16.n_actions
 
 SIMULATORS = ("physics", "kinematic")
 

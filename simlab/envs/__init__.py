@@ -2,11 +2,20 @@
 
 Entry points are strings so that ``import simlab`` stays cheap: PyBullet, numba
 kernels and the like load only when ``gymnasium.make`` builds an environment.
+
+Gymnasium itself (0.1-0.4 s to import) is not imported by ``import simlab`` either
+(issue 17): :func:`register_when_imported` registers the environments at once if
+Gymnasium is already imported, and otherwise the moment it is (a one-shot import hook),
+so ``import simlab; import gymnasium as gym; gym.make("simlab/...")`` works as before
+while the pipeline's worker processes, which never make an environment, skip it.
 """
 
 from __future__ import annotations
 
-import gymnasium as gym
+import importlib.abc
+import importlib.machinery
+import sys
+from typing import Any
 
 #: id -> "module:Class" entry point. One line per environment.
 ENV_ENTRY_POINTS: dict[str, str] = {
@@ -38,9 +47,51 @@ ENV_LIMITS: dict[str, tuple[int, dict[str, None]]] = {
 
 
 def register_envs() -> None:
-    """Register every simlab environment with Gymnasium (idempotent)."""
+    """Register every simlab environment with Gymnasium (idempotent; imports Gymnasium)."""
+    import gymnasium as gym
+
     for env_id, entry_point in ENV_ENTRY_POINTS.items():
         if env_id not in gym.registry:
             limit, kwargs = ENV_LIMITS.get(env_id, (None, {}))
             gym.register(id=env_id, entry_point=entry_point, max_episode_steps=limit,
                          kwargs=dict(kwargs))
+
+
+class _RegisterOnLoad(importlib.abc.Loader):
+    """Runs Gymnasium's own loader, then :func:`register_envs`."""
+
+    def __init__(self, loader: Any) -> None:
+        self._loader = loader
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> Any:
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module: Any) -> None:
+        self._loader.exec_module(module)
+        register_envs()
+
+
+class _GymnasiumHook(importlib.abc.MetaPathFinder):
+    """One-shot finder: wraps the loader of the top-level ``gymnasium`` import."""
+
+    def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
+        if name != "gymnasium":
+            return None
+        _remove_hook()
+        spec = importlib.machinery.PathFinder.find_spec(name, path)
+        if spec is None or spec.loader is None:
+            return spec
+        spec.loader = _RegisterOnLoad(spec.loader)
+        return spec
+
+
+def _remove_hook() -> None:
+    sys.meta_path[:] = [f for f in sys.meta_path if not isinstance(f, _GymnasiumHook)]
+
+
+def register_when_imported() -> None:
+    """Register the environments now if Gymnasium is imported, else when it is."""
+    if "gymnasium" in sys.modules:
+        register_envs()
+    elif not any(isinstance(f, _GymnasiumHook) for f in sys.meta_path):
+        sys.meta_path.insert(0, _GymnasiumHook())

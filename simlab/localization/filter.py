@@ -176,6 +176,58 @@ def _mean_shift(p, w, r2, max_angle, steps):  # pragma: no cover - compiled
     return centre
 
 
+@numba.njit(cache=True)
+def _reweight(weights, loglik, out):  # pragma: no cover - compiled
+    """One pass each over ``(N,)``: ``out = normalised weights * exp(loglik)``; returns
+    (log of the normaliser, effective sample size of ``out``). Zero weights stay zero."""
+    n = weights.shape[0]
+    top = -math.inf
+    for i in range(n):
+        lw = math.log(weights[i]) + loglik[i] if weights[i] > 0.0 else -math.inf
+        out[i] = lw
+        if lw > top:
+            top = lw
+    acc = 0.0
+    for i in range(n):
+        acc += math.exp(out[i] - top)
+    total = top + math.log(acc)
+    sq = 0.0
+    for i in range(n):
+        v = math.exp(out[i] - total)
+        out[i] = v
+        sq += v * v
+    return total, 1.0 / sq
+
+
+@numba.njit(cache=True)
+def _spread(p, weights):  # pragma: no cover - compiled
+    """(position std (m), heading std (rad)) of particles ``p`` ``(N, 3)``: the traces of
+    :meth:`ParticleFilter.covariance` in two passes, no temporaries."""
+    n = p.shape[0]
+    wsum = 0.0
+    for i in range(n):
+        wsum += weights[i]
+    mx = my = ms = mc = 0.0
+    for i in range(n):
+        w = weights[i] / wsum
+        mx += w * p[i, 0]
+        my += w * p[i, 1]
+        ms += w * math.sin(p[i, 2])
+        mc += w * math.cos(p[i, 2])
+    myaw = math.atan2(ms, mc)
+    two_pi = 2.0 * math.pi
+    cxx = cyy = caa = 0.0
+    for i in range(n):
+        w = weights[i] / wsum
+        dx = p[i, 0] - mx
+        dy = p[i, 1] - my
+        da = (p[i, 2] - myaw + math.pi) % two_pi - math.pi
+        cxx += w * dx * dx
+        cyy += w * dy * dy
+        caa += w * da * da
+    return math.sqrt(max(0.0, cxx + cyy)), math.sqrt(max(0.0, caa))
+
+
 def mean_shift_numpy(p: NDArray[np.float64], w: NDArray[np.float64], r2: float,
                      max_angle: float, steps: int) -> NDArray[np.float64]:
     """Plain-numpy reference of the compiled mean shift of :meth:`ParticleFilter.estimate`."""
@@ -319,11 +371,9 @@ class ParticleFilter:
             return False
         loglik = self.field.log_likelihoods(self.particles, ranges, angles,
                                             np.asarray(scan.sensor_offset, dtype=np.float64))
-        with np.errstate(divide="ignore"):
-            logw = np.log(self.weights) + loglik
-        top = float(logw.max())
-        total = top + math.log(float(np.exp(logw - top).sum()))
-        self.weights = np.exp(logw - total)
+        weights = np.empty_like(self.weights)
+        total, ess = _reweight(self.weights, loglik, weights)  # one fused compiled pass
+        self.weights = weights
         # Per-beam geometric mean of the predictive likelihood sum_i w_i p(z | x_i).
         fit = math.exp(total / k_used)
         self.last_fit = fit
@@ -333,7 +383,7 @@ class ParticleFilter:
         self.n_updates += 1
         self._estimate = self._mode_estimate()
         inject = self.injection_probability
-        if inject > 0 or effective_sample_size(self.weights) < p.resample_threshold * p.n_particles:
+        if inject > 0 or ess < p.resample_threshold * p.n_particles:
             self._resample(inject)
         return True
 
@@ -379,6 +429,8 @@ class ParticleFilter:
         return (d * w[:, None]).T @ d
 
     def spread(self) -> tuple[float, float]:
-        """``(position std (m), heading std (rad))`` of the particle cloud."""
-        c = self.covariance()
-        return math.sqrt(max(0.0, c[0, 0] + c[1, 1])), math.sqrt(max(0.0, c[2, 2]))
+        """``(position std (m), heading std (rad))`` of the particle cloud: the traces of
+        :meth:`covariance` by one compiled kernel (equal within float rounding, issue 17)."""
+        self._check_init()
+        pos, yaw = _spread(self.particles, self.weights)
+        return float(pos), float(yaw)

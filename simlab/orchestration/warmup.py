@@ -28,7 +28,7 @@ import numpy as np
 
 
 def warm_mcl() -> None:
-    """Compile the particle filter's kernels (likelihood field, mean shift) with the
+    """Compile the particle filter's kernels (likelihood field, reweighting, mean shift, spread) with the
     signatures of a replay: one predict and one update on a coarse map of the table."""
     from types import SimpleNamespace
 
@@ -45,6 +45,7 @@ def warm_mcl() -> None:
     scan = SimpleNamespace(ranges=np.full(n, 0.3), angles=np.arange(n) * (2 * np.pi / n),
                            sensor_offset=np.array([-0.03, 0.0]))
     pf.update(scan)
+    pf.spread()
 
 
 def warm_training(agent: str = "vi-softmax") -> None:

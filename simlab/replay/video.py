@@ -34,7 +34,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.io import atomic_write
-from simlab.physics.render import TRAIL, TopDown
+from simlab.physics.render import (
+    FLOOR,
+    GOAL,
+    GOAL_ACTIVE,
+    HEADING,
+    OBSTACLE,
+    ROBOT,
+    SCAN,
+    TRAIL,
+    WALL,
+    TopDown,
+)
 
 HEADER_PX = 26
 CELL_EDGE = (70, 70, 70)
@@ -43,6 +54,13 @@ STATE_OUTLINE = (230, 30, 30)
 ESTIMATE = (230, 30, 30)
 PARTICLE = (40, 90, 230)
 ARROW = (255, 255, 255)
+HEADER_TEXT = (20, 20, 20)
+
+#: The colours the replay draws flat (arena, robot, trail, overlays, header): the GIF's one
+#: palette keeps each of them exactly, whatever else the frames hold.
+SCENE_COLOURS: tuple[tuple[int, int, int], ...] = (
+    (255, 255, 255), HEADER_TEXT, FLOOR, WALL, OBSTACLE, GOAL, GOAL_ACTIVE, ROBOT, HEADING,
+    TRAIL, SCAN, CELL_EDGE, MAP_OCCUPIED, STATE_OUTLINE, PARTICLE)
 
 
 @dataclass(frozen=True)
@@ -180,24 +198,89 @@ class ReplayCanvas:
                         ESTIMATE, 2, cv2.LINE_AA, tipLength=0.4)
         goal = self.goal_names[frame.goal] if self.goal_names else str(frame.goal)
         text = f"t = {frame.t / 3600:.2f} h   goal {goal}   reward {frame.rewards}"
-        cv2.putText(img, text, (6, HEADER_PX - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (20, 20, 20),
+        cv2.putText(img, text, (6, HEADER_PX - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.45, HEADER_TEXT,
                     1, cv2.LINE_AA)
         return img
 
 
+def gif_palette(stack: NDArray[np.uint8], keep: Sequence[tuple[int, int, int]] = SCENE_COLOURS,
+                samples: int = 12) -> NDArray[np.uint8]:
+    """One 256-colour palette ``(256, 3)`` for all frames of ``stack`` ``(n, H, W, 3)``: the
+    ``keep`` colours exactly, the rest by median cut over ``samples`` evenly spaced frames
+    (every second row and column).
+
+    Decision (issue 17): one palette for the whole GIF instead of PIL's adaptive quantisation
+    of every frame (2.5 s of the 9 s video write at 146 frames): the frames share one arena
+    and a few flat colours, so one palette shows the same picture; the flat colours are kept
+    exact, the heat map's blends and anti-aliased edges move by a few levels at most.
+    """
+    from PIL import Image
+
+    keep_arr = np.asarray(keep, dtype=np.uint8).reshape(-1, 3)[:256]
+    n_free = 256 - len(keep_arr)
+    idx = np.unique(np.linspace(0, len(stack) - 1, min(len(stack), samples)).round().astype(int))
+    rest = np.zeros((0, 3), dtype=np.uint8)
+    if n_free > 0:
+        mosaic = Image.fromarray(np.ascontiguousarray(np.concatenate(stack[idx, ::2, ::2])))
+        q = mosaic.quantize(colors=n_free, method=Image.Quantize.MEDIANCUT,
+                            dither=Image.Dither.NONE)
+        used = len(q.getcolors(n_free) or ()) or n_free
+        rest = np.asarray(q.getpalette()[:3 * used], dtype=np.uint8).reshape(-1, 3)
+    palette = np.zeros((256, 3), dtype=np.uint8)
+    palette[:len(keep_arr)] = keep_arr
+    palette[len(keep_arr):len(keep_arr) + len(rest)] = rest[:n_free]
+    return palette
+
+
+class _Nearest:
+    """Exact nearest-palette-colour lookup ``(H, W, 3)`` uint8 -> ``(H, W)`` indices, the
+    answers cached per 24-bit colour (16 MB table), so each colour is searched once."""
+
+    def __init__(self, palette: NDArray[np.uint8]) -> None:
+        self.palette = palette.astype(np.int32)
+        self.table = np.zeros(1 << 24, dtype=np.uint8)
+        self.known = np.zeros(1 << 24, dtype=bool)
+
+    def __call__(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        key = (frame[..., 0].astype(np.int32) << 16) | (frame[..., 1].astype(np.int32) << 8) \
+            | frame[..., 2]
+        new = np.unique(key[~self.known[key]])
+        if new.size:
+            rgb = np.stack([new >> 16, (new >> 8) & 255, new & 255], axis=1)
+            d = ((rgb[:, None, :] - self.palette[None, :, :]) ** 2).sum(axis=2)
+            self.table[new] = np.argmin(d, axis=1)  # first of equals: kept colours win
+            self.known[new] = True
+        return self.table[key]
+
+
+def _write_gif(fh: Any, stack: NDArray[np.uint8], fps: float) -> None:
+    """The frames ``(n, H, W, 3)`` as a looping GIF with one palette (:func:`gif_palette`)."""
+    from PIL import Image
+
+    palette = gif_palette(stack)
+    nearest = _Nearest(palette)
+    images = []
+    for frame in stack:
+        im = Image.fromarray(nearest(frame), mode="P")
+        im.putpalette(palette.ravel().tolist())
+        images.append(im)
+    images[0].save(fh, format="GIF", save_all=True, append_images=images[1:],
+                   duration=round(1000.0 / fps), loop=0, optimize=False)
+
+
 def write_video(path: str | os.PathLike[str], frames: Sequence[NDArray[np.uint8]],
                 fps: float = 10.0) -> Path:
-    """Write ``frames`` (RGB uint8) atomically: GIF for ``.gif``, MP4 for ``.mp4`` (needs
-    imageio-ffmpeg)."""
-    import imageio.v3 as iio
-
+    """Write ``frames`` (RGB uint8) atomically: GIF for ``.gif`` (one palette for all frames,
+    :func:`gif_palette`), MP4 for ``.mp4`` (needs imageio-ffmpeg)."""
     path = Path(path)
     suffix = path.suffix.lower()
     stack = np.stack(list(frames))
     if suffix == ".gif":
         with atomic_write(path, "wb") as fh:
-            iio.imwrite(fh, stack, extension=".gif", duration=1000.0 / fps, loop=0)
+            _write_gif(fh, stack, fps)
     elif suffix == ".mp4":
+        import imageio.v3 as iio
+
         # ffmpeg needs a seekable real file: write beside the target, then rename.
         tmp = path.with_name(f".{path.name}.partial.mp4")
         try:
