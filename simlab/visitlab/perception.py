@@ -263,7 +263,7 @@ def line_of_sight(
     return los[cell_a, cell_b] != 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def percept_level(h_sees: bool, h_looks: bool, r_looks: bool) -> int:
     """The percept level 0-4 (thesis 2.1.2) from who sees whom: 4 both look at each other,
     3 the human sees a robot that looks at it, 2 the human looks at the robot, 1 the human
