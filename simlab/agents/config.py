@@ -18,11 +18,11 @@ value-iteration softmax then ends at 37-81 % of the optimal return, against
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
+from simlab import validation
 from simlab.errors import ConfigError
 
 __all__ = [
@@ -63,34 +63,6 @@ class Selection(IntEnum):
         raise ConfigError(f"unknown selection rule {value!r}; expected one of: {known}", key=key)
 
 
-def _check_prob(name: str, value: float) -> None:
-    if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
-        raise ConfigError(f"expected a probability in [0, 1], got {value!r}", key=name)
-
-
-def _check_gamma(value: float) -> None:
-    if not (isinstance(value, int | float) and 0.0 <= value < 1.0):
-        raise ConfigError(f"expected a discount factor in [0, 1), got {value!r}", key="gamma")
-
-
-def _check_positive(name: str, value: float, *, allow_zero: bool = False) -> None:
-    ok = isinstance(value, int | float) and math.isfinite(value)
-    ok = ok and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"expected a finite number {bound}, got {value!r}", key=name)
-
-
-def _check_int(name: str, value: int, minimum: int) -> None:
-    if not (isinstance(value, int) and not isinstance(value, bool) and value >= minimum):
-        raise ConfigError(f"expected an integer >= {minimum}, got {value!r}", key=name)
-
-
-def _check_finite(name: str, value: float) -> None:
-    if not (isinstance(value, int | float) and math.isfinite(value)):
-        raise ConfigError(f"expected a finite number, got {value!r}", key=name)
-
-
 def _check_bool(name: str, value: bool) -> None:
     if not isinstance(value, bool):
         raise ConfigError(f"expected true or false, got {value!r}", key=name)
@@ -98,8 +70,8 @@ def _check_bool(name: str, value: bool) -> None:
 
 def _check_selection(cfg: Any) -> None:
     object.__setattr__(cfg, "selection", Selection.parse(cfg.selection))
-    _check_prob("epsilon", cfg.epsilon)
-    _check_positive("tau", cfg.tau)
+    validation.probability(cfg.epsilon, "epsilon")
+    validation.positive(cfg.tau, "tau")
 
 
 def _initial_value(cfg: Any) -> float:
@@ -128,15 +100,15 @@ class QLearningConfig:
     """Largest one-step reward (sets the optimistic initial value)."""
 
     def __post_init__(self) -> None:
-        _check_gamma(self.gamma)
+        validation.discount(self.gamma)
         _check_selection(self)
         if not (isinstance(self.alpha, int | float) and 0.0 < self.alpha <= 1.0):
             raise ConfigError(
                 f"expected a learning rate in (0, 1], got {self.alpha!r}", key="alpha"
             )
         if self.q_init is not None:
-            _check_finite("q_init", self.q_init)
-        _check_finite("r_max", self.r_max)
+            validation.number(self.q_init, "q_init")
+        validation.number(self.r_max, "r_max")
 
     @property
     def initial_value(self) -> float:
@@ -187,7 +159,7 @@ class ModelBasedConfig:
     Thesis (False): untried pairs keep their initial value ``q_init``."""
 
     def __post_init__(self) -> None:
-        _check_gamma(self.gamma)
+        validation.discount(self.gamma)
         _check_selection(self)
         _check_bool("incremental", self.incremental)
         _check_bool("synchronous", self.synchronous)
@@ -196,13 +168,13 @@ class ModelBasedConfig:
             raise ConfigError("untried_uniform needs synchronous sweeps (the uniform model "
                               "of untried pairs is applied by the full sweep)",
                               key="untried_uniform", fix="also set synchronous = true")
-        _check_int("plan_every", self.plan_every, 0)
-        _check_int("max_sweeps", self.max_sweeps, 1)
-        _check_positive("tol", self.tol, allow_zero=True)
+        validation.whole(self.plan_every, "plan_every", minimum=0)
+        validation.whole(self.max_sweeps, "max_sweeps", minimum=1)
+        validation.positive(self.tol, "tol", allow_zero=True)
         if self.q_init is not None:
-            _check_finite("q_init", self.q_init)
-        _check_finite("r_max", self.r_max)
-        _check_int("capacity", self.capacity, 1)
+            validation.number(self.q_init, "q_init")
+        validation.number(self.r_max, "r_max")
+        validation.whole(self.capacity, "capacity", minimum=1)
 
     @property
     def initial_value(self) -> float:
@@ -219,7 +191,7 @@ class SlidingWindowConfig(ModelBasedConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _check_int("window", self.window, 1)
+        validation.whole(self.window, "window", minimum=1)
 
 
 @dataclass(frozen=True)
@@ -260,17 +232,17 @@ class RMaxConfig:
     counted). Thesis (False): counts keep accumulating after m visits."""
 
     def __post_init__(self) -> None:
-        _check_gamma(self.gamma)
-        _check_int("m", self.m, 1)
+        validation.discount(self.gamma)
+        validation.whole(self.m, "m", minimum=1)
         _check_bool("synchronous", self.synchronous)
         _check_bool("freeze", self.freeze)
-        _check_finite("r_max", self.r_max)
+        validation.number(self.r_max, "r_max")
         _check_bool("replan_when_known", self.replan_when_known)
         _check_bool("incremental", self.incremental)
-        _check_int("plan_every", self.plan_every, 0)
-        _check_int("max_sweeps", self.max_sweeps, 1)
-        _check_positive("tol", self.tol, allow_zero=True)
-        _check_int("capacity", self.capacity, 1)
+        validation.whole(self.plan_every, "plan_every", minimum=0)
+        validation.whole(self.max_sweeps, "max_sweeps", minimum=1)
+        validation.positive(self.tol, "tol", allow_zero=True)
+        validation.whole(self.capacity, "capacity", minimum=1)
 
 
 @dataclass(frozen=True)
@@ -301,7 +273,7 @@ class PassiveObserverConfig:
             raise ConfigError("expected a ModelBasedConfig", key="actor")
         if not isinstance(self.observer, QLearningConfig):
             raise ConfigError("expected a QLearningConfig", key="observer")
-        _check_prob("takeover_fraction", self.takeover_fraction)
+        validation.probability(self.takeover_fraction, "takeover_fraction")
 
     @property
     def gamma(self) -> float:
