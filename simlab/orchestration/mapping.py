@@ -28,17 +28,19 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from discretize.gridmap import OccupancyMap
-from discretize.occupancy import MapAccuracy, OccupancyGrid, map_accuracy
 from simlab import validation as v
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_json, output_transaction
 from simlab.localization.sources import SCANLESS_POSE_SOURCES
 from simlab.options import CommandConfig, command, option
+
+if TYPE_CHECKING:  # the occupancy kernels load numba: only when a map is built, not for --help
+    from discretize.gridmap import OccupancyMap
+    from discretize.occupancy import MapAccuracy, OccupancyGrid
 
 #: The pose sources the mapping run offers (those that need no LIDAR, the one list of
 #: :mod:`simlab.localization.sources`; kept under this name for callers).
@@ -142,6 +144,7 @@ def build_map(cfg: MapConfig) -> MapRun:
     * ``overwrite``: replace existing outputs; ``progress``: a bar over robot time.
     """
     from discretize.mapio import write_map
+    from discretize.occupancy import OccupancyGrid, map_accuracy
     from simlab.physics.arena import ArenaConfig, load_arena
     from simlab.physics.motion import PrimitiveParams
 
