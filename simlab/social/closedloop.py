@@ -330,7 +330,8 @@ def closed_loop_frames(run: ClosedLoopRun, config: ClosedLoopConfig | None = Non
                    f"reached={reached}")
         frames.append(closed_loop_frame(arena, spec, robots[k], humans[k], int(levels[k]),
                                         goal, caption, cfg.social.body, cfg.social.perception,
-                                        humans[max(0, k - trail):k + 1, :2], pixels_per_metre))
+                                        humans[max(0, k - trail):k + 1, :2], pixels_per_metre,
+                                        human_body=cfg.social.human_body))
     return frames
 
 

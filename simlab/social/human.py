@@ -2,9 +2,9 @@
 
 The human is a disc projected on the floor: a position ``(x, y)`` (m), a body orientation
 ``theta`` (rad, map frame) and, in :mod:`simlab.social.task`, an attention level. It has
-no PyBullet body: the robot's LIDAR and obstacle detector do not see it, and the robot
-could drive through it (the task keeps the two apart by stopping the human, not the
-robot). Its behaviour parameters are the presets of :mod:`simlab.visitlab.humans`
+no PyBullet body by default: the robot's LIDAR and obstacle detector do not see it, and
+the robot could drive through it (the task keeps the two apart by stopping the human, not
+the robot); ``SocialConfig.human_body="turtlebot"`` gives it a second TurtleBot's body. Its behaviour parameters are the presets of :mod:`simlab.visitlab.humans`
 (F/P/L/O/r and the speed probabilities s_H), read per decision step:
 
 * **metres per step = cells per step x** :attr:`HumanBody.cell_size`. Default 0.15 m:
