@@ -118,3 +118,16 @@ def test_odometry_source_reads_the_wheel_odometry():
 def test_unknown_pose_source_is_refused():
     with pytest.raises(ConfigError, match="pose_source"):
         SocialConfig(pose_source="gps")
+
+
+def test_mcl_source_tracks_the_robot_and_feeds_the_percepts():
+    with SocialTable(SocialConfig(pose_source="mcl")) as env:
+        env.reset(1, robot_pose=ROBOT, human_pose=np.array([0.4, 0.3, 0.0]))
+        for a in (1, 9, int(SocialAction.LOOK_H), 3, 12):
+            env.step(a)
+        est, truth = env.robot_pose_estimate(), env.world.pose()
+        assert not np.array_equal(est, truth)  # an estimate, not the truth
+        assert math.hypot(*(est[:2] - truth[:2])) < 0.03  # measured ~0.5 cm over 150 steps
+        h = env.human_pose
+        assert env.percepts().distance == pytest.approx(math.hypot(h[0] - est[0],
+                                                                   h[1] - est[1]), abs=1e-12)
