@@ -134,7 +134,9 @@ def execute_social_primitive(driver: Any, action: int, rng: np.random.Generator,
         heading = float(HEADINGS[action % 8])
         if human_in_corridor(world.pose()[:2], heading, action, human_xy, human_radius,
                              world.robot_spec, driver.params):
-            t = turn_to(world, heading, driver.params, ScanStepper(world, rng, None))
+            stepper = ScanStepper(world, rng, getattr(driver, "on_scan", None),
+                                  getattr(driver, "scan_beams", None))
+            t = turn_to(world, heading, driver.params, stepper)
             driver.observe()
             return t, True
     res = driver.execute(action, rng).result

@@ -11,8 +11,15 @@ with the robot in PyBullet and the kinematic human of :mod:`simlab.social`. Ever
    state for a pose where no robot stands (no scan), and it needs a dataset and an
    estimated MDP per goal: minutes of physics for every run. On the open table the
    straight heading is what an optimal navigation policy yields (no obstacle to go around,
-   goal areas are discs); an arena with obstacles would need a path planner here
-   (:func:`simlab.social.planning.plan_path` from the human), left for later.
+   goal areas are discs). When the straight line from the human to the goal centre is
+   blocked (a disc of the human's radius swept along it meets a wall or obstacle,
+   :func:`simlab.social.planning.segment_free`, analytic as the planner's free grid),
+   the required direction is the first leg of
+   :func:`simlab.social.planning.plan_path` from the human's position (clearance: the
+   human's radius) instead (:func:`simlab.social.planning.first_leg_bearing`), so the
+   human is led around the obstacle; without a path, the straight heading. On the open
+   table the line is never blocked (both ends lie in the convex free floor), so nothing
+   changes there.
 2. **Social module**: the grid social Q-table (``(2560, 30)``, trained with
    :func:`simlab.visitlab.training.train` on ``"social"``) read through
    :func:`simlab.social.actions.grid_q_to_physics` (``(2560, 22)``) at the physics social
@@ -65,6 +72,7 @@ from simlab.errors import ConfigError
 from simlab.physics.arena import ArenaConfig, GoalArea
 from simlab.social.actions import N_SOCIAL_ACTIONS, grid_q_to_physics
 from simlab.social.perception import bearing, quantise_direction
+from simlab.social.planning import first_leg_bearing, segment_free
 from simlab.social.task import SocialConfig, SocialTable
 
 
@@ -149,10 +157,18 @@ class ClosedLoopRun:
                 "engaged_fraction": round(float(np.mean(self.level >= 5)), 6) if n else 0.0}
 
 
-def goal_direction(human_xy: NDArray[np.float64], goal: GoalArea) -> int:
+def goal_direction(human_xy: NDArray[np.float64], goal: GoalArea,
+                   arena: ArenaConfig | None = None, clearance: float = 0.0) -> int:
     """Required direction 0-7: the heading from ``human_xy`` (m) to the goal's centre,
-    quantised (module docstring, step 1)."""
-    return quantise_direction(bearing(human_xy, (goal.x, goal.y)))
+    quantised (module docstring, step 1). With ``arena``: the first leg of the planned
+    path around walls and obstacles (kept ``clearance`` m away) when the straight line
+    is blocked."""
+    centre = np.array([goal.x, goal.y])
+    if arena is not None and not segment_free(arena, human_xy, centre, clearance):
+        leg = first_leg_bearing(arena, human_xy, centre, clearance)
+        if leg is not None:
+            return quantise_direction(leg)
+    return quantise_direction(bearing(human_xy, centre))
 
 
 def select_goals(arena: ArenaConfig, names: tuple[str, ...] = ()) -> tuple[GoalArea, ...]:
@@ -238,7 +254,8 @@ def _loop(env: SocialTable, q: NDArray[np.float64] | None, seed: int, hours: flo
     excluded: set[int] = set()
     last_obs = -1
     while env.time < limit and not (cfg.max_decisions and len(rec["time"]) >= cfg.max_decisions):
-        env.required_direction = goal_direction(env.human_pose[:2], goals[g])
+        env.required_direction = goal_direction(env.human_pose[:2], goals[g], env.world.arena,
+                                                env.config.body.radius)
         obs = env.observation()
         if obs != last_obs:
             excluded.clear()
@@ -313,7 +330,8 @@ def closed_loop_frames(run: ClosedLoopRun, config: ClosedLoopConfig | None = Non
                    f"reached={reached}")
         frames.append(closed_loop_frame(arena, spec, robots[k], humans[k], int(levels[k]),
                                         goal, caption, cfg.social.body, cfg.social.perception,
-                                        humans[max(0, k - trail):k + 1, :2], pixels_per_metre))
+                                        humans[max(0, k - trail):k + 1, :2], pixels_per_metre,
+                                        human_body=cfg.social.human_body))
     return frames
 
 

@@ -17,7 +17,8 @@ Card
 * **Copies** ``copy.deepcopy`` and ``pickle`` rebuild a fresh PyBullet world from the
   configuration (as ``simlab/TableArena-v0``): the robot at rest at the copied pose, the
   same human pose, engagement, required direction, clock, task and noise generators; the
-  copy's odometry restarts at that pose.
+  copy's odometry (and any pose estimate, ``SocialConfig.pose_source``) restarts at that
+  pose.
 * **Info** ``level``, ``moved``, ``duration``, ``blocked``, ``time``, ``robot_pose``,
   ``human_pose``.
 """

@@ -2,9 +2,9 @@
 
 The human is a disc projected on the floor: a position ``(x, y)`` (m), a body orientation
 ``theta`` (rad, map frame) and, in :mod:`simlab.social.task`, an attention level. It has
-no PyBullet body: the robot's LIDAR and obstacle detector do not see it, and the robot
-could drive through it (the task keeps the two apart by stopping the human, not the
-robot). Its behaviour parameters are the presets of :mod:`simlab.visitlab.humans`
+no PyBullet body by default: the robot's LIDAR and obstacle detector do not see it, and
+the robot could drive through it (the task keeps the two apart by stopping the human, not
+the robot); ``SocialConfig.human_body="turtlebot"`` gives it a second TurtleBot's body. Its behaviour parameters are the presets of :mod:`simlab.visitlab.humans`
 (F/P/L/O/r and the speed probabilities s_H), read per decision step:
 
 * **metres per step = cells per step x** :attr:`HumanBody.cell_size`. Default 0.15 m:
@@ -17,7 +17,8 @@ robot). Its behaviour parameters are the presets of :mod:`simlab.visitlab.humans
 * **random walk** (not engaged; thesis 2.1.2, the grid's ``human_idle``): with
   probability r_H the human walks ``speed x cell_size`` in a uniformly random direction of
   the 8 and faces it; then with probability O_H it turns to one of the 7 *other*
-  directions (relative to the direction nearest its orientation). Draw order as on the
+  directions (relative to the direction nearest its orientation; among all 8 with
+  ``turn_all``, paper rule 6). Draw order as on the
   grid: u < r_H, direction, speed; u < O_H, new direction.
 * **walking** stops at walls and obstacles (one ray in the LIDAR plane, minus the disc
   radius; the centre is also kept ``radius`` inside the table) and before the robot: the
@@ -144,10 +145,12 @@ def _separation_limit(xy: NDArray[np.float64], u: NDArray[np.float64], length: f
 
 
 def walk(world: Any, xy: NDArray[np.float64], heading: float, length: float,
-         robot_xy: NDArray[np.float64], gap: float, body: HumanBody) -> NDArray[np.float64]:
+         robot_xy: NDArray[np.float64], gap: float, body: HumanBody,
+         ignore: int | None = None) -> NDArray[np.float64]:
     """New position (2,) after walking up to ``length`` m along ``heading`` (rad) from
     ``xy``: stopped by walls/obstacles (one LIDAR-plane ray, hits on the robot ignored:
-    the ``gap`` rule stops the human first) and ``gap`` m before the robot's centre."""
+    the ``gap`` rule stops the human first; hits on body ``ignore``, the human's own
+    TurtleBot, too) and ``gap`` m before the robot's centre."""
     xy = np.asarray(xy, dtype=float)[:2]
     u = np.array([math.cos(heading), math.sin(heading)])
     t = _separation_limit(xy, u, float(length), np.asarray(robot_xy, dtype=float)[:2], gap)
@@ -157,7 +160,7 @@ def walk(world: Any, xy: NDArray[np.float64], heading: float, length: float,
     reach = t + body.radius
     end = xy + reach * u
     hit = world.client.rayTest([xy[0], xy[1], z], [end[0], end[1], z])[0]
-    if hit[0] >= 0 and hit[0] != world.body:
+    if hit[0] >= 0 and hit[0] != world.body and (ignore is None or hit[0] != ignore):
         t = min(t, max(0.0, hit[2] * reach - body.radius))
     new = xy + t * u
     a = world.arena
@@ -179,9 +182,13 @@ def moved_direction(before: NDArray[np.float64], after: NDArray[np.float64],
 
 
 def idle_step(world: Any, pose: Pose, human: Human, body: HumanBody,
-              robot_xy: NDArray[np.float64], rng: np.random.Generator) -> tuple[Pose, int]:
+              robot_xy: NDArray[np.float64], rng: np.random.Generator, *,
+              turn_all: bool = False, ignore: int | None = None) -> tuple[Pose, int]:
     """One decision step of a human who is not engaged (module docstring).
 
+    ``turn_all`` (paper rule 6): a random turn picks uniformly among all 8 orientations,
+    the current one included (one integer 0-7, ``HEADINGS[k]``); else among the 7 others.
+    ``ignore``: a body id the walking ray passes (the human's own TurtleBot).
     Returns the new pose (3,) and the direction moved (0-7) or -1.
     """
     new = np.array(pose, dtype=float)
@@ -190,10 +197,13 @@ def idle_step(world: Any, pose: Pose, human: Human, body: HumanBody,
         d = int(rng.integers(0, 8))
         cells = draw_speed(rng, human)
         new[:2] = walk(world, new[:2], float(HEADINGS[d]), cells * body.cell_size, robot_xy,
-                       body.min_separation, body)
+                       body.min_separation, body, ignore)
         new[2] = float(HEADINGS[d])
         moved = moved_direction(pose, new)
     if rng.random() < human.orientation_change:
+        if turn_all:
+            new[2] = float(HEADINGS[int(rng.integers(0, 8))])
+            return new, moved
         current = quantise_direction(new[2])
         k = int(rng.integers(0, 7))
         new[2] = float(HEADINGS[k if k < current else k + 1])
@@ -202,11 +212,14 @@ def idle_step(world: Any, pose: Pose, human: Human, body: HumanBody,
 
 def follow_step(world: Any, pose: Pose, target_xy: NDArray[np.float64],
                 robot_xy: NDArray[np.float64], human: Human, body: HumanBody,
-                rng: np.random.Generator) -> tuple[Pose, int]:
+                rng: np.random.Generator, *, look: bool = True,
+                ignore: int | None = None) -> tuple[Pose, int]:
     """An engaged human (level 7) walks toward ``target_xy`` (where it saw the robot at the
     start of the step) at a speed drawn from s_H, at most up to the target, stopping
     ``follow_gap`` before the robot's current position ``robot_xy``; then it looks at the
-    robot. Returns the new pose (3,) and the direction moved (0-7) or -1."""
+    robot (``look=False``, paper rule 4: it keeps the orientation it had). ``ignore``: a
+    body id the walking ray passes. Returns the new pose (3,) and the direction moved
+    (0-7) or -1."""
     new = np.array(pose, dtype=float)
     cells = draw_speed(rng, human)
     dx, dy = float(target_xy[0]) - new[0], float(target_xy[1]) - new[1]
@@ -214,9 +227,10 @@ def follow_step(world: Any, pose: Pose, target_xy: NDArray[np.float64],
     if dist > 1e-9:
         length = min(cells * body.cell_size, dist)
         new[:2] = walk(world, new[:2], math.atan2(dy, dx), length, robot_xy, body.follow_gap,
-                       body)
+                       body, ignore)
     moved = moved_direction(pose, new)
-    look_at(new, robot_xy)
+    if look:
+        look_at(new, robot_xy)
     return new, moved
 
 

@@ -165,11 +165,13 @@ def distance_class(distance: float, perception: SocialPerception) -> int:
 
 
 def line_of_sight(world: Any, human_xy: NDArray[np.float64] | tuple[float, float],
-                  robot_xy: NDArray[np.float64] | tuple[float, float] | None = None) -> bool:
+                  robot_xy: NDArray[np.float64] | tuple[float, float] | None = None,
+                  ignore: int | None = None) -> bool:
     """Whether the segment human -> robot in the LIDAR plane hits no wall or obstacle.
 
     ``world`` is a :class:`~simlab.physics.world.World`; ``robot_xy`` defaults to the
     robot's true position. One ray in the world's client (see the module docstring).
+    ``ignore``: a body id whose hits do not block (the human's own TurtleBot body).
     """
     if robot_xy is None:
         robot_xy = world.pose()[:2]
@@ -179,7 +181,7 @@ def line_of_sight(world: Any, human_xy: NDArray[np.float64] | tuple[float, float
     if math.hypot(rx - hx, ry - hy) < 1e-9:
         return True
     hit = world.client.rayTest([hx, hy, z], [rx, ry, z])[0]
-    return hit[0] < 0 or hit[0] == world.body
+    return hit[0] < 0 or hit[0] == world.body or (ignore is not None and hit[0] == ignore)
 
 
 def percepts(robot_pose: NDArray[np.float64] | tuple[float, float, float],
@@ -202,6 +204,29 @@ def percepts(robot_pose: NDArray[np.float64] | tuple[float, float, float],
     return Percepts(level=level, distance_class=distance_class(d, p),
                     angle=quantise_direction(to_human), distance=d, visible=bool(visible),
                     h_sees=bool(h_sees), h_looks=bool(h_looks), r_looks=bool(r_looks))
+
+
+def robot_percepts(robot_estimate: NDArray[np.float64] | tuple[float, float, float],
+                   human_pose: NDArray[np.float64] | tuple[float, float, float],
+                   truth: Percepts, perception: SocialPerception | None = None) -> Percepts:
+    """The robot's percepts when it believes its pose is ``robot_estimate`` (3,).
+
+    The robot's side - ``distance`` and its class, ``angle`` (the bearing from the
+    estimate to the human's position), ``r_looks`` (that bearing within the facing field
+    of the estimated yaw) - comes from the estimate; the human's side (``h_sees``,
+    ``h_looks``) and the line of sight ``visible`` from ``truth`` (the percepts of the
+    true poses, :func:`percepts`). The level combines them (:func:`percept_level`).
+    With the true pose as the estimate the result equals ``truth``.
+    """
+    p = perception or SocialPerception()
+    d = math.hypot(float(human_pose[0]) - float(robot_estimate[0]),
+                   float(human_pose[1]) - float(robot_estimate[1]))
+    to_human = bearing(robot_estimate, human_pose) if d > 0 else 0.0
+    r_looks = truth.visible and in_field(robot_estimate[2], to_human, p.facing)
+    level = int(percept_level(truth.h_sees, truth.h_looks, bool(r_looks)))
+    return Percepts(level=level, distance_class=distance_class(d, p),
+                    angle=quantise_direction(to_human), distance=d, visible=truth.visible,
+                    h_sees=truth.h_sees, h_looks=truth.h_looks, r_looks=bool(r_looks))
 
 
 def social_obs_index(level: int, distance: int, required_direction: int, angle: int) -> int:

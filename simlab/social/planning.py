@@ -106,3 +106,31 @@ def plan_path(arena: ArenaConfig, start: NDArray[np.float64], goal: NDArray[np.f
     last = goal if math.hypot(goal[0] - xs[gi], goal[1] - ys[gj]) < step else points[-1]
     way.append(last)
     return way
+
+
+def segment_free(arena: ArenaConfig, a: NDArray[np.float64], b: NDArray[np.float64],
+                 clearance: float, spacing: float = 0.01) -> bool:
+    """Whether a disc of radius ``clearance`` (m) moved along the segment ``a`` -> ``b``
+    ((2,) m) stays free (:func:`~simlab.social.human.is_free`), sampled every ``spacing``
+    m, both ends included. Analytic, from the arena description (no ray test), as the
+    planner's free grid."""
+    a, b = np.asarray(a, dtype=float)[:2], np.asarray(b, dtype=float)[:2]
+    n = max(1, math.ceil(math.hypot(*(b - a)) / spacing))
+    return all(is_free(arena, a + (b - a) * (k / n), clearance) for k in range(n + 1))
+
+
+def first_leg_bearing(arena: ArenaConfig, start: NDArray[np.float64],
+                      goal: NDArray[np.float64], clearance: float, step: float = 0.05
+                      ) -> float | None:
+    """Direction (rad) of the first leg of :func:`plan_path` from ``start`` to ``goal``:
+    from its first waypoint (the free node nearest ``start``) to its second (the first
+    turning point, or the goal), so one of the planner's 8 moves; None without a path
+    (or when start and goal share a node)."""
+    path = plan_path(arena, np.asarray(start, dtype=float), np.asarray(goal, dtype=float),
+                     clearance, step)
+    if path is None or len(path) < 2:
+        return None
+    d = path[1] - path[0]
+    if math.hypot(d[0], d[1]) < 1e-9:
+        return None
+    return math.atan2(d[1], d[0])

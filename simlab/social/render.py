@@ -38,9 +38,11 @@ def _wedge(canvas: TopDown, xy: Sequence[float], theta: float, half: float,
 
 def draw_human(canvas: TopDown, pose: Sequence[float], body: HumanBody,
                perception: SocialPerception, level: int = 0,
-               field_reach: float | None = None) -> TopDown:
+               field_reach: float | None = None, robot: RobotSpec | None = None) -> TopDown:
     """Draw the human at ``pose`` (x, y, theta; m, m, rad) on ``canvas``: translucent
-    visual and facing wedges, the disc (red when engaged, level >= 5) and its gaze."""
+    visual and facing wedges, the disc (red when engaged, level >= 5) and its gaze.
+    With ``robot`` (``human_body="turtlebot"``) the human is drawn as that robot's
+    footprint in the human's colour instead of the disc."""
     x, y, th = (float(v) for v in pose)
     reach = perception.bounds_m[-1] if field_reach is None else float(field_reach)
     overlay = canvas.image.copy()
@@ -50,6 +52,9 @@ def draw_human(canvas: TopDown, pose: Sequence[float], body: HumanBody,
                  cv2.LINE_AA)
     canvas.image[:] = cv2.addWeighted(overlay, 0.45, canvas.image, 0.55, 0.0)
     colour = ENGAGED if level >= 5 else HUMAN
+    if robot is not None:
+        canvas.draw_robot((x, y, th), robot, color=colour)
+        return canvas
     cv2.circle(canvas.image, tuple(canvas.px([x, y])), canvas.metres(body.radius), colour, -1,
                cv2.LINE_AA)
     tip = (x + math.cos(th) * body.radius * 1.8, y + math.sin(th) * body.radius * 1.8)
@@ -61,11 +66,13 @@ def draw_human(canvas: TopDown, pose: Sequence[float], body: HumanBody,
 def render_social(arena: ArenaConfig, spec: RobotSpec, robot_pose: Sequence[float],
                   human_pose: Sequence[float], body: HumanBody | None = None,
                   perception: SocialPerception | None = None, level: int = 0,
-                  pixels_per_metre: float = 320.0) -> NDArray[np.uint8]:
-    """RGB image (H, W, 3) of the arena, the human with its fields and the robot."""
+                  pixels_per_metre: float = 320.0, human_body: str = "disc"
+                  ) -> NDArray[np.uint8]:
+    """RGB image (H, W, 3) of the arena, the human with its fields and the robot
+    (``human_body="turtlebot"``: the human drawn as a second robot)."""
     canvas = TopDown(arena, pixels_per_metre).draw_arena()
     draw_human(canvas, human_pose, body or HumanBody(), perception or SocialPerception(),
-               level)
+               level, robot=spec if human_body == "turtlebot" else None)
     canvas.draw_robot(robot_pose, spec)
     return canvas.image
 
@@ -78,16 +85,17 @@ def closed_loop_frame(arena: ArenaConfig, spec: RobotSpec, robot_pose: Sequence[
                       caption: str = "", body: HumanBody | None = None,
                       perception: SocialPerception | None = None,
                       trail: NDArray[np.float64] | None = None,
-                      pixels_per_metre: float = 200.0) -> NDArray[np.uint8]:
+                      pixels_per_metre: float = 200.0, human_body: str = "disc"
+                      ) -> NDArray[np.uint8]:
     """One frame of a closed-loop run: RGB (HEADER_PX + H, W, 3) uint8, a white header
     with ``caption`` above the arena with the active ``goal`` area highlighted, the
     human's recent path ``trail`` (n, 2) (m), the human with its visual and facing fields
-    (red disc when engaged) and the robot."""
+    (red disc when engaged; a second robot with ``human_body="turtlebot"``) and the robot."""
     canvas = TopDown(arena, pixels_per_metre).draw_arena(active_goal=goal)
     if trail is not None and len(trail) >= 2:
         canvas.draw_trail(np.asarray(trail, dtype=float)[:, :2], color=HUMAN, thickness=1)
     draw_human(canvas, human_pose, body or HumanBody(), perception or SocialPerception(),
-               level)
+               level, robot=spec if human_body == "turtlebot" else None)
     canvas.draw_robot(robot_pose, spec)
     header = np.full((HEADER_PX, canvas.width, 3), 255, dtype=np.uint8)
     cv2.putText(header, caption, (4, HEADER_PX - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.4,

@@ -36,12 +36,53 @@ the primitives' obstacle checks). Same seed and actions -> the same observations
 
 Time: every decision adds the primitive parameters' ``decision_latency`` to the
 simulated time beside what was stepped (or ``signal_time`` for STAY and the signals).
+
+**The robot's own pose estimate** (``SocialConfig.pose_source``, names of
+:data:`simlab.localization.sources.POSE_SOURCES`): the robot's side of perception (its
+bearing to the human -> ``angle``, the distance -> distance class, its orientation ->
+"R looks at H") is computed from the pose the robot believes it has, the human's side
+(does the human see / look at the robot) and the line of sight from the true poses
+(:func:`simlab.social.perception.robot_percepts`). Decision: the human's map position is
+known to the robot (as on the grid, where "the robot knows where the human is"), so the
+estimate error moves the robot's percepts, not the human's; the required direction (the
+human's position -> the goal, :mod:`simlab.social.closedloop`) does not involve the
+robot's pose and is not affected. The *dynamics* (attention, HELLO's level and
+distance conditions) follow the true percepts: a human answers to where the robot is,
+not to where it believes it is; the observation is the robot's. LOOK_H turns by the
+angle the robot believes separates its heading from the human's bearing. GO_TO_HUMAN's
+drive and the primitives run on the true pose, as the navigation primitives do. With
+``"truth"`` (default) nothing changes (bit for bit).
+
+**Paper rules 4-6** (issue 14; ``SocialConfig.rules = "paper"`` or one by one, as the
+grid's paper variant, :mod:`simlab.visitlab.dynamics`):
+
+* ``gaze_before_move`` (rule 4): in 5 an engaged human's orientation aims at the
+  robot's position *before* the robot's move (where it walks to) and is not re-aimed
+  after the human walks; thesis: it looks at the robot after the robot's move and again
+  after walking.
+* ``gth_before_attention`` (rule 5): GO_TO_HUMAN works only if the human was not engaged
+  before this step's attention check (2); thesis: if not engaged after 2. The paper also
+  lets the robot land on the human's cell: two bodies cannot share a place, so here the
+  target is still kept clear of the human (``min_separation``).
+* ``idle_turn_all`` (rule 6): a random turn of an idle human draws among all 8
+  orientations, the current one included (one integer 0-7); thesis: among the 7 others.
+  The rest of rule 6 (robot and human may share a cell, moves ignore the other) has no
+  physics meaning: two bodies never overlap, so walking stops short of the robot as
+  before.
+
+**The human's body** (``SocialConfig.human_body``): ``"disc"`` (default) has no PyBullet
+body; ``"turtlebot"`` loads a second TurtleBot (the robot's URDF, fixed base) and moves it
+kinematically to the human's pose whenever that changes, so the robot's LIDAR, obstacle
+detector and contacts see it; rays cast from the human's centre (line of sight, walking,
+GO_TO_HUMAN's target) ignore its own body.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,8 +90,10 @@ from numpy.typing import NDArray
 from simlab import validation
 from simlab.actions import HEADINGS
 from simlab.errors import ConfigError
+from simlab.localization.sources import POSE_SOURCES, make_pose_source
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper
+from simlab.physics.robot import wrap_angle
 from simlab.physics.world import World
 from simlab.social.actions import (
     N_SOCIAL_ACTIONS,
@@ -67,12 +110,19 @@ from simlab.social.perception import (
     bearing,
     line_of_sight,
     percepts,
+    robot_percepts,
     social_obs_index,
 )
 from simlab.visitlab.humans import Human
 from simlab.visitlab.humans import human as human_preset
 
 Pose = NDArray[np.float64]
+
+#: Rule sets of the physics social task (module docstring, paper rules 4-6).
+RULES = ("thesis", "paper")
+#: Bodies of the human.
+HUMAN_BODIES = ("disc", "turtlebot")
+_PAPER_RULES = ("gaze_before_move", "gth_before_attention", "idle_turn_all")
 
 
 @dataclass(frozen=True)
@@ -98,6 +148,18 @@ class SocialConfig:
         human_blocks: the human's disc blocks a primitive whose detector corridor it meets
             (the robot turns, does not drive), and GO_TO_HUMAN detours around it; the
             human has no PyBullet body, so the LIDAR itself never sees it.
+        pose_source: the robot's pose estimate for its side of perception (module
+            docstring): ``"truth"`` (default), ``"odometry"`` or ``"mcl"``.
+        pose_source_options: keyword arguments of the ``mcl`` source
+            (:func:`simlab.localization.sources.make_pose_source`); empty otherwise.
+        rules: ``"thesis"`` (default) or ``"paper"``: the default of the three rule
+            switches below (module docstring, paper rules 4-6).
+        gaze_before_move, gth_before_attention, idle_turn_all: paper rules 4, 5 and 6
+            one by one (None: as ``rules`` says).
+        human_body: ``"disc"`` (default: no PyBullet body) or ``"turtlebot"`` (a second
+            TurtleBot moved kinematically; module docstring). Choose a ``body`` whose
+            ``min_separation``/``follow_gap`` keep two TurtleBots apart (their swept
+            radii are 0.12 m each): the defaults (0.16/0.25 m) let them touch.
     """
 
     arena: str = "table"
@@ -112,9 +174,26 @@ class SocialConfig:
     gth_max_primitives: int = 30
     gth_offsets_deg: tuple[float, ...] = (0.0,)
     human_blocks: bool = True
+    pose_source: str = "truth"
+    pose_source_options: Mapping[str, Any] = field(default_factory=dict)
+    rules: str = "thesis"
+    gaze_before_move: bool | None = None
+    gth_before_attention: bool | None = None
+    idle_turn_all: bool | None = None
+    human_body: str = "disc"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "human", human_preset(self.human))
+        validation.choice(self.pose_source, POSE_SOURCES, "SocialConfig.pose_source")
+        object.__setattr__(self, "pose_source_options", dict(self.pose_source_options))
+        validation.choice(self.rules, RULES, "SocialConfig.rules")
+        validation.choice(self.human_body, HUMAN_BODIES, "SocialConfig.human_body")
+        for key in _PAPER_RULES:
+            value = getattr(self, key)
+            if value is None:
+                object.__setattr__(self, key, self.rules == "paper")
+            else:
+                validation.boolean(value, f"SocialConfig.{key}")
         validation.positive(self.signal_time, "SocialConfig.signal_time", allow_zero=True)
         validation.probability(self.redraw_p, "SocialConfig.redraw_p")
         validation.positive(self.gth_cells, "SocialConfig.gth_cells")
@@ -151,19 +230,72 @@ class SocialStepInfo:
     time: float
 
 
+class PoseEstimate(Protocol):
+    """What the robot believes its pose is: :meth:`now` (3,) (x, y, yaw; m, m, rad) at any
+    time. ``on_scan``/``scan_beams``: the LIDAR hook of a filter (None: no scans needed).
+    :meth:`reset` is called after every world reset with the estimate's own Generator."""
+
+    on_scan: Any
+    scan_beams: NDArray[np.int64] | None
+
+    def reset(self, world: Any, rng: np.random.Generator) -> None: ...
+
+    def now(self) -> Pose: ...
+
+
+class SourceEstimate:
+    """A pose source of :mod:`simlab.localization.sources` read at any time, not only after
+    a primitive: ``truth`` the true pose, ``odometry`` the wheel odometry now, ``mcl`` the
+    filter's last estimate carried forward by the odometry now (as the replay reads it)."""
+
+    def __init__(self, name: str, world: Any, options: Mapping[str, Any] | None = None
+                 ) -> None:
+        self.name = validation.choice(name, POSE_SOURCES, "pose_source")
+        self.world = world
+        self.source = (make_pose_source(name, world, dict(options or {}))
+                       if name == "mcl" else None)
+        self.on_scan: Any = None
+        self.scan_beams: NDArray[np.int64] | None = None
+
+    def reset(self, world: Any, rng: np.random.Generator) -> None:
+        self.world = world
+        if self.source is not None:
+            self.source.reset(world, rng)
+            self.on_scan = self.source.on_scan
+            self.scan_beams = self.source.scan_beams
+
+    def now(self) -> Pose:
+        if self.name == "truth":
+            return self.world.pose()
+        odom = self.world.odometry()
+        if self.name == "odometry":
+            return np.asarray(odom, dtype=float)
+        return np.asarray(self.source.tracker.pose(odom), dtype=float)  # type: ignore[union-attr]
+
+
 class SocialTable:
     """The robot and a human on the table (module docstring). Call :meth:`reset` first.
 
     ``world``: an existing :class:`~simlab.physics.world.World` (not closed by this
     object), else one is built from ``config.arena`` and closed by :meth:`close`.
+    ``pose_estimate``: the robot's pose estimate (a :class:`PoseEstimate`, e.g. a test
+    stub); default the config's ``pose_source`` (none for ``"truth"``: the true pose).
     """
 
     n_actions = N_SOCIAL_ACTIONS
 
-    def __init__(self, config: SocialConfig | None = None, world: World | None = None) -> None:
+    def __init__(self, config: SocialConfig | None = None, world: World | None = None, *,
+                 pose_estimate: PoseEstimate | None = None) -> None:
         self.config = config or SocialConfig()
         self._own_world = world is None
         self.world = world if world is not None else World(self.config.arena)
+        if pose_estimate is None and self.config.pose_source != "truth":
+            pose_estimate = SourceEstimate(self.config.pose_source, self.world,
+                                           self.config.pose_source_options)
+        self._estimate = pose_estimate
+        #: PyBullet body id of the human's TurtleBot (``human_body="turtlebot"``), else None
+        self.human_body_id: int | None = None
+        self._human_inertial = np.zeros(3)
         self.human_pose: Pose = np.zeros(3)
         self.engaged = 0
         self.required_direction = 0
@@ -189,22 +321,32 @@ class SocialTable:
         Random (when not given): the robot's position uniform on the free table (kept its
         swept radius from walls and obstacles) with one of the 8 headings, the human's
         (:func:`~simlab.social.human.random_pose`), the required direction. Human not
-        engaged.
+        engaged. A pose estimate restarts at the true pose with a third stream of
+        ``SeedSequence(seed)`` (the first two are unchanged by it).
         """
-        task_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
+        task_seq, noise_seq, estimate_seq = np.random.SeedSequence(seed).spawn(3)
         self._rng = rng = np.random.default_rng(task_seq)
         self._noise = np.random.default_rng(noise_seq)
         w = self.world
         if robot_pose is None:
             robot_pose = self._random_robot_pose(rng)
         w.reset(np.asarray(robot_pose, dtype=float))
-        self.driver = DecisionDriver(w, self.config.primitives)
+        if self._estimate is None:
+            self.driver = DecisionDriver(w, self.config.primitives)
+        else:
+            self._estimate.reset(w, np.random.default_rng(estimate_seq))
+            self.driver = DecisionDriver(w, self.config.primitives,
+                                         on_scan=self._estimate.on_scan,
+                                         scan_beams=self._estimate.scan_beams)
         if human_pose is None:
             human_pose = random_pose(w, rng, self.config.body, avoid_xy=w.pose()[:2])
         self.human_pose = np.array(human_pose, dtype=float)
         if self.human_pose.shape != (3,) or not np.all(np.isfinite(self.human_pose)):
             raise ValueError(f"human_pose must be 3 finite numbers (x, y, theta), got "
                              f"{human_pose!r}")
+        self.human_body_id = None
+        if self.config.human_body == "turtlebot":
+            self._load_human_body()
         self.required_direction = int(rng.integers(0, 8))
         self.engaged = 0
         self.time = 0.0
@@ -220,12 +362,55 @@ class SocialTable:
                 return np.array([x, y, float(HEADINGS[int(rng.integers(0, 8))])])
         raise ConfigError("no free robot position found", key="arena")
 
+    def _load_human_body(self) -> None:
+        """The human's TurtleBot: the robot's URDF with a fixed base (moved kinematically)."""
+        from simlab.physics.urdf_merge import merged_urdf_path
+
+        c = self.world.client
+        self.human_body_id = int(c.loadURDF(
+            str(merged_urdf_path(self.world.robot_spec.urdf_path)),
+            basePosition=[float(self.human_pose[0]), float(self.human_pose[1]), 0.0],
+            useFixedBase=True))
+        self._human_inertial = np.asarray(c.getDynamicsInfo(self.human_body_id, -1)[3],
+                                          dtype=float)
+        self.sync_human_body()
+
+    def sync_human_body(self) -> None:
+        """Move the human's TurtleBot (if any) to :attr:`human_pose` (its base frame, the
+        floor under the axle, at the human's position and orientation) and refresh the
+        collision world so ray tests and scans see it at once."""
+        if self.human_body_id is None:
+            return
+        c = self.world.client
+        x, y, th = (float(v) for v in self.human_pose)
+        orn = c.getQuaternionFromEuler([0.0, 0.0, th])
+        rot = np.asarray(c.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
+        com = np.array([x, y, 0.0]) + rot @ self._human_inertial
+        c.resetBasePositionAndOrientation(self.human_body_id, com.tolist(), orn)
+        c.performCollisionDetection()
+
     # ------------------------------------------------------------------ perception
-    def percepts(self) -> Percepts:
-        """Percepts of the current state (true robot pose, ray-tested line of sight)."""
+    def true_percepts(self) -> Percepts:
+        """Percepts from the true poses (ray-tested line of sight); the dynamics use these."""
         robot = self.world.pose()
-        visible = line_of_sight(self.world, self.human_pose[:2], robot[:2])
+        visible = line_of_sight(self.world, self.human_pose[:2], robot[:2],
+                                ignore=self.human_body_id)
         return percepts(robot, self.human_pose, visible, self.config.perception)
+
+    def robot_pose_estimate(self) -> Pose:
+        """The pose (3,) the robot believes it has (the true pose with ``"truth"``)."""
+        if self._estimate is None:
+            return self.world.pose()
+        return np.asarray(self._estimate.now(), dtype=float)
+
+    def percepts(self) -> Percepts:
+        """The robot's percepts of the current state: its side from its pose estimate,
+        the human's side from the truth (module docstring); all truth with ``"truth"``."""
+        truth = self.true_percepts()
+        if self._estimate is None:
+            return truth
+        return robot_percepts(self.robot_pose_estimate(), self.human_pose, truth,
+                              self.config.perception)
 
     def level(self, perc: Percepts | None = None) -> int:
         """Interaction level 0-7: the engagement (5-7) if engaged, else the percept level."""
@@ -245,22 +430,24 @@ class SocialTable:
         a = int(action)
         if not 0 <= a < N_SOCIAL_ACTIONS:
             raise ValueError(f"action must be in 0..{N_SOCIAL_ACTIONS - 1}, got {action}")
-        rng, hp = self._rng, self.config.human
-        perc = self.percepts()
-        e = self._attention(perc, a, rng, hp)
+        rng, hp, cfg = self._rng, self.config.human, self.config
+        engaged_before = self.engaged
+        e = self._attention(self.true_percepts(), a, rng, hp)
         robot_before = self.world.pose()
-        duration, blocked = self._robot_acts(a, e)
+        duration, blocked = self._robot_acts(a, e, engaged_before)
         robot_after = self.world.pose()
         moved = -1
         if e >= 5:
-            look_at(self.human_pose, robot_after[:2])
+            look_at(self.human_pose, (robot_before if cfg.gaze_before_move else robot_after)[:2])
             if e == 7 and a not in SIGNALS:
-                self.human_pose, moved = follow_step(self.world, self.human_pose,
-                                                     robot_before[:2], robot_after[:2], hp,
-                                                     self.config.body, rng)
+                self.human_pose, moved = follow_step(
+                    self.world, self.human_pose, robot_before[:2], robot_after[:2], hp,
+                    cfg.body, rng, look=not cfg.gaze_before_move, ignore=self.human_body_id)
         else:
-            self.human_pose, moved = idle_step(self.world, self.human_pose, hp,
-                                               self.config.body, robot_after[:2], rng)
+            self.human_pose, moved = idle_step(self.world, self.human_pose, hp, cfg.body,
+                                               robot_after[:2], rng, turn_all=cfg.idle_turn_all,
+                                               ignore=self.human_body_id)
+        self.sync_human_body()
         self.engaged = e
         reward = 1.0 if (e == 7 and moved == self.required_direction) else 0.0
         if rng.random() < self.config.redraw_p:
@@ -290,8 +477,22 @@ class SocialTable:
             e = 7
         return e
 
-    def _robot_acts(self, a: int, e: int) -> tuple[float, bool]:
-        """Step 4; returns (simulated seconds, blocked)."""
+    def _stepper(self) -> ScanStepper:
+        """A stepper for motion outside the primitives (feeds a filter's scans)."""
+        return ScanStepper(self.world, self._noise, self.driver.on_scan, self.driver.scan_beams)
+
+    def _look_target(self) -> float:
+        """LOOK_H's map-frame heading (rad): the bearing to the human; with a pose estimate
+        the true heading turned by the angle the robot believes is left."""
+        w = self.world
+        if self._estimate is None:
+            return bearing(w.pose(), self.human_pose)
+        est = self.robot_pose_estimate()
+        return w.yaw() + float(wrap_angle(bearing(est, self.human_pose) - est[2]))
+
+    def _robot_acts(self, a: int, e: int, engaged_before: int = 0) -> tuple[float, bool]:
+        """Step 4; returns (simulated seconds, blocked). ``engaged_before``: the
+        engagement before the attention check (paper rule 5)."""
         cfg, w = self.config, self.world
         latency = cfg.primitives.decision_latency
         if a < N_ACTIONS:
@@ -300,12 +501,11 @@ class SocialTable:
                 cfg.body.radius)
             return t + latency, blocked
         if a == SocialAction.LOOK_H:
-            stepper = ScanStepper(w, self._noise, None)
-            t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
+            t = turn_to(w, self._look_target(), cfg.primitives, self._stepper())
             self.driver.observe()
             return t + latency, False
         if a == SocialAction.GO_TO_HUMAN:
-            if e >= 5:
+            if (engaged_before if cfg.gth_before_attention else e) >= 5:
                 return cfg.signal_time + latency, False
             return self._go_to_human(), False
         return cfg.signal_time + latency, False
@@ -329,8 +529,7 @@ class SocialTable:
         res = go_to_point(self.driver, target, self._noise, cfg.gth_tolerance,
                           cfg.gth_max_primitives,
                           self.human_pose[:2] if cfg.human_blocks else None, cfg.body.radius)
-        stepper = ScanStepper(w, self._noise, None)
-        t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, stepper)
+        t = turn_to(w, bearing(w.pose(), self.human_pose), cfg.primitives, self._stepper())
         self.driver.observe()
         return res.duration + t + cfg.primitives.decision_latency
 
@@ -345,7 +544,7 @@ class SocialTable:
         start = self.human_pose[:2]
         end = start + (dist + clear) * u
         hit = w.client.rayTest([start[0], start[1], z], [end[0], end[1], z])[0]
-        if hit[0] >= 0 and hit[0] != w.body:
+        if hit[0] >= 0 and hit[0] not in (w.body, self.human_body_id):
             dist = min(dist, hit[2] * (dist + clear) - clear)
         if dist < cfg.body.min_separation + cfg.gth_tolerance:
             return None
