@@ -541,9 +541,12 @@ def estimate(cfg: EstimateConfig) -> EstimateResult:
     * ``overwrite``: replace existing output files.
     * ``unvisited``: rule for unvisited (s, a), ``mask`` (default) or ``self-loop``,
       stored in the model's metadata (module docstring).
+    * ``storage``: ``auto`` (sparse when ``S * A * S`` > :data:`SPARSE_CELLS`), ``dense``
+      or ``sparse`` (module docstring, "Sparse path"); the sparse path's ``mdp`` is a
+      :class:`SparseCountModel` and its npz holds the CSR arrays instead of ``counts``/``T``.
 
     Returns:
-        :class:`EstimateResult`. The npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
+        :class:`EstimateResult`. The (dense) npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
         ``visited`` (S, A) bool, ``entropy`` (S, A) bits, ``mean_entropy`` (A,) bits and,
         when the centres are known, ``centres`` (S, 2) m; with goals also
         ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool and ``R`` (G, S, A);
