@@ -74,8 +74,12 @@ follows), ``N`` the others.
 4. *Time*: a decision lasts the walk's mean duration of the action ``pi`` takes, averaged
    with the visits ``x`` (engaging) and ``engaged_decisions * w`` (engaged).
 
-Goals per hour = ``k * step_m / lead_distance_m / (decisions_to_engage +
-engaged_decisions) * 3600 / decision_s`` (one engage-then-lead cycle renews the process).
+Goals per hour = ``f * rho * step_m / lead_distance_m * 3600 / decision_s`` with ``rho`` the
+reward per engaged decision and ``f = engaged_decisions / (decisions_to_engage +
+engaged_decisions)`` the engaged fraction of a renewal cycle (engage, then lead until lost;
+``f = 1`` when the data never saw engagement lost, ``p_lose = 0``), i.e. ``k * step_m /
+lead_distance_m`` goals per cycle of ``decisions_to_engage + engaged_decisions``
+decisions; ``decision_s`` is the matching mix of the engaging and engaged durations.
 It need not be right; the pipeline sets it beside the measured rate.
 """
 
@@ -358,17 +362,19 @@ def predict_goal_rate(P: Any, q: ArrayLike, R: ArrayLike, walks: list[SocialWalk
                  - np.mean([g.radius for g in goals]))
     a_all = np.concatenate([w.a for w in walks])
     dur = np.concatenate([w.duration for w in walks])
-    per_action = np.bincount(a_all, weights=dur, minlength=A) / np.maximum(
-        np.bincount(a_all, minlength=A), 1)
-    per_action[np.bincount(a_all, minlength=A) == 0] = float(dur.mean())
-    w_visits = x / max(p_engage, 1e-300) + (w7 / w7.sum() * sojourn if at7.any()
-                                             and np.isfinite(sojourn) else 0.0)
-    tau = float(w_visits @ per_action[pi] / w_visits.sum()) if w_visits.sum() > 0 \
-        else float(dur.mean())
-    cycle = to_engage + sojourn
+    tried = np.bincount(a_all, minlength=A)
+    per_action = np.bincount(a_all, weights=dur, minlength=A) / np.maximum(tried, 1)
+    per_action[tried == 0] = float(dur.mean())
+    tau_n = float(x @ per_action[pi] / x.sum()) if x.sum() > 0 else float(dur.mean())
+    tau_e = float(w7 @ per_action[pi] / w7.sum()) if at7.any() else float(dur.mean())
+    # fraction of decisions engaged: L / (T + L), 1 when the model never loses engagement
+    frac = 0.0
+    if p_engage > 0 and at7.any():
+        frac = 1.0 if not np.isfinite(sojourn) else sojourn / (to_engage + sojourn)
+    tau = (1.0 - frac) * tau_n + frac * tau_e
     rate = 0.0
-    if np.isfinite(cycle) and cycle > 0 and np.isfinite(step) and lead > 0 and k > 0:
-        rate = k * step / lead / cycle * 3600.0 / tau
+    if frac > 0 and rho > 0 and np.isfinite(step) and lead > 0:
+        rate = frac * rho * step / lead * 3600.0 / tau
     return GoalRatePrediction(
         p_engage=p_engage, decisions_to_engage=to_engage, engaged_decisions=sojourn,
         p_lose_per_decision=p_lose,

@@ -146,6 +146,12 @@ def test_prediction_of_a_hand_made_renewal() -> None:
     assert p.step_m == pytest.approx(0.1) and p.lead_distance_m == pytest.approx(1.0)
     # 2 rewarded decisions x 0.1 m per 1 m lead, per 4-decision cycle of 2 s
     assert p.goals_per_hour == pytest.approx(2 * 0.1 / 1.0 / 4.0 * 3600.0 / 2.0)
+    # never lost in the data: always engaged after the first engagement (f = 1)
+    never = SocialWalk(**{**walk.__dict__, "s_next": np.array([eng, eng, eng, eng])})
+    model = sparse_count_model(s, a, never.s_next, 2560, 22)
+    p = predict_goal_rate(model.matrix(), q, R, [never], goals)
+    assert p.p_lose_per_decision == 0.0 and p.engaged_decisions == np.inf
+    assert p.goals_per_hour == pytest.approx(2.0 / 3.0 * 0.1 / 1.0 * 3600.0 / 2.0)
 
 
 def test_pipeline_both_writes_the_three_rates(tmp_path: Path) -> None:
