@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-HELP = ("the social task in physics: train the grid social module, lead a simulated human "
-        "through the table's goal areas closed loop vs a random policy; summary, plot, GIF")
+HELP = ("the social task in physics: train the social module (grid, empirical MDP of a "
+        "physics walk, or both), lead a simulated human through the table's goal areas "
+        "closed loop vs a random policy; summary, plot, GIF")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -19,11 +20,19 @@ def run(args: argparse.Namespace) -> int:
 
     res = social_pipeline(SocialPipelineConfig.from_args(args))
     pooled = res.summary["pooled"]
-    c, r = pooled["combined"], pooled["random"]
+    r = pooled["random"]
     ratio = res.summary["goal_rate_ratio"]
-    print(f"combined: {c['goals']} goal areas reached with the human in {c['hours']:.2f} "
-          f"simulated h = {c['goals_per_hour']:.1f} /h; random: {r['goals']} = "
-          f"{r['goals_per_hour']:.1f} /h; ratio "
-          + ("undefined (random reached none)" if ratio is None else f"{ratio:.1f}"))
+    learned = [p for p in ("combined", "empirical") if p in pooled]
+    c = pooled[learned[0]]
+    parts = [f"{learned[0]}: {c['goals']} goal areas reached with the human in "
+             f"{c['hours']:.2f} simulated h = {c['goals_per_hour']:.1f} /h"]
+    parts += [f"{p}: {pooled[p]['goals']} = {pooled[p]['goals_per_hour']:.1f} /h"
+              for p in learned[1:]]
+    parts.append(f"random: {r['goals']} = {r['goals_per_hour']:.1f} /h; ratio "
+                 + ("undefined (random reached none)" if ratio is None else f"{ratio:.1f}"))
+    print("; ".join(parts))
+    predicted = res.summary["tabular_prediction"]["goals_per_hour"]
+    if predicted is not None:
+        print(f"predicted by the empirical MDP (renewal model): {predicted:.1f} /h")
     print("wrote " + ", ".join(str(p) for p in res.paths.values()))
     return 0

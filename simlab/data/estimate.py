@@ -26,6 +26,20 @@ pairs; the mean per action is taken over the visited pairs of that action (NaN i
 has none), and the slow / fast means are the means of the 8 per-action values of
 actions 0-7 / 8-15. These are plug-in estimates: with few visits per pair they are
 biased low (no Miller-Madow correction), which is why coverage is reported with them.
+
+**Sparse path** (issue 18): a dense ``(S, A, S)`` table costs ``8 S A S`` bytes per array
+(the social task's 2560 x 22 x 2560 peaked at 7.1 GB). When ``S * A * S`` exceeds
+:data:`SPARSE_CELLS` (or with ``storage="sparse"``) the counts are built from the logged
+triples only (:func:`sparse_count_model`, a :class:`SparseCountModel`: one CSR structure
+over the ``S * A`` rows, ``indptr`` (S A + 1,), ``indices`` (nnz,) s', ``counts`` (nnz,)
+and ``probabilities`` (nnz,)), and memory grows with the distinct observed triples, never
+with ``S * A * S``. The rules are the dense ones: an unvisited row holds the one entry
+``(s, 1.0)`` with count 0 (the self-loop), ``visited``, entropy, coverage, ``R`` and the
+summary are the same figures (to float rounding of the entropy sums). Its ``mdp.npz``
+has no ``T``/``counts`` but ``indptr``, ``indices``, ``probabilities``, ``counts_data``
+and ``shape`` (3,) ``(S, A, S)``, and ``meta_json["storage"] = "sparse-csr"``; read it
+with :func:`simlab.data.mdp.load_sparse_mdp` (:func:`simlab.data.mdp.load_mdp` densifies
+it when it is small and otherwise names the sparse loader). The dense path is unchanged.
 """
 
 from __future__ import annotations
@@ -50,6 +64,13 @@ from simlab.physics.inputs import load_arena_config, load_discretizer
 
 #: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
 HISTOGRAM_EDGES = (0, 1, 2, 5, 10, 20, 50, 100)
+
+#: ``S * A * S`` above which ``storage="auto"`` takes the sparse path (module docstring):
+#: 2e7 cells is 160 MB per dense float64 table, three of which the dense path holds.
+SPARSE_CELLS = 20_000_000
+
+#: Storage choices of :class:`EstimateConfig`: the first is the default.
+STORAGES = ("auto", "dense", "sparse")
 
 #: Rules for unvisited (s, a) pairs (see the module docstring); the first is the default.
 UNVISITED_RULES = ("mask", "self-loop")
@@ -217,7 +238,155 @@ def empirical_mdp(counts: ArrayLike) -> CountModel:
     return CountModel(counts=c, T=T, visited=visited, entropy=entropy_bits(T))
 
 
-def coverage_report(mdp: CountModel, *, max_listed: int | None = None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class SparseCountModel:
+    """The count model of :class:`CountModel` on the observed triples only (CSR rows).
+
+    Row ``r = s * A + a`` holds the entries ``indptr[r]:indptr[r + 1]`` of ``indices``
+    (s', increasing), ``counts`` n(s, a, s') int64 and ``probabilities`` T(s, a, s')
+    float64; an unvisited row holds the single self-loop ``(s, 1.0)`` with count 0, so
+    every row is a distribution (the dense rule). ``visited`` and ``entropy`` are
+    ``(S, A)`` as in :class:`CountModel`; the properties are the same figures.
+    """
+
+    n_states: int
+    n_actions: int
+    indptr: NDArray[np.int64]
+    indices: NDArray[np.int64]
+    counts: NDArray[np.int64]
+    probabilities: NDArray[np.float64]
+    visited: NDArray[np.bool_]
+    entropy: NDArray[np.float64]
+
+    @property
+    def nnz(self) -> int:
+        """Stored entries (observed triples plus one self-loop per unvisited pair)."""
+        return int(self.indices.size)
+
+    @property
+    def n_sa(self) -> NDArray[np.int64]:
+        """Visits n(s, a) ``(S, A)``."""
+        return np.add.reduceat(self.counts, self.indptr[:-1]).reshape(
+            self.n_states, self.n_actions).astype(np.int64)
+
+    @property
+    def transitions(self) -> int:
+        return int(self.counts.sum())
+
+    @property
+    def mean_entropy(self) -> NDArray[np.float64]:
+        """Mean entropy per action ``(A,)`` in bits over visited pairs (NaN if none)."""
+        return mean_entropy_per_action(self.entropy, self.visited)
+
+    @property
+    def slow_mean_entropy(self) -> float:
+        return _nanmean(self.mean_entropy[:8])
+
+    @property
+    def fast_mean_entropy(self) -> float:
+        return _nanmean(self.mean_entropy[8:16])
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of (s, a) pairs visited at least once."""
+        return float(self.visited.mean())
+
+    def rows(self) -> NDArray[np.int64]:
+        """Row ``s * A + a`` of every stored entry ``(nnz,)``."""
+        return np.repeat(np.arange(self.n_states * self.n_actions, dtype=np.int64),
+                         np.diff(self.indptr))
+
+    def matrix(self) -> Any:
+        """``scipy.sparse.csr_matrix`` ``(S * A, S)`` of the probabilities."""
+        from scipy.sparse import csr_matrix
+
+        return csr_matrix((self.probabilities, self.indices, self.indptr),
+                          shape=(self.n_states * self.n_actions, self.n_states))
+
+    def dense_T(self) -> NDArray[np.float64]:
+        """The dense ``(S, A, S)`` T (for small models and tests only)."""
+        return self.matrix().toarray().reshape(self.n_states, self.n_actions, self.n_states)
+
+    def rewards(self, goal_masks: ArrayLike) -> NDArray[np.float64]:
+        """Eq. 1.14 per goal, as :meth:`CountModel.rewards`: ``(G, S, A)``."""
+        m = np.asarray(goal_masks, dtype=np.float64)
+        hits = np.zeros((m.shape[0], self.n_states * self.n_actions))
+        for g in range(m.shape[0]):
+            hits[g] = np.bincount(self.rows(), weights=self.counts * m[g, self.indices],
+                                  minlength=self.n_states * self.n_actions)
+        hits = hits.reshape(m.shape[0], self.n_states, self.n_actions)
+        n = self.n_sa.astype(np.float64)
+        out = np.zeros_like(hits)
+        np.divide(hits, n[None], out=out, where=n[None] > 0)
+        return out
+
+
+def sparse_count_model(s: ArrayLike, a: ArrayLike, s_next: ArrayLike, n_states: int,
+                       n_actions: int = N_ACTIONS) -> SparseCountModel:
+    """:class:`SparseCountModel` from logged index arrays ``(N,)`` (the sparse
+    :func:`count_transitions` + :func:`empirical_mdp`); memory O(N + S A)."""
+    s, a, s_next = (np.asarray(v, dtype=np.int64).ravel() for v in (s, a, s_next))
+    if not (len(s) == len(a) == len(s_next)):
+        raise ValueError(f"s, a, s_next lengths differ: {len(s)}, {len(a)}, {len(s_next)}")
+    for name, v, upper in (("s", s, n_states), ("a", a, n_actions), ("s_next", s_next, n_states)):
+        if v.size and (v.min() < 0 or v.max() >= upper):
+            raise ValueError(f"{name}: indices must lie in 0..{upper - 1}")
+    triples, n = np.unique((s * n_actions + a) * n_states + s_next, return_counts=True)
+    return _sparse_from_triples(triples // n_states, triples % n_states, n.astype(np.int64),
+                                n_states, n_actions)
+
+
+def sparse_from_dense_counts(counts: ArrayLike) -> SparseCountModel:
+    """:class:`SparseCountModel` of a dense ``(S, A, S)`` count table."""
+    c = np.asarray(counts)
+    if c.ndim != 3 or c.shape[0] != c.shape[2]:
+        raise ValueError(f"counts: expected shape (S, A, S), got {c.shape}")
+    if np.any(c < 0):
+        raise ValueError("counts: negative entries")
+    S, A = c.shape[:2]
+    flat = np.flatnonzero(c.reshape(-1))
+    return _sparse_from_triples(flat // S, flat % S, c.reshape(-1)[flat].astype(np.int64), S, A)
+
+
+def _sparse_from_triples(row: NDArray[np.int64], col: NDArray[np.int64],
+                         n: NDArray[np.int64], n_states: int, n_actions: int
+                         ) -> SparseCountModel:
+    """CSR from sorted (row, col) entries with counts ``n`` > 0, self-loops added."""
+    n_rows = n_states * n_actions
+    visited_rows = np.zeros(n_rows, dtype=bool)
+    visited_rows[row] = True
+    loops = np.flatnonzero(~visited_rows)
+    rows = np.concatenate([row, loops])
+    cols = np.concatenate([col, loops // n_actions])
+    cnt = np.concatenate([n, np.zeros(loops.size, dtype=np.int64)])
+    order = np.lexsort((cols, rows))
+    rows, cols, cnt = rows[order], cols[order], cnt[order]
+    indptr = np.zeros(n_rows + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n_rows), out=indptr[1:])
+    n_sa = np.add.reduceat(cnt, indptr[:-1])
+    denom = np.repeat(n_sa, np.diff(indptr)).astype(np.float64)
+    p = np.ones(cnt.size)
+    np.divide(cnt, denom, out=p, where=denom > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(p > 0, -p * np.log2(np.where(p > 0, p, 1.0)), 0.0)
+    entropy = np.add.reduceat(terms, indptr[:-1]) + 0.0
+    return SparseCountModel(
+        n_states=n_states, n_actions=n_actions, indptr=indptr, indices=cols, counts=cnt,
+        probabilities=p, visited=visited_rows.reshape(n_states, n_actions),
+        entropy=entropy.reshape(n_states, n_actions))
+
+
+def use_sparse(n_states: int, n_actions: int, storage: str = "auto") -> bool:
+    """Whether :func:`estimate` takes the sparse path (module docstring)."""
+    if storage not in STORAGES:
+        raise ConfigError(f"unknown storage {storage!r}", key="storage",
+                          fix="use auto, dense or sparse")
+    if storage == "auto":
+        return n_states * n_actions * n_states > SPARSE_CELLS
+    return storage == "sparse"
+
+
+def coverage_report(mdp: CountModel | SparseCountModel, *, max_listed: int | None = None) -> dict[str, Any]:
     """Coverage: visited pairs, unvisited (s, a) list, n(s, a) histogram and quantiles."""
     n_sa = mdp.n_sa
     edges = list(HISTOGRAM_EDGES)
@@ -249,7 +418,7 @@ def coverage_report(mdp: CountModel, *, max_listed: int | None = None) -> dict[s
 class EstimateResult:
     """What :func:`estimate` produced: the model, the output paths and the summary."""
 
-    mdp: CountModel
+    mdp: CountModel | SparseCountModel
     npz: Path
     summary_path: Path
     plot: Path | None
@@ -305,6 +474,8 @@ class EstimateConfig(ActionSetOptions):
                             "self-loop = the old rule, a free stay")
     plot: bool = option(True, "the entropy bar plot (--no-plot skips it)")
     overwrite: bool = option(False, "replace existing outputs")
+    storage: str = option("auto", "model storage: auto = sparse CSR when S*A*S > 2e7 cells, "
+                          "else dense; dense; sparse", choices=STORAGES)
     action_set: Any | None = option(None, "ActionSet of a count table (Python only)", cli=False)
 
     def validate(self) -> None:
@@ -312,6 +483,7 @@ class EstimateConfig(ActionSetOptions):
             raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
                               key="source")
         check_unvisited_rule(self.unvisited)
+        use_sparse(1, 1, self.storage)  # an unknown storage names its field here
         if self.action_set is not None and not isinstance(self.action_set, ActionSet):
             raise ConfigError(f"expected an ActionSet, got {self.action_set!r}",
                               key="action_set")
@@ -334,9 +506,11 @@ class EstimateConfig(ActionSetOptions):
 class _Source:
     """What the dataset or the count table gives the model (arrays as loaded)."""
 
-    counts: NDArray[np.int64]
+    counts: NDArray[np.int64] | None
     action_set: ActionSet | None
     summary: dict[str, Any]
+    triples: tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]] | None = None
+    shape: tuple[int, int] | None = None
     states_hash: str | None = None
     centres: NDArray[np.float64] | None = None
     goals: Any = None
@@ -367,9 +541,12 @@ def estimate(cfg: EstimateConfig) -> EstimateResult:
     * ``overwrite``: replace existing output files.
     * ``unvisited``: rule for unvisited (s, a), ``mask`` (default) or ``self-loop``,
       stored in the model's metadata (module docstring).
+    * ``storage``: ``auto`` (sparse when ``S * A * S`` > :data:`SPARSE_CELLS`), ``dense``
+      or ``sparse`` (module docstring, "Sparse path"); the sparse path's ``mdp`` is a
+      :class:`SparseCountModel` and its npz holds the CSR arrays instead of ``counts``/``T``.
 
     Returns:
-        :class:`EstimateResult`. The npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
+        :class:`EstimateResult`. The (dense) npz holds ``counts`` (S, A, S) int64, ``T`` (S, A, S),
         ``visited`` (S, A) bool, ``entropy`` (S, A) bits, ``mean_entropy`` (A,) bits and,
         when the centres are known, ``centres`` (S, 2) m; with goals also
         ``goal_names`` (G,) unicode, ``goal_masks`` (G, S) bool and ``R`` (G, S, A);
@@ -389,7 +566,7 @@ def estimate(cfg: EstimateConfig) -> EstimateResult:
     arena_cfg = None if cfg.arena is None else load_arena_config(cfg.arena)
     src = _from_dataset(cfg, disc, arena_cfg) if cfg.dataset is not None else \
         _from_counts(cfg, disc, arena_cfg)
-    mdp = empirical_mdp(src.counts)
+    mdp = _count_model(src, cfg.storage)
     arrays, goal_info = _model_arrays(mdp, src, cfg.unvisited)
     summary = _summary(mdp, src, cfg.unvisited, goal_info)
     summary["files"] = {"npz": str(npz_path), "summary": str(summary_path),
@@ -424,6 +601,7 @@ def _from_dataset(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
                           f"{action_set.describe()}", path=dataset, key="action_set")
     ds.warn_if_incomplete("the model")
     a_col = ds.column("a")
+    triples = (ds.column("s"), a_col, ds.column("s_next"))
     arena = ds.manifest["arena"]
     bounds = None if arena_cfg is None else [float(v) for v in arena_cfg.bounds]
     if bounds is None and arena.get("bounds") is not None:
@@ -445,13 +623,25 @@ def _from_dataset(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
                 for w in range(int(ds.manifest["workers"])))) / 3600.0,
     }
     return _Source(
-        counts=count_transitions(ds.column("s"), a_col, ds.column("s_next"), S, A),
+        counts=None if use_sparse(S, A, cfg.storage) else count_transitions(*triples, S, A),
+        triples=triples, shape=(S, A),
         action_set=action_set, summary={"source": source},
         states_hash=ds.discretizer_hash, centres=ds.centres,
         goals=arena_cfg if arena_cfg is not None else goals_from_manifest(
             arena.get("goals", [])),
         bounds=bounds,
         blocked_by_action=np.divide(hits, tries, out=np.full(A, np.nan), where=tries > 0))
+
+
+def _count_model(src: _Source, storage: str) -> CountModel | SparseCountModel:
+    """The dense model of the counts, or the sparse one (:func:`use_sparse`)."""
+    if src.counts is None:  # a dataset on the sparse path: its triples only
+        S, A = src.shape  # type: ignore[misc]
+        return sparse_count_model(*src.triples, S, A)  # type: ignore[misc]
+    S, A = src.counts.shape[:2]
+    if use_sparse(S, A, storage):
+        return sparse_from_dense_counts(src.counts)
+    return empirical_mdp(src.counts)
 
 
 def _from_counts(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
@@ -490,7 +680,7 @@ def _action_set_json(src: _Source) -> dict[str, Any] | None:
     return None if src.action_set is None else src.action_set.to_json()
 
 
-def _model_arrays(mdp: CountModel, src: _Source, unvisited: str
+def _model_arrays(mdp: CountModel | SparseCountModel, src: _Source, unvisited: str
                   ) -> tuple[dict[str, Any], dict[str, list[int]] | None]:
     """The arrays of ``mdp.npz`` and the goal states (None without centres or goals)."""
     from simlab.data.goals import goal_state_masks
@@ -499,14 +689,20 @@ def _model_arrays(mdp: CountModel, src: _Source, unvisited: str
     meta = {"action_set": _action_set_json(src), "unvisited": unvisited}
     if src.states_hash is not None:
         meta["states_hash"] = src.states_hash
-    arrays: dict[str, Any] = {
-        "counts": mdp.counts,
-        "T": mdp.T,
+    if isinstance(mdp, SparseCountModel):
+        meta["storage"] = "sparse-csr"
+        arrays: dict[str, Any] = {
+            "shape": np.array([mdp.n_states, mdp.n_actions, mdp.n_states], dtype=np.int64),
+            "indptr": mdp.indptr, "indices": mdp.indices,
+            "probabilities": mdp.probabilities, "counts_data": mdp.counts}
+    else:
+        arrays = {"counts": mdp.counts, "T": mdp.T}
+    arrays.update({
         "visited": mdp.visited,
         "entropy": mdp.entropy,
         "mean_entropy": mdp.mean_entropy,
         "meta_json": np.array(json.dumps(meta)),
-    }
+    })
     goal_info = None
     if src.bounds is not None:
         arrays["bounds"] = np.asarray(src.bounds, dtype=np.float64)
@@ -522,7 +718,7 @@ def _model_arrays(mdp: CountModel, src: _Source, unvisited: str
     return arrays, goal_info
 
 
-def _summary(mdp: CountModel, src: _Source, unvisited: str,
+def _summary(mdp: CountModel | SparseCountModel, src: _Source, unvisited: str,
              goal_info: dict[str, list[int]] | None) -> dict[str, Any]:
     """The JSON summary beside the model (without its ``files`` entry)."""
     n_masked = int((~valid_actions(mdp.visited)).sum()) if unvisited == "mask" else 0
@@ -531,6 +727,8 @@ def _summary(mdp: CountModel, src: _Source, unvisited: str,
         "n_states": mdp.n_states,
         "n_actions": mdp.n_actions,
         "transitions": int(mdp.counts.sum()),
+        **({"storage": "sparse-csr", "stored_entries": mdp.nnz}
+           if isinstance(mdp, SparseCountModel) else {}),
         "coverage": coverage_report(mdp),
         "entropy_bits": {
             "per_action": _floats(mdp.mean_entropy),
@@ -555,7 +753,7 @@ def _summary(mdp: CountModel, src: _Source, unvisited: str,
     return summary
 
 
-def _write_outputs(cfg: EstimateConfig, mdp: CountModel, arrays: dict[str, Any],
+def _write_outputs(cfg: EstimateConfig, mdp: CountModel | SparseCountModel, arrays: dict[str, Any],
                    summary: dict[str, Any], paths: tuple[Path, Path, Path]) -> None:
     """Write the model, the plot and the summary: all of them, or none."""
     npz_path, summary_path, plot_path = paths

@@ -12,6 +12,15 @@ convention of :attr:`simlab.physics.arena.ArenaConfig.bounds`); ``meta_json`` (o
 ``action_set`` (absent: simlab's 16 primitives; for another number of actions unknown, None,
 which training accepts and heat-map arrows and replay refuse)
 and ``unvisited`` (``mask``, the default also for files without it, or ``self-loop``).
+
+Sparse files (``simlab estimate`` on a large MDP, ``meta_json["storage"] == "sparse-csr"``,
+:mod:`simlab.data.estimate`): no ``T``, but the CSR arrays ``shape`` (3,) ``(S, A, S)``,
+``indptr`` (S A + 1,), ``indices`` (nnz,) s', ``probabilities`` (nnz,) and ``counts_data``
+(nnz,). The sibling loader :func:`load_sparse_mdp` reads them into a
+:class:`SparseEmpiricalMDP` (validated the same way: rows are distributions); decision:
+:func:`load_mdp` densifies a sparse file when ``S * A * S`` is at most
+:data:`simlab.data.estimate.SPARSE_CELLS` (so every existing consumer reads it), and
+otherwise raises a :class:`ConfigError` naming :func:`load_sparse_mdp`.
 """
 
 from __future__ import annotations
@@ -26,7 +35,11 @@ import numpy as np
 from simlab.actions import ActionSet, action_set_from_metadata
 from simlab.errors import ConfigError
 
-__all__ = ["EmpiricalMDP", "load_mdp", "mdp_from_arrays"]
+__all__ = ["EmpiricalMDP", "SparseEmpiricalMDP", "load_mdp", "load_sparse_mdp",
+           "mdp_from_arrays"]
+
+#: Arrays of a sparse ``mdp.npz`` (module docstring).
+SPARSE_ARRAYS = ("shape", "indptr", "indices", "probabilities")
 
 _ROW_ATOL = 1e-6
 
@@ -228,8 +241,12 @@ def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
     """
     from simlab.agents.storage import load_npz
 
-    arrays, meta = load_npz(path, ("T",))
+    arrays, meta = load_npz(path)
     path = Path(path)
+    if meta.get("storage") == "sparse-csr" and "T" not in arrays:
+        return _densified(load_sparse_mdp(path))
+    if "T" not in arrays:
+        load_npz(path, ("T",))  # the missing-array message
     T = arrays["T"]
     n_actions = int(T.shape[1]) if T.ndim == 3 else 16
     return mdp_from_arrays(
@@ -246,3 +263,134 @@ def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
                     if meta.get("action_set") is not None or n_actions == 16 else None),
         unvisited=str(meta.get("unvisited", "mask")),
     )
+
+
+@dataclass(frozen=True, eq=False)
+class SparseEmpiricalMDP:
+    """A validated sparse empirical MDP (:func:`load_sparse_mdp`; arrays read-only).
+
+    ``P`` is a ``scipy.sparse.csr_matrix`` ``(S * A, S)``: row ``s * A + a`` is
+    ``T(s, a, .)``. ``counts`` (nnz,) int64 are aligned with ``P.data`` (0 for the
+    self-loop of an unvisited pair); the other fields are :class:`EmpiricalMDP`'s.
+    """
+
+    P: Any
+    n_states: int
+    n_actions: int
+    counts: np.ndarray | None = None
+    visited: np.ndarray | None = None
+    entropy: np.ndarray | None = None
+    goal_names: tuple[str, ...] = ()
+    goal_masks: np.ndarray | None = None
+    centres: np.ndarray | None = None
+    bounds: np.ndarray | None = None
+    source: str | None = None
+    unvisited: str = "mask"
+    meta: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @property
+    def valid(self) -> np.ndarray | None:
+        """As :attr:`EmpiricalMDP.valid`: (S, A) bool planner-choosable actions, or None."""
+        from simlab.data.estimate import valid_actions
+
+        if self.unvisited != "mask" or self.visited is None:
+            return None
+        v = valid_actions(self.visited)
+        return None if v.all() else v
+
+    def dense_T(self) -> np.ndarray:
+        """The dense ``(S, A, S)`` T (small models only)."""
+        return self.P.toarray().reshape(self.n_states, self.n_actions, self.n_states)
+
+
+def load_sparse_mdp(path: str | os.PathLike[str]) -> SparseEmpiricalMDP:
+    """Read and validate a sparse ``mdp.npz`` (no pickle; module docstring).
+
+    Errors name the file and the array: missing CSR arrays, ``indptr`` not of length
+    ``S * A + 1`` or not non-decreasing from 0 to nnz, ``indices`` outside ``0..S-1``,
+    negative or non-finite probabilities, rows not summing to 1, shapes that disagree.
+    """
+    from scipy.sparse import csr_matrix
+
+    from simlab.agents.storage import load_npz
+    from simlab.data.estimate import check_unvisited_rule
+
+    arrays, meta = load_npz(path, SPARSE_ARRAYS)
+    where = str(path)
+    shape = np.asarray(arrays["shape"]).ravel()
+    if shape.shape != (3,) or shape[0] != shape[2] or np.any(shape < 1):
+        raise ConfigError(f"expected (S, A, S) with S, A >= 1, got {shape.tolist()}",
+                          path=where, key="shape")
+    S, A = int(shape[0]), int(shape[1])
+    indptr = np.asarray(arrays["indptr"], dtype=np.int64)
+    indices = np.asarray(arrays["indices"], dtype=np.int64)
+    prob = np.asarray(arrays["probabilities"], dtype=np.float64)
+    if indptr.shape != (S * A + 1,) or indptr[0] != 0 or np.any(np.diff(indptr) < 0) \
+            or indptr[-1] != indices.size:
+        raise ConfigError(f"expected {S * A + 1} non-decreasing offsets from 0 to "
+                          f"{indices.size}", path=where, key="indptr")
+    if prob.shape != indices.shape:
+        raise ConfigError(f"expected shape {indices.shape}, got {prob.shape}", path=where,
+                          key="probabilities")
+    if indices.size and (indices.min() < 0 or indices.max() >= S):
+        raise ConfigError(f"next states must lie in 0..{S - 1}", path=where, key="indices")
+    if not np.all(np.isfinite(prob)) or np.any(prob < 0):
+        raise ConfigError("negative or non-finite probability", path=where,
+                          key="probabilities")
+    P = csr_matrix((prob, indices, indptr), shape=(S * A, S))
+    sums = np.asarray(P.sum(axis=1)).ravel()
+    bad = np.abs(sums - 1.0) > _ROW_ATOL
+    if np.any(bad):
+        r = int(np.flatnonzero(bad)[0])
+        raise ConfigError(f"row ({r // A}, {r % A}) sums to {sums[r]:.6g}, not 1 "
+                          f"({int(bad.sum())} rows are not distributions)", path=where,
+                          key="probabilities")
+    counts = arrays.get("counts_data")
+    for name, arr, want in (("counts_data", counts, indices.shape),
+                            ("visited", arrays.get("visited"), (S, A)),
+                            ("entropy", arrays.get("entropy"), (S, A)),
+                            ("centres", arrays.get("centres"), (S, 2))):
+        if arr is not None and np.shape(arr) != want:
+            raise ConfigError(f"expected shape {want}, got {np.shape(arr)}", path=where,
+                              key=name)
+    names = arrays.get("goal_names")
+    masks = arrays.get("goal_masks")
+    if masks is not None and names is not None and np.shape(masks) != (np.size(names), S):
+        raise ConfigError(f"expected shape ({np.size(names)}, {S}), got {np.shape(masks)}",
+                          path=where, key="goal_masks")
+    unvisited = check_unvisited_rule(str(meta.get("unvisited", "mask")))
+    return SparseEmpiricalMDP(
+        P=P, n_states=S, n_actions=A, counts=_readonly(counts),
+        visited=_readonly(None if arrays.get("visited") is None
+                          else arrays["visited"].astype(bool)),
+        entropy=_readonly(arrays.get("entropy")),
+        goal_names=() if names is None else tuple(str(n) for n in np.ravel(names)),
+        goal_masks=_readonly(None if masks is None else np.asarray(masks, dtype=bool)),
+        centres=_readonly(arrays.get("centres")), bounds=_readonly(arrays.get("bounds")),
+        source=where, unvisited=unvisited,
+        meta=meta)
+
+
+def _densified(m: SparseEmpiricalMDP) -> EmpiricalMDP:
+    """:class:`EmpiricalMDP` of a small sparse file (module docstring, decision)."""
+    from simlab.data.estimate import SPARSE_CELLS
+
+    S, A = m.n_states, m.n_actions
+    if S * A * S > SPARSE_CELLS:
+        raise ConfigError(f"a sparse model of {S} x {A} x {S} cells is too large to load "
+                          "densely", path=m.source, key="storage",
+                          fix="read it with simlab.data.mdp.load_sparse_mdp")
+    counts = None
+    if m.counts is not None:
+        from scipy.sparse import csr_matrix
+
+        counts = csr_matrix((m.counts, m.P.indices, m.P.indptr), shape=m.P.shape
+                            ).toarray().reshape(S, A, S).astype(np.int64)
+    action_set = None
+    if m.meta.get("action_set") is not None or A == 16:
+        action_set = action_set_from_metadata(m.meta, A, where=str(m.source))
+    return mdp_from_arrays(m.dense_T(), goal_names=m.goal_names or None,
+                           goal_masks=m.goal_masks, centres=m.centres, bounds=m.bounds,
+                           counts=counts,
+                           visited=m.visited, entropy=m.entropy, source=m.source,
+                           action_set=action_set, unvisited=m.unvisited)

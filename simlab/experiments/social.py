@@ -41,6 +41,8 @@ def closed_loop(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext)
         "random_goals": r["goals"],
         "social_reward_per_decision": c["social_reward_per_decision"],
         "grid_plateau_reward_per_step": s["training"].get("plateau_reward_per_step"),
+        "empirical_goals_per_hour": s["goals_per_hour"].get("empirical"),
+        "predicted_goals_per_hour": s["tabular_prediction"]["goals_per_hour"],
         "runs": cfg.runs,
         "hours": cfg.hours,
     }
@@ -51,8 +53,9 @@ def closed_loop(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext)
         "The required direction is the heading from the human to the current goal centre "
         "(the open table needs no path planning); a goal counts when the engaged human "
         "(level >= 5) stands in it.",
-        "The tabular MDP predicts the social reward per step, not this goal rate; see "
-        "summary.json's tabular_prediction.",
+        "empirical_goals_per_hour: the social module planned on the empirical social MDP of "
+        "a physics walk (module both); predicted_goals_per_hour: the renewal model on that "
+        "MDP (summary.json's tabular_prediction and predicted_goals_per_hour).",
     ]
     return RunResult(metrics=metrics, figures=list(res.paths.get(k) for k in ("plot", "gif")
                                                    if k in res.paths),

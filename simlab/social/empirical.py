@@ -1,0 +1,382 @@
+"""The social module trained on the EMPIRICAL social MDP (issue 18, item 4), and the goal
+rate the MDPs predict.
+
+From a social random walk in physics (:mod:`simlab.social.walk`: 2560 observation states,
+22 actions) the sparse count model of :mod:`simlab.data.estimate`
+(:func:`~simlab.data.estimate.sparse_count_model`: the dense 2560 x 22 x 2560 table would
+be 1.2 GB per array) gives ``T(s, a, s')``; a reward ``R(s, a)`` and value iteration on the
+CSR matrix ``(S * A, S)`` give the ``(2560, 22)`` Q-table that
+:func:`simlab.social.closedloop.run_closed_loop` reads.
+
+**Reward** (the grid social task's rule, :func:`simlab.visitlab.dynamics.social_step` step 6,
+thesis 2.1.2, restated in :mod:`simlab.social.task` step 6): +1 when the interaction level
+after the step is 7 and the human moved in the required direction of the observed state.
+Two estimates of ``R(s, a)``:
+
+* ``measured`` (used when the walk is at hand, e.g. by the pipeline): eq. 1.14 with the
+  walk's recorded rewards, ``R(s, a) = sum r / n(s, a)`` (0 where unvisited).
+* ``rule`` (from ``(s, a, s')`` alone, e.g. a dataset on disk, which does not store the
+  reward or the human's poses): the move is not in the observation, so the rule is restated
+  on it: ``r(s, a, s') = 1`` when the level of ``s'`` is 7, ``a`` is not a signal (HELLO,
+  COME, POINTING: the human does not walk then) and the direction the engaged human walks,
+  toward where it saw the robot (:data:`OPPOSITE` of the observed angle, the robot -> human
+  bearing), is the required direction of ``s``; ``R = sum_s' T r``. It over-counts steps
+  where the human stood still (already at ``follow_gap``);
+  :func:`rule_agreement` measures how often it equals the recorded reward.
+
+**Pooling over the required direction** (decision, ``pool_directions``, default on): the
+task's steps 1-5 never read the required direction (it only enters the reward and is
+redrawn independently, step 7), so the transitions of (level, distance class, angle) are
+pooled over the 8 directions (320 x 22 pairs instead of 2560 x 22: a 4,000-decision walk
+covers ~8x more of them), and the planned model is ``T0((l, d, g), a, (l', d', g')) *
+K(r' | r)`` on the 2560 states with ``K`` the redraw kernel (``r' = r`` with probability
+``1 - redraw_p + redraw_p / 8``); the ``measured`` reward is then the fraction of pooled
+transitions with level 7 after and the human's move (its poses) in direction ``r``.
+Without pooling the model is the plain estimate of the walk on the 2560 states.
+
+**Untried (s, a)**: the ``mask`` rule of :mod:`simlab.data.estimate`: the planner maximises
+over :func:`~simlab.data.estimate.valid_actions` only; masked entries of the Q-table are
+``-inf`` (the closed loop's greedy choice never takes them unless everything is masked or
+excluded; a state without data has all actions valid, self-loops of value 0: uniform ties).
+
+**Required direction**: it is part of the state and the walk's task redraws it with
+probability ``redraw_p`` per decision (0.2, the paper's), so the model's ``s'`` carries a
+new direction with probability ``redraw_p * 7 / 8`` whatever the robot does. The planner
+therefore values a state as if the goal direction changed every ``1 / (0.175)`` ~ 6
+decisions, while in the closed loop (``redraw_p = 0``) it changes only when the human
+crosses a sector boundary toward the goal: plans that pay off over many decisions in one
+direction are under-valued. A walk with ``redraw_p = 0`` would instead never show a change
+except by restart (the data would then say the direction is fixed, which is closer to the
+loop; the pipeline keeps the paper's 0.2 so that the walk is the item-3 walk).
+
+**Predicted goal rate** (:func:`predict_goal_rate`): a renewal model on the empirical MDP
+under the greedy policy ``pi(s) = argmax_a Q`` (lowest index among ties; the loop's
+epsilon and ``skip_idle`` are not modelled). ``E`` = the states of level 7 (the human
+follows), ``N`` the others.
+
+1. *Engage*: from the walk's episode-start states (a random placement, the human not
+   engaged), the absorbing-chain solve ``x^T (I - P_NN) = start^T`` on the states of ``N``
+   from which ``E`` is reachable under ``pi`` gives the expected visits ``x`` before
+   entering ``E``; ``p_engage`` = probability of ever entering (the rest is stuck in a
+   closed class of ``pi``, often an untried self-loop), ``decisions_to_engage`` =
+   ``sum x / p_engage`` and the entry distribution ``x P_NE / p_engage``.
+2. *Engaged*: the per-decision probability of losing engagement ``p_lose`` is the MDP's
+   mean probability of a level below 7 after a decision taken at level 7, over the walk's
+   decisions at level 7 (their counts are the weights: a random walk reaches level 7
+   rarely, and an absorbing solve inside ``E`` would mostly meet untried pairs, whose
+   self-loops never leave); ``engaged_decisions = 1 / p_lose``; the rewarded decisions of
+   one engagement ``k = engaged_decisions * sum_s w(s) R(s, pi(s))`` with ``w`` the
+   walk's visit distribution over ``E``.
+3. *Lead*: a rewarded decision moves the human ``step_m`` toward the goal (the mean
+   human displacement of the walk's rewarded decisions); a goal needs the mean distance
+   between the centres of two different goal areas less the goal radius
+   (``lead_distance_m``).
+4. *Time*: a decision lasts the walk's mean duration of the action ``pi`` takes, averaged
+   with the visits ``x`` (engaging) and ``engaged_decisions * w`` (engaged).
+
+Goals per hour = ``f * rho * step_m / lead_distance_m * 3600 / decision_s`` with ``rho`` the
+reward per engaged decision and ``f = engaged_decisions / (decisions_to_engage +
+engaged_decisions)`` the engaged fraction of a renewal cycle (engage, then lead until lost;
+``f = 1`` when the data never saw engagement lost, ``p_lose = 0``), i.e. ``k * step_m /
+lead_distance_m`` goals per cycle of ``decisions_to_engage + engaged_decisions``
+decisions; ``decision_s`` is the matching mix of the engaging and engaged durations.
+It need not be right; the pipeline sets it beside the measured rate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from simlab import validation
+from simlab.data.estimate import SparseCountModel, sparse_count_model, valid_actions
+from simlab.social.actions import N_SOCIAL_ACTIONS, SIGNALS
+from simlab.social.walk import N_SOCIAL_STATES, SocialWalk, decode_social
+
+#: Opposite of each direction in the thesis order (UP, DOWN, LEFT, RIGHT, UP-LEFT,
+#: UP-RIGHT, DOWN-LEFT, DOWN-RIGHT; :class:`simlab.directions.Direction`).
+OPPOSITE: NDArray[np.int64] = np.array([1, 0, 3, 2, 7, 6, 5, 4], dtype=np.int64)
+OPPOSITE.flags.writeable = False
+
+#: The thesis's discount (:class:`simlab.agents.config.AgentConfig` default).
+GAMMA = 0.9
+
+
+def observation_reward(s: ArrayLike, a: ArrayLike, s_next: ArrayLike) -> NDArray[np.float64]:
+    """The ``rule`` reward (module docstring) of transitions ``(N,)`` -> ``(N,)`` 0/1."""
+    d, d2 = decode_social(s), decode_social(s_next)
+    a = np.asarray(a, dtype=np.int64)
+    walks = ~np.isin(a, np.asarray(SIGNALS, dtype=np.int64))
+    toward = OPPOSITE[d[..., 3]] == d[..., 2]
+    return ((d2[..., 0] == 7) & walks & toward).astype(np.float64)
+
+
+def rule_rewards(P: Any, visited: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """``R(s, a) = sum_s' T(s, a, s') r(s, a, s')`` ``(S, A)`` of the ``rule`` reward, for a
+    CSR ``P`` ``(S * A, S)``; 0 where ``visited`` ``(S, A)`` is False."""
+    S, A = visited.shape
+    rows = np.repeat(np.arange(S * A), np.diff(P.indptr))
+    r = observation_reward(rows // A, rows % A, P.indices)
+    per = np.bincount(rows, weights=P.data * r, minlength=S * A)
+    return np.where(visited.ravel(), per, 0.0).reshape(S, A)
+
+
+def measured_rewards(s: ArrayLike, a: ArrayLike, reward: ArrayLike,
+                     n_states: int = N_SOCIAL_STATES, n_actions: int = N_SOCIAL_ACTIONS
+                     ) -> NDArray[np.float64]:
+    """Eq. 1.14 with recorded rewards: ``R(s, a) = sum r / n(s, a)`` ``(S, A)`` (0 unvisited)."""
+    flat = np.asarray(s, dtype=np.int64) * n_actions + np.asarray(a, dtype=np.int64)
+    size = n_states * n_actions
+    total = np.bincount(flat, weights=np.asarray(reward, dtype=float), minlength=size)
+    n = np.bincount(flat, minlength=size)
+    return np.divide(total, n, out=np.zeros(size), where=n > 0).reshape(n_states, n_actions)
+
+
+def rule_agreement(walks: list[SocialWalk]) -> float:
+    """Fraction of the walks' transitions whose ``rule`` reward equals the recorded one."""
+    s, a, s2, r = (np.concatenate([getattr(w, k) for w in walks])
+                   for k in ("s", "a", "s_next", "reward"))
+    return float(np.mean(observation_reward(s, a, s2) == r)) if s.size else float("nan")
+
+
+def sparse_value_iteration(P: Any, R: ArrayLike, gamma: float = GAMMA,
+                           valid: ArrayLike | None = None, tol: float = 1e-10,
+                           max_iter: int = 100_000
+                           ) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """Value iteration on a sparse model: ``(Q (S, A), V (S,), sweeps)``.
+
+    ``P`` is a ``scipy.sparse`` matrix ``(S * A, S)`` (row ``s * A + a`` = ``T(s, a, .)``),
+    ``R`` ``(S, A)``, ``valid`` ``(S, A)`` bool (None: all) the actions the max runs over;
+    invalid entries of ``Q`` are ``-inf``. Stops when the sup-norm change of ``V`` is below
+    ``tol * (1 - gamma) / gamma`` (so ``V`` is within ``tol`` of the fixed point).
+    """
+    R = np.asarray(R, dtype=np.float64)
+    S, A = R.shape
+    if P.shape != (S * A, S):
+        raise ValueError(f"P: expected shape ({S * A}, {S}), got {P.shape}")
+    validation.discount(gamma)
+    mask = np.ones((S, A), dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    if mask.shape != (S, A) or not mask.any(axis=1).all():
+        raise ValueError("valid: expected (S, A) bool with an action in every state")
+    V = np.zeros(S)
+    stop = tol * (1.0 - gamma) / gamma if gamma > 0 else np.inf
+    sweeps = 0
+    while sweeps < max_iter:
+        sweeps += 1
+        Q = R + gamma * (P @ V).reshape(S, A)
+        new = np.where(mask, Q, -np.inf).max(axis=1)
+        delta = float(np.abs(new - V).max())
+        V = new
+        if delta <= stop:
+            break
+    Q = R + gamma * (P @ V).reshape(S, A)
+    return np.where(mask, Q, -np.inf), V, sweeps
+
+
+def moved_directions(walks: list[SocialWalk]) -> NDArray[np.int64]:
+    """Direction 0-7 the human moved in each transition of ``walks`` (-1: < 1 mm), as
+    :func:`simlab.social.human.moved_direction` (the reward's "moved")."""
+    from simlab.social.human import moved_direction
+
+    return np.array([moved_direction(h, h2) for w in walks
+                     for h, h2 in zip(w.human, w.human_next, strict=True)], dtype=np.int64)
+
+
+def pooled_model(walks: list[SocialWalk], redraw_p: float
+                 ) -> tuple[Any, NDArray[np.bool_], NDArray[np.float64], SparseCountModel]:
+    """The direction-pooled social MDP on the 2560 states (module docstring, "Pooling"):
+    ``(P (S * A, S) CSR, visited (S, A), measured R (S, A), the 320-state model)``."""
+    from scipy.sparse import coo_matrix
+
+    validation.probability(redraw_p, "redraw_p")
+    s, a, s2 = (np.concatenate([getattr(w, k) for w in walks]) for k in ("s", "a", "s_next"))
+    d, d2 = decode_social(s), decode_social(s2)
+    b = (d[:, 0] * 5 + d[:, 1]) * 8 + d[:, 3]
+    b2 = (d2[:, 0] * 5 + d2[:, 1]) * 8 + d2[:, 3]
+    A, nb = N_SOCIAL_ACTIONS, N_SOCIAL_STATES // 8
+    base = sparse_count_model(b, a, b2, nb, A)
+    moved = moved_directions(walks)
+    flat = b * A + a
+    n = np.bincount(flat, minlength=nb * A)
+    R0 = np.stack([np.bincount(flat, weights=((d2[:, 0] == 7) & (moved == r)).astype(float),
+                               minlength=nb * A) for r in range(8)], axis=1)
+    R0 = np.divide(R0, n[:, None], out=np.zeros_like(R0), where=n[:, None] > 0)
+    kernel = np.full((8, 8), redraw_p / 8.0) + np.eye(8) * (1.0 - redraw_p)
+    rows0, cols0, p0 = base.rows(), base.indices, base.probabilities
+    lvl_d, g0, act = (rows0 // A) // 8, (rows0 // A) % 8, rows0 % A
+    lvl_d2, g2 = cols0 // 8, cols0 % 8
+    rr, r2 = np.meshgrid(np.arange(8), np.arange(8), indexing="ij")
+    rr, r2 = rr.ravel()[:, None], r2.ravel()[:, None]
+    row = (((lvl_d * 8 + rr) * 8 + g0) * A + act).ravel()
+    col = ((lvl_d2 * 8 + r2) * 8 + g2).ravel()
+    val = (p0 * kernel[rr, r2]).ravel()
+    P = coo_matrix((val, (row, col)), shape=(N_SOCIAL_STATES * A, N_SOCIAL_STATES)).tocsr()
+    full = np.arange(N_SOCIAL_STATES)
+    fd = decode_social(full)
+    fb = (fd[:, 0] * 5 + fd[:, 1]) * 8 + fd[:, 3]
+    visited = base.visited[fb]
+    R = R0.reshape(nb, A, 8)[fb, :, fd[:, 2]]
+    return P, visited, R, base
+
+
+@dataclass(frozen=True)
+class EmpiricalSocial:
+    """The empirical social module: the count model of the walks on the 2560 states, the
+    planned model's reward ``R`` (S, A), the Q-table ``q`` (2560, 22) (``-inf`` where
+    masked), VI sweeps, the reward estimate and whether directions were pooled (then
+    ``pooled_pairs`` is the visited (level, distance, angle, action) pairs of 7,040)."""
+
+    model: SparseCountModel
+    R: NDArray[np.float64]
+    q: NDArray[np.float64]
+    sweeps: int
+    reward: str
+    pooled: bool
+    planned_visited: NDArray[np.bool_]
+    planned_P: Any = None
+
+    def summary(self) -> dict[str, Any]:
+        m = self.model
+        return {"transitions": m.transitions, "visited_pairs": int(m.visited.sum()),
+                "coverage": round(m.coverage, 6), "stored_entries": m.nnz,
+                "pool_directions": self.pooled,
+                "planned_visited_pairs": int(self.planned_visited.sum()),
+                "reward": self.reward, "rewarded_pairs": int((self.R > 0).sum()),
+                "vi_sweeps": self.sweeps, "gamma": GAMMA,
+                "max_q": round(float(self.q[np.isfinite(self.q)].max()), 6)}
+
+
+def train_empirical(walks: list[SocialWalk], *, reward: str = "measured",
+                    gamma: float = GAMMA, pool_directions: bool = True,
+                    redraw_p: float = 0.2) -> EmpiricalSocial:
+    """Estimate the sparse social MDP of ``walks`` and plan on it (module docstring).
+
+    ``reward``: ``measured`` (the walks' recorded rewards, eq. 1.14; pooled: the moves)
+    or ``rule``. ``pool_directions``: plan on the direction-pooled model with the
+    required direction redrawn with ``redraw_p`` (the walk's). Deterministic: the same
+    walks give the same Q-table.
+    """
+    from simlab.errors import ConfigError
+
+    if reward not in ("measured", "rule"):
+        raise ConfigError(f"unknown reward {reward!r}", key="reward",
+                          fix="use measured or rule")
+    s, a, s2, r = (np.concatenate([getattr(w, k) for w in walks])
+                   for k in ("s", "a", "s_next", "reward"))
+    model = sparse_count_model(s, a, s2, N_SOCIAL_STATES, N_SOCIAL_ACTIONS)
+    if pool_directions:
+        P, visited, R, _ = pooled_model(walks, redraw_p)
+    else:
+        P, visited = model.matrix(), model.visited
+        R = measured_rewards(s, a, r)
+    if reward == "rule":
+        R = rule_rewards(P, visited)
+    q, _, sweeps = sparse_value_iteration(P, R, gamma, valid_actions(visited))
+    return EmpiricalSocial(model=model, R=R, q=q, sweeps=sweeps, reward=reward,
+                           pooled=pool_directions, planned_visited=visited, planned_P=P)
+
+
+@dataclass(frozen=True)
+class GoalRatePrediction:
+    """The renewal model's figures (module docstring): probabilities, decisions, metres,
+    seconds and the predicted goal areas reached with the human per simulated hour."""
+
+    p_engage: float
+    decisions_to_engage: float
+    engaged_decisions: float
+    p_lose_per_decision: float
+    rewarded_per_engagement: float
+    step_m: float
+    lead_distance_m: float
+    decision_s: float
+    goals_per_hour: float
+
+    def to_json(self) -> dict[str, float | None]:
+        return {k: (round(v, 6) if np.isfinite(v) else None) for k, v in asdict(self).items()}
+
+
+def _visits(P: Any, inside: NDArray[np.bool_], start: NDArray[np.float64]
+            ) -> NDArray[np.float64]:
+    """Expected visits ``(S,)`` to the states of ``inside`` before leaving it, from
+    ``start`` ``(S,)`` (mass outside ``inside`` ignored); states of ``inside`` that cannot
+    leave it are cut out (their mass is lost: the caller sees it as not renewing)."""
+    from scipy.sparse import identity
+    from scipy.sparse.linalg import spsolve
+
+    # the states of ``inside`` from which the outside is reachable (backward search)
+    edges = (P > 0).tocsc()
+    reach, frontier = ~inside, ~inside
+    while frontier.any():
+        new = (np.asarray(edges[:, np.flatnonzero(frontier)].sum(axis=1)).ravel() > 0) & ~reach
+        reach, frontier = reach | new, new
+    keep = np.flatnonzero(inside & reach)
+    x = np.zeros(P.shape[0])
+    if keep.size == 0:
+        return x
+    sub = P[keep][:, keep]
+    A = (identity(keep.size, format="csc") - sub.T.tocsc())
+    x[keep] = np.atleast_1d(spsolve(A, start[keep]))
+    return x
+
+
+def predict_goal_rate(P: Any, q: ArrayLike, R: ArrayLike, walks: list[SocialWalk],
+                      goals: tuple[Any, ...]) -> GoalRatePrediction:
+    """The renewal model of the module docstring for the greedy policy of ``q`` (2560, 22)
+    on the model ``P`` (CSR ``(S * A, S)``, e.g. :attr:`EmpiricalSocial.planned_P`), with
+    rewards ``R`` (S, A), the walks' starts, steps and durations, and the goal areas
+    ``goals`` (:class:`~simlab.physics.arena.GoalArea`, >= 2)."""
+    q = np.asarray(q, dtype=float)
+    S, A = q.shape
+    pi = np.argmax(q, axis=1)
+    P = P[np.arange(S) * A + pi]  # (S, S) Markov chain of pi
+    level = decode_social(np.arange(S))[:, 0]
+    engaged = level == 7
+    starts = np.concatenate([w.s[np.r_[True, w.episode[1:] != w.episode[:-1]]] for w in walks])
+    start = np.bincount(starts, minlength=S).astype(float)
+    start[engaged] = 0.0
+    start /= max(start.sum(), 1.0)
+    x = _visits(P, ~engaged, start)
+    entry = np.asarray(P[:, engaged].T @ x).ravel()
+    p_engage = float(entry.sum())
+    # engaged: the walk's decisions at level 7 weight the MDP's loss and reward under pi
+    s_all = np.concatenate([w.s for w in walks])
+    s_next_all = np.concatenate([w.s_next for w in walks])
+    at7 = level[s_all] == 7
+    w7 = np.bincount(s_all[at7], minlength=S).astype(float)
+    r_pi = np.asarray(R, dtype=float)[np.arange(S), pi]
+    p_lose = float(np.mean(level[s_next_all[at7]] < 7)) if at7.any() else float("nan")
+    rho = float(w7 @ r_pi / w7.sum()) if at7.any() else 0.0
+    sojourn = 1.0 / p_lose if p_lose > 0 else float("inf")
+    k = rho * sojourn
+    to_engage = float(x.sum()) / p_engage if p_engage > 0 else np.inf
+    rewarded = np.concatenate([w.reward for w in walks]) > 0
+    moves = np.concatenate([np.hypot(*(w.human_next[:, :2] - w.human[:, :2]).T)
+                            for w in walks])
+    step = float(moves[rewarded].mean()) if rewarded.any() else float("nan")
+    centres = np.array([(g.x, g.y) for g in goals])
+    dist = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1))
+    lead = float(dist[~np.eye(len(goals), dtype=bool)].mean()
+                 - np.mean([g.radius for g in goals]))
+    a_all = np.concatenate([w.a for w in walks])
+    dur = np.concatenate([w.duration for w in walks])
+    tried = np.bincount(a_all, minlength=A)
+    per_action = np.bincount(a_all, weights=dur, minlength=A) / np.maximum(tried, 1)
+    per_action[tried == 0] = float(dur.mean())
+    tau_n = float(x @ per_action[pi] / x.sum()) if x.sum() > 0 else float(dur.mean())
+    tau_e = float(w7 @ per_action[pi] / w7.sum()) if at7.any() else float(dur.mean())
+    # fraction of decisions engaged: L / (T + L), 1 when the model never loses engagement
+    frac = 0.0
+    if p_engage > 0 and at7.any():
+        frac = 1.0 if not np.isfinite(sojourn) else sojourn / (to_engage + sojourn)
+    tau = (1.0 - frac) * tau_n + frac * tau_e
+    rate = 0.0
+    if frac > 0 and rho > 0 and np.isfinite(step) and lead > 0:
+        rate = frac * rho * step / lead * 3600.0 / tau
+    return GoalRatePrediction(
+        p_engage=p_engage, decisions_to_engage=to_engage, engaged_decisions=sojourn,
+        p_lose_per_decision=p_lose,
+        rewarded_per_engagement=k, step_m=step, lead_distance_m=lead, decision_s=tau,
+        goals_per_hour=float(rate))
