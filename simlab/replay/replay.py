@@ -62,9 +62,10 @@ Decisions where the thesis is silent:
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
-* **scheduling** (issue 17; ``parallel=True``, when cores are idle, :func:`schedule`): the
-  random baseline runs in a ``spawn`` process while this one drives the learned policy,
-  and the ``mcl`` filter runs in a third process fed scan by scan
+* **scheduling** (issue 17; ``parallel=True`` on 2 or more usable cores, decided from the
+  core count and not the load, :func:`schedule`): the random baseline runs in a ``spawn``
+  process while this one drives the learned policy, and the ``mcl`` filter runs in a
+  third process fed scan by scan (with 3 cores, or 2 without a baseline)
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
   decisions and video frames). The worlds and seed streams are independent, so the
   results are bit-identical to ``parallel=False``; the replay's wall time becomes that

@@ -30,7 +30,8 @@ def usable_cores() -> int:
 def idle_cores(window: float = 0.25) -> float:
     """CPUs idle right now, as seen by this process: ``usable_cores()`` times the idle
     share of ``/proc/stat`` over ``window`` seconds (this process sleeps meanwhile, so
-    a quiet 2-core machine reads ~2). Without ``/proc/stat``: ``usable_cores()``."""
+    a quiet 2-core machine reads ~2). Without ``/proc/stat``: ``usable_cores()``.
+    (A measurement for callers and benchmarks; :func:`schedule` no longer reads it.)"""
 
     def sample() -> tuple[int, int]:
         with open("/proc/stat") as fh:
@@ -48,21 +49,29 @@ def idle_cores(window: float = 0.25) -> float:
     return usable_cores() * (idle1 - idle0) / (total1 - total0)
 
 
-def schedule(parallel: bool, baseline: bool, mcl: bool) -> tuple[bool, bool]:
-    """``(baseline in a process, mcl filter in a process)`` for a replay.
+def schedule(parallel: bool, baseline: bool, mcl: bool,
+             cores: int | None = None) -> tuple[bool, bool]:
+    """``(baseline in a process, mcl filter in a process)`` for a replay on ``cores``
+    usable CPUs (None: :func:`usable_cores`).
 
-    Extra processes pay only with idle cores to run on: on a machine already busy they
-    add their start-up (~1.5 s each) and contention (measured: a 1 h + 1 h replay at load
-    4 on 2 cores took 18 s in three processes, 14 s in one). So with ``parallel`` the
-    baseline gets a process when at least 1.5 cores are idle, and the filter one when
-    another 1 is idle beyond the baseline's (with no baseline: 1.5). Results do not
+    Decided from the core count, not the momentary load (issue 17): with ``parallel``
+    and 2 cores the random baseline gets a process of its own, and the filter one when
+    a third core is there for it (with no baseline: a second). The load does not enter
+    because a load sample is a guess about the next minutes on a shared machine, and a
+    wrong "busy" guess runs two independent worlds one after the other, doubling the
+    stage's wall time; the baseline process talks to this one once (its outcome at the
+    end), so on a busy machine it costs its start-up (~1 s) and otherwise takes the fair
+    CPU share of a second runnable process. The filter process is fed scan by scan, so
+    it needs a core of its own, and only gets one it can have. (The old rule, 1.5 idle
+    cores sampled over 0.25 s, ran the two worlds sequentially whenever another job
+    was running, e.g. in every pipeline whose warm-up was still compiling.) Results do not
     depend on the choice (bit-identical, tested).
     """
-    if not parallel or usable_cores() < 2 or not (baseline or mcl):
+    n = usable_cores() if cores is None else int(cores)
+    if not parallel or n < 2 or not (baseline or mcl):
         return False, False
-    free = idle_cores()
-    split_baseline = baseline and free >= 1.5
-    split_mcl = mcl and free >= (2.5 if split_baseline else 1.5)
+    split_baseline = bool(baseline)
+    split_mcl = bool(mcl) and n >= (3 if split_baseline else 2)
     return split_baseline, split_mcl
 
 
