@@ -107,14 +107,16 @@ def _run_quiet(spec: RunSpec, seqs: list[np.random.SeedSequence]) -> RunOutcome:
     return run(spec, seqs)
 
 
-def run_both(plan: RunPlan) -> tuple[RunOutcome, RunOutcome | None]:
+def run_both(plan: RunPlan, pool: Any = None) -> tuple[RunOutcome, RunOutcome | None]:
     """The main run (in this process) and the random baseline (None: none).
 
     With ``plan.split_baseline`` (see :func:`schedule`) the baseline runs in a ``spawn``
     process (no PyBullet client or lock of this process is inherited) while this one
     drives the main run: the two worlds share nothing and each draws from its own
     seed streams, so the outcome is the sequential one, bit for bit (tested); the
-    replay's wall time becomes that of the longer run instead of their sum.
+    replay's wall time becomes that of the longer run instead of their sum. ``pool``: the
+    one-process pool to use (:func:`simlab.parallel.spawn_worker`, left open for the
+    caller's later jobs, e.g. the video); None: one of its own, closed on return.
     """
     if plan.baseline is None or not plan.split_baseline:
         with _bar(plan.hours, plan.label + ")", plan.progress) as bar:
@@ -123,11 +125,12 @@ def run_both(plan: RunPlan) -> tuple[RunOutcome, RunOutcome | None]:
             return main, None
         with _bar(plan.baseline_hours, "replay random baseline", plan.progress) as bar:
             return main, run(plan.baseline, plan.baseline_seqs, bar)
-    from simlab.parallel import spawn_worker
+    if pool is None:
+        from simlab.parallel import spawn_worker
 
-    with spawn_worker() as pool:  # exits with us, like every simlab worker
-        future = pool.submit(_run_quiet, plan.baseline, plan.baseline_seqs)
-        with _bar(plan.hours, plan.label + "; random baseline in parallel)",
-                  plan.progress) as bar:
-            main = run(plan.spec, plan.seqs, bar)
-        return main, future.result()
+        with spawn_worker() as own:  # exits with us, like every simlab worker
+            return run_both(plan, own)
+    future = pool.submit(_run_quiet, plan.baseline, plan.baseline_seqs)
+    with _bar(plan.hours, plan.label + "; random baseline in parallel)", plan.progress) as bar:
+        main = run(plan.spec, plan.seqs, bar)
+    return main, future.result()

@@ -64,6 +64,9 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
         for f, g in zip(seq.run.frames, par.run.frames, strict=True):
             assert np.array_equal(f.particles, g.particles)
             assert np.array_equal(f.estimate, g.estimate)
+        # the video was encoded by the baseline's worker: the same bytes as here
+        gif = seq.files["gif"].read_bytes()
+        assert gif[:6] == b"GIF89a" and gif == par.files["gif"].read_bytes()
 
 
 def test_schedule_follows_core_count_not_load(monkeypatch) -> None:
