@@ -63,8 +63,9 @@ Decisions where the thesis is silent:
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
 * **scheduling** (issue 17; ``parallel=True`` on 2 or more usable cores, decided from the
-  core count and not the load, :func:`schedule`): the random baseline runs in a ``spawn``
-  process while this one drives the learned policy, and the ``mcl`` filter runs in a
+  core count, or from the idle cores where Linux shares the CPUs per session,
+  :func:`schedule`): the random baseline runs in a ``spawn`` process while this one drives
+  the learned policy (and then encodes the video), and the ``mcl`` filter runs in a
   third process fed scan by scan (with 3 cores, or 2 without a baseline)
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
   decisions and video frames). The worlds and seed streams are independent, so the

@@ -16,7 +16,8 @@ import numpy as np
 
 from simlab.replay.loop import RunOutcome, RunSpec, run
 
-__all__ = ["RunPlan", "idle_cores", "run_both", "schedule", "usable_cores"]
+__all__ = ["RunPlan", "idle_cores", "run_both", "schedule", "shares_per_session",
+           "usable_cores"]
 
 
 def usable_cores() -> int:
@@ -31,7 +32,7 @@ def idle_cores(window: float = 0.25) -> float:
     """CPUs idle right now, as seen by this process: ``usable_cores()`` times the idle
     share of ``/proc/stat`` over ``window`` seconds (this process sleeps meanwhile, so
     a quiet 2-core machine reads ~2). Without ``/proc/stat``: ``usable_cores()``.
-    (A measurement for callers and benchmarks; :func:`schedule` no longer reads it.)"""
+    (:func:`schedule` reads it only where the CPUs are shared per session.)"""
 
     def sample() -> tuple[int, int]:
         with open("/proc/stat") as fh:
@@ -49,29 +50,45 @@ def idle_cores(window: float = 0.25) -> float:
     return usable_cores() * (idle1 - idle0) / (total1 - total0)
 
 
+def shares_per_session() -> bool:
+    """True when Linux shares the CPUs per session (``sched_autogroup_enabled``: each
+    session's processes share one scheduling group, so a second process of this session
+    gets no more CPU while other sessions keep the cores busy)."""
+    try:
+        with open("/proc/sys/kernel/sched_autogroup_enabled") as fh:
+            return fh.read().strip() == "1"
+    except OSError:  # not Linux, or no autogroup support: shares per process
+        return False
+
+
 def schedule(parallel: bool, baseline: bool, mcl: bool,
              cores: int | None = None) -> tuple[bool, bool]:
     """``(baseline in a process, mcl filter in a process)`` for a replay on ``cores``
     usable CPUs (None: :func:`usable_cores`).
 
-    Decided from the core count, not the momentary load (issue 17): with ``parallel``
-    and 2 cores the random baseline gets a process of its own, and the filter one when
-    a third core is there for it (with no baseline: a second). The load does not enter
-    because a load sample is a guess about the next minutes on a shared machine, and a
-    wrong "busy" guess runs two independent worlds one after the other, doubling the
-    stage's wall time; the baseline process talks to this one once (its outcome at the
-    end), so on a busy machine it costs its start-up (~1 s) and otherwise takes the fair
-    CPU share of a second runnable process. The filter process is fed scan by scan, so
-    it needs a core of its own, and only gets one it can have. (The old rule, 1.5 idle
-    cores sampled over 0.25 s, ran the two worlds sequentially whenever another job
-    was running, e.g. in every pipeline whose warm-up was still compiling.) Results do not
-    depend on the choice (bit-identical, tested).
+    Decided from the core count (issue 17) wherever the scheduler shares the CPUs per
+    process: with ``parallel`` and 2 cores the random baseline gets a process of its own
+    (it talks to this one once, at the end, so on a busy machine it costs its start-up,
+    ~1 s, and otherwise takes the CPU share of a second runnable process), and the filter
+    one when a third core is there for it (with no baseline: a second; it is fed scan by
+    scan, so it needs a core of its own).
+
+    Where Linux shares the CPUs per *session* (:func:`shares_per_session`, autogroup, the
+    default of desktop kernels and of this project's shared box) a second process of this
+    session gains nothing while other sessions keep the cores busy: measured on 2 cores
+    at load 4-5, the split replay took 18-26 s against 17-36 s in one process, its
+    learned run twice as long. There the cores must be idle to be ours, and the rule is
+    the count of idle cores (:func:`idle_cores`, 0.25 s sample; the replay's own earlier
+    stages have ended by then): the baseline process from 1.5 idle cores, the filter's
+    from another 1 (with no baseline: 1.5). Results do not depend on the choice
+    (bit-identical, tested).
     """
     n = usable_cores() if cores is None else int(cores)
     if not parallel or n < 2 or not (baseline or mcl):
         return False, False
-    split_baseline = bool(baseline)
-    split_mcl = bool(mcl) and n >= (3 if split_baseline else 2)
+    free = idle_cores() if shares_per_session() else float(n)
+    split_baseline = bool(baseline) and free >= 1.5
+    split_mcl = bool(mcl) and free >= (2.5 if split_baseline else 1.5)
     return split_baseline, split_mcl
 
 

@@ -38,6 +38,7 @@ def _logs_equal(a, b) -> None:
 def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
     # both extra processes (baseline, filter), even on a 1- or 2-core runner
     monkeypatch.setattr(replay_module, "usable_cores", lambda: 3)
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
     assert replay_module.schedule(True, True, pose_source == "mcl") == (
         True, pose_source == "mcl")
     runs = {}
@@ -70,8 +71,10 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
 
 
 def test_schedule_follows_core_count_not_load(monkeypatch) -> None:
-    """The core count decides (issue 17): a busy 2-core machine still splits the baseline;
-    the filter gets a process only with a core of its own."""
+    """Where CPUs are shared per process the core count decides (issue 17): a busy 2-core
+    machine still splits the baseline; the filter gets a process only with a core of its
+    own."""
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
     monkeypatch.setattr(replay_module, "idle_cores", lambda *_a: 0.0)  # never read
     for cores, with_baseline, without_baseline in ((1, (False, False), (False, False)),
                                                    (2, (True, False), (False, True)),
@@ -84,7 +87,23 @@ def test_schedule_follows_core_count_not_load(monkeypatch) -> None:
         assert replay_module.schedule(False, True, True) == (False, False)
         assert replay_module.schedule(True, False, False) == (False, False)
         assert replay_module.schedule(True, True, True, cores=cores) == with_baseline
-    assert 0.0 <= replay_module.idle_cores(0.05) <= replay_module.usable_cores() + 1e-9
+
+
+def test_schedule_per_session_follows_idle_cores(monkeypatch) -> None:
+    """Where CPUs are shared per session (autogroup) only idle cores are ours."""
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: True)
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    for idle, with_baseline, without_baseline in ((0.4, (False, False), (False, False)),
+                                                  (1.9, (True, False), (False, True)),
+                                                  (2.6, (True, True), (False, True))):
+        monkeypatch.setattr(replay_module, "idle_cores", lambda idle=idle: idle)
+        assert replay_module.schedule(True, True, True) == with_baseline
+        assert replay_module.schedule(True, False, True) == without_baseline
+        assert replay_module.schedule(False, True, True) == (False, False)
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 1)
+    assert replay_module.schedule(True, True, True) == (False, False)
+    assert 0.0 <= replay_module.idle_cores(0.05) <= 2.0 + 1e-9
+    assert isinstance(replay_module.shares_per_session(), bool)
 
 
 def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
