@@ -119,9 +119,18 @@ def _bar(total: float, desc: str, progress: bool) -> Any:
                                                "[{elapsed}<{remaining}{postfix}]")
 
 
-def _run_quiet(spec: RunSpec, seqs: list[np.random.SeedSequence]) -> RunOutcome:
-    """:func:`~simlab.replay.loop.run` without a progress bar (the baseline process)."""
-    return run(spec, seqs)
+def _run_quiet(spec: RunSpec, seqs: list[np.random.SeedSequence],
+               warm_video: bool = False) -> RunOutcome:
+    """:func:`~simlab.replay.loop.run` without a progress bar (the baseline process);
+    ``warm_video``: then import the video's modules, while the main run is still going,
+    for the video job that follows in this process."""
+    outcome = run(spec, seqs)
+    if warm_video:
+        from PIL import GifImagePlugin, Image  # noqa: F401
+
+        import simlab.replay.video
+        import simlab.replay.writers  # noqa: F401
+    return outcome
 
 
 def run_both(plan: RunPlan, pool: Any = None) -> tuple[RunOutcome, RunOutcome | None]:
@@ -147,7 +156,8 @@ def run_both(plan: RunPlan, pool: Any = None) -> tuple[RunOutcome, RunOutcome | 
 
         with spawn_worker() as own:  # exits with us, like every simlab worker
             return run_both(plan, own)
-    future = pool.submit(_run_quiet, plan.baseline, plan.baseline_seqs)
+    future = pool.submit(_run_quiet, plan.baseline, plan.baseline_seqs,
+                         bool(plan.spec.frame_stride))
     with _bar(plan.hours, plan.label + "; random baseline in parallel)", plan.progress) as bar:
         main = run(plan.spec, plan.seqs, bar)
     return main, future.result()
