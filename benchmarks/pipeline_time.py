@@ -243,7 +243,10 @@ def main() -> None:
           f"{stages_wall / floor_total:10.2f} {cpu_total:8.1f}")
     print(f"pipeline: done in {total:.1f} s (stages + report {total - stages_wall:.1f} s); "
           f"whole / physics floor = {total / floor_total:.2f}")
-    print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}")
+    from simlab.replay.scheduling import shares_per_session
+
+    print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}; CPUs shared "
+          f"per {'session (autogroup: idle cores decide)' if shares_per_session() else 'process'}")
     print(f"numba compile in this process: {ct.seconds:.1f} s"
           + (f"; the training waited {cpu.get('train_wait', 0.0):.1f} s for the warm-up"
              if warm else ""))

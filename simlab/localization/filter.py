@@ -338,12 +338,19 @@ class ParticleFilter:
             raise RuntimeError("initialise the filter first (init_gaussian or init_global)")
 
     # ------------------------------------------------------------------ the cycle
-    def predict(self, odom_prev: NDArray[np.float64], odom_now: NDArray[np.float64]) -> None:
-        """Move the particles by the odometry motion ``odom_prev -> odom_now`` (with noise)."""
+    def predict(self, odom_prev: NDArray[np.float64], odom_now: NDArray[np.float64],
+                delta: NDArray[np.float64] | None = None) -> None:
+        """Move the particles by the odometry motion ``odom_prev -> odom_now`` (with noise).
+
+        ``delta``: ``relative(odom_prev, odom_now)`` ``(3,)`` when the caller has computed
+        it already (the tracker has, to decide whether to update; ~35 us saved per update).
+        """
         self._check_init()
         self.particles = sample_odometry_motion(self.particles, odom_prev, odom_now,
                                                 self.params.motion, self.rng)
-        self._estimate = compose(self._estimate, relative(odom_prev, odom_now))
+        if delta is None:
+            delta = relative(odom_prev, odom_now)
+        self._estimate = compose(self._estimate, delta)
 
     def beam_subset(self, n_total: int) -> NDArray[np.int64]:
         """Indices of the ``n_beams`` beams used out of a scan of ``n_total`` (read-only;

@@ -134,7 +134,7 @@ class MCLTracker:
         moved = math.hypot(d[0], d[1]) >= p.update_min_distance or abs(d[2]) >= p.update_min_angle
         if not (moved or self._fresh):
             return
-        self.filter.predict(self._odom_ref, odom)
+        self.filter.predict(self._odom_ref, odom, d)
         self._odom_ref = odom
         self._fresh = False
         self._update(scan)

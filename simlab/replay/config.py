@@ -77,7 +77,9 @@ class ReplayConfig(CommandConfig):
                                      "comma-separated; default: all of the arena's",
                                metavar="NAMES")
     parallel: bool = option(True, "run the random baseline and the mcl filter in processes "
-                                  "of their own when cores are idle (bit-identical results)")
+                                  "of their own on 2 cores (the filter: 3 with a baseline; "
+                                  "idle ones where the CPUs are shared per session); "
+                                  "bit-identical results")
 
     def validate(self) -> None:
         v.positive(self.hours, "hours")

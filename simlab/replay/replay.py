@@ -62,9 +62,11 @@ Decisions where the thesis is silent:
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
-* **scheduling** (issue 17; ``parallel=True``, when cores are idle, :func:`schedule`): the
-  random baseline runs in a ``spawn`` process while this one drives the learned policy,
-  and the ``mcl`` filter runs in a third process fed scan by scan
+* **scheduling** (issue 17; ``parallel=True`` on 2 or more usable cores, decided from the
+  core count, or from the idle cores where Linux shares the CPUs per session,
+  :func:`schedule`): the random baseline runs in a ``spawn`` process while this one drives
+  the learned policy (and then encodes the video), and the ``mcl`` filter runs in a
+  third process fed scan by scan (with 3 cores, or 2 without a baseline)
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
   decisions and video frames). The worlds and seed streams are independent, so the
   results are bit-identical to ``parallel=False``; the replay's wall time becomes that
@@ -102,7 +104,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json, ensure_new, output_transaction
+from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 from simlab.localization.sources import POSE_SOURCES
 from simlab.options import command
 from simlab.replay.config import POLICIES, ReplayConfig
@@ -345,8 +347,9 @@ def _summarize(cfg: ReplayConfig, inp: _Inputs, plan: RunPlan, run: RunOutcome,
 
 
 def _write(cfg: ReplayConfig, inp: _Inputs, files: dict[str, Path], run: RunOutcome,
-           baseline: RunOutcome | None, summary: ReplaySummary) -> None:
-    """Every output file, or none (one output transaction)."""
+           baseline: RunOutcome | None, summary: ReplaySummary, video: Any = None) -> None:
+    """Every output file, or none (one output transaction). ``video``: the future of the
+    video's bytes rendered by a worker (:func:`_start_video`); None: rendered here."""
     from simlab.replay.writers import (
         plot_rewards,
         write_localization,
@@ -361,10 +364,42 @@ def _write(cfg: ReplayConfig, inp: _Inputs, files: dict[str, Path], run: RunOutc
         if "localization" in staged:
             write_localization(staged["localization"], run.mcl_log)
         plot_rewards(staged["plot"], run, baseline, summary)
-        if cfg.video:
+        if video is not None:
+            for kind, data in video.result().items():
+                with atomic_write(staged[kind], "wb") as fh:
+                    fh.write(data)
+        elif cfg.video:
             write_video(staged, run, inp.arena, inp.disc, inp.qt, inp.goal_names, inp.grid,
                         cfg.max_frames, valid=None if inp.qt is None else _qt_valid(inp.qt))
         atomic_write_json(staged["summary"], summary.to_json())
+
+
+def _start_video(cfg: ReplayConfig, inp: _Inputs, files: dict[str, Path], run: RunOutcome,
+                 pool: Any) -> Any:
+    """The video rendered and encoded in ``pool``'s worker (the baseline's, idle once the
+    baseline is in) while this process computes the prediction and writes the other files
+    (issue 17): a future of ``{kind: bytes}``, or None (no video, or no worker: :func:`_write`
+    renders it here). Same frames, same bytes (tested)."""
+    if not cfg.video or pool is None:
+        return None
+    from simlab.replay.writers import encode_video
+
+    kinds = tuple(k for k in ("gif", "mp4") if k in files)
+    return pool.submit(encode_video, kinds, replace(run, mcl_log=None), inp.arena, inp.disc,
+                       inp.qt, inp.goal_names, inp.grid, cfg.max_frames,
+                       valid=None if inp.qt is None else _qt_valid(inp.qt))
+
+
+def _worker(plan: RunPlan) -> Any:
+    """The baseline's worker process (a context manager of the pool), or a null context
+    when the baseline runs here."""
+    import contextlib
+
+    if not plan.split_baseline or plan.baseline is None:
+        return contextlib.nullcontext(None)
+    from simlab.parallel import spawn_worker
+
+    return spawn_worker()  # exits with us, like every simlab worker
 
 
 @command(ReplayConfig)
@@ -384,9 +419,11 @@ def replay(cfg: ReplayConfig) -> ReplayResult:
     inputs = _load_inputs(cfg)
     files = _output_files(cfg)
     plan = _plan(cfg, inputs)
-    run, baseline = run_both(plan)
-    summary = _summarize(cfg, inputs, plan, run, baseline, files)
-    _write(cfg, inputs, files, run, baseline, summary)
+    with _worker(plan) as pool:
+        run, baseline = run_both(plan, pool)
+        video = _start_video(cfg, inputs, files, run, pool)
+        summary = _summarize(cfg, inputs, plan, run, baseline, files)
+        _write(cfg, inputs, files, run, baseline, summary, video=video)
     return ReplayResult(summary=summary, run=run, baseline=baseline, files=files)
 
 

@@ -13,7 +13,8 @@ from simlab.io import atomic_write
 from simlab.replay.loop import ReplayLog, RunOutcome
 from simlab.replay.summary import ReplaySummary
 
-__all__ = ["plot_rewards", "write_localization", "write_transitions", "write_video"]
+__all__ = ["encode_video", "plot_rewards", "write_localization", "write_transitions",
+           "write_video"]
 
 _AXES = ("x", "y", "yaw")
 
@@ -108,3 +109,18 @@ def write_video(files: dict[str, Path], run: RunOutcome, arena: Any, disc: Any, 
     write_frames(files["gif"], frames)
     if "mp4" in files:
         write_frames(files["mp4"], frames)
+
+
+def encode_video(kinds: tuple[str, ...], run: RunOutcome, arena: Any, disc: Any, qt: Any,
+                 goal_names: tuple[str, ...], grid: Any, max_frames: int,
+                 valid: Any = None) -> dict[str, bytes]:
+    """:func:`write_video` into a temporary folder, returning the files' bytes per kind
+    (``"gif"``, ``"mp4"``; a kind without frames is absent): the job a worker process
+    runs while the replay's own process writes its other outputs (issue 17); the bytes
+    are those :func:`write_video` writes."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="simlab-video-") as tmp:
+        files = {k: Path(tmp) / f"replay.{k}" for k in kinds}
+        write_video(files, run, arena, disc, qt, goal_names, grid, max_frames, valid=valid)
+        return {k: p.read_bytes() for k, p in files.items() if p.exists()}

@@ -36,9 +36,9 @@ def _logs_equal(a, b) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("pose_source", ["truth", "mcl"])
 def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
-    # both extra processes (baseline, filter), even on a busy or 1-core runner
-    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
-    monkeypatch.setattr(replay_module, "idle_cores", lambda: 3.0)
+    # both extra processes (baseline, filter), even on a 1- or 2-core runner
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 3)
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
     assert replay_module.schedule(True, True, pose_source == "mcl") == (
         True, pose_source == "mcl")
     runs = {}
@@ -65,9 +65,33 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
         for f, g in zip(seq.run.frames, par.run.frames, strict=True):
             assert np.array_equal(f.particles, g.particles)
             assert np.array_equal(f.estimate, g.estimate)
+        # the video was encoded by the baseline's worker: the same bytes as here
+        gif = seq.files["gif"].read_bytes()
+        assert gif[:6] == b"GIF89a" and gif == par.files["gif"].read_bytes()
 
 
-def test_schedule_follows_idle_cores(monkeypatch) -> None:
+def test_schedule_follows_core_count_not_load(monkeypatch) -> None:
+    """Where CPUs are shared per process the core count decides (issue 17): a busy 2-core
+    machine still splits the baseline; the filter gets a process only with a core of its
+    own."""
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
+    monkeypatch.setattr(replay_module, "idle_cores", lambda *_a: 0.0)  # never read
+    for cores, with_baseline, without_baseline in ((1, (False, False), (False, False)),
+                                                   (2, (True, False), (False, True)),
+                                                   (3, (True, True), (False, True)),
+                                                   (8, (True, True), (False, True))):
+        monkeypatch.setattr(replay_module, "usable_cores", lambda cores=cores: cores)
+        assert replay_module.schedule(True, True, True) == with_baseline
+        assert replay_module.schedule(True, False, True) == without_baseline
+        assert replay_module.schedule(True, True, False) == (cores >= 2, False)
+        assert replay_module.schedule(False, True, True) == (False, False)
+        assert replay_module.schedule(True, False, False) == (False, False)
+        assert replay_module.schedule(True, True, True, cores=cores) == with_baseline
+
+
+def test_schedule_per_session_follows_idle_cores(monkeypatch) -> None:
+    """Where CPUs are shared per session (autogroup) only idle cores are ours."""
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: True)
     monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
     for idle, with_baseline, without_baseline in ((0.4, (False, False), (False, False)),
                                                   (1.9, (True, False), (False, True)),
@@ -79,11 +103,12 @@ def test_schedule_follows_idle_cores(monkeypatch) -> None:
     monkeypatch.setattr(replay_module, "usable_cores", lambda: 1)
     assert replay_module.schedule(True, True, True) == (False, False)
     assert 0.0 <= replay_module.idle_cores(0.05) <= 2.0 + 1e-9
+    assert isinstance(replay_module.shares_per_session(), bool)
 
 
-def test_busy_machine_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
-    """Without idle cores no process is started (the pool is never built)."""
-    monkeypatch.setattr(replay_module, "idle_cores", lambda: 0.5)
+def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
+    """On one usable core no process is started (the pool is never built)."""
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 1)
 
     def refuse(*_a, **_k):
         raise AssertionError("a process pool was started on one core")
