@@ -166,44 +166,44 @@ def next_goal(goal_labels: np.ndarray, exclude: int, rng: np.random.Generator) -
 
 
 @njit(cache=True)
-def combined_reset(st: np.ndarray, rng: np.random.Generator, labels: np.ndarray,
-                   goal_labels: np.ndarray, nav_q: np.ndarray, weights: np.ndarray,
-                   tie_tol: float, robot_cell: int, human_cell: int) -> None:
-    """New combined trial (module docstring): positions (``-1`` = random), random
+def combined_reset(world, st: np.ndarray, rng: np.random.Generator) -> None:
+    """New combined trial in ``world`` (:data:`CombinedKernelArgs`; module docstring):
+    positions ``world.robot_start`` / ``world.human_start`` (``-1`` = random), random
     orientations, human not engaged, a goal other than the human's room, and the
     required direction for it."""
+    labels = world.labels
     n_cells = labels.shape[0]
-    dyn.place_two_agents(st, rng, n_cells, robot_cell, human_cell)
+    dyn.place_two_agents(st, rng, n_cells, world.robot_start, world.human_start)
     st[dyn.S_ROBOT_ORI] = rng.integers(0, 8)
     st[dyn.S_HUMAN_ORI] = rng.integers(0, 8)
     st[dyn.S_ENGAGED] = 0
     st[dyn.S_HUMAN_MOVE] = -1
-    st[dyn.S_GOAL] = next_goal(goal_labels, labels[st[dyn.S_HUMAN]], rng)
-    row = nav_q[st[dyn.S_HUMAN] + st[dyn.S_GOAL] * n_cells]
-    st[dyn.S_REQ_DIR] = required_direction(row, weights, -1, tie_tol, rng)
+    st[dyn.S_GOAL] = next_goal(world.goal_labels, labels[st[dyn.S_HUMAN]], rng)
+    row = world.nav_q[st[dyn.S_HUMAN] + st[dyn.S_GOAL] * n_cells]
+    st[dyn.S_REQ_DIR] = required_direction(row, world.weights, -1, world.tie_tol, rng)
 
 
 @njit(cache=True)
-def combined_step(walls_h: np.ndarray, walls_v: np.ndarray, los: np.ndarray,
-                  labels: np.ndarray, goal_labels: np.ndarray, pcfg: np.ndarray,
-                  hp: np.ndarray, nav_q: np.ndarray, gth_q: np.ndarray, weights: np.ndarray,
-                  tie_tol: float, st: np.ndarray, action: int, rng: np.random.Generator
+def combined_step(world, st: np.ndarray, action: int, rng: np.random.Generator
                   ) -> tuple[float, int, bool]:
-    """One combined step for the social module's ``action`` (0-29); updates ``st``.
+    """One combined step in ``world`` (:data:`CombinedKernelArgs`) for the social module's
+    ``action`` (0-29); updates ``st``.
 
     Returns ``(social_reward, executed_action, goal_reached)`` (module docstring, 3-5).
     """
+    wh, wv, los, pcfg, labels = world.walls_h, world.walls_v, world.los, world.pcfg, world.labels
     n_cells = labels.shape[0]
     executed = action
     if action == _GO_TO_HUMAN:
-        g = dyn.gth_obs(walls_h, walls_v, los, pcfg, st)
-        executed = greedy_action(gth_q[g], rng)
-    reward = dyn.social_step(walls_h, walls_v, los, pcfg, hp, 0.0, st, executed, rng)
+        g = dyn.gth_obs(wh, wv, los, pcfg, st)
+        executed = greedy_action(world.gth_q[g], rng)
+    reward = dyn.social_step(wh, wv, los, pcfg, world.hp, 0.0, st, executed, rng)
     reached = labels[st[dyn.S_HUMAN]] == st[dyn.S_GOAL]
     if reached:
-        st[dyn.S_GOAL] = next_goal(goal_labels, st[dyn.S_GOAL], rng)
-    row = nav_q[st[dyn.S_HUMAN] + st[dyn.S_GOAL] * n_cells]
-    st[dyn.S_REQ_DIR] = required_direction(row, weights, st[dyn.S_REQ_DIR], tie_tol, rng)
+        st[dyn.S_GOAL] = next_goal(world.goal_labels, st[dyn.S_GOAL], rng)
+    row = world.nav_q[st[dyn.S_HUMAN] + st[dyn.S_GOAL] * n_cells]
+    st[dyn.S_REQ_DIR] = required_direction(row, world.weights, st[dyn.S_REQ_DIR],
+                                           world.tie_tol, rng)
     return reward, executed, reached
 
 
@@ -226,8 +226,7 @@ def combined_chunk(world, lr, learn, env_rng, agent_rng, t, trial0, out):
     row_i = 0
     for k in range(out.goals.shape[0]):
         trial = trial0 + k
-        combined_reset(st, env_rng, w.labels, w.goal_labels, w.nav_q, w.weights, w.tie_tol,
-                       w.robot_start, w.human_start)
+        combined_reset(w, st, env_rng)
         s = dyn.social_obs(w.walls_h, w.walls_v, w.los, w.pcfg, st)
         n_goals = 0
         total = 0.0
@@ -236,9 +235,7 @@ def combined_chunk(world, lr, learn, env_rng, agent_rng, t, trial0, out):
             if record.shape[0] > 0:
                 record[row_i, :nst] = st
                 record[row_i, nst] = a
-            r, executed, reached = combined_step(w.walls_h, w.walls_v, w.los, w.labels,
-                                                 w.goal_labels, w.pcfg, w.hp, w.nav_q, w.gth_q,
-                                                 w.weights, w.tie_tol, st, a, env_rng)
+            r, executed, reached = combined_step(w, st, a, env_rng)
             if record.shape[0] > 0:
                 record[row_i, nst + 1] = executed
                 record[row_i, nst + 2] = int(r)

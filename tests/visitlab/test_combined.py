@@ -13,6 +13,7 @@ from simlab.visitlab.actions import Action, move_action
 from simlab.visitlab.combined import (
     PAPER_SPEED_WEIGHTS,
     THESIS_SPEED_WEIGHTS,
+    CombinedKernelArgs,
     CombinedTask,
     Modules,
     combined_reset,
@@ -134,10 +135,13 @@ def gth_q_with(action: int) -> np.ndarray:
 
 
 def args(task, nav_q, gth_q):
+    """The kernels' world record (random starts)."""
     lay = task.layout
-    return (lay.walls_h, lay.walls_v, lay.los_table(), lay.cell_labels,
-            np.array(lay.goal_labels, dtype=np.int64), task.perception.to_array(),
-            task.human.to_array(), nav_q, gth_q, np.array(task.speed_weights), task.tie_tol)
+    return CombinedKernelArgs(
+        lay.walls_h, lay.walls_v, lay.los_table(), lay.cell_labels,
+        np.array(lay.goal_labels, dtype=np.int64), task.perception.to_array(),
+        task.human.to_array(), nav_q, gth_q, np.array(task.speed_weights), task.tie_tol,
+        -1, -1, 40)
 
 
 def world(task, robot, human, engaged=0, goal=8, req=R, robot_ori=L, human_ori=R):
@@ -157,7 +161,7 @@ def test_action_29_executes_the_go_to_human_modules_greedy_move():
     task = make_task()
     a = args(task, nav_q_towards(task, R), gth_q_with(int(Action.DOWN2)))
     st = world(task, robot=(2, 2), human=(12, 12))
-    reward, executed, reached = combined_step(*a, st, int(Action.GO_TO_HUMAN),
+    reward, executed, reached = combined_step(a, st, int(Action.GO_TO_HUMAN),
                                               np.random.default_rng(0))
     assert executed == Action.DOWN2
     assert task.layout.rowcol(int(st[dyn.S_ROBOT])) == (4, 2)  # two cells down, no jump
@@ -172,7 +176,7 @@ def test_delegated_step_equals_the_social_step_of_that_move():
     for seed in range(20):
         st = world(task, robot=(9, 9), human=(14, 15))
         ref = st.copy()
-        combined_step(*a, st, int(Action.GO_TO_HUMAN), np.random.default_rng(seed))
+        combined_step(a, st, int(Action.GO_TO_HUMAN), np.random.default_rng(seed))
         rng = np.random.default_rng(seed)
         dyn.social_step(lay.walls_h, lay.walls_v, lay.los_table(), task.perception.to_array(),
                         task.human.to_array(), 0.0, ref, int(Action.UP_LEFT3), rng)
@@ -186,7 +190,7 @@ def test_other_actions_are_executed_unchanged():
     a = args(task, nav_q_towards(task, R), gth_q_with(int(Action.DOWN2)))
     for action in (int(Action.LEFT), int(Action.STAY), int(Action.LOOK_H), int(Action.HELLO)):
         st = world(task, robot=(5, 5), human=(5, 8))
-        _, executed, _ = combined_step(*a, st, action, np.random.default_rng(1))
+        _, executed, _ = combined_step(a, st, action, np.random.default_rng(1))
         assert executed == action
 
 
@@ -201,7 +205,7 @@ def test_required_direction_comes_from_the_human_cell_for_the_current_goal():
     a = args(task, nav_q, gth_q_with(int(Action.STAY)))
     for goal, expected in ((3, UL), (5, DR)):
         st = world(task, robot=(2, 2), human=(12, 12), goal=goal, req=U)
-        combined_step(*a, st, int(Action.STAY), np.random.default_rng(0))
+        combined_step(a, st, int(Action.STAY), np.random.default_rng(0))
         assert st[dyn.S_REQ_DIR] == expected
 
 
@@ -216,7 +220,7 @@ def test_goal_switches_when_the_human_enters_the_goal_room():
         st = world(task, robot=(10, 17), human=(10, 15), engaged=7, goal=5, req=R,
                    robot_ori=L, human_ori=R)
         assert lay.cell_labels[st[dyn.S_HUMAN]] == 4
-        reward, _, reached = combined_step(*a, st, int(Action.RIGHT),
+        reward, _, reached = combined_step(a, st, int(Action.RIGHT),
                                            np.random.default_rng(seed))
         assert lay.rowcol(int(st[dyn.S_HUMAN])) == (10, 16)  # followed, now in room 5
         assert reached
@@ -230,19 +234,18 @@ def test_no_goal_counted_while_the_human_stays_out_of_the_goal_room():
     task = make_task()
     a = args(task, nav_q_towards(task, R), gth_q_with(int(Action.STAY)))
     st = world(task, robot=(10, 17), human=(10, 15), engaged=7, goal=8, req=R)
-    _, _, reached = combined_step(*a, st, int(Action.RIGHT), np.random.default_rng(0))
+    _, _, reached = combined_step(a, st, int(Action.RIGHT), np.random.default_rng(0))
     assert not reached and st[dyn.S_GOAL] == 8
 
 
 def test_reset_draws_a_goal_other_than_the_humans_room():
     task = make_task()
     lay = task.layout
-    nav_q = nav_q_towards(task, R)
+    w = args(task, nav_q_towards(task, R), gth_q_with(int(Action.STAY)))._replace(tie_tol=1e-9)
     rng = np.random.default_rng(5)
     st = dyn.new_state()
     for _ in range(300):
-        combined_reset(st, rng, lay.cell_labels, np.array(lay.goal_labels, dtype=np.int64),
-                       nav_q, np.array(task.speed_weights), 1e-9, -1, -1)
+        combined_reset(w, st, rng)
         assert st[dyn.S_ROBOT] != st[dyn.S_HUMAN]
         assert st[dyn.S_GOAL] != lay.cell_labels[st[dyn.S_HUMAN]]
         assert st[dyn.S_ENGAGED] == 0 and st[dyn.S_REQ_DIR] == R
