@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import argparse
 
+from simlab.visitlab import TASKS
+
 HELP = ("Visit the lab: train the navigation, social and go-to-human modules; show episodes; "
         "run the combined architecture")
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--task", choices=("nav", "social", "gotohuman"), default="social",
+    p.add_argument("--task", choices=TASKS, default="social",
                    help="module to run (default: social)")
     p.add_argument("--variant", choices=("thesis", "paper"), default="thesis",
                    help="thesis or paper settings (default: thesis)")

@@ -32,25 +32,41 @@ Nothing here knows about PyBullet.
 
 from __future__ import annotations
 
-from simlab.directions import Direction
-from simlab.visitlab.actions import Action, move_action
-from simlab.visitlab.grid import Layout, gridworld, lab_layout, make_layout, paper_layout
-from simlab.visitlab.humans import PRESETS, Human, human
-from simlab.visitlab.perception import PAPER_PERCEPTION, THESIS_PERCEPTION, Perception
+import importlib
+from typing import Any
 
-__all__ = [
-    "PAPER_PERCEPTION",
-    "PRESETS",
-    "THESIS_PERCEPTION",
-    "Action",
-    "Direction",
-    "Human",
-    "Layout",
-    "Perception",
-    "gridworld",
-    "human",
-    "lab_layout",
-    "make_layout",
-    "move_action",
-    "paper_layout",
-]
+#: The three Visit-the-lab learning tasks (:func:`simlab.visitlab.training.train`).
+TASKS = ("nav", "social", "gotohuman")
+
+# Names re-exported from the submodules, imported on first use: the submodules compile
+# numba kernels, and light importers (the CLI parser, experiment specs) only need TASKS.
+_EXPORTS = {
+    "Direction": "simlab.directions",
+    "Action": "simlab.visitlab.actions",
+    "move_action": "simlab.visitlab.actions",
+    "Layout": "simlab.visitlab.grid",
+    "gridworld": "simlab.visitlab.grid",
+    "lab_layout": "simlab.visitlab.grid",
+    "make_layout": "simlab.visitlab.grid",
+    "paper_layout": "simlab.visitlab.grid",
+    "PRESETS": "simlab.visitlab.humans",
+    "Human": "simlab.visitlab.humans",
+    "human": "simlab.visitlab.humans",
+    "PAPER_PERCEPTION": "simlab.visitlab.perception",
+    "THESIS_PERCEPTION": "simlab.visitlab.perception",
+    "Perception": "simlab.visitlab.perception",
+}
+
+__all__ = ["TASKS", *sorted(_EXPORTS)]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

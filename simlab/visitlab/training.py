@@ -67,10 +67,9 @@ from simlab.agents.core import agent_params
 from simlab.agents.kernels import count_model_new, rmax_q_init, window_model_new
 from simlab.agents.registry import AGENTS, agent_config
 from simlab.errors import ConfigError
+from simlab.visitlab import TASKS
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.perception import P_SHARE
-
-TASKS = ("nav", "social", "gotohuman")
 
 
 def loop_agent_config(name: str, task: str = "nav", variant: str = "thesis",

@@ -17,10 +17,10 @@ from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext
 from simlab.io import atomic_write
 from simlab.orchestration.cache import Slot, StageCache
+from simlab.visitlab import TASKS
 
 #: First element of the spawn key of every Visit-the-lab stream ("VISL" in ASCII).
 VISITLAB_SPAWN_KEY = 0x5649534C
-_TASKS = ("nav", "social", "gotohuman")
 _RUN_KEYS = {"label", "agent", "task", "variant", "env", "overrides", "observer", "takeover",
              "legend"}
 
@@ -122,7 +122,7 @@ def parse_run(raw: Any, where: str, params: Mapping[str, Any], budget: Mapping[s
         raise ConfigError(f"unknown agent {agent!r}", key=f"{where}.agent",
                           fix=f"use one of {', '.join(AGENTS)}")
     task = run.get("task", params.get("task"))
-    validation.choice(task, _TASKS, f"{where}.task")
+    validation.choice(task, TASKS, f"{where}.task")
     variant = validation.choice(run.get("variant", params.get("variant", "thesis")),
                                 ("thesis", "paper"), f"{where}.variant")
     label = str(run.get("label", agent))
