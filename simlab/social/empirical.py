@@ -322,34 +322,79 @@ def _visits(P: Any, inside: NDArray[np.bool_], start: NDArray[np.float64]
     return x
 
 
-def predict_goal_rate(P: Any, q: ArrayLike, R: ArrayLike, walks: list[SocialWalk],
-                      goals: tuple[Any, ...]) -> GoalRatePrediction:
-    """The renewal model of the module docstring for the greedy policy of ``q`` (2560, 22)
-    on the model ``P`` (CSR ``(S * A, S)``, e.g. :attr:`EmpiricalSocial.planned_P`), with
-    rewards ``R`` (S, A), the walks' starts, steps and durations, and the goal areas
-    ``goals`` (:class:`~simlab.physics.arena.GoalArea`, >= 2)."""
-    q = np.asarray(q, dtype=float)
-    S, A = q.shape
-    pi = np.argmax(q, axis=1)
-    P = P[np.arange(S) * A + pi]  # (S, S) Markov chain of pi
+def policy_chain(P: Any, q: ArrayLike | None, R: ArrayLike, visited: NDArray[np.bool_],
+                 epsilon: float = 0.05) -> tuple[Any, NDArray[np.float64]]:
+    """The Markov chain ``(S, S)`` CSR and per-decision reward ``(S,)`` of the loop's
+    policy on the model ``P`` (CSR ``(S * A, S)``): the greedy action of ``q`` (lowest index
+    among ties) with probability ``1 - epsilon``, uniform over the 22 with ``epsilon``
+    (``q`` None: uniform, the random baseline). Untried pairs (``visited`` False) take the
+    state's mean over its tried actions (module docstring, "Predicted goal rate"); a state
+    without any data keeps its self-loops of reward 0."""
+    from scipy.sparse import csr_matrix
+
+    validation.probability(epsilon, "epsilon")
+    R = np.asarray(R, dtype=float)
+    S, A = R.shape
+    vis = np.asarray(visited, dtype=bool)
+    n_tried = vis.sum(axis=1)
+    has = n_tried > 0
+    # the state's mean over its tried actions; a state without data: its self-loops
+    w_mean = np.where(vis, 1.0 / np.maximum(n_tried, 1)[:, None], 0.0)
+    w_mean[~has] = 1.0 / A
+    # uniform over the 22: a tried action its row, an untried one the state's mean
+    uniform = np.where(vis, 1.0 / A, 0.0) + ((A - n_tried) / A)[:, None] * w_mean
+    uniform[~has] = 1.0 / A
+    if q is None:
+        weights = uniform
+    else:
+        pi = np.argmax(np.asarray(q, dtype=float), axis=1)
+        ok = vis[np.arange(S), pi] | ~has
+        greedy = w_mean.copy()
+        greedy[ok] = 0.0
+        greedy[np.flatnonzero(ok), pi[ok]] = 1.0
+        weights = (1.0 - epsilon) * greedy + epsilon * uniform
+    pick = csr_matrix((weights.ravel(), (np.repeat(np.arange(S), A), np.arange(S * A))),
+                      shape=(S, S * A))
+    return (pick @ P).tocsr(), (weights * R).sum(axis=1)
+
+
+def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[SocialWalk],
+                      goals: tuple[Any, ...], *, visited: NDArray[np.bool_] | None = None,
+                      epsilon: float = 0.05) -> GoalRatePrediction:
+    """The renewal model of the module docstring for the loop's policy of ``q`` (2560, 22)
+    (greedy, ``epsilon``-uniform; None: the random policy) on the model ``P`` (CSR
+    ``(S * A, S)``, e.g. :attr:`EmpiricalSocial.planned_P`), with rewards ``R`` (S, A),
+    the pairs with data ``visited`` (S, A) (None: those of finite ``q``), the walks'
+    starts, steps and durations, and the goal areas ``goals``
+    (:class:`~simlab.physics.arena.GoalArea`, >= 2)."""
+    R = np.asarray(R, dtype=float)
+    S, A = R.shape
+    if visited is None:
+        visited = (np.isfinite(np.asarray(q, dtype=float)) if q is not None
+                   else np.ones((S, A), dtype=bool))
+    M, r_pi = policy_chain(P, q, R, visited, epsilon)
     level = decode_social(np.arange(S))[:, 0]
     engaged = level == 7
     starts = np.concatenate([w.s[np.r_[True, w.episode[1:] != w.episode[:-1]]] for w in walks])
     start = np.bincount(starts, minlength=S).astype(float)
     start[engaged] = 0.0
     start /= max(start.sum(), 1.0)
-    x = _visits(P, ~engaged, start)
-    entry = np.asarray(P[:, engaged].T @ x).ravel()
+    x = _visits(M, ~engaged, start)
+    entry = np.asarray(M[:, engaged].T @ x).ravel()
     p_engage = float(entry.sum())
-    # engaged: the walk's decisions at level 7 weight the MDP's loss and reward under pi
-    s_all = np.concatenate([w.s for w in walks])
-    s_next_all = np.concatenate([w.s_next for w in walks])
-    at7 = level[s_all] == 7
-    w7 = np.bincount(s_all[at7], minlength=S).astype(float)
-    r_pi = np.asarray(R, dtype=float)[np.arange(S), pi]
-    p_lose = float(np.mean(level[s_next_all[at7]] < 7)) if at7.any() else float("nan")
-    rho = float(w7 @ r_pi / w7.sum()) if at7.any() else 0.0
-    sojourn = 1.0 / p_lose if p_lose > 0 else float("inf")
+    # engaged: expected visits inside E from the entry distribution, before leaving it
+    y = np.zeros(S)
+    if p_engage > 0:
+        into = np.zeros(S)
+        into[engaged] = entry / p_engage
+        y = _visits(M, engaged, into)
+    left = float(np.asarray(M[:, ~engaged].T @ y).sum())  # probability of leaving E
+    sojourn = float(y.sum()) / left if left > 1e-12 else float("inf")
+    p_lose = 1.0 / sojourn if np.isfinite(sojourn) and sojourn > 0 else 0.0
+    if y.sum() <= 0:  # nothing to solve (E never entered or never left): the walk's E
+        s_all = np.concatenate([w.s for w in walks])
+        y = np.bincount(s_all[engaged[s_all]], minlength=S).astype(float)
+    rho = float(y @ r_pi / y.sum()) if y.sum() > 0 else 0.0
     k = rho * sojourn
     to_engage = float(x.sum()) / p_engage if p_engage > 0 else np.inf
     rewarded = np.concatenate([w.reward for w in walks]) > 0
@@ -365,11 +410,13 @@ def predict_goal_rate(P: Any, q: ArrayLike, R: ArrayLike, walks: list[SocialWalk
     tried = np.bincount(a_all, minlength=A)
     per_action = np.bincount(a_all, weights=dur, minlength=A) / np.maximum(tried, 1)
     per_action[tried == 0] = float(dur.mean())
-    tau_n = float(x @ per_action[pi] / x.sum()) if x.sum() > 0 else float(dur.mean())
-    tau_e = float(w7 @ per_action[pi] / w7.sum()) if at7.any() else float(dur.mean())
+    mix = _action_mix(q, S, A, epsilon)
+    tau_s = mix @ per_action  # (S,) mean decision duration under the policy
+    tau_n = float(x @ tau_s / x.sum()) if x.sum() > 0 else float(dur.mean())
+    tau_e = float(y @ tau_s / y.sum()) if y.sum() > 0 else float(dur.mean())
     # fraction of decisions engaged: L / (T + L), 1 when the model never loses engagement
     frac = 0.0
-    if p_engage > 0 and at7.any():
+    if p_engage > 0 and y.sum() > 0:
         frac = 1.0 if not np.isfinite(sojourn) else sojourn / (to_engage + sojourn)
     tau = (1.0 - frac) * tau_n + frac * tau_e
     rate = 0.0
@@ -380,3 +427,46 @@ def predict_goal_rate(P: Any, q: ArrayLike, R: ArrayLike, walks: list[SocialWalk
         p_lose_per_decision=p_lose,
         rewarded_per_engagement=k, step_m=step, lead_distance_m=lead, decision_s=tau,
         goals_per_hour=float(rate))
+
+
+def _action_mix(q: ArrayLike | None, S: int, A: int, epsilon: float) -> NDArray[np.float64]:
+    """``(S, A)`` probability of each action under the loop's policy (for durations)."""
+    if q is None:
+        return np.full((S, A), 1.0 / A)
+    mix = np.full((S, A), epsilon / A)
+    mix[np.arange(S), np.argmax(np.asarray(q, dtype=float), axis=1)] += 1.0 - epsilon
+    return mix
+
+
+def loop_factors(runs: list[Any]) -> dict[str, float]:
+    """The renewal model's factors as the closed-loop runs measure them
+    (:class:`~simlab.social.closedloop.ClosedLoopRun`, pooled over ``runs``): from the
+    levels after each decision (a run starts unengaged) — ``decisions_to_engage`` (decisions
+    taken below level 7 per entry into 7), ``p_lose_per_decision`` (losses per decision
+    taken at 7) and ``engaged_decisions`` (its inverse), ``engaged_fraction`` (decisions
+    taken at 7), ``rho`` (social reward per decision taken at 7), ``goals_per_reward``
+    (goals per rewarded decision: the model's ``step_m / lead_distance_m``),
+    ``decision_s`` (mean duration) and ``goals_per_hour``."""
+    before, after, rewards, goals, seconds = [], [], 0.0, 0, 0.0
+    for r in runs:
+        lv = np.asarray(r.level, dtype=np.int64)
+        before.append(np.r_[0, lv[:-1]])
+        after.append(lv)
+        rewards += float(r.social_reward)
+        goals += int(r.goals_reached)
+        seconds += float(r.time[-1]) if r.time.size else 0.0
+    b, a = np.concatenate(before), np.concatenate(after)
+    at7, n = b == 7, b.size
+    entries = int(np.sum(~at7 & (a == 7)))
+    losses = int(np.sum(at7 & (a < 7)))
+    nan = float("nan")
+    return {
+        "decisions": n,
+        "decisions_to_engage": float(np.sum(~at7)) / entries if entries else float("inf"),
+        "p_lose_per_decision": losses / int(at7.sum()) if at7.any() else nan,
+        "engaged_decisions": int(at7.sum()) / losses if losses else float("inf"),
+        "engaged_fraction": float(at7.mean()) if n else nan,
+        "rho": rewards / int(at7.sum()) if at7.any() else nan,
+        "goals_per_reward": goals / rewards if rewards else nan,
+        "decision_s": seconds / n if n else nan,
+        "goals_per_hour": goals / (seconds / 3600.0) if seconds else nan}
