@@ -72,6 +72,7 @@ from simlab.social.closedloop import (
     write_closed_loop_gif,
 )
 from simlab.social.task import SocialConfig, SocialTable
+from simlab.social.walk import WALK_POLICIES
 
 FILES = ("summary.json", "cumulative_goals.png", "closed_loop.gif", "social_q.npy",
          "social_q_empirical.npy")
@@ -100,7 +101,12 @@ class SocialPipelineConfig(CommandConfig):
     module: str = option("grid", "social module(s) to train and run: grid (tabular), "
                          "empirical (a physics walk's sparse MDP) or both", choices=MODULES)
     walk_steps: int = option(4000, "decisions of the physics social walk of the empirical "
-                             "module")
+                             "module (all segments together)")
+    walk_policy: str = option("uniform", "behaviour policy of the walk: uniform or "
+                              "least-tried (coverage-seeking)", choices=WALK_POLICIES)
+    walk_segments: int = option(1, "independent seeded walk segments (walk_steps split "
+                                "evenly, rounded up); the data depend on it, not on workers")
+    workers: int = option(1, "processes that run the walk's segments (simlab.parallel)")
     gif_decisions: int = option(120, "decisions shown in the GIF (0: no GIF)")
     gif_fps: float = option(4.0, "GIF frames per second")
     overwrite: bool = option(False, "replace existing outputs")
@@ -112,6 +118,9 @@ class SocialPipelineConfig(CommandConfig):
         v.whole(self.trials, "trials", minimum=1)
         v.choice(self.module, MODULES, "module")
         v.whole(self.walk_steps, "walk_steps", minimum=1)
+        v.choice(self.walk_policy, WALK_POLICIES, "walk_policy")
+        v.whole(self.walk_segments, "walk_segments", minimum=1)
+        v.whole(self.workers, "workers", minimum=1)
         v.whole(self.gif_decisions, "gif_decisions", minimum=0)
         v.positive(self.gif_fps, "gif_fps")
 
@@ -204,10 +213,15 @@ def train_empirical_module(cfg: SocialPipelineConfig) -> tuple[Any, list[Any], d
 
     start = time.perf_counter()
     social = replace(cfg.closed_loop().social, redraw_p=0.2)
-    walks = social_walk(WalkConfig(steps=cfg.walk_steps, seed=cfg.seed, social=social))
+    per_segment = -(-cfg.walk_steps // cfg.walk_segments)
+    walks = social_walk(WalkConfig(steps=per_segment, workers=cfg.walk_segments, seed=cfg.seed,
+                                   social=social, policy=cfg.walk_policy),
+                        processes=cfg.workers)
     walk_s = time.perf_counter() - start
     emp = train_empirical(walks, redraw_p=social.redraw_p)
-    info = {**emp.summary(), "walk_steps": cfg.walk_steps, "redraw_p": social.redraw_p,
+    info = {**emp.summary(), "walk_steps": per_segment * cfg.walk_segments,
+            "walk_segments": cfg.walk_segments, "walk_policy": cfg.walk_policy,
+            "walk_workers": cfg.workers, "redraw_p": social.redraw_p,
             "walk_simulated_hours": round(sum(w.simulated_hours for w in walks), 6),
             "walk_rewards": int(sum(w.reward.sum() for w in walks)),
             "rule_reward_agreement": round(rule_agreement(walks), 6),
@@ -319,13 +333,19 @@ def _predictions(emp: Any, walks: list[Any], runs: dict[str, list[ClosedLoopRun]
     from simlab.physics.arena import load_arena
     from simlab.social.actions import grid_q_to_physics
     from simlab.social.closedloop import select_goals
-    from simlab.social.empirical import predict_goal_rate
+    from simlab.social.empirical import loop_factors, predict_goal_rate
 
     goals = select_goals(load_arena(loop.social.arena), loop.goals)
-    out = {"empirical": predict_goal_rate(emp.planned_P, emp.q, emp.R, walks, goals).to_json()}
-    out["empirical"]["measured_goals_per_hour"] = _pooled(runs["empirical"])["goals_per_hour"]
+    tables = {"empirical": emp.q, "random": None}
     if q_grid is not None:  # the grid module's greedy policy on the same empirical MDP
-        out["grid"] = predict_goal_rate(emp.planned_P, grid_q_to_physics(q_grid), emp.R,
-                                        walks, goals).to_json()
-        out["grid"]["measured_goals_per_hour"] = _pooled(runs["combined"])["goals_per_hour"]
+        tables["grid"] = grid_q_to_physics(q_grid)
+    key = {"empirical": "empirical", "random": "random", "grid": "combined"}
+    out: dict[str, Any] = {}
+    for name, q in tables.items():
+        out[name] = predict_goal_rate(emp.planned_P, q, emp.R, walks, goals,
+                                      visited=emp.planned_visited,
+                                      epsilon=loop.epsilon).to_json()
+        out[name]["measured_goals_per_hour"] = _pooled(runs[key[name]])["goals_per_hour"]
+        out[name]["measured"] = {k: (round(v, 6) if np.isfinite(v) else None)
+                                 for k, v in loop_factors(runs[key[name]]).items()}
     return out

@@ -165,7 +165,10 @@ def test_pipeline_both_writes_the_three_rates(tmp_path: Path) -> None:
         assert summary["goals_per_hour"][policy] == summary["pooled"][key]["goals_per_hour"]
     pred = summary["tabular_prediction"]
     assert isinstance(pred["goals_per_hour"], float) and pred["goals_per_hour"] >= 0.0
-    assert set(summary["predicted_goals_per_hour"]) == {"empirical", "grid"}
+    assert set(summary["predicted_goals_per_hour"]) == {"empirical", "grid", "random"}
+    measured = summary["predicted_goals_per_hour"]["random"]["measured"]
+    assert measured["goals_per_hour"] == pytest.approx(summary["goals_per_hour"]["random"],
+                                                       abs=1e-3)
     assert summary["empirical_training"]["walk_steps"] == 60
     q = np.load(out / "social_q_empirical.npy", allow_pickle=False)
     assert q.shape == (2560, 22)
