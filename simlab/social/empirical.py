@@ -50,36 +50,41 @@ except by restart (the data would then say the direction is fixed, which is clos
 loop; the pipeline keeps the paper's 0.2 so that the walk is the item-3 walk).
 
 **Predicted goal rate** (:func:`predict_goal_rate`): a renewal model on the empirical MDP
-under the greedy policy ``pi(s) = argmax_a Q`` (lowest index among ties; the loop's
-epsilon and ``skip_idle`` are not modelled). ``E`` = the states of level 7 (the human
-follows), ``N`` the others.
+under the closed loop's policy (:func:`policy_chain`): the greedy action of the Q-table
+(lowest index among ties) with probability ``1 - epsilon``, uniform over the 22 with
+``epsilon`` (the loop's 0.05; the random baseline is ``epsilon = 1``). Decision: a pair
+the policy takes but the walk never tried (the grid module's actions, the uniform draws)
+behaves as the state's mean over its tried actions (the model's best guess, instead of the
+count model's self-loop, which made the grid policy "stuck" forever); a state without any
+data keeps its self-loops. ``skip_idle`` is not modelled. ``E`` = the states of level 7
+(the human follows), ``N`` the others.
 
 1. *Engage*: from the walk's episode-start states (a random placement, the human not
-   engaged), the absorbing-chain solve ``x^T (I - P_NN) = start^T`` on the states of ``N``
-   from which ``E`` is reachable under ``pi`` gives the expected visits ``x`` before
-   entering ``E``; ``p_engage`` = probability of ever entering (the rest is stuck in a
-   closed class of ``pi``, often an untried self-loop), ``decisions_to_engage`` =
-   ``sum x / p_engage`` and the entry distribution ``x P_NE / p_engage``.
-2. *Engaged*: the per-decision probability of losing engagement ``p_lose`` is the MDP's
-   mean probability of a level below 7 after a decision taken at level 7, over the walk's
-   decisions at level 7 (their counts are the weights: a random walk reaches level 7
-   rarely, and an absorbing solve inside ``E`` would mostly meet untried pairs, whose
-   self-loops never leave); ``engaged_decisions = 1 / p_lose``; the rewarded decisions of
-   one engagement ``k = engaged_decisions * sum_s w(s) R(s, pi(s))`` with ``w`` the
-   walk's visit distribution over ``E``.
+   engaged), the absorbing-chain solve ``x^T (I - M_NN) = start^T`` on the states of ``N``
+   from which ``E`` is reachable gives the expected visits ``x`` before entering ``E``;
+   ``p_engage`` = probability of ever entering, ``decisions_to_engage`` =
+   ``sum x / p_engage`` and the entry distribution ``x M_NE / p_engage``.
+2. *Engaged*: the same solve inside ``E`` from the entry distribution gives the visits
+   ``y`` before engagement is lost; ``engaged_decisions = sum y / P(leave)``,
+   ``p_lose = 1 / engaged_decisions``, the reward per engaged decision ``rho = y r_pi /
+   sum y`` and ``k = rho * engaged_decisions``. (The first version took ``p_lose`` from
+   the walk's own decisions at level 7, i.e. the *random* policy's loss rate, for every
+   policy, and weighted ``R(s, pi(s))`` by the random walk's visits: that is what
+   predicted 5.2/h for the grid policy that measured 21.3/h.) When the model never
+   leaves ``E`` (the walk never lost engagement there), ``engaged_decisions`` is
+   infinite and the walk's visits at level 7 weight ``rho``.
 3. *Lead*: a rewarded decision moves the human ``step_m`` toward the goal (the mean
    human displacement of the walk's rewarded decisions); a goal needs the mean distance
    between the centres of two different goal areas less the goal radius
    (``lead_distance_m``).
-4. *Time*: a decision lasts the walk's mean duration of the action ``pi`` takes, averaged
-   with the visits ``x`` (engaging) and ``engaged_decisions * w`` (engaged).
+4. *Time*: a decision lasts the walk's mean duration of the action the policy takes
+   (mixed with ``epsilon``), averaged with the visits ``x`` (engaging) and ``y`` (engaged).
 
-Goals per hour = ``f * rho * step_m / lead_distance_m * 3600 / decision_s`` with ``rho`` the
-reward per engaged decision and ``f = engaged_decisions / (decisions_to_engage +
-engaged_decisions)`` the engaged fraction of a renewal cycle (engage, then lead until lost;
-``f = 1`` when the data never saw engagement lost, ``p_lose = 0``), i.e. ``k * step_m /
-lead_distance_m`` goals per cycle of ``decisions_to_engage + engaged_decisions``
-decisions; ``decision_s`` is the matching mix of the engaging and engaged durations.
+Goals per hour = ``f * rho * step_m / lead_distance_m * 3600 / decision_s`` with ``f =
+engaged_decisions / (decisions_to_engage + engaged_decisions)`` the engaged fraction of
+a renewal cycle (``f = 1`` when engagement is never lost). :func:`loop_factors` measures
+the same factors on closed-loop runs (the pipeline writes both side by side under
+``predicted_goals_per_hour.<policy>`` and ``.measured``).
 It need not be right; the pipeline sets it beside the measured rate.
 """
 
