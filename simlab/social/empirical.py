@@ -227,6 +227,38 @@ def pooled_model(walks: list[SocialWalk], redraw_p: float
     return P, visited, R, base
 
 
+def direction_vectors() -> NDArray[np.float64]:
+    """Unit vectors ``(8, 2)`` of the 8 directions in the thesis order (map frame)."""
+    from simlab.social.perception import quantise_direction
+
+    out = np.zeros((8, 2))
+    for k in range(8):
+        theta = k * np.pi / 4.0
+        out[quantise_direction(theta)] = (np.cos(theta), np.sin(theta))
+    return out
+
+
+def pooled_progress(walks: list[SocialWalk]) -> NDArray[np.float64]:
+    """Metres the human moves toward the required direction per decision, ``(S, A)`` on
+    the 2560 states: the mean over the walks' transitions of the pooled pair (level,
+    distance, angle, action) of the human's displacement projected on the unit vector of
+    the state's required direction (0 where unvisited). Pooled like :func:`pooled_model`:
+    the move does not depend on the required direction, its projection does."""
+    s, a = (np.concatenate([getattr(w, k) for w in walks]) for k in ("s", "a"))
+    move = np.concatenate([w.human_next[:, :2] - w.human[:, :2] for w in walks])
+    d = decode_social(s)
+    A, nb = N_SOCIAL_ACTIONS, N_SOCIAL_STATES // 8
+    flat = ((d[:, 0] * 5 + d[:, 1]) * 8 + d[:, 3]) * A + a
+    n = np.bincount(flat, minlength=nb * A)
+    proj = move @ direction_vectors().T  # (N, 8)
+    g0 = np.stack([np.bincount(flat, weights=proj[:, r], minlength=nb * A)
+                   for r in range(8)], axis=1)
+    g0 = np.divide(g0, n[:, None], out=np.zeros_like(g0), where=n[:, None] > 0)
+    fd = decode_social(np.arange(N_SOCIAL_STATES))
+    fb = (fd[:, 0] * 5 + fd[:, 1]) * 8 + fd[:, 3]
+    return g0.reshape(nb, A, 8)[fb, :, fd[:, 2]]
+
+
 @dataclass(frozen=True)
 class EmpiricalSocial:
     """The empirical social module: the count model of the walks on the 2560 states, the
@@ -298,6 +330,7 @@ class GoalRatePrediction:
     lead_distance_m: float
     decision_s: float
     goals_per_hour: float
+    progress_m: float = float("nan")
 
     def to_json(self) -> dict[str, float | None]:
         return {k: (round(v, 6) if np.isfinite(v) else None) for k, v in asdict(self).items()}
@@ -335,12 +368,17 @@ def policy_chain(P: Any, q: ArrayLike | None, R: ArrayLike, visited: NDArray[np.
     (``q`` None: uniform, the random baseline). Untried pairs (``visited`` False) take the
     state's mean over its tried actions (module docstring, "Predicted goal rate"); a state
     without any data keeps its self-loops of reward 0."""
-    from scipy.sparse import csr_matrix
+    weights = policy_weights(q, visited, epsilon)
+    return chain_of(P, weights), (weights * np.asarray(R, dtype=float)).sum(axis=1)
 
+
+def policy_weights(q: ArrayLike | None, visited: NDArray[np.bool_],
+                   epsilon: float = 0.05) -> NDArray[np.float64]:
+    """``(S, A)`` weight of each row of the model in the loop's policy (:func:`policy_chain`:
+    an untried action's weight is spread over the state's tried actions)."""
     validation.probability(epsilon, "epsilon")
-    R = np.asarray(R, dtype=float)
-    S, A = R.shape
     vis = np.asarray(visited, dtype=bool)
+    S, A = vis.shape
     n_tried = vis.sum(axis=1)
     has = n_tried > 0
     # the state's mean over its tried actions; a state without data: its self-loops
@@ -358,14 +396,24 @@ def policy_chain(P: Any, q: ArrayLike | None, R: ArrayLike, visited: NDArray[np.
         greedy[ok] = 0.0
         greedy[np.flatnonzero(ok), pi[ok]] = 1.0
         weights = (1.0 - epsilon) * greedy + epsilon * uniform
+    return weights
+
+
+def chain_of(P: Any, weights: NDArray[np.float64]) -> Any:
+    """CSR ``(S, S)`` Markov chain of the action probabilities ``weights`` ``(S, A)``
+    on the model ``P`` ``(S * A, S)``."""
+    from scipy.sparse import csr_matrix
+
+    S, A = weights.shape
     pick = csr_matrix((weights.ravel(), (np.repeat(np.arange(S), A), np.arange(S * A))),
                       shape=(S, S * A))
-    return (pick @ P).tocsr(), (weights * R).sum(axis=1)
+    return (pick @ P).tocsr()
 
 
 def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[SocialWalk],
                       goals: tuple[Any, ...], *, visited: NDArray[np.bool_] | None = None,
-                      epsilon: float = 0.05) -> GoalRatePrediction:
+                      epsilon: float = 0.05, progress: ArrayLike | None = None,
+                      horizon: int = 2000) -> GoalRatePrediction:
     """The renewal model of the module docstring for the loop's policy of ``q`` (2560, 22)
     (greedy, ``epsilon``-uniform; None: the random policy) on the model ``P`` (CSR
     ``(S * A, S)``, e.g. :attr:`EmpiricalSocial.planned_P`), with rewards ``R`` (S, A),
@@ -377,7 +425,8 @@ def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[Soc
     if visited is None:
         visited = (np.isfinite(np.asarray(q, dtype=float)) if q is not None
                    else np.ones((S, A), dtype=bool))
-    M, r_pi = policy_chain(P, q, R, visited, epsilon)
+    weights = policy_weights(q, visited, epsilon)
+    M, r_pi = chain_of(P, weights), (weights * R).sum(axis=1)
     level = decode_social(np.arange(S))[:, 0]
     engaged = level == 7
     starts = np.concatenate([w.s[np.r_[True, w.episode[1:] != w.episode[:-1]]] for w in walks])
@@ -396,9 +445,8 @@ def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[Soc
     left = float(np.asarray(M[:, ~engaged].T @ y).sum())  # probability of leaving E
     sojourn = float(y.sum()) / left if left > 1e-12 else float("inf")
     p_lose = 1.0 / sojourn if np.isfinite(sojourn) and sojourn > 0 else 0.0
-    if y.sum() <= 0:  # nothing to solve (E never entered or never left): the walk's E
-        s_all = np.concatenate([w.s for w in walks])
-        y = np.bincount(s_all[engaged[s_all]], minlength=S).astype(float)
+    if y.sum() <= 0 and p_engage > 0:  # E never left: the long-run visits inside E
+        y = _long_run(M, engaged, into, horizon)
     rho = float(y @ r_pi / y.sum()) if y.sum() > 0 else 0.0
     k = rho * sojourn
     to_engage = float(x.sum()) / p_engage if p_engage > 0 else np.inf
@@ -424,14 +472,34 @@ def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[Soc
     if p_engage > 0 and y.sum() > 0:
         frac = 1.0 if not np.isfinite(sojourn) else sojourn / (to_engage + sojourn)
     tau = (1.0 - frac) * tau_n + frac * tau_e
-    rate = 0.0
-    if frac > 0 and rho > 0 and np.isfinite(step) and lead > 0:
+    rate, prog = 0.0, float("nan")
+    if progress is not None:
+        g_pi = (weights * np.asarray(progress, dtype=float)).sum(axis=1)
+        prog = float(y @ g_pi / y.sum()) if y.sum() > 0 else 0.0
+        if frac > 0 and prog > 0 and lead > 0:
+            rate = frac * prog / lead * 3600.0 / tau
+    elif frac > 0 and rho > 0 and np.isfinite(step) and lead > 0:
         rate = frac * rho * step / lead * 3600.0 / tau
     return GoalRatePrediction(
         p_engage=p_engage, decisions_to_engage=to_engage, engaged_decisions=sojourn,
         p_lose_per_decision=p_lose,
         rewarded_per_engagement=k, step_m=step, lead_distance_m=lead, decision_s=tau,
-        goals_per_hour=float(rate))
+        goals_per_hour=float(rate), progress_m=prog)
+
+
+def _long_run(M: Any, inside: NDArray[np.bool_], start: NDArray[np.float64],
+              horizon: int) -> NDArray[np.float64]:
+    """Mean distribution ``(S,)`` over the first ``horizon`` decisions of the chain ``M``
+    from ``start``, inside ``inside`` (a closed class: nothing leaves it)."""
+    idx = np.flatnonzero(inside)
+    sub = M[idx][:, idx].T.tocsr()
+    d, acc = start[idx].copy(), np.zeros(idx.size)
+    for _ in range(horizon):
+        acc += d
+        d = sub @ d
+    out = np.zeros(M.shape[0])
+    out[idx] = acc / horizon
+    return out
 
 
 def _action_mix(q: ArrayLike | None, S: int, A: int, epsilon: float) -> NDArray[np.float64]:
@@ -443,7 +511,7 @@ def _action_mix(q: ArrayLike | None, S: int, A: int, epsilon: float) -> NDArray[
     return mix
 
 
-def loop_factors(runs: list[Any]) -> dict[str, float]:
+def loop_factors(runs: list[Any], goals: tuple[Any, ...] = ()) -> dict[str, float]:
     """The renewal model's factors as the closed-loop runs measure them
     (:class:`~simlab.social.closedloop.ClosedLoopRun`, pooled over ``runs``): from the
     levels after each decision (a run starts unengaged) — ``decisions_to_engage`` (decisions
@@ -451,15 +519,24 @@ def loop_factors(runs: list[Any]) -> dict[str, float]:
     taken at 7) and ``engaged_decisions`` (its inverse), ``engaged_fraction`` (decisions
     taken at 7), ``rho`` (social reward per decision taken at 7), ``goals_per_reward``
     (goals per rewarded decision: the model's ``step_m / lead_distance_m``),
-    ``decision_s`` (mean duration) and ``goals_per_hour``."""
-    before, after, rewards, goals, seconds = [], [], 0.0, 0, 0.0
+    ``decision_s`` (mean duration), ``goals_per_hour`` and, with the runs' ``goals``
+    (:class:`~simlab.physics.arena.GoalArea` in ``goal_names`` order), ``progress_m``: the
+    human's displacement toward the pursued goal's centre per decision taken at 7 (m)."""
+    before, after, rewards, reached, seconds, toward = [], [], 0.0, 0, 0.0, []
     for r in runs:
         lv = np.asarray(r.level, dtype=np.int64)
         before.append(np.r_[0, lv[:-1]])
         after.append(lv)
         rewards += float(r.social_reward)
-        goals += int(r.goals_reached)
+        reached += int(r.goals_reached)
         seconds += float(r.time[-1]) if r.time.size else 0.0
+        if goals and lv.size:
+            h0 = np.vstack([np.asarray(r.start_human)[None, :2], np.asarray(r.human)[:-1, :2]])
+            centre = np.array([(goals[g].x, goals[g].y) for g in r.goal])
+            u = centre - h0
+            u /= np.maximum(np.hypot(u[:, 0], u[:, 1]), 1e-12)[:, None]
+            toward.append(np.sum((np.asarray(r.human)[:, :2] - h0) * u, axis=1))
+    goals_n = reached
     b, a = np.concatenate(before), np.concatenate(after)
     at7, n = b == 7, b.size
     entries = int(np.sum(~at7 & (a == 7)))
@@ -472,6 +549,8 @@ def loop_factors(runs: list[Any]) -> dict[str, float]:
         "engaged_decisions": int(at7.sum()) / losses if losses else float("inf"),
         "engaged_fraction": float(at7.mean()) if n else nan,
         "rho": rewards / int(at7.sum()) if at7.any() else nan,
-        "goals_per_reward": goals / rewards if rewards else nan,
+        "goals_per_reward": goals_n / rewards if rewards else nan,
         "decision_s": seconds / n if n else nan,
-        "goals_per_hour": goals / (seconds / 3600.0) if seconds else nan}
+        "goals_per_hour": goals_n / (seconds / 3600.0) if seconds else nan,
+        "progress_m": (float(np.concatenate(toward)[at7].mean()) if toward and at7.any()
+                       else nan)}

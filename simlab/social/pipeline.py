@@ -333,19 +333,20 @@ def _predictions(emp: Any, walks: list[Any], runs: dict[str, list[ClosedLoopRun]
     from simlab.physics.arena import load_arena
     from simlab.social.actions import grid_q_to_physics
     from simlab.social.closedloop import select_goals
-    from simlab.social.empirical import loop_factors, predict_goal_rate
+    from simlab.social.empirical import loop_factors, pooled_progress, predict_goal_rate
 
     goals = select_goals(load_arena(loop.social.arena), loop.goals)
     tables = {"empirical": emp.q, "random": None}
     if q_grid is not None:  # the grid module's greedy policy on the same empirical MDP
         tables["grid"] = grid_q_to_physics(q_grid)
     key = {"empirical": "empirical", "random": "random", "grid": "combined"}
+    progress = pooled_progress(walks)
     out: dict[str, Any] = {}
     for name, q in tables.items():
         out[name] = predict_goal_rate(emp.planned_P, q, emp.R, walks, goals,
-                                      visited=emp.planned_visited,
-                                      epsilon=loop.epsilon).to_json()
+                                      visited=emp.planned_visited, epsilon=loop.epsilon,
+                                      progress=progress).to_json()
         out[name]["measured_goals_per_hour"] = _pooled(runs[key[name]])["goals_per_hour"]
         out[name]["measured"] = {k: (round(v, 6) if np.isfinite(v) else None)
-                                 for k, v in loop_factors(runs[key[name]]).items()}
+                                 for k, v in loop_factors(runs[key[name]], goals).items()}
     return out

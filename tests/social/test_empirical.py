@@ -236,11 +236,17 @@ def test_prediction_follows_the_policy_not_the_walk() -> None:
 def test_loop_factors_count_the_levels_of_a_hand_run() -> None:
     from types import SimpleNamespace
 
+    from simlab.physics.arena import GoalArea
     from simlab.social.empirical import loop_factors
 
+    human = np.zeros((6, 3))
+    human[:, 0] = [0.1, 0.2, 0.3, 0.3, 0.3, 0.2]  # toward the goal at x = 1, then back
     run = SimpleNamespace(level=np.array([3, 7, 7, 7, 4, 7]), social_reward=2.0,
-                          goals_reached=1, time=np.arange(1, 7) * 3.0)
-    f = loop_factors([run])
+                          goals_reached=1, time=np.arange(1, 7) * 3.0, human=human,
+                          start_human=np.zeros(3), goal=np.zeros(6, dtype=np.int64))
+    f = loop_factors([run], (GoalArea("g", 1.0, 0.0, 0.1), GoalArea("h", 2.0, 0.0, 0.1)))
+    # moves while at 7 (decisions 2, 3, 4): +0.1, 0, 0
+    assert f["progress_m"] == pytest.approx(0.1 / 3)
     # before each decision: 0 3 7 7 7 4 -> 3 decisions below 7, 2 entries, 3 at 7, 1 loss
     assert f["decisions_to_engage"] == pytest.approx(1.5)
     assert f["p_lose_per_decision"] == pytest.approx(1 / 3)
@@ -249,3 +255,21 @@ def test_loop_factors_count_the_levels_of_a_hand_run() -> None:
     assert f["rho"] == pytest.approx(2 / 3) and f["goals_per_reward"] == pytest.approx(0.5)
     assert f["decision_s"] == pytest.approx(3.0)
     assert f["goals_per_hour"] == pytest.approx(1 / (18 / 3600))
+
+
+def test_pooled_progress_projects_the_move_on_each_required_direction() -> None:
+    from simlab.social.empirical import direction_vectors, pooled_progress
+    from simlab.social.perception import quantise_direction
+
+    east = quantise_direction(0.0)
+    s = social_obs_index(7, 1, east, 2)
+    walk = _hand_walk([(s, 4, s, 1), (s, 4, s, 1)])  # the human moves 0.1 m along +x
+    g = pooled_progress([walk])
+    for req in range(8):
+        s_req = social_obs_index(7, 1, req, 2)
+        assert g[s_req, 4] == pytest.approx(0.1 * direction_vectors()[req, 0])
+    assert g[s, 4] == pytest.approx(0.1)
+    assert g[social_obs_index(7, 1, int(OPPOSITE[east]), 2), 4] == pytest.approx(-0.1)
+    # only the tried pair has data; 6 of its 8 directions are not perpendicular to +x
+    assert np.count_nonzero(g[:, :4]) == 0 and (np.abs(g).sum(axis=1) > 1e-12).sum() == 6
+    np.testing.assert_allclose(np.hypot(*direction_vectors().T), 1.0)
