@@ -4,12 +4,15 @@ loop on the table against a random policy, write the results.
 
 ``module`` (decision): ``"grid"`` (default), ``"empirical"`` or ``"both"``. The default
 stays ``"grid"`` because the empirical module needs a physics social walk first
-(``walk_steps`` decisions, default 4,000: 1-2 wall minutes on a loaded 2-core box), which
+(``walk_steps`` decisions, default 8,000 least-tried in 4 segments: 75-95 wall s with 2
+workers on a loaded 2-core box; below 8,000 decisions the empirical module did not beat
+random, from 8,000 on it did by ~10x: the table in :mod:`simlab.social.empirical`), which
 does not fit the CI-small budgets of the existing pipeline and CLI tests that run with the
 defaults; the ``social_table_closed_loop`` experiment asks for ``"both"``. ``"empirical"``
 collects a social walk (:func:`simlab.social.walk.social_walk`, seed ``seed``, the walk's
-seed rules, the paper's ``redraw_p`` 0.2, the loop's GO_TO_HUMAN offsets), estimates the
-sparse MDP and plans on it (:func:`simlab.social.empirical.train_empirical`), then runs the
+seed rules, the paper's ``redraw_p`` 0.2, the loop's GO_TO_HUMAN offsets; ``walk_segments``
+independent segments of the ``walk_policy`` behaviour, run by ``workers`` processes: the
+data do not depend on ``workers``), estimates the sparse MDP and plans on it (:func:`simlab.social.empirical.train_empirical`), then runs the
 closed loop with that Q-table on the same seeds as the others.
 
 :func:`social_pipeline` writes into ``out`` (one output transaction, :mod:`simlab.io`):
@@ -100,11 +103,11 @@ class SocialPipelineConfig(CommandConfig):
                           choices=("paper", "thesis"))
     module: str = option("grid", "social module(s) to train and run: grid (tabular), "
                          "empirical (a physics walk's sparse MDP) or both", choices=MODULES)
-    walk_steps: int = option(4000, "decisions of the physics social walk of the empirical "
+    walk_steps: int = option(8000, "decisions of the physics social walk of the empirical "
                              "module (all segments together)")
-    walk_policy: str = option("uniform", "behaviour policy of the walk: uniform or "
+    walk_policy: str = option("least-tried", "behaviour policy of the walk: uniform or "
                               "least-tried (coverage-seeking)", choices=WALK_POLICIES)
-    walk_segments: int = option(1, "independent seeded walk segments (walk_steps split "
+    walk_segments: int = option(4, "independent seeded walk segments (walk_steps split "
                                 "evenly, rounded up); the data depend on it, not on workers")
     workers: int = option(1, "processes that run the walk's segments (simlab.parallel)")
     gif_decisions: int = option(120, "decisions shown in the GIF (0: no GIF)")
