@@ -44,6 +44,15 @@ Measured (``social_pipeline(out=...)`` with the defaults: 3 runs x 0.5 h, easy h
 40,000 paper trials): combined 32 goals (15, 5, 12), random 4 (0, 2, 2), ratio 8.0;
 social reward per decision 0.168 in physics vs 0.50 per step on the grid.
 
+Measured with the empirical module (issue 18, E2; ``simlab social-pipeline --out DIR
+--module both --workers 2 --runs 6 --hours 0.5 --seed S``, the default walk: 8,000
+least-tried decisions in 4 segments), goals per simulated hour, empirical / grid /
+random: seed 0: 31.6 (95 goals) / 20.3 (61) / 2.0 (6); seed 1: 25.0 (75) / 11.0 (33) /
+2.0 (6). The empirical module beats random by 12-16x. Cost: the walk 33 wall s (idle
+box) to 95 s (loaded), planning 0.3 s, the 18 closed-loop runs 44 s; predicted (renewal
+model) empirical 34.0 and 44.0, grid 8.4 and 13.3, random 0 (a drift model: module
+:mod:`simlab.social.empirical`).
+
 Tabular prediction: the grid training's plateau social reward per step (the human moved
 in the required direction while at level 7) is set beside the physics loop's social
 reward per decision. The predicted *goal* rate (``tabular_prediction.goals_per_hour``) is
