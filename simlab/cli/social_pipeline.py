@@ -31,8 +31,10 @@ def run(args: argparse.Namespace) -> int:
     parts.append(f"random: {r['goals']} = {r['goals_per_hour']:.1f} /h; ratio "
                  + ("undefined (random reached none)" if ratio is None else f"{ratio:.1f}"))
     print("; ".join(parts))
-    predicted = res.summary["tabular_prediction"]["goals_per_hour"]
-    if predicted is not None:
-        print(f"predicted by the empirical MDP (renewal model): {predicted:.1f} /h")
+    predicted = res.summary["predicted_goals_per_hour"]
+    if predicted:
+        print("predicted by the empirical MDP (renewal model) / measured: " + "; ".join(
+            f"{p} {v['goals_per_hour']:.1f} / {v['measured_goals_per_hour']:.1f} /h"
+            for p, v in predicted.items()))
     print("wrote " + ", ".join(str(p) for p in res.paths.values()))
     return 0

@@ -43,6 +43,9 @@ def closed_loop(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext)
         "grid_plateau_reward_per_step": s["training"].get("plateau_reward_per_step"),
         "empirical_goals_per_hour": s["goals_per_hour"].get("empirical"),
         "predicted_goals_per_hour": s["tabular_prediction"]["goals_per_hour"],
+        "empirical_goal_rate_ratio": s.get("empirical_goal_rate_ratio"),
+        "predicted_grid_goals_per_hour": (s["predicted_goals_per_hour"] or {}).get(
+            "grid", {}).get("goals_per_hour"),
         "runs": cfg.runs,
         "hours": cfg.hours,
     }

@@ -1,7 +1,8 @@
 """The social random walk: an empirical social MDP's data, as a simlab dataset (issue 18, 3).
 
 :func:`social_walk` drives :class:`~simlab.social.task.SocialTable` with actions drawn
-uniformly from the 22 social actions and records every decision: the observed social
+by a behaviour policy over the 22 social actions (uniform, or least-tried: below) and
+records every decision: the observed social
 state ``s`` (0-2559, the grid's index of interaction level, distance class, required
 direction and angle; :func:`decode_social`), the action, ``s'``, the social reward, the
 start time and duration (simulated s), the robot's and the human's poses before and after,
@@ -15,10 +16,29 @@ Decisions (the issue left them open):
   direction) every ``episode_steps`` decisions (default 40, the grid's social trial
   length), so that the data covers the table rather than one corner of it; transitions
   never cross a restart, the clock runs on.
-* **Seeds.** Worker ``w`` draws from ``SeedSequence(seed).spawn(workers)[w]``: one stream
-  for the actions, one for the episodes' seeds of :meth:`SocialTable.reset`. Same seed,
-  workers and budget -> the same dataset (content). Workers run one after the other on one
-  PyBullet world (each episode resets it), so their count changes the data, not speed.
+* **Seeds and segments.** ``workers`` is the number of independent walk *segments*
+  (``steps`` decisions each). Segment ``w`` draws from ``SeedSequence(seed).spawn(workers)[w]``:
+  one stream for the actions, one for the episodes' seeds of :meth:`SocialTable.reset`. A
+  segment depends only on ``(seed, w, steps, episode_steps, policy, social)``: segment ``w``
+  is the same whatever the number of segments, and the first ``k`` segments of a longer
+  collection are a smaller one (nested budgets). Same seed, segments and budget -> the
+  same dataset (content).
+* **Parallel segments** (issue 18, E2): :func:`social_walk` ``processes=N`` runs the
+  segments as jobs of a :mod:`simlab.parallel` executor (the ``local`` process pool of
+  ``simlab collect``, or ``ray``), each job on its own PyBullet world; results come back
+  in segment order, so the data do not depend on ``processes`` (a test checks 1 vs 2).
+  With ``processes=1`` the segments run one after the other on one world in this process.
+* **Behaviour policy** (``policy``, decision): ``"uniform"`` draws each action uniformly
+  from the 22 (the first version; one draw of the action stream per decision).
+  ``"least-tried"`` seeks coverage: at each decision it picks uniformly among the actions
+  tried least often so far *in this segment* at the current observation pooled over the
+  required direction (level, distance class, angle: the pooled states of
+  :func:`simlab.social.empirical.pooled_model`; one draw per decision). So at a pooled
+  observation the counts of the 22 actions never differ by more than one. Any behaviour
+  policy is valid for estimating ``P(s' | s, a)``: the count estimate conditions on the
+  action taken, and the task's dynamics do not depend on why it was taken (the walk has
+  no memory the task can see); the policy changes only *which* pairs get data. The
+  measured rewards ``R(s, a)`` are likewise per pair.
 * **Columns.** The dataset schema is the navigation one: ``x, y, yaw`` are the robot's
   poses (true pose, ``pose_source="truth"``); ``s, s_next`` are the social states. The
   human's poses and the rewards do not fit the schema; they stay in the returned
@@ -49,6 +69,12 @@ from simlab.social.task import SocialConfig, SocialTable
 
 #: Number of social states (levels 8 x distance classes 5 x directions 8 x angles 8).
 N_SOCIAL_STATES = int(np.prod(SOCIAL_DIMS))
+
+#: Number of observations pooled over the required direction (level x distance x angle).
+N_POOLED_STATES = N_SOCIAL_STATES // SOCIAL_DIMS[2]
+
+#: Behaviour policies of the walk (:attr:`WalkConfig.policy`, module docstring).
+WALK_POLICIES = ("uniform", "least-tried")
 
 _DIRS = ("up", "down", "left", "right", "up-left", "up-right", "down-left", "down-right")
 #: Name of every social action, index order (the manifest's ``parameters.action_names``).
@@ -88,20 +114,23 @@ class SocialStates:
 
 @dataclass(frozen=True)
 class WalkConfig:
-    """A social random walk: ``steps`` decisions per worker, restarts every
-    ``episode_steps``, ``workers`` independent walks, the task's ``social`` settings."""
+    """A social random walk: ``steps`` decisions per segment, restarts every
+    ``episode_steps``, ``workers`` independent segments (module docstring), the behaviour
+    ``policy`` (:data:`WALK_POLICIES`), the task's ``social`` settings."""
 
     steps: int = 1000
     episode_steps: int = 40
     workers: int = 1
     seed: int = 0
     social: SocialConfig = field(default_factory=SocialConfig)
+    policy: str = "uniform"
 
     def __post_init__(self) -> None:
         validation.whole(self.steps, "WalkConfig.steps", minimum=1)
         validation.whole(self.episode_steps, "WalkConfig.episode_steps", minimum=1)
         validation.whole(self.workers, "WalkConfig.workers", minimum=1)
         validation.whole(self.seed, "WalkConfig.seed", minimum=0)
+        validation.choice(self.policy, WALK_POLICIES, "WalkConfig.policy")
 
 
 @dataclass(frozen=True)
@@ -137,12 +166,19 @@ def _walk_one(table: SocialTable, cfg: WalkConfig, seq: np.random.SeedSequence) 
     act_seq, ep_seq = seq.spawn(2)
     act_rng, ep_rng = np.random.default_rng(act_seq), np.random.default_rng(ep_seq)
     rows: dict[str, list] = {k: [] for k in SocialWalk.__dataclass_fields__}
+    tried = np.zeros((N_POOLED_STATES, N_SOCIAL_ACTIONS), dtype=np.int64)
     clock, episode, obs = 0.0, -1, 0
     for k in range(cfg.steps):
         if k % cfg.episode_steps == 0:
             episode += 1
             obs = table.reset(int(ep_rng.integers(0, 2**63 - 1)))
-        a = int(act_rng.integers(0, N_SOCIAL_ACTIONS))
+        if cfg.policy == "least-tried":
+            row = tried[pooled_state(obs)]
+            least = np.flatnonzero(row == row.min())
+            a = int(least[int(act_rng.integers(0, least.size))])
+            row[a] += 1
+        else:
+            a = int(act_rng.integers(0, N_SOCIAL_ACTIONS))
         robot, human = table.world.pose(), table.human_pose.copy()
         nxt, reward, info = table.step(a)
         for key, value in (("s", obs), ("a", a), ("s_next", nxt), ("reward", reward),
@@ -160,21 +196,47 @@ def _walk_one(table: SocialTable, cfg: WalkConfig, seq: np.random.SeedSequence) 
         for k, v in rows.items()})
 
 
-def social_walk(cfg: WalkConfig) -> list[SocialWalk]:
-    """Run the random walk: one :class:`SocialWalk` per worker (module docstring)."""
-    seqs = np.random.SeedSequence(cfg.seed).spawn(cfg.workers)
+def pooled_state(s: NDArray[np.int64] | int) -> NDArray[np.int64] | int:
+    """Social state(s) -> the observation pooled over the required direction,
+    ``(level * 5 + distance class) * 8 + angle`` (0-319)."""
+    d = decode_social(s)
+    out = (d[..., 0] * SOCIAL_DIMS[1] + d[..., 1]) * SOCIAL_DIMS[3] + d[..., 3]
+    return int(out) if np.ndim(out) == 0 else out
+
+
+def walk_segment(cfg: WalkConfig, index: int) -> SocialWalk:
+    """Segment ``index`` of the walk ``cfg`` on a world of its own (a parallel job)."""
+    seq = np.random.SeedSequence(cfg.seed).spawn(cfg.workers)[index]
     with SocialTable(cfg.social) as table:
-        return [_walk_one(table, cfg, seq) for seq in seqs]
+        return _walk_one(table, cfg, seq)
+
+
+def social_walk(cfg: WalkConfig, *, processes: int = 1, backend: str = "local",
+                address: str | None = None) -> list[SocialWalk]:
+    """Run the walk: one :class:`SocialWalk` per segment, in segment order (module
+    docstring). ``processes`` > 1 (or ``backend="ray"``) runs the segments as jobs of a
+    :func:`simlab.parallel.make_executor` executor; the result does not depend on it."""
+    validation.whole(processes, "processes", minimum=1)
+    seqs = np.random.SeedSequence(cfg.seed).spawn(cfg.workers)
+    if backend == "local" and (processes == 1 or cfg.workers == 1):
+        with SocialTable(cfg.social) as table:
+            return [_walk_one(table, cfg, seq) for seq in seqs]
+    from simlab.parallel import make_executor
+
+    workers = None if backend == "ray" else min(processes, cfg.workers)
+    with make_executor(backend, workers=workers, address=address) as ex:
+        return ex.map(walk_segment, [{"cfg": cfg, "index": i} for i in range(cfg.workers)])
 
 
 def write_social_dataset(out: str | os.PathLike[str], cfg: WalkConfig, *,
-                         overwrite: bool = False, part_size: int = 10_000
-                         ) -> tuple[object, list[SocialWalk]]:
-    """Walk and write the simlab dataset into ``out``; returns (the writer's
-    :class:`~simlab.data.writer.WriteResult`, the walks)."""
+                         overwrite: bool = False, part_size: int = 10_000,
+                         processes: int = 1) -> tuple[object, list[SocialWalk]]:
+    """Walk (``processes`` as :func:`social_walk`) and write the simlab dataset into
+    ``out``, one segment after the other (the writer's parts, ``out/parts/``); returns
+    (the writer's :class:`~simlab.data.writer.WriteResult`, the walks)."""
     from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
 
-    walks = social_walk(cfg)
+    walks = social_walk(cfg, processes=processes)
     arrays = [TransitionArrays(t=w.t, a=w.a, pose=w.robot, pose_next=w.robot_next,
                                blocked=w.blocked, duration=w.duration, s=w.s, s_next=w.s_next)
               for w in walks]
@@ -186,9 +248,10 @@ def write_social_dataset(out: str | os.PathLike[str], cfg: WalkConfig, *,
         robot={"model": "turtlebot3_burger"}, seed=cfg.seed,
         parameters={"state_space": "social", "social_dims": list(SOCIAL_DIMS),
                     "steps": cfg.steps, "episode_steps": cfg.episode_steps,
+                    "segments": cfg.workers, "policy": cfg.policy,
                     "human": dataclasses.asdict(human),
                     "redraw_p": social.redraw_p, "signal_time": social.signal_time},
-        provenance={"walk": "simlab.social.walk.social_walk (uniform over 22 actions)",
+        provenance={"walk": f"simlab.social.walk.social_walk ({cfg.policy} over 22 actions)",
                     "reward_total": float(sum(w.reward.sum() for w in walks)),
                     "simulated_hours": sum(w.simulated_hours for w in walks)})
     result = write_dataset(out, arrays, info, overwrite=overwrite, part_size=part_size)

@@ -137,7 +137,7 @@ def test_prediction_of_a_hand_made_renewal() -> None:
     R[eng, 0] = 2.0 / 3.0
     q = np.where(model.visited, 1.0, 0.0)
     goals = (GoalArea("a", 0.0, 0.0, 0.1), GoalArea("b", 1.1, 0.0, 0.1))
-    p = predict_goal_rate(model.matrix(), q, R, [walk], goals)
+    p = predict_goal_rate(model.matrix(), q, R, [walk], goals, visited=model.visited)
     assert p.p_engage == pytest.approx(1.0)
     assert p.decisions_to_engage == pytest.approx(1.0)
     assert p.p_lose_per_decision == pytest.approx(1.0 / 3.0)
@@ -149,7 +149,7 @@ def test_prediction_of_a_hand_made_renewal() -> None:
     # never lost in the data: always engaged after the first engagement (f = 1)
     never = SocialWalk(**{**walk.__dict__, "s_next": np.array([eng, eng, eng, eng])})
     model = sparse_count_model(s, a, never.s_next, 2560, 22)
-    p = predict_goal_rate(model.matrix(), q, R, [never], goals)
+    p = predict_goal_rate(model.matrix(), q, R, [never], goals, visited=model.visited)
     assert p.p_lose_per_decision == 0.0 and p.engaged_decisions == np.inf
     assert p.goals_per_hour == pytest.approx(2.0 / 3.0 * 0.1 / 1.0 * 3600.0 / 2.0)
 
@@ -165,7 +165,10 @@ def test_pipeline_both_writes_the_three_rates(tmp_path: Path) -> None:
         assert summary["goals_per_hour"][policy] == summary["pooled"][key]["goals_per_hour"]
     pred = summary["tabular_prediction"]
     assert isinstance(pred["goals_per_hour"], float) and pred["goals_per_hour"] >= 0.0
-    assert set(summary["predicted_goals_per_hour"]) == {"empirical", "grid"}
+    assert set(summary["predicted_goals_per_hour"]) == {"empirical", "grid", "random"}
+    measured = summary["predicted_goals_per_hour"]["random"]["measured"]
+    assert measured["goals_per_hour"] == pytest.approx(summary["goals_per_hour"]["random"],
+                                                       abs=1e-3)
     assert summary["empirical_training"]["walk_steps"] == 60
     q = np.load(out / "social_q_empirical.npy", allow_pickle=False)
     assert q.shape == (2560, 22)
@@ -180,3 +183,93 @@ def test_pipeline_rejects_a_bad_module(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="walk_steps"):
         social_pipeline(out=tmp_path / "x", module="both", walk_steps=0)
     assert not (tmp_path / "x").exists()
+
+
+def _hand_walk(rows):
+    """A SocialWalk of ``rows`` (s, a, s', reward), 2 s decisions, rewarded moves 0.1 m."""
+    from simlab.social.walk import SocialWalk
+
+    s, a, s2, r = (np.array(c) for c in zip(*rows, strict=True))
+    n = len(rows)
+    human = np.zeros((n, 3))
+    human_next = human.copy()
+    human_next[:, 0] = 0.1 * (r > 0)
+    return SocialWalk(s=s, a=a, s_next=s2, reward=r.astype(float),
+                      t=np.arange(n, dtype=float) * 2.0, duration=np.full(n, 2.0),
+                      blocked=np.zeros(n, bool), robot=human, robot_next=human, human=human,
+                      human_next=human_next, episode=np.zeros(n, dtype=np.int64))
+
+
+def test_prediction_follows_the_policy_not_the_walk() -> None:
+    """At the engaged state the walk tried a0 (stays engaged, rewarded) and a1 (loses):
+    loss 1/2 per decision in the walk, but the loop's greedy a0 with epsilon 0.1 loses only
+    when the uniform draw picks a1 (1/2 of the epsilon)."""
+    from simlab.physics.arena import GoalArea
+
+    start, eng = social_obs_index(3, 2, 0, 1), social_obs_index(7, 2, 0, 1)
+    rows = [(start, 0, eng, 0), (eng, 0, eng, 1), (eng, 0, eng, 1), (eng, 0, eng, 1),
+            (eng, 1, start, 0), (start, 0, eng, 0), (eng, 1, start, 0), (start, 0, eng, 0),
+            (eng, 1, start, 0)]
+    walk = _hand_walk(rows)
+    model = sparse_count_model(walk.s, walk.a, walk.s_next, 2560, 22)
+    R = np.zeros((2560, 22))
+    R[eng, 0] = 1.0
+    q = np.where(model.visited, 0.0, -np.inf)
+    q[eng, 0] = 1.0
+    q[~model.visited.any(axis=1)] = 0.0
+    goals = (GoalArea("a", 0.0, 0.0, 0.1), GoalArea("b", 1.1, 0.0, 0.1))
+    p = predict_goal_rate(model.matrix(), q, R, [walk], goals, visited=model.visited,
+                          epsilon=0.1)
+    assert p.p_engage == pytest.approx(1.0) and p.decisions_to_engage == pytest.approx(1.0)
+    assert p.p_lose_per_decision == pytest.approx(0.05)  # the walk's rate was 0.5
+    assert p.engaged_decisions == pytest.approx(20.0)
+    rho = 0.9 * 1.0 + 0.1 * 0.5  # greedy a0, or uniform: a0 and a1 (untried: their mean)
+    assert p.rewarded_per_engagement == pytest.approx(20.0 * rho)
+    assert p.decision_s == pytest.approx(2.0)
+    assert p.goals_per_hour == pytest.approx(20 / 21 * rho * 0.1 / 1.0 * 3600 / 2.0)
+    # the random policy: uniform, i.e. a0 or a1 with 1/2 each at the engaged state
+    pr = predict_goal_rate(model.matrix(), None, R, [walk], goals, visited=model.visited)
+    assert pr.p_lose_per_decision == pytest.approx(0.5)
+    assert pr.rewarded_per_engagement == pytest.approx(2.0 * 0.5)
+
+
+def test_loop_factors_count_the_levels_of_a_hand_run() -> None:
+    from types import SimpleNamespace
+
+    from simlab.physics.arena import GoalArea
+    from simlab.social.empirical import loop_factors
+
+    human = np.zeros((6, 3))
+    human[:, 0] = [0.1, 0.2, 0.3, 0.3, 0.3, 0.2]  # toward the goal at x = 1, then back
+    run = SimpleNamespace(level=np.array([3, 7, 7, 7, 4, 7]), social_reward=2.0,
+                          goals_reached=1, time=np.arange(1, 7) * 3.0, human=human,
+                          start_human=np.zeros(3), goal=np.zeros(6, dtype=np.int64))
+    f = loop_factors([run], (GoalArea("g", 1.0, 0.0, 0.1), GoalArea("h", 2.0, 0.0, 0.1)))
+    # moves while at 7 (decisions 2, 3, 4): +0.1, 0, 0
+    assert f["progress_m"] == pytest.approx(0.1 / 3)
+    # before each decision: 0 3 7 7 7 4 -> 3 decisions below 7, 2 entries, 3 at 7, 1 loss
+    assert f["decisions_to_engage"] == pytest.approx(1.5)
+    assert f["p_lose_per_decision"] == pytest.approx(1 / 3)
+    assert f["engaged_decisions"] == pytest.approx(3.0)
+    assert f["engaged_fraction"] == pytest.approx(0.5)
+    assert f["rho"] == pytest.approx(2 / 3) and f["goals_per_reward"] == pytest.approx(0.5)
+    assert f["decision_s"] == pytest.approx(3.0)
+    assert f["goals_per_hour"] == pytest.approx(1 / (18 / 3600))
+
+
+def test_pooled_progress_projects_the_move_on_each_required_direction() -> None:
+    from simlab.social.empirical import direction_vectors, pooled_progress
+    from simlab.social.perception import quantise_direction
+
+    east = quantise_direction(0.0)
+    s = social_obs_index(7, 1, east, 2)
+    walk = _hand_walk([(s, 4, s, 1), (s, 4, s, 1)])  # the human moves 0.1 m along +x
+    g = pooled_progress([walk])
+    for req in range(8):
+        s_req = social_obs_index(7, 1, req, 2)
+        assert g[s_req, 4] == pytest.approx(0.1 * direction_vectors()[req, 0])
+    assert g[s, 4] == pytest.approx(0.1)
+    assert g[social_obs_index(7, 1, int(OPPOSITE[east]), 2), 4] == pytest.approx(-0.1)
+    # only the tried pair has data; 6 of its 8 directions are not perpendicular to +x
+    assert np.count_nonzero(g[:, :4]) == 0 and (np.abs(g).sum(axis=1) > 1e-12).sum() == 6
+    np.testing.assert_allclose(np.hypot(*direction_vectors().T), 1.0)
