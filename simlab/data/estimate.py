@@ -162,8 +162,36 @@ def _nanmean(values: NDArray[np.float64]) -> float:
     return float(finite.mean()) if finite.size else float("nan")
 
 
+class _ModelFigures:
+    """The figures both count models derive from their ``entropy`` and ``visited``
+    ``(S, A)`` arrays."""
+
+    entropy: NDArray[np.float64]
+    visited: NDArray[np.bool_]
+
+    @property
+    def mean_entropy(self) -> NDArray[np.float64]:
+        """Mean entropy per action ``(A,)`` in bits over visited pairs (NaN if none)."""
+        return mean_entropy_per_action(self.entropy, self.visited)
+
+    @property
+    def slow_mean_entropy(self) -> float:
+        """Mean of the per-action mean entropies of the slow actions 0-7 (bits)."""
+        return _nanmean(self.mean_entropy[:8])
+
+    @property
+    def fast_mean_entropy(self) -> float:
+        """Mean of the per-action mean entropies of the fast actions 8-15 (bits)."""
+        return _nanmean(self.mean_entropy[8:16])
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of (s, a) pairs visited at least once."""
+        return float(self.visited.mean())
+
+
 @dataclass(frozen=True)
-class CountModel:
+class CountModel(_ModelFigures):
     """Counts and the model estimated from them (arrays are read-only views of the inputs).
 
     What :func:`estimate` computes before writing ``mdp.npz``; not the validated
@@ -194,26 +222,6 @@ class CountModel:
         """Visits n(s, a) ``(S, A)``."""
         return self.counts.sum(axis=2)
 
-    @property
-    def mean_entropy(self) -> NDArray[np.float64]:
-        """Mean entropy per action ``(A,)`` in bits over visited pairs (NaN if none)."""
-        return mean_entropy_per_action(self.entropy, self.visited)
-
-    @property
-    def slow_mean_entropy(self) -> float:
-        """Mean of the per-action mean entropies of the slow actions 0-7 (bits)."""
-        return _nanmean(self.mean_entropy[:8])
-
-    @property
-    def fast_mean_entropy(self) -> float:
-        """Mean of the per-action mean entropies of the fast actions 8-15 (bits)."""
-        return _nanmean(self.mean_entropy[8:16])
-
-    @property
-    def coverage(self) -> float:
-        """Fraction of (s, a) pairs visited at least once."""
-        return float(self.visited.mean())
-
     def rewards(self, goal_masks: ArrayLike) -> NDArray[np.float64]:
         """Eq. 1.14 per goal: ``R[g, s, a]`` = mean over logged (s, a) of 1[s' in goal g].
 
@@ -239,7 +247,7 @@ def empirical_mdp(counts: ArrayLike) -> CountModel:
 
 
 @dataclass(frozen=True)
-class SparseCountModel:
+class SparseCountModel(_ModelFigures):
     """The count model of :class:`CountModel` on the observed triples only (CSR rows).
 
     Row ``r = s * A + a`` holds the entries ``indptr[r]:indptr[r + 1]`` of ``indices``
@@ -272,24 +280,6 @@ class SparseCountModel:
     @property
     def transitions(self) -> int:
         return int(self.counts.sum())
-
-    @property
-    def mean_entropy(self) -> NDArray[np.float64]:
-        """Mean entropy per action ``(A,)`` in bits over visited pairs (NaN if none)."""
-        return mean_entropy_per_action(self.entropy, self.visited)
-
-    @property
-    def slow_mean_entropy(self) -> float:
-        return _nanmean(self.mean_entropy[:8])
-
-    @property
-    def fast_mean_entropy(self) -> float:
-        return _nanmean(self.mean_entropy[8:16])
-
-    @property
-    def coverage(self) -> float:
-        """Fraction of (s, a) pairs visited at least once."""
-        return float(self.visited.mean())
 
     def rows(self) -> NDArray[np.int64]:
         """Row ``s * A + a`` of every stored entry ``(nnz,)``."""
