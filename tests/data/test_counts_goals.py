@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab.data.counts import load_counts
+from simlab.data.counts import DuplicateRowsWarning, load_counts
 from simlab.data.estimate import estimate
 from simlab.data.goals import goal_state_masks
 from simlab.errors import DataError
@@ -51,7 +51,8 @@ def test_header_order_is_free_and_whole_floats_are_accepted(tmp_path: Path) -> N
 
 
 def test_duplicates_are_summed_and_reported(tmp_path: Path) -> None:
-    table = load_counts(_csv(tmp_path / "c.csv", [*ROWS, (0, 3, 1, 8)]))
+    with pytest.warns(DuplicateRowsWarning, match="1 duplicated"):
+        table = load_counts(_csv(tmp_path / "c.csv", [*ROWS, (0, 3, 1, 8)]))
     assert table.counts[0, 3, 1] == 20 and table.duplicates == 1
 
 
