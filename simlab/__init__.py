@@ -18,12 +18,16 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
+from simlab._numba_cache import use_versioned_cache_dir as _use_versioned_cache_dir
+from simlab.envs import register_when_imported as _register_when_imported
+
+# before anything imports numba: one cache directory per source version (simlab._numba_cache)
+_use_versioned_cache_dir()
+
 try:
     __version__ = version("simlab")
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0.0.0+src"
-
-from simlab.envs import register_when_imported as _register_when_imported
 
 _register_when_imported()
 

@@ -109,8 +109,10 @@ agent's transitions; to hand over control, select actions on the observer's
     returns = train(Q, Q_obs, model, np.random.default_rng(0), 200, 30, 0.9, 0.1, 0.5, 100)
 
 ``tests/agents/test_kernels.py`` runs this example. Note on ``cache=True``: numba
-does not track dependencies between cached functions in different files; if you
-edit these kernels, delete the ``__pycache__/*.nbi|*.nbc`` of the callers.
+does not track dependencies between cached functions in different files; simlab's own
+kernels are cached per version of the whole source (:mod:`simlab._numba_cache`), so an
+edit here recompiles its callers. Your own cached loops calling these kernels need the
+same care (their cache files do not notice a new simlab).
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 
 Every numba kernel of the physics chain is ``@njit(cache=True)``: the first run on a
 machine compiles it (the value-iteration softmax training about 12 s on a quiet 2-core
-box, the particle filter's kernels a few seconds) and writes the machine code beside the
-source (``__pycache__/*.nbi``, ``*.nbc``, or under ``NUMBA_CACHE_DIR``); later processes
-load it in milliseconds. Numba caches per *type signature*, not per array size, so
+box, the particle filter's kernels a few seconds) and writes the machine code to the numba cache
+directory of this source version (:mod:`simlab._numba_cache`, or the user's
+``NUMBA_CACHE_DIR``); later processes load it in milliseconds. Numba caches per *type signature*, not per array size, so
 running a kernel once on a tiny problem of the same dtypes and layouts fills the cache
 for the real one.
 

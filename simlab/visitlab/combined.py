@@ -50,9 +50,8 @@ sequence, the robot approaching, HELLO, COME, leading, the goal changing).
 
 Note for developers: :func:`combined_chunk` is compiled with ``cache=True`` and calls
 the kernels of :mod:`simlab.visitlab.dynamics` and the agent steps of
-:mod:`simlab.agents.core`; numba does not track dependencies between files, so
-after editing those delete the numba cache files (``simlab/visitlab/__pycache__/*.nbi``,
-``*.nbc``).
+:mod:`simlab.agents.core`; numba does not track dependencies between files, so simlab
+keeps one numba cache directory per version of its source (:mod:`simlab._numba_cache`).
 """
 
 from __future__ import annotations

@@ -78,9 +78,10 @@ Navigation step (:func:`nav_step`): the robot moves (no human); reward +1 if the
 new cell lies in the goal room.
 
 Note for developers: the kernels are compiled with ``cache=True`` and numba does
-not track dependencies between files, so after editing this module delete the
-numba cache files (``simlab/visitlab/__pycache__/*.nbi``, ``*.nbc``) or the fused
-loops of :mod:`simlab.visitlab.training` keep running the old dynamics.
+not track dependencies between files; the fused loops of :mod:`simlab.visitlab.training`
+still see an edit here because simlab keeps one numba cache directory per version of its
+source (:mod:`simlab._numba_cache`; with ``NUMBA_CACHE_DIR`` set by hand, or numba
+imported before simlab, delete the cache files yourself).
 """
 
 from __future__ import annotations
