@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from simlab.data.estimate import SparseCountModel, sparse_count_model, sparse_from_dense_counts
 from simlab.social.actions import GRID_ACTION, N_SOCIAL_ACTIONS
 from simlab.social.walk import N_SOCIAL_STATES
 
@@ -61,34 +62,26 @@ class SparseModel:
 def sparse_model(s: ArrayLike, a: ArrayLike, s_next: ArrayLike, *,
                  n_states: int = N_SOCIAL_STATES, n_actions: int = N_SOCIAL_ACTIONS
                  ) -> SparseModel:
-    """Count transitions ``(s, a, s')`` (int arrays, same length) into a :class:`SparseModel`."""
-    s, a, s2 = (np.asarray(v, dtype=np.int64) for v in (s, a, s_next))
-    if not (s.shape == a.shape == s2.shape) or s.ndim != 1:
-        raise ValueError(f"s, a, s_next must be 1-D of one length, got {s.shape}, {a.shape}, "
-                         f"{s2.shape}")
-    for name, v, upper in (("s", s, n_states), ("a", a, n_actions), ("s_next", s2, n_states)):
-        if v.size and (v.min() < 0 or v.max() >= upper):
-            raise ValueError(f"{name} outside 0..{upper - 1}")
-    triples, n = np.unique((s * n_actions + a) * n_states + s2, return_counts=True)
-    pair_of = triples // n_states
-    pairs, start, n_sa = np.unique(pair_of, return_index=True, return_counts=True)
-    totals = np.add.reduceat(n, start) if len(n) else np.zeros(0, dtype=np.int64)
-    p = n / np.repeat(totals, n_sa)
-    entropy = -np.add.reduceat(p * np.log2(p), start) if len(n) else np.zeros(0)
-    # most likely s': largest count, smallest s' among ties (triples are sorted by s')
-    order = np.lexsort((triples % n_states, -n, pair_of))
-    mode = (triples[order] % n_states)[np.searchsorted(pair_of[order], pairs)]
-    return SparseModel(pairs=pairs, n_sa=totals.astype(np.int64), entropy=np.abs(entropy),
-                       mode=mode, n_states=n_states, n_actions=n_actions)
+    """Count transitions ``(s, a, s')`` (int arrays, same length) into a :class:`SparseModel`
+    (the estimator's :func:`~simlab.data.estimate.sparse_count_model`, visited pairs only)."""
+    return _visited_view(sparse_count_model(s, a, s_next, n_states, n_actions))
 
 
 def sparse_from_counts(counts: ArrayLike) -> SparseModel:
     """A :class:`SparseModel` from a dense ``(S, A, S)`` count table (``mdp.npz`` counts)."""
-    c = np.asarray(counts)
-    s, a, s2 = np.nonzero(c)
-    reps = c[s, a, s2].astype(np.int64)
-    return sparse_model(np.repeat(s, reps), np.repeat(a, reps), np.repeat(s2, reps),
-                        n_states=c.shape[0], n_actions=c.shape[1])
+    return _visited_view(sparse_from_dense_counts(counts))
+
+
+def _visited_view(model: SparseCountModel) -> SparseModel:
+    """The visited rows of the estimator's CSR model, with each row's most likely ``s'``
+    (largest count, smallest ``s'`` among ties)."""
+    pairs = np.flatnonzero(model.visited.ravel())
+    # rows stay in CSR order, so row r's entries keep positions indptr[r]:indptr[r + 1]
+    order = np.lexsort((model.indices, -model.counts, model.rows()))
+    mode = model.indices[order[model.indptr[pairs]]]
+    return SparseModel(pairs=pairs, n_sa=model.n_sa.ravel()[pairs],
+                       entropy=model.entropy.ravel()[pairs], mode=mode,
+                       n_states=model.n_states, n_actions=model.n_actions)
 
 
 def grid_walk(steps: int, seed: int, *, episode_steps: int = 40, human: str = "easy"
