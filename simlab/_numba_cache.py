@@ -9,9 +9,9 @@ a ``git pull`` of an editable install it would silently run the old agent rules.
 :func:`use_versioned_cache_dir` (called by ``import simlab`` and ``import discretize``,
 before either imports numba) therefore points ``NUMBA_CACHE_DIR`` at
 ``$XDG_CACHE_HOME/simlab/numba/<fingerprint>`` (``~/.cache`` without it), where the
-fingerprint hashes the path, size and modification time of every ``.py`` file of the
-``simlab`` and ``discretize`` packages (the stamps numba itself uses, for all files at
-once; ~2 ms). Same code -> same directory, so compiled kernels are still reused across
+fingerprint (:func:`simlab.io.source_fingerprint` with ``stamps``) hashes the path, size
+and modification time of every ``.py`` file of the ``simlab`` and ``discretize`` packages
+(the stamps numba itself uses, for all files at once; 4-9 ms). Same code -> same directory, so compiled kernels are still reused across
 runs and by worker processes (they inherit the variable). Older directories beyond the
 newest :data:`KEEP` are deleted.
 
@@ -24,27 +24,16 @@ cannot be created (numba's default applies).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import sys
 from pathlib import Path
 
+from simlab.io import source_fingerprint
+
 #: Fingerprint directories kept (the newest by modification time).
 KEEP = 8
 _PACKAGES = ("simlab", "discretize")
-
-
-def source_fingerprint(roots: list[Path]) -> str:
-    """16 hex digits of SHA-256 over (relative path, size, mtime_ns) of every ``.py`` file
-    under ``roots``, in sorted order."""
-    h = hashlib.sha256()
-    for root in roots:
-        for path in sorted(root.rglob("*.py")):
-            st = path.stat()
-            h.update(f"{root.name}/{path.relative_to(root)}\0{st.st_size}\0{st.st_mtime_ns}\n"
-                     .encode())
-    return h.hexdigest()[:16]
 
 
 def cache_root() -> Path:
@@ -69,7 +58,7 @@ def use_versioned_cache_dir() -> Path | None:
     here = Path(__file__).resolve().parent
     roots = [p for p in (here.parent / name for name in _PACKAGES) if p.is_dir()]
     try:
-        target = cache_root() / source_fingerprint(roots)
+        target = cache_root() / source_fingerprint(roots, (".py",), stamps=True)
         target.mkdir(parents=True, exist_ok=True)
         os.utime(target)
         _prune(target.parent, target)

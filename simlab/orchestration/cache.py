@@ -27,13 +27,13 @@ import hashlib
 import json
 import shutil
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json
+from simlab.io import atomic_write_json, source_fingerprint
 
 MARKER = "_stage.json"
 
@@ -50,22 +50,6 @@ SOURCES: dict[str, tuple[str, ...]] = {
                      "visitlab/humans.py", "visitlab/dynamics.py", "visitlab/envs.py",
                      "visitlab/training.py", "visitlab/passive.py", "agents"),
 }
-
-
-def source_fingerprint(roots: Iterable[Path]) -> str:
-    """sha256 (16 hex digits) of the source under ``roots`` (files, or folders searched for
-    ``*.py``, ``*.urdf`` and ``*.toml``): names relative to each root's parent, and bytes.
-    A missing root is an error (a renamed module must not silently leave the key)."""
-    h = hashlib.sha256()
-    for root in roots:
-        if not root.exists():
-            raise FileNotFoundError(f"fingerprint source {root} does not exist")
-        files = [root] if root.is_file() else sorted(
-            p for p in root.rglob("*") if p.is_file() and p.suffix in (".py", ".urdf", ".toml"))
-        for f in files:
-            h.update(f"{root.name}/{f.relative_to(root.parent).as_posix()}\0".encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()[:16]
 
 
 def _source_path(name: str) -> Path:

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from simlab import _numba_cache as nc
+from simlab.io import source_fingerprint
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -23,18 +24,22 @@ def _tree(tmp_path: Path) -> Path:
     return pkg
 
 
+def _stamps(roots: list[Path]) -> str:
+    return source_fingerprint(roots, (".py",), stamps=True)
+
+
 def test_fingerprint_follows_every_source_file_and_nothing_else(tmp_path: Path) -> None:
     pkg = _tree(tmp_path)
-    first = nc.source_fingerprint([pkg])
-    assert len(first) == 16 and first == nc.source_fingerprint([pkg])
+    first = _stamps([pkg])
+    assert len(first) == 16 and first == _stamps([pkg])
     (pkg / "notes.txt").write_text("changed, but not a .py file\n")
-    assert nc.source_fingerprint([pkg]) == first
+    assert _stamps([pkg]) == first
     b = pkg / "sub" / "b.py"
     os.utime(b, ns=(b.stat().st_atime_ns, b.stat().st_mtime_ns + 1_000_000_000))
-    touched = nc.source_fingerprint([pkg])
+    touched = _stamps([pkg])
     assert touched != first  # an edit deep in the tree (the inlined callee's file)
     (pkg / "c.py").write_text("z = 3\n")
-    assert nc.source_fingerprint([pkg]) not in (first, touched)  # a new file
+    assert _stamps([pkg]) not in (first, touched)  # a new file
 
 
 def test_prune_keeps_the_newest_directories(tmp_path: Path) -> None:
@@ -67,7 +72,7 @@ _SHOW = ("import simlab, os, numba; "
 def test_import_simlab_points_numba_at_the_versioned_directory(tmp_path: Path) -> None:
     out = subprocess.run([sys.executable, "-c", _SHOW], env=_child_env(tmp_path),
                          capture_output=True, text=True, check=True).stdout.split()
-    expected = tmp_path / "cache" / "simlab" / "numba" / nc.source_fingerprint(
+    expected = tmp_path / "cache" / "simlab" / "numba" / _stamps(
         [ROOT / "simlab", ROOT / "discretize"])
     assert out == [str(expected), str(expected)]
     assert expected.is_dir()
