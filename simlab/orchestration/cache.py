@@ -33,7 +33,8 @@ from pathlib import Path
 from typing import Any
 
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json, source_fingerprint
+from simlab.fingerprint import source_fingerprint
+from simlab.io import atomic_write_json
 
 MARKER = "_stage.json"
 

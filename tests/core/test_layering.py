@@ -39,7 +39,8 @@ PACKAGES = ("simlab", "discretize")
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("simlab", "simlab.errors", "simlab.io", "simlab.validation", "simlab.actions",
      "simlab.directions", "simlab.assets", "simlab.guards", "simlab.lazy",
-     "simlab.statecheck", "simlab.parallel", "simlab.options", "simlab._numba_cache"),
+     "simlab.statecheck", "simlab.parallel", "simlab.options", "simlab._numba_cache",
+     "simlab.fingerprint"),
     ("discretize",),
     ("simlab.physics",),
     ("simlab.localization",),

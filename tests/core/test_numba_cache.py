@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from simlab import _numba_cache as nc
-from simlab.io import source_fingerprint
+from simlab.fingerprint import source_fingerprint
 
 ROOT = Path(__file__).resolve().parents[2]
 
