@@ -32,15 +32,14 @@ Nothing here knows about PyBullet.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from simlab.lazy import lazy_exports
 
 #: The three Visit-the-lab learning tasks (:func:`simlab.visitlab.training.train`).
 TASKS = ("nav", "social", "gotohuman")
 
 # Names re-exported from the submodules, imported on first use: the submodules compile
 # numba kernels, and light importers (the CLI parser, experiment specs) only need TASKS.
-_EXPORTS = {
+_names, __getattr__, _dir = lazy_exports(__name__, {
     "Direction": "simlab.directions",
     "Action": "simlab.visitlab.actions",
     "move_action": "simlab.visitlab.actions",
@@ -55,18 +54,9 @@ _EXPORTS = {
     "PAPER_PERCEPTION": "simlab.visitlab.perception",
     "THESIS_PERCEPTION": "simlab.visitlab.perception",
     "Perception": "simlab.visitlab.perception",
-}
-
-__all__ = ["TASKS", *sorted(_EXPORTS)]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        value = getattr(importlib.import_module(_EXPORTS[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+})
+__all__ = ["TASKS", *_names]
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted({*_dir(), *globals()})
