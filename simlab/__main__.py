@@ -1,5 +1,5 @@
 import sys
 
-from simlab.cli import main
+from simlab.cli import console_main
 
-sys.exit(main())
+sys.exit(console_main())

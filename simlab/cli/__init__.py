@@ -148,6 +148,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         warnings.showwarning = saved_showwarning
 
 
+def console_main() -> int:
+    """The ``simlab`` program (console script and ``python -m simlab``): :func:`main`, and
+    once Ctrl-C has been reported, a second SIGINT can no longer kill the exit.
+
+    A SIGINT that lands inside compiled (numba) code can surface twice: once where the
+    command reports it, and again while the interpreter shuts down, which then dies by the
+    signal (exit -2) after printing ``interrupted``. So after an interrupt SIGINT gets a
+    no-op handler (not ``SIG_IGN``: a pending signal would then print a race warning) and
+    a KeyboardInterrupt that escapes :func:`main` is exit code 130 too. Only the program
+    does this: in-process callers of :func:`main` (tests, notebooks) keep their handler."""
+    import signal
+
+    try:
+        code = main()
+    except KeyboardInterrupt:
+        print("simlab: interrupted", file=sys.stderr)
+        code = 130
+    if code == 130:
+        signal.signal(signal.SIGINT, lambda *_: None)
+    return code
+
+
 def _caused_by_interrupt(exc: BaseException) -> bool:
     """True when Ctrl-C is behind ``exc``: a SIGINT that lands inside a numba-compiled call
     surfaces as ``SystemError: ... returned a result with an exception set`` whose cause is
@@ -197,4 +219,4 @@ def _run(args: argparse.Namespace, verbosity: int) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(console_main())

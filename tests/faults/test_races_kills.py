@@ -114,6 +114,26 @@ def test_ctrl_c_during_train_is_130_and_leaves_no_output(work: Path) -> None:
     assert not (work / "t").exists()
 
 
+@pytest.mark.parametrize("how", ["return", "raise"])
+def test_a_second_sigint_after_the_report_cannot_kill_the_exit(how: str) -> None:
+    # the flake this guards: "interrupted" printed, then the process died by SIGINT (-2)
+    # because the signal surfaced again during shutdown
+    body = ("return 130" if how == "return" else "raise KeyboardInterrupt")
+    code = ("import os, signal, sys, time\n"
+            "import simlab.cli as cli\n"
+            f"def fake(argv=None):\n    {body}\n"
+            "cli.main = fake\n"
+            "code = cli.console_main()\n"
+            "os.kill(os.getpid(), signal.SIGINT)\n"  # a late second Ctrl-C
+            "time.sleep(0.2)\n"
+            "sys.exit(code)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert res.returncode == 130, (res.returncode, res.stderr)
+    assert "Traceback" not in res.stderr
+    assert ("simlab: interrupted" in res.stderr) == (how == "raise")
+
+
 def test_worker_initializer_exits_when_the_parent_is_gone() -> None:
     code = ("import os, time\n"
             "from simlab.parallel import exit_with_parent\n"
