@@ -134,7 +134,10 @@ def _instrument(cpu: dict[str, float], warm: Any) -> None:
     """Record each stage's CPU seconds (this process and its reaped children: the
     dataset's and the replay's worker processes) and, with a warm-up, make the training
     stage wait for it first (the proposed ``simlab pipeline`` change, see ``--warmup``)."""
-    from simlab.orchestration.stages import PhysicsChain
+    try:
+        from simlab.orchestration.stages import PhysicsChain
+    except ModuleNotFoundError:  # the code before the orchestration package (A/B runs)
+        from simlab.stages import PhysicsChain  # type: ignore[no-redef]
 
     original = PhysicsChain.cached_stage
     original_qtables = PhysicsChain.qtables
