@@ -11,15 +11,14 @@ rate for the arena (``stepSimulation`` of the robot driving a circle, as
   of the random baseline (``replay.json``); 0 for the stages without physics;
 * its physics floor = stepped seconds / bare rate (x real time) / usable cores (the
   stage can use at most ``min(cores, independent worlds)`` of them: the map has one
-  world, the dataset ``workers``, the replay two);
+  world, the dataset ``workers``, the replay two). The bare rate is the one measured right
+  before and right after the stage (their mean), not once for the run: on a shared VM the
+  machine's own speed drifts by 1.5x from minute to minute, and a stage must be compared
+  with the machine it ran on;
 * wall / floor;
 * its CPU seconds (this process and its worker processes) and CPU / physics, where
   physics = stepped seconds / the bare rate per CPU second: the share of the stage's
   work that is not stepping, which a loaded machine does not inflate (wall time it does).
-
-``--warmup`` starts :func:`simlab.orchestration.warmup.start_warmup` with the pipeline and makes the
-training wait for it (the change proposed for ``simlab/orchestration/pipeline.py``); the wait is
-counted in the training's wall time.
 
 The numba compile time of the run (``numba:compile`` events of this process; compiles
 in worker processes are not seen) is printed separately, as is the load average before
@@ -31,7 +30,7 @@ the statistics to ``FILE`` (read them with :mod:`pstats`) and prints the functio
 most own time. The profiler slows Python-heavy code more than the physics: use it to find
 where the non-physics time goes, not for the ratios.
 
-    python benchmarks/pipeline_time.py [--quick] [--out DIR] [--bare-seconds 30] [--warmup]
+    python benchmarks/pipeline_time.py [--quick] [--out DIR] [--bare-seconds 30]
                                        [--profile FILE]
 """
 
@@ -48,14 +47,14 @@ from typing import Any
 QUICK = {"map_minutes": 5.0, "hours": 1.0, "episodes": 300, "runs": 2, "replay_hours": 0.5}
 
 
-def bare_rate(arena: str, seconds: float, repeats: int = 2) -> tuple[float, float]:
+def bare_rate(arena: str, seconds: float, repeats: int = 3) -> tuple[float, float]:
     """Best real-time factor of bare ``stepSimulation`` over ``repeats`` runs, per wall
     second and per CPU second of this process."""
     from simlab.physics.world import World
 
     best = best_cpu = 0.0
-    for _ in range(repeats):
-        with World(arena) as world:
+    with World(arena) as world:
+        for _ in range(repeats):
             world.reset((0.0, -0.3, 0.0))
             world.drive.command(0.15, 0.5)  # a 0.3 m circle inside the table
             world.step(round(world.physics_hz))
@@ -130,17 +129,17 @@ def _cpu() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def _instrument(cpu: dict[str, float], warm: Any) -> None:
+def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, tuple[float, float]]
+                ) -> None:
     """Record each stage's CPU seconds (this process and its reaped children: the
-    dataset's and the replay's worker processes) and, with a warm-up, make the training
-    stage wait for it first (the proposed ``simlab pipeline`` change, see ``--warmup``)."""
+    dataset's and the replay's worker processes) and the bare rate ``probe()`` measured
+    right before and right after it is built (outside its wall time)."""
     try:
         from simlab.orchestration.stages import PhysicsChain
     except ModuleNotFoundError:  # the code before the orchestration package (A/B runs)
         from simlab.stages import PhysicsChain  # type: ignore[no-redef]
 
     original = PhysicsChain.cached_stage
-    original_qtables = PhysicsChain.qtables
 
     def cached_stage(self: Any, stage: str, key: Any, build: Any) -> Any:
         def timed(d: Path) -> Any:
@@ -150,18 +149,14 @@ def _instrument(cpu: dict[str, float], warm: Any) -> None:
             finally:
                 cpu[stage] = cpu.get(stage, 0.0) + _cpu() - c
 
-        return original(self, stage, key, timed)
-
-    def qtables(self: Any, i: int) -> Any:
-        self.mdp(i)  # the parents first: the wait belongs to the training stage
-        if warm is not None:
-            t = time.perf_counter()
-            warm.wait()
-            cpu["train_wait"] = time.perf_counter() - t
-        return original_qtables(self, i)
+        first = stage not in rates
+        before = probe() if first else None
+        result = original(self, stage, key, timed)
+        if first:
+            rates[stage] = (before, probe()) if result.built else (0.0, 0.0)
+        return result
 
     PhysicsChain.cached_stage = cached_stage  # type: ignore[method-assign]
-    PhysicsChain.qtables = qtables  # type: ignore[method-assign]
 
 
 def main() -> None:
@@ -170,11 +165,8 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="keep the run here (new folder; default: temp)")
     ap.add_argument("--arena", default="table", help="arena of the pipeline and the bare rate")
     ap.add_argument("--bare-seconds", type=float, default=30.0,
-                    help="simulated seconds of each bare-stepping measurement")
+                    help="simulated seconds of each bare-stepping measurement (3 per probe)")
     ap.add_argument("--seed", type=int, default=0, help="root seed of the pipeline")
-    ap.add_argument("--warmup", action="store_true",
-                    help="start simlab.orchestration.warmup.start_warmup() with the pipeline and wait for "
-                         "it before training (what `simlab pipeline` does once wired)")
     ap.add_argument("--profile", default=None, metavar="FILE",
                     help="run the pipeline under cProfile and write its statistics here "
                          "(default: no profile)")
@@ -184,23 +176,29 @@ def main() -> None:
 
     load0 = os.getloadavg()
     cores = usable_cores()
-    rate0, cpu_rate0 = bare_rate(args.arena, args.bare_seconds)
     settings = QUICK if args.quick else {}
     cpu: dict[str, float] = {}
+    rates: dict[str, Any] = {}
+    probing = [0.0]
+
+    def probe() -> tuple[float, float]:
+        t = time.perf_counter()
+        try:
+            return bare_rate(args.arena, args.bare_seconds)
+        finally:
+            probing[0] += time.perf_counter() - t
+
+    run_rates = [probe()]
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.out) if args.out else Path(tmp) / "run"
         t0 = time.perf_counter()
-        warm = None
-        if args.warmup:
-            from simlab.orchestration.warmup import start_warmup
-
-            warm = start_warmup()
-        _instrument(cpu, warm)
+        _instrument(cpu, probe, rates)
         lines: list[str] = []
 
         def log(msg: str) -> None:
             lines.append(f"{time.perf_counter() - t0:8.1f} s  {msg}")
 
+        probing[0] = 0.0
         with CompileTimer() as ct:
             if args.profile:
                 import cProfile
@@ -211,55 +209,56 @@ def main() -> None:
                 prof.dump_stats(args.profile)
             else:
                 pipeline(args.arena, out, seed=args.seed, progress=False, log=log, **settings)
-        total = time.perf_counter() - t0
-        rate1, cpu_rate1 = bare_rate(args.arena, args.bare_seconds)
+        total = time.perf_counter() - t0 - probing[0]
+        run_rates.append(probe())
         rec = json.loads((out / "pipeline.json").read_text())
         stepped = stepped_seconds(out)
     load1 = os.getloadavg()
-    print("pipeline log (time since start):")
+    print("pipeline log (time since start, bare-rate probes included):")
     print("\n".join(lines))
-    rate, cpu_rate = max(rate0, rate1), max(cpu_rate0, cpu_rate1)
+    every = run_rates + [r for pair in rates.values() for r in pair if r]
+    lo, hi = min(r[0] for r in every), max(r[0] for r in every)
     print(f"machine: {cores} usable cores, load average {load0[0]:.2f} before / "
-          f"{load1[0]:.2f} after; bare stepSimulation ({args.arena}, circle): "
-          f"{rate:.0f}x real time per wall second (before {rate0:.0f}x, after {rate1:.0f}x), "
-          f"{cpu_rate:.0f}x per CPU second")
-    print(f"budget: {'--quick ' + json.dumps(QUICK) if args.quick else 'defaults'}"
-          f"{'; numba warm-up process started with the pipeline' if warm else ''}")
-    print(f"{'stage':<8} {'wall s':>8} {'stepped s':>10} {'worlds':>6} {'floor s':>8} "
-          f"{'wall/floor':>10} {'CPU s':>8} {'CPU/physics':>11}")
+          f"{load1[0]:.2f} after; bare stepSimulation ({args.arena}, circle, best of 3 x "
+          f"{args.bare_seconds:g} s per probe): {lo:.0f}x to {hi:.0f}x real time over the "
+          f"{len(every)} probes of this run")
+    print(f"budget: {'--quick ' + json.dumps(QUICK) if args.quick else 'defaults'}")
+    print(f"{'stage':<8} {'wall s':>8} {'stepped s':>10} {'worlds':>6} {'bare x':>7} "
+          f"{'floor s':>8} {'wall/floor':>10} {'CPU s':>8} {'CPU/physics':>11}")
     floor_total = cpu_total = 0.0
     for name, r in rec["stages"].items():
         sec, worlds = stepped.get(name, (0.0, 1))
-        # the training's wait for the warm-up is outside its record: count it in
-        wall = float(r["wall_seconds"]) + (cpu.get("train_wait", 0.0) if name == "train" else 0)
+        wall = float(r["wall_seconds"])
+        pair = rates.get(name) or (run_rates[0], run_rates[-1])
+        rate = (pair[0][0] + pair[1][0]) / 2 if pair[0] else run_rates[0][0]
+        cpu_rate = (pair[0][1] + pair[1][1]) / 2 if pair[0] else run_rates[0][1]
         floor = sec / rate / min(cores, worlds) if sec else 0.0
         floor_total += floor
         ratio = f"{wall / floor:10.2f}" if floor else f"{'-':>10}"
         c = cpu.get(name, float("nan"))
         cpu_total += c
         cratio = f"{c / (sec / cpu_rate):11.2f}" if sec else f"{'-':>11}"
-        print(f"{name:<8} {wall:8.1f} {sec:10.0f} {worlds:6d} {floor:8.1f} {ratio} "
+        shown = f"{rate:7.0f}" if sec else f"{'-':>7}"
+        print(f"{name:<8} {wall:8.1f} {sec:10.0f} {worlds:6d} {shown} {floor:8.1f} {ratio} "
               f"{c:8.1f} {cratio}")
-    stages_wall = (sum(float(r["wall_seconds"]) for r in rec["stages"].values())
-                   + cpu.get("train_wait", 0.0))
-    print(f"{'stages':<8} {stages_wall:8.1f} {'':>10} {'':>6} {floor_total:8.1f} "
+    stages_wall = sum(float(r["wall_seconds"]) for r in rec["stages"].values())
+    print(f"{'stages':<8} {stages_wall:8.1f} {'':>10} {'':>6} {'':>7} {floor_total:8.1f} "
           f"{stages_wall / floor_total:10.2f} {cpu_total:8.1f}")
-    print(f"pipeline: done in {total:.1f} s (stages + report {total - stages_wall:.1f} s); "
-          f"whole / physics floor = {total / floor_total:.2f}")
+    print(f"pipeline: done in {total:.1f} s without the {probing[0]:.1f} s of probes "
+          f"(stages + report {total - stages_wall:.1f} s); whole / physics floor = "
+          f"{total / floor_total:.2f}")
     from simlab.replay.scheduling import shares_per_session
 
     print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}; CPUs shared "
           f"per {'session (autogroup: idle cores decide)' if shares_per_session() else 'process'}")
-    print(f"numba compile in this process: {ct.seconds:.1f} s"
-          + (f"; the training waited {cpu.get('train_wait', 0.0):.1f} s for the warm-up"
-             if warm else ""))
+    wait = rec.get("warmup", {}).get("wait_seconds", 0.0)
+    print(f"numba compile in this process: {ct.seconds:.1f} s; the training waited {wait:.1f} s "
+          "(outside its wall time) for the warm-up worker's compile")
     if args.profile:
         import pstats
 
         print(f"profile (this process) written to {args.profile}; most own time:")
         pstats.Stats(args.profile).sort_stats("tottime").print_stats(15)
-    if warm is not None and warm.done and not warm.ok:
-        print(f"warning: the warm-up failed ({warm.future.exception()!r})")
 
 
 if __name__ == "__main__":

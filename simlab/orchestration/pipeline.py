@@ -179,8 +179,15 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
     from simlab.orchestration.warmup import start_warmup
 
     # numba compiles the training and MCL kernels in a spare process while the map and the
-    # walk run in physics; training then loads them from numba's cache (issue 17)
-    warm = start_warmup(agent=s.agent, mcl=s.pose_source == "mcl")
+    # walk run in physics; training then loads them from numba's cache, and the warmed
+    # process is lent to the training and the replay as their second core (issue 17)
+    with start_warmup(agent=s.agent, mcl=s.pose_source == "mcl") as warm:
+        return _run_stages(out, chain, s, seed, say, warm, t_start)
+
+
+def _run_stages(out: Path, chain: PhysicsChain, s: PhysicsSettings, seed: int,
+                say: Callable[[str], None], warm: Any, t_start: float) -> PipelineResult:
+    """The stages, one after the other, then the report (``warm``: the warm-up handle)."""
     build: dict[str, Callable[[], Stage]] = {  # chain seed 0: the pipeline is one chain
         "map": chain.map, "states": chain.states, "dataset": lambda: chain.dataset(0),
         "mdp": lambda: chain.mdp(0), "train": lambda: chain.qtables(0),
@@ -194,7 +201,8 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
     for k, (name, link) in enumerate(STAGES.items(), start=1):
         say(f"[{k}/{n}] {name} ...")
         if name == "train":
-            warm.wait()
+            _await_warmup(warm, state, say)
+            chain.worker = warm.worker
         stage = build[name]()
         _link(out / link, stage.path)
         record = {**stage.summary, "folder": link, "built": stage.built,
@@ -211,6 +219,19 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
     say(f"[{n}/{n}] report: {report}")
     return PipelineResult(out=out, settings=s, seed=seed, stages=state["stages"], report=report,
                           wall_seconds=time.perf_counter() - t_start)
+
+
+def _await_warmup(warm: Any, state: dict[str, Any], say: Callable[[str], None]) -> None:
+    """Wait for the numba warm-up before training and record the wait in ``state``
+    (``warmup``: its seconds, outside every stage's wall time; long only on the first run
+    of a simlab version, whose kernels are compiled then)."""
+    t = time.perf_counter()
+    warm.wait()
+    waited = time.perf_counter() - t
+    state["warmup"] = {"wait_seconds": round(waited, 2), "ok": warm.ok}
+    if waited >= 1.0:
+        say(f"waited {waited:.0f} s for numba to compile the training kernels (first run "
+            "of this simlab version; later runs load them from the cache)")
 
 
 def _visits_figure(out: Path) -> None:

@@ -187,7 +187,10 @@ class PhysicsChain:
 
     ``root_seed`` is the reproduction's seed; ``backend`` / ``address`` are passed to
     :func:`~simlab.data.collect.collect` (its walks run as local processes or Ray tasks);
-    ``log`` receives one line per stage.
+    ``log`` receives one line per stage. ``worker``: a one-process executor the caller
+    lends to the training and the replay as their second core (the pipeline's warmed
+    process, :mod:`simlab.orchestration.warmup`); None: they start their own. It changes
+    no result.
     """
 
     def __init__(self, cache: Path, settings: PhysicsSettings, root_seed: int, *,
@@ -199,6 +202,7 @@ class PhysicsChain:
         self.backend = backend
         self.progress = progress
         self.cache = StageCache(self.root, "physics", log=log)
+        self.worker: Any = None
 
     # ------------------------------------------------------------------ machinery
 
@@ -319,7 +323,7 @@ class PhysicsChain:
             res = replay(s.arena, states.path / "states.json", q.path, hours=s.replay_hours,
                          pose_source=s.pose_source, seed=seed, out=d, map=map_yaml,
                          video=s.video, progress=self.progress, overwrite=True,
-                         mdp=mdp.path / "mdp.npz")
+                         mdp=mdp.path / "mdp.npz", pool=self.worker)
             keys = ("reward_rate_per_hour", "random_rate_per_hour", "predicted_rate_per_hour",
                     "position_error_mean_m")
             return {k: getattr(res.summary, k) for k in keys

@@ -16,6 +16,12 @@ training and replay then load the cached code. The decision taken: a separate pr
 changes no result, and if it has not finished when a stage needs a kernel, that stage
 compiles the kernel itself as before (or, with :meth:`Warmup.wait`, waits for it, which
 is never slower than compiling again).
+
+The worker then stays up (:attr:`Warmup.worker`): it has imported the training, replay and
+plotting modules and loaded the compiled kernels, so the pipeline lends it to the later
+stages for their second core (the training's share of the goals, the replay's random
+baseline) instead of starting a fresh process, which costs ~2-3 s of imports per stage on
+a 2-core machine. :meth:`Warmup.close` ends it.
 """
 
 from __future__ import annotations
@@ -62,8 +68,10 @@ def warm_training(agent: str = "vi-softmax") -> None:
 
 
 def warm_kernels(agent: str | None = "vi-softmax", mcl: bool = True) -> float:
-    """Fill numba's cache for the training of ``agent`` (None: skip) and the MCL filter;
+    """Fill numba's cache for the training of ``agent`` (None: skip) and the MCL filter,
+    and import what the later stages run in this process (:data:`LATER_STAGE_MODULES`);
     returns the wall seconds it took. Warnings of the tiny problems are silenced."""
+    import importlib
     import warnings
 
     t0 = time.perf_counter()
@@ -73,7 +81,15 @@ def warm_kernels(agent: str | None = "vi-softmax", mcl: bool = True) -> float:
             warm_mcl()
         if agent is not None:
             warm_training(agent)
+        for name in LATER_STAGE_MODULES:
+            importlib.import_module(name)
     return time.perf_counter() - t0
+
+
+#: Modules a lent worker runs later (the replay's baseline, the training's figures).
+LATER_STAGE_MODULES = ("simlab.replay.loop", "simlab.replay.scheduling",
+                       "simlab.training.train", "simlab.training.heatmap",
+                       "simlab.training.curves", "matplotlib.pyplot")
 
 
 @dataclass
@@ -89,9 +105,24 @@ class Warmup:
         import concurrent.futures as cf
 
         cf.wait([self.future], timeout=timeout)
-        if self.future.done():
-            self.pool.shutdown(wait=True)
         return self.future.done()
+
+    @property
+    def worker(self) -> Any:
+        """The warmed worker (a one-process executor) to lend to later stages once the
+        warm-up has ended well; None while it runs or after it failed (its process may be
+        gone: the stages then start their own, as without a warm-up)."""
+        return self.pool if self.ok else None
+
+    def close(self) -> None:
+        """End the worker (pending work is cancelled)."""
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> Warmup:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     @property
     def done(self) -> bool:
@@ -107,9 +138,10 @@ def start_warmup(agent: str | None = "vi-softmax", mcl: bool = True) -> Warmup:
     """Start :func:`warm_kernels` in a fresh worker process and return at once.
 
     Call it before the physics stages (``simlab pipeline``: before the map) and, before
-    training, ``wait()`` on the handle. A failure in the worker is harmless: the
-    stages then compile as they would without it. The worker is a
-    :func:`simlab.parallel.spawn_worker` (it exits with its parent).
+    training, ``wait()`` on the handle; lend :attr:`Warmup.worker` to later stages and
+    ``close()`` it at the end (or use the handle as a context manager). A failure in the
+    worker is harmless: the stages then compile as they would without it. The worker is
+    a :func:`simlab.parallel.spawn_worker` (it exits with its parent).
     """
     from simlab.parallel import spawn_worker
 

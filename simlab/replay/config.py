@@ -80,6 +80,9 @@ class ReplayConfig(CommandConfig):
                                   "of their own on 2 cores (the filter: 3 with a baseline; "
                                   "idle ones where the CPUs are shared per session); "
                                   "bit-identical results")
+    pool: Any | None = option(None, "a one-process executor to run the random baseline (and "
+                                    "encode the video) in, instead of a fresh process: a "
+                                    "warmed worker lent by the caller, left open", cli=False)
 
     def validate(self) -> None:
         v.positive(self.hours, "hours")

@@ -390,13 +390,16 @@ def _start_video(cfg: ReplayConfig, inp: _Inputs, files: dict[str, Path], run: R
                        valid=None if inp.qt is None else _qt_valid(inp.qt))
 
 
-def _worker(plan: RunPlan) -> Any:
-    """The baseline's worker process (a context manager of the pool), or a null context
-    when the baseline runs here."""
+def _worker(plan: RunPlan, lent: Any = None) -> Any:
+    """The baseline's worker process (a context manager of the pool): the caller's
+    ``lent`` one (left open), else a fresh one; a null context when the baseline runs
+    here."""
     import contextlib
 
     if not plan.split_baseline or plan.baseline is None:
         return contextlib.nullcontext(None)
+    if lent is not None:
+        return contextlib.nullcontext(lent)
     from simlab.parallel import spawn_worker
 
     return spawn_worker()  # exits with us, like every simlab worker
@@ -419,7 +422,7 @@ def replay(cfg: ReplayConfig) -> ReplayResult:
     inputs = _load_inputs(cfg)
     files = _output_files(cfg)
     plan = _plan(cfg, inputs)
-    with _worker(plan) as pool:
+    with _worker(plan, cfg.pool) as pool:
         run, baseline = run_both(plan, pool)
         video = _start_video(cfg, inputs, files, run, pool)
         summary = _summarize(cfg, inputs, plan, run, baseline, files)

@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import simlab
 
 ROOT = Path(simlab.__file__).resolve().parent.parent
@@ -57,7 +59,18 @@ def test_start_warmup_process_ends(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     from simlab.orchestration.warmup import start_warmup
 
-    w = start_warmup(agent=None, mcl=True)
-    assert w.wait()
-    assert w.ok and w.done and w.future.result() > 0
-    assert any(tmp_path.rglob("*_field_kernel*.nbi"))
+    with start_warmup(agent=None, mcl=True) as w:
+        assert w.wait()
+        assert w.ok and w.done and w.future.result() > 0
+        assert any(tmp_path.rglob("*_field_kernel*.nbi"))
+        # the warmed process stays up to be lent to later stages, with their modules loaded
+        pid = w.worker.submit(os.getpid).result()
+        assert pid != os.getpid()
+        assert w.worker.submit(_loaded, "simlab.replay.loop").result()
+    assert w.worker is w.pool  # closed now: a new submit is refused
+    with pytest.raises(RuntimeError):
+        w.pool.submit(os.getpid)
+
+
+def _loaded(name: str) -> bool:
+    return name in sys.modules

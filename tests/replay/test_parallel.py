@@ -70,6 +70,34 @@ def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_s
         assert gif[:6] == b"GIF89a" and gif == par.files["gif"].read_bytes()
 
 
+@pytest.mark.slow
+def test_a_lent_worker_runs_the_baseline_and_stays_open(chain, tmp_path, monkeypatch) -> None:
+    """The pipeline lends its warmed worker (issue 17): the replay runs its baseline there
+    instead of starting a process, leaves it open, and the results are the same."""
+    import os
+
+    import simlab.parallel
+
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
+    kw = dict(hours=0.02, seed=4, progress=False, baseline_hours=0.02)
+    own = replay("table", chain.states, chain.qtables, out=tmp_path / "own", **kw)
+    with simlab.parallel.spawn_worker() as lent:
+        pid = lent.submit(os.getpid).result()
+
+        def refuse():
+            raise AssertionError("a second worker was started beside the lent one")
+
+        monkeypatch.setattr(simlab.parallel, "spawn_worker", refuse)
+        got = replay("table", chain.states, chain.qtables, out=tmp_path / "lent", pool=lent,
+                     **kw)
+        assert lent.submit(os.getpid).result() == pid != os.getpid()  # still open, same one
+    assert got.summary.schedule.baseline_process and own.summary.schedule.baseline_process
+    _logs_equal(own.run.log, got.run.log)
+    _logs_equal(own.baseline.log, got.baseline.log)
+    assert _strip(own.summary.to_json()) == _strip(got.summary.to_json())
+
+
 def test_schedule_follows_core_count_not_load(monkeypatch) -> None:
     """Where CPUs are shared per process the core count decides (issue 17): a busy 2-core
     machine still splits the baseline; the filter gets a process only with a core of its
