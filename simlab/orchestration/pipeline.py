@@ -198,11 +198,16 @@ def _run_stages(out: Path, chain: PhysicsChain, s: PhysicsSettings, seed: int,
         state["stages"] = _read_state(out).get("stages", {})
     atomic_write_json(out / "pipeline.json", state)  # first: an interrupted run is resumable
     n = len(STAGES) + 1
+    visits = None
     for k, (name, link) in enumerate(STAGES.items(), start=1):
         say(f"[{k}/{n}] {name} ...")
         if name == "train":
             _await_warmup(warm, state, say)
             chain.worker = warm.worker
+        if name == "replay" and chain.worker is not None:
+            # the report's visits figure needs only the walk: the lent worker draws it
+            # once it has run the replay's baseline, while the learned run goes on here
+            visits = chain.worker.submit(_visits_figure, out)
         stage = build[name]()
         _link(out / link, stage.path)
         record = {**stage.summary, "folder": link, "built": stage.built,
@@ -212,7 +217,8 @@ def _run_stages(out: Path, chain: PhysicsChain, s: PhysicsSettings, seed: int,
         done = f"built in {stage.wall_seconds:.0f} s" if stage.built else "reused"
         say(f"[{k}/{n}] {name}: {_headline(name, record, s)} ({done})")
     say(f"[{n}/{n}] report ...")
-    _visits_figure(out)
+    if visits is None or visits.exception() is not None:
+        _visits_figure(out)  # no worker, or it failed: draw it here
     from simlab.orchestration.report import write_report
 
     report = write_report(out, s, seed, state)
@@ -235,7 +241,8 @@ def _await_warmup(warm: Any, state: dict[str, Any], say: Callable[[str], None]) 
 
 
 def _visits_figure(out: Path) -> None:
-    """``figures/states_visits.png``: the states coloured by the random walk's visits."""
+    """``figures/states_visits.png``: the states coloured by the random walk's visits
+    (a module-level function: the pipeline's lent worker runs it)."""
     from discretize.mapio import read_map
     from discretize.plot import render_states_png, visits_from_dataset
     from discretize.voronoi import Discretizer

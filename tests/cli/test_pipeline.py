@@ -50,6 +50,14 @@ def test_pipeline_cli_end_to_end_and_resume(tmp_path, capsys):
                 "replay/replay.json", "replay/cumulative_reward.png", "dataset/data",
                 "figures/states_visits.png"):
         assert (out / rel).exists(), rel
+    # the visits figure was drawn by the lent warm-up worker: the same image as drawn here
+    from simlab.orchestration.pipeline import _visits_figure
+
+    png = out / "figures" / "states_visits.png"
+    drawn_by_worker = png.read_bytes()
+    _visits_figure(out)
+    assert png.read_bytes() == drawn_by_worker and drawn_by_worker[:4] == b"\x89PNG"
+    assert state["warmup"]["ok"] and state["warmup"]["wait_seconds"] >= 0
 
     # a second run into the same folder is refused; --resume reuses every stage
     assert main(["pipeline", "--out", str(out), *TINY]) == 2
