@@ -251,9 +251,10 @@ def main() -> None:
 
     print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}; CPUs shared "
           f"per {'session (autogroup: idle cores decide)' if shares_per_session() else 'process'}")
-    wait = rec.get("warmup", {}).get("wait_seconds", 0.0)
-    print(f"numba compile in this process: {ct.seconds:.1f} s; the training waited {wait:.1f} s "
-          "(outside its wall time) for the warm-up worker's compile")
+    warm = rec.get("warmup", {})
+    print(f"numba compile in this process: {ct.seconds:.1f} s; the warm-up worker (compile + "
+          f"imports, beside the map and the walk) took {warm.get('worker_seconds')} s and the "
+          f"training waited {warm.get('wait_seconds', 0.0):.1f} s for it (outside its wall time)")
     if args.profile:
         import pstats
 

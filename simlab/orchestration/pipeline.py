@@ -234,7 +234,8 @@ def _await_warmup(warm: Any, state: dict[str, Any], say: Callable[[str], None]) 
     t = time.perf_counter()
     warm.wait()
     waited = time.perf_counter() - t
-    state["warmup"] = {"wait_seconds": round(waited, 2), "ok": warm.ok}
+    state["warmup"] = {"wait_seconds": round(waited, 2), "ok": warm.ok,
+                       "worker_seconds": round(warm.future.result(), 2) if warm.ok else None}
     if waited >= 1.0:
         say(f"waited {waited:.0f} s for numba to compile the training kernels (first run "
             "of this simlab version; later runs load them from the cache)")
