@@ -303,10 +303,12 @@ def corridor_blocked(scan: LidarScan, distance: float, footprint: tuple[float, f
     """Whether any LIDAR return lies in the corridor a straight drive of ``distance`` sweeps.
 
     ``footprint`` is the robot outline ``(x_min, x_max, y_min, y_max)`` in the base frame.
+    Two detector scans in three see nothing within their short reach: they are answered
+    before any point is computed.
     """
-    pts = scan.points_base()
-    if pts.size == 0:
+    if not np.isfinite(scan.ranges).any():
         return False
+    pts = scan.points_base()
     _, x_max, y_min, y_max = footprint
     inside = (
         (pts[:, 0] > 0.0)
