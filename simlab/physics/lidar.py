@@ -110,7 +110,7 @@ class Lidar:
         a.setflags(write=False)  # shared by every full scan
         self._angles = a
         self._dirs = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)  # sensor frame
-        self._subsets: dict[tuple[str, tuple[int, ...], bytes], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self._subsets: dict[tuple, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
     def _subset(self, beams: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Directions and angles of a beam subset, kept by its index values: the obstacle
