@@ -303,10 +303,12 @@ def corridor_blocked(scan: LidarScan, distance: float, footprint: tuple[float, f
     """Whether any LIDAR return lies in the corridor a straight drive of ``distance`` sweeps.
 
     ``footprint`` is the robot outline ``(x_min, x_max, y_min, y_max)`` in the base frame.
+    Two detector scans in three see nothing within their short reach: they are answered
+    before any point is computed.
     """
-    pts = scan.points_base()
-    if pts.size == 0:
+    if not np.isfinite(scan.ranges).any():
         return False
+    pts = scan.points_base()
     _, x_max, y_min, y_max = footprint
     inside = (
         (pts[:, 0] > 0.0)
@@ -358,11 +360,14 @@ class ScanStepper:
         self.beams = beams
         self.period = 1.0 / world.lidar_spec.rate_hz
         self.next_scan = world.time + self.period
+        self._hz = world.physics_hz  # advance() runs at every control tick
 
     def advance(self, seconds: float) -> None:
         """Step ``seconds`` (rounded to whole physics steps, at least one)."""
         w = self.world
-        n = max(1, round(seconds * w.physics_hz))
+        n = round(seconds * self._hz)
+        if n < 1:
+            n = 1
         if self.on_scan is None:
             w.step(n)
             return
@@ -385,6 +390,7 @@ class _ActuationNoise:
 
     def __init__(self, p: PrimitiveParams, rng: np.random.Generator, drive: Any) -> None:
         self.p, self.rng, self.drive = p, rng, drive
+        self.active = p.has_motion_noise  # read once: tick() runs at every control tick
         self.base = (1.0, 1.0)
         self.slip = 1.0
         if p.wheel_noise:
@@ -396,7 +402,7 @@ class _ActuationNoise:
 
     def tick(self) -> None:
         """Apply the gains for the next control period (redrawing the per-tick part)."""
-        if not self.p.has_motion_noise:
+        if not self.active:
             return
         gl, gr = self.base
         if self.p.wheel_noise_tick:
@@ -407,35 +413,46 @@ class _ActuationNoise:
         self.drive.set_wheel_gains(gl * k, gr * k)
 
     def clear(self) -> None:
-        if self.p.has_motion_noise:
+        if self.active:
             self.drive.set_wheel_gains(1.0, 1.0)
 
 
 def _rotate(world: World, stepper: ScanStepper, p: PrimitiveParams, target: float,
             heading: Callable[[], float], noise: _ActuationNoise) -> float:
-    """Turn in place to ``target`` (rad); returns the final true heading error (rad)."""
-    drive = world.drive
+    """Turn in place to ``target`` (rad); returns the final true heading error (rad).
+
+    ``heading`` returns a float, so the errors stay plain floats. The fine loop runs ~15
+    times per primitive: its lookups are hoisted and ``max``/``min`` written as compares
+    (same values: no NaN can occur here)."""
+    command, advance, tick = world.drive.command, stepper.advance, noise.tick
     w_max = world.robot_spec.w_max
-    err = float(wrap_angle(target - heading()))
+    err = wrap_angle(target - heading())
     bulk = abs(err) - 0.25
     if bulk > 0:  # open loop at w_max for the bulk, then a closed-loop approach
-        noise.tick()
-        drive.command(0.0, math.copysign(w_max, err))
-        stepper.advance(bulk / w_max)
-        err = float(wrap_angle(target - heading()))
+        tick()
+        command(0.0, math.copysign(w_max, err))
+        advance(bulk / w_max)
+        err = wrap_angle(target - heading())
     fine_dt = 1.0 / p.fine_hz
+    tolerance, min_rate, two_decel = p.heading_tolerance, p.min_turn_rate, 2.0 * p.turn_decel
     deadline = world.time + p.turn_timeout
-    while abs(err) > p.heading_tolerance and world.time < deadline:
-        rate = max(p.min_turn_rate, math.sqrt(2.0 * p.turn_decel * abs(err)))
+    while abs(err) > tolerance and world.time < deadline:
+        size = abs(err)
+        rate = math.sqrt(two_decel * size)
+        if rate < min_rate:
+            rate = min_rate
         # Never command more than the remaining angle over one control period.
-        rate = min(rate, w_max, abs(err) / fine_dt)
-        noise.tick()
-        drive.command(0.0, math.copysign(rate, err))
-        stepper.advance(fine_dt)
-        err = float(wrap_angle(target - heading()))
-    drive.command(0.0, 0.0)
-    stepper.advance(p.settle_time / 2)
-    return float(wrap_angle(target - world.yaw()))
+        if w_max < rate:
+            rate = w_max
+        if size / fine_dt < rate:
+            rate = size / fine_dt
+        tick()
+        command(0.0, math.copysign(rate, err))
+        advance(fine_dt)
+        err = wrap_angle(target - heading())
+    command(0.0, 0.0)
+    advance(p.settle_time / 2)
+    return wrap_angle(target - world.yaw())
 
 
 def _detector(world: World, p: PrimitiveParams, rng: np.random.Generator,
@@ -466,17 +483,17 @@ def _drive(world: World, stepper: ScanStepper, p: PrimitiveParams, v: float, tar
     or None; the drive then lasts at most ``max_drive_time``, else ``drive_time``.
     Returns (stop reason, time driven in s).
     """
-    drive = world.drive
-    hold_dt = 1.0 / p.hold_hz
+    command, advance, tick = world.drive.command, stepper.advance, noise.tick
+    hold_dt, gain = 1.0 / p.hold_hz, p.hold_gain
     noise.driving = True
     total = p.drive_time if until is None else p.max_drive_time
     remaining = total
     reason = "fixed" if until is None else "timeout"
     while remaining > 1e-9:
         dt = min(hold_dt, remaining)
-        noise.tick()
-        drive.command(v, p.hold_gain * float(wrap_angle(target - heading())))
-        stepper.advance(dt)
+        tick()
+        command(v, gain * wrap_angle(target - heading()))
+        advance(dt)
         remaining -= dt
         if until is not None:
             stop = until()
@@ -520,8 +537,10 @@ def execute_primitive(
     odom_before = world.odometry()
     noise = _ActuationNoise(p, rng, drive)
 
-    def heading() -> float:
-        return world.yaw() if p.heading_source == "truth" else float(world.odometry()[2])
+    heading: Callable[[], float] = world.yaw
+    if p.heading_source != "truth":
+        def heading() -> float:
+            return float(world.odometry()[2])
 
     # 1. Rotate.
     heading_error = _rotate(world, stepper, p, target, heading, noise)

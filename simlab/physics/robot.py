@@ -230,9 +230,13 @@ def load_robot_spec(
     )
 
 
+_PI = math.pi
+_TAU = 2 * math.pi  # exact (a doubling), so the same float the expression gave inline
+
+
 def wrap_angle(a):
     """Wrap angles (rad, float or array) to [-pi, pi)."""
-    return (a + math.pi) % (2 * math.pi) - math.pi
+    return (a + _PI) % _TAU - _PI
 
 
 class WheelOdometry:
@@ -304,7 +308,11 @@ class DiffDrive:
         self.commanded = (0.0, 0.0)
         self._set_motors = client.setJointMotorControlArray  # bound once (hot path)
         self._joint_states = client.getJointStates
+        # Limits as plain attributes: command() runs at every control tick.
         self._half = 0.5 * spec.wheel_separation
+        self._r = spec.wheel_radius
+        self._v_max, self._w_max = spec.v_max, spec.w_max
+        self._wheel_limit = spec.wheel_speed_limit
         self._forces = [spec.wheel_torque_limit] * 2
         self._gains = (1.0, 1.0)
         self._odometry = WheelOdometry(spec, pose, self.wheel_angles())
@@ -322,13 +330,12 @@ class DiffDrive:
 
     def saturate(self, v: float, w: float) -> tuple[float, float]:
         """Clip (v, w) to the robot limits and the wheel speed limit; returns what is applied."""
-        s = self.spec
-        v = min(max(v, -s.v_max), s.v_max)
-        w = min(max(w, -s.w_max), s.w_max)
-        half = 0.5 * s.wheel_separation
-        peak = max(abs(v - w * half), abs(v + w * half)) / s.wheel_radius
-        if peak > s.wheel_speed_limit:
-            k = s.wheel_speed_limit / peak
+        v_max, w_max, half = self._v_max, self._w_max, self._half
+        v = min(max(v, -v_max), v_max)
+        w = min(max(w, -w_max), w_max)
+        peak = max(abs(v - w * half), abs(v + w * half)) / self._r
+        if peak > self._wheel_limit:
+            k = self._wheel_limit / peak
             v, w = v * k, w * k
         return v, w
 
@@ -338,7 +345,7 @@ class DiffDrive:
         if (v, w) == self.commanded:
             return v, w
         self._odometry.integrate(self.wheel_angles())
-        half, r = self._half, self.spec.wheel_radius
+        half, r = self._half, self._r
         targets = [(v - w * half) / r, (v + w * half) / r]
         if self._gains != (1.0, 1.0):
             targets = [targets[0] * self._gains[0], targets[1] * self._gains[1]]

@@ -89,6 +89,7 @@ class World:
         self._step = c.stepSimulation
         self._get_base = c.getBasePositionAndOrientation
         self._get_velocity = c.getBaseVelocity
+        self._quaternion_matrix = c.getMatrixFromQuaternion
         c.resetSimulation()
         c.setGravity(0.0, 0.0, -9.81)
         c.setPhysicsEngineParameter(
@@ -232,8 +233,8 @@ class World:
     # ------------------------------------------------------------------ state
     def _link_frame(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         com, orn = self._get_base(self.body)
-        rot = np.asarray(self.client.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
-        return np.asarray(com, dtype=float) - rot @ self._inertial_pos, rot
+        rot = np.array(self._quaternion_matrix(orn)).reshape(3, 3)
+        return np.array(com) - rot @ self._inertial_pos, rot
 
     def pose(self) -> NDArray[np.float64]:
         """True pose ``(x, y, yaw)`` (m, m, rad) of the base frame (floor under the axle)."""
