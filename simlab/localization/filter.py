@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 from discretize.gridmap import OccupancyMap
 from simlab import validation
 from simlab.errors import ConfigError
-from simlab.localization.likelihood import LikelihoodField, SensorModelParams
+from simlab.localization.likelihood import LikelihoodField, SensorModelParams, _scan_kernel
 from simlab.localization.motion import (
     OdometryMotionParams,
     compose,
@@ -228,6 +228,21 @@ def _spread(p, weights):  # pragma: no cover - compiled
     return math.sqrt(max(0.0, cxx + cyy)), math.sqrt(max(0.0, caa))
 
 
+@numba.njit(cache=True)
+def _weigh(particles, weights, ranges, angles, beams, offset, table, geometry, r2, max_angle,
+           steps, out):  # pragma: no cover - compiled
+    """The compiled part of :meth:`ParticleFilter.update` in one call (issue 17: one
+    dispatch instead of three, no glue between): scan log-likelihoods, reweighting into
+    ``out``, mean-shift estimate. Returns (beams with a return, log normaliser, effective
+    sample size, estimate); with no beam ``out`` is untouched and the rest is zeros."""
+    loglik = np.empty(particles.shape[0])
+    k = _scan_kernel(particles, ranges, angles, beams, offset, table, geometry, loglik)
+    if k == 0:
+        return 0, 0.0, 0.0, np.zeros(3)
+    total, ess = _reweight(weights, loglik, out)
+    return k, total, ess, _mean_shift(particles, out, r2, max_angle, steps)
+
+
 def mean_shift_numpy(p: NDArray[np.float64], w: NDArray[np.float64], r2: float,
                      max_angle: float, steps: int) -> NDArray[np.float64]:
     """Plain-numpy reference of the compiled mean shift of :meth:`ParticleFilter.estimate`."""
@@ -258,6 +273,9 @@ class ParticleFilter:
     ``n_resamples``, ``n_injected`` (total particles injected), ``last_fit`` (per-beam
     likelihood of the last update).
     """
+
+    #: mean-shift iterations of the estimate
+    _MODE_STEPS = 3
 
     def __init__(self, grid: OccupancyMap | LikelihoodField, params: MCLParams | None = None,
                  rng: np.random.Generator | None = None) -> None:
@@ -342,7 +360,7 @@ class ParticleFilter:
                 delta: NDArray[np.float64] | None = None) -> None:
         """Move the particles by the odometry motion ``odom_prev -> odom_now`` (with noise).
 
-        ``delta``: ``relative(odom_prev, odom_now)`` ``(3,)`` when the caller has computed
+        ``delta``: ``relative(odom_prev, odom_now)`` (3 numbers) when the caller has computed
         it already (the tracker has, to decide whether to update; ~35 us saved per update).
         """
         self._check_init()
@@ -370,25 +388,24 @@ class ParticleFilter:
         Returns False (and changes nothing) when none of the beams used has a return.
         """
         self._check_init()
-        idx = self.beam_subset(len(scan.ranges))
-        ranges = np.asarray(scan.ranges, dtype=np.float64)[idx]
-        angles = np.asarray(scan.angles, dtype=np.float64)[idx]
-        k_used = int(np.isfinite(ranges).sum())
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        weights = np.empty_like(self.weights)
+        p = self.params
+        k_used, total, ess, estimate = _weigh(
+            self.particles, self.weights, ranges, np.asarray(scan.angles, dtype=np.float64),
+            self.beam_subset(len(ranges)), np.asarray(scan.sensor_offset, dtype=np.float64),
+            self.field.log_table, self.field.geometry, p.estimate_radius ** 2,
+            p.estimate_angle, self._MODE_STEPS, weights)
         if k_used == 0:
             return False
-        loglik = self.field.log_likelihoods(self.particles, ranges, angles,
-                                            np.asarray(scan.sensor_offset, dtype=np.float64))
-        weights = np.empty_like(self.weights)
-        total, ess = _reweight(self.weights, loglik, weights)  # one fused compiled pass
         self.weights = weights
         # Per-beam geometric mean of the predictive likelihood sum_i w_i p(z | x_i).
         fit = math.exp(total / k_used)
         self.last_fit = fit
-        p = self.params
         self.w_slow += p.alpha_slow * (fit - self.w_slow)
         self.w_fast += p.alpha_fast * (fit - self.w_fast)
         self.n_updates += 1
-        self._estimate = self._mode_estimate()
+        self._estimate = estimate
         inject = self.injection_probability
         if inject > 0 or ess < p.resample_threshold * p.n_particles:
             self._resample(inject)
@@ -416,10 +433,6 @@ class ParticleFilter:
         self.n_resamples += 1
 
     # ------------------------------------------------------------------ estimates
-    def _mode_estimate(self, steps: int = 3) -> NDArray[np.float64]:
-        return _mean_shift(self.particles, self.weights, self.params.estimate_radius ** 2,
-                           self.params.estimate_angle, steps)
-
     def estimate(self) -> NDArray[np.float64]:
         """Pose estimate ``(3,)`` (x, y, yaw): the strongest mode at the last update, moved
         by the odometry since (see the module docstring)."""

@@ -100,6 +100,8 @@ class LikelihoodField:
         distance: ``(H, W)`` float64 distance (m) from each pixel centre to the nearest
             occupied pixel centre (``inf`` if the map has none), not clipped.
         log_table: ``(H, W)`` float64 ``log p`` of an end point in each pixel.
+        geometry: ``(6,)`` float64 map origin x, y (m), cos and sin of its yaw, 1 /
+            resolution (1/m), and the log density of an end point outside the map.
     """
 
     def __init__(self, grid: OccupancyMap, params: SensorModelParams | None = None) -> None:
@@ -117,6 +119,8 @@ class LikelihoodField:
         ox, oy, yaw = grid.origin
         self._geometry = (float(ox), float(oy), math.cos(yaw), math.sin(yaw),
                           1.0 / grid.resolution)
+        #: ``_geometry`` and the outside score as one array (one argument of a kernel)
+        self.geometry = np.array([*self._geometry, self.params.outside_log_density])
 
     def log_likelihoods(self, particles: NDArray[np.float64], ranges: NDArray[np.float64],
                         angles: NDArray[np.float64],
@@ -170,6 +174,35 @@ def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, 
                 acc += outside
         out[i] = acc
     return out
+
+
+@numba.njit(cache=True)
+def _scan_kernel(particles, ranges, angles, beams, offset, table, geometry,
+                 out):  # pragma: no cover - compiled
+    """:func:`scan_log_likelihoods` of the beams ``beams`` of a scan, with no numpy glue
+    (issue 17): the beams with a return are picked, and their cos/sin taken, here, in the
+    order the numpy path keeps them. ``geometry`` is :attr:`LikelihoodField.geometry`.
+    Returns the number of beams with a return; ``out`` is left untouched when it is 0."""
+    k = 0
+    for j in range(beams.shape[0]):
+        if math.isfinite(ranges[beams[j]]):
+            k += 1
+    if k == 0:
+        return 0
+    r = np.empty(k)
+    cos_a = np.empty(k)
+    sin_a = np.empty(k)
+    m = 0
+    for j in range(beams.shape[0]):
+        b = beams[j]
+        if math.isfinite(ranges[b]):
+            r[m] = ranges[b]
+            cos_a[m] = math.cos(angles[b])
+            sin_a[m] = math.sin(angles[b])
+            m += 1
+    _field_kernel(particles, r, cos_a, sin_a, offset[0], offset[1], table, geometry[0],
+                  geometry[1], geometry[2], geometry[3], geometry[4], geometry[5], out)
+    return k
 
 
 def scan_log_likelihoods(field: LikelihoodField, particles: NDArray[np.float64],
