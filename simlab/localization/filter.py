@@ -50,7 +50,12 @@ from numpy.typing import NDArray
 from discretize.gridmap import OccupancyMap
 from simlab import validation
 from simlab.errors import ConfigError
-from simlab.localization.likelihood import LikelihoodField, SensorModelParams, _scan_kernel
+from simlab.localization.likelihood import (
+    LikelihoodField,
+    SensorModelParams,
+    _scan_kernel,
+    yaw_trig,
+)
 from simlab.localization.motion import (
     OdometryMotionParams,
     compose,
@@ -154,6 +159,14 @@ def weighted_pose_mean(particles: NDArray[np.float64],
 def _mean_shift(p, w, r2, max_angle, steps):  # pragma: no cover - compiled
     """Weighted mean of the particles within (sqrt(r2), max_angle) of a centre that starts
     at the highest-weight particle, iterated ``steps`` times (see ``estimate``)."""
+    cos_yaw, sin_yaw = yaw_trig(p)
+    return _mean_shift_trig(p, cos_yaw, sin_yaw, w, r2, max_angle, steps)
+
+
+@numba.njit(cache=True)
+def _mean_shift_trig(p, cos_yaw, sin_yaw, w, r2, max_angle, steps):  # pragma: no cover
+    """:func:`_mean_shift` with the yaws' cos and sin given (taken once per update, not
+    once per particle and step)."""
     centre = p[np.argmax(w)].copy()
     two_pi = 2.0 * math.pi
     for _ in range(steps):
@@ -166,8 +179,8 @@ def _mean_shift(p, w, r2, max_angle, steps):  # pragma: no cover - compiled
                 sw += w[i]
                 sx += w[i] * p[i, 0]
                 sy += w[i] * p[i, 1]
-                ss += w[i] * math.sin(p[i, 2])
-                sc += w[i] * math.cos(p[i, 2])
+                ss += w[i] * sin_yaw[i]
+                sc += w[i] * cos_yaw[i]
         if sw <= 0.0:
             break
         centre[0] = sx / sw
@@ -236,11 +249,14 @@ def _weigh(particles, weights, ranges, angles, beams, offset, table, geometry, r
     ``out``, mean-shift estimate. Returns (beams with a return, log normaliser, effective
     sample size, estimate); with no beam ``out`` is untouched and the rest is zeros."""
     loglik = np.empty(particles.shape[0])
-    k = _scan_kernel(particles, ranges, angles, beams, offset, table, geometry, loglik)
+    cos_yaw, sin_yaw = yaw_trig(particles)
+    k = _scan_kernel(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table,
+                     geometry, loglik)
     if k == 0:
         return 0, 0.0, 0.0, np.zeros(3)
     total, ess = _reweight(weights, loglik, out)
-    return k, total, ess, _mean_shift(particles, out, r2, max_angle, steps)
+    return k, total, ess, _mean_shift_trig(particles, cos_yaw, sin_yaw, out, r2, max_angle,
+                                           steps)
 
 
 def mean_shift_numpy(p: NDArray[np.float64], w: NDArray[np.float64], r2: float,

@@ -144,9 +144,30 @@ def _finite_beams(ranges: NDArray[np.float64], angles: NDArray[np.float64]
     return r[ok], a[ok]
 
 
+@numba.njit(cache=True)
+def yaw_trig(particles):  # pragma: no cover - compiled
+    """``(cos, sin)`` ``(N,)`` of the particles' yaws (libm's, as ``math.cos``), computed
+    once per update for the likelihood and the estimate (issue 17)."""
+    n = particles.shape[0]
+    cos_yaw = np.empty(n)
+    sin_yaw = np.empty(n)
+    for i in range(n):
+        cos_yaw[i] = math.cos(particles[i, 2])
+        sin_yaw[i] = math.sin(particles[i, 2])
+    return cos_yaw, sin_yaw
+
+
 @numba.njit(cache=True, fastmath=False)
 def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, cm, sm,
                   inv_res, outside, out):  # pragma: no cover - compiled
+    cos_yaw, sin_yaw = yaw_trig(particles)
+    return _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x, off_y,
+                              table, ox, oy, cm, sm, inv_res, outside, out)
+
+
+@numba.njit(cache=True, fastmath=False)
+def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x, off_y, table,
+                       ox, oy, cm, sm, inv_res, outside, out):  # pragma: no cover - compiled
     n = particles.shape[0]
     k = ranges.shape[0]
     h = table.shape[0]
@@ -154,8 +175,8 @@ def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, 
     for i in range(n):
         x = particles[i, 0]
         y = particles[i, 1]
-        c = math.cos(particles[i, 2])
-        s = math.sin(particles[i, 2])
+        c = cos_yaw[i]
+        s = sin_yaw[i]
         sx = x + c * off_x - s * off_y
         sy = y + s * off_x + c * off_y
         acc = 0.0
@@ -177,11 +198,12 @@ def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, 
 
 
 @numba.njit(cache=True)
-def _scan_kernel(particles, ranges, angles, beams, offset, table, geometry,
+def _scan_kernel(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table, geometry,
                  out):  # pragma: no cover - compiled
     """:func:`scan_log_likelihoods` of the beams ``beams`` of a scan, with no numpy glue
     (issue 17): the beams with a return are picked, and their cos/sin taken, here, in the
-    order the numpy path keeps them. ``geometry`` is :attr:`LikelihoodField.geometry`.
+    order the numpy path keeps them. ``cos_yaw``, ``sin_yaw``: :func:`yaw_trig` of the
+    particles. ``geometry`` is :attr:`LikelihoodField.geometry`.
     Returns the number of beams with a return; ``out`` is left untouched when it is 0."""
     k = 0
     for j in range(beams.shape[0]):
@@ -200,8 +222,9 @@ def _scan_kernel(particles, ranges, angles, beams, offset, table, geometry,
             cos_a[m] = math.cos(angles[b])
             sin_a[m] = math.sin(angles[b])
             m += 1
-    _field_kernel(particles, r, cos_a, sin_a, offset[0], offset[1], table, geometry[0],
-                  geometry[1], geometry[2], geometry[3], geometry[4], geometry[5], out)
+    _field_kernel_trig(particles, cos_yaw, sin_yaw, r, cos_a, sin_a, offset[0], offset[1],
+                       table, geometry[0], geometry[1], geometry[2], geometry[3], geometry[4],
+                       geometry[5], out)
     return k
 
 
