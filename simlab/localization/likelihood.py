@@ -168,10 +168,16 @@ def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, 
 @numba.njit(cache=True, fastmath=False)
 def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x, off_y, table,
                        ox, oy, cm, sm, inv_res, outside, out):  # pragma: no cover - compiled
+    """The likelihood field of each particle, in two passes per particle: the beams' end
+    cells as floats (a loop the compiler vectorises: ~1.5x faster, issue 17), then the
+    table look-ups. A float cell index compares as its integer does (NaN and overflow
+    fall outside either way), so the sums are the same bits."""
     n = particles.shape[0]
     k = ranges.shape[0]
     h = table.shape[0]
     w = table.shape[1]
+    rows = np.empty(k)
+    cols = np.empty(k)
     for i in range(n):
         x = particles[i, 0]
         y = particles[i, 1]
@@ -179,7 +185,6 @@ def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x,
         s = sin_yaw[i]
         sx = x + c * off_x - s * off_y
         sy = y + s * off_x + c * off_y
-        acc = 0.0
         for j in range(k):
             bc = c * cos_a[j] - s * sin_a[j]
             bs = s * cos_a[j] + c * sin_a[j]
@@ -187,10 +192,14 @@ def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x,
             dy = sy + ranges[j] * bs - oy
             mx = cm * dx + sm * dy
             my = -sm * dx + cm * dy
-            col = math.floor(mx * inv_res)
-            row = math.floor(h - my * inv_res)
-            if 0 <= row < h and 0 <= col < w:
-                acc += table[row, col]
+            cols[j] = np.floor(mx * inv_res)
+            rows[j] = np.floor(h - my * inv_res)
+        acc = 0.0
+        for j in range(k):
+            row = rows[j]
+            col = cols[j]
+            if 0.0 <= row < h and 0.0 <= col < w:
+                acc += table[int(row), int(col)]
             else:
                 acc += outside
         out[i] = acc
