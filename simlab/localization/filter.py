@@ -132,10 +132,46 @@ def low_variance_resample(weights: NDArray[np.float64], n: int,
     One uniform draw; particle ``i`` is picked ``floor(n w_i)`` or ``ceil(n w_i)`` times.
     ``weights`` must sum to 1.
     """
+    return _low_variance_indices(weights, n, rng.random())
+
+
+def _low_variance_indices(weights: NDArray[np.float64], n: int, u: float) -> NDArray[np.int64]:
+    """:func:`low_variance_resample` with its uniform draw ``u`` given."""
     cdf = np.cumsum(np.asarray(weights, dtype=np.float64))
     cdf[-1] = 1.0  # guard against round-off: every pointer below 1 finds a particle
-    pointers = (rng.random() + np.arange(n)) / n
+    pointers = (u + np.arange(n)) / n
     return np.searchsorted(cdf, pointers, side="right").astype(np.int64)
+
+
+@numba.njit(cache=True)
+def _resample_into(weights, u, particles, out):  # pragma: no cover - compiled
+    """``out[:] = particles[_low_variance_indices(weights, len(out), u)]`` in one pass
+    (issue 17). The cumulative sum is numpy's (sequential); walking the sorted pointers
+    along it finds what the binary search finds, because "cdf <= pointer" holds on a
+    prefix only (the last entry is 1 > every pointer). A NaN or negative weight breaks
+    that order, and the last pointer can round up to 1: then returns False (``out``
+    unspecified) and the caller takes numpy's search, whatever it gives then."""
+    n = out.shape[0]
+    if (u + (n - 1)) / n >= 1.0:  # the last pointer rounded up to 1 (u within 2^-44 of 1)
+        return False
+    m = weights.shape[0]
+    cdf = np.empty(m)
+    acc = 0.0
+    for i in range(m):
+        if not weights[i] >= 0.0:  # NaN or negative
+            return False
+        acc += weights[i]
+        cdf[i] = acc
+    cdf[m - 1] = 1.0
+    j = 0
+    for k in range(n):
+        pointer = (u + k) / n
+        while cdf[j] <= pointer:
+            j += 1
+        out[k, 0] = particles[j, 0]
+        out[k, 1] = particles[j, 1]
+        out[k, 2] = particles[j, 2]
+    return True
 
 
 def effective_sample_size(weights: NDArray[np.float64]) -> float:
@@ -436,8 +472,10 @@ class ParticleFilter:
 
     def _resample(self, inject: float) -> None:
         n = self.params.n_particles
-        idx = low_variance_resample(self.weights, n, self.rng)
-        new = self.particles[idx]
+        u = self.rng.random()  # the draw of low_variance_resample
+        new = np.empty((n, 3))
+        if not _resample_into(self.weights, u, self.particles, new):
+            new = self.particles[_low_variance_indices(self.weights, n, u)]
         if inject > 0:
             mask = self.rng.random(n) < inject
             m = int(mask.sum())

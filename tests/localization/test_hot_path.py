@@ -10,7 +10,9 @@ import numpy as np
 from simlab.localization.filter import (
     MCLParams,
     ParticleFilter,
+    _low_variance_indices,
     _mean_shift,
+    _resample_into,
     _reweight,
     _weigh,
 )
@@ -127,3 +129,23 @@ def test_likelihood_kernel_is_the_numpy_field_summed_in_beam_order(table_grid) -
         ref = ref + scan_log_likelihoods_numpy(field, particles, ranges[j:j + 1],
                                                angles[j:j + 1], offset)
     assert np.array_equal(fast, ref)
+
+
+def test_compiled_resampling_is_numpy_search_or_declines() -> None:
+    rng = np.random.default_rng(9)
+    p = _poses(300, 10)
+    cases = [rng.random(300), np.full(300, 1 / 300), np.eye(1, 300, 17)[0],
+             rng.random(300) ** 40]
+    cases[3][::3] = 0.0
+    for w in cases:
+        w = w / w.sum()
+        for u in (0.0, 0.5, rng.random(), 1.0 - 2**-53):
+            out = np.empty((300, 3))
+            if _resample_into(w, u, p, out):
+                assert np.array_equal(out, p[_low_variance_indices(w, 300, u)])
+            else:  # only when the last pointer rounds up to 1 (numpy's path fails too)
+                assert (u + 299) / 300 >= 1.0
+    bad = np.full(300, 1 / 300)
+    for value in (np.nan, -0.1):
+        bad[5] = value
+        assert not _resample_into(bad, 0.3, p, np.empty((300, 3)))
