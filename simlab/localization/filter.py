@@ -50,7 +50,12 @@ from numpy.typing import NDArray
 from discretize.gridmap import OccupancyMap
 from simlab import validation
 from simlab.errors import ConfigError
-from simlab.localization.likelihood import LikelihoodField, SensorModelParams
+from simlab.localization.likelihood import (
+    LikelihoodField,
+    SensorModelParams,
+    _scan_kernel,
+    yaw_trig,
+)
 from simlab.localization.motion import (
     OdometryMotionParams,
     compose,
@@ -127,10 +132,46 @@ def low_variance_resample(weights: NDArray[np.float64], n: int,
     One uniform draw; particle ``i`` is picked ``floor(n w_i)`` or ``ceil(n w_i)`` times.
     ``weights`` must sum to 1.
     """
+    return _low_variance_indices(weights, n, rng.random())
+
+
+def _low_variance_indices(weights: NDArray[np.float64], n: int, u: float) -> NDArray[np.int64]:
+    """:func:`low_variance_resample` with its uniform draw ``u`` given."""
     cdf = np.cumsum(np.asarray(weights, dtype=np.float64))
     cdf[-1] = 1.0  # guard against round-off: every pointer below 1 finds a particle
-    pointers = (rng.random() + np.arange(n)) / n
+    pointers = (u + np.arange(n)) / n
     return np.searchsorted(cdf, pointers, side="right").astype(np.int64)
+
+
+@numba.njit(cache=True)
+def _resample_into(weights, u, particles, out):  # pragma: no cover - compiled
+    """``out[:] = particles[_low_variance_indices(weights, len(out), u)]`` in one pass
+    (issue 17). The cumulative sum is numpy's (sequential); walking the sorted pointers
+    along it finds what the binary search finds, because "cdf <= pointer" holds on a
+    prefix only (the last entry is 1 > every pointer). A NaN or negative weight breaks
+    that order, and the last pointer can round up to 1: then returns False (``out``
+    unspecified) and the caller takes numpy's search, whatever it gives then."""
+    n = out.shape[0]
+    if (u + (n - 1)) / n >= 1.0:  # the last pointer rounded up to 1 (u within 2^-44 of 1)
+        return False
+    m = weights.shape[0]
+    cdf = np.empty(m)
+    acc = 0.0
+    for i in range(m):
+        if not weights[i] >= 0.0:  # NaN or negative
+            return False
+        acc += weights[i]
+        cdf[i] = acc
+    cdf[m - 1] = 1.0
+    j = 0
+    for k in range(n):
+        pointer = (u + k) / n
+        while cdf[j] <= pointer:
+            j += 1
+        out[k, 0] = particles[j, 0]
+        out[k, 1] = particles[j, 1]
+        out[k, 2] = particles[j, 2]
+    return True
 
 
 def effective_sample_size(weights: NDArray[np.float64]) -> float:
@@ -154,6 +195,14 @@ def weighted_pose_mean(particles: NDArray[np.float64],
 def _mean_shift(p, w, r2, max_angle, steps):  # pragma: no cover - compiled
     """Weighted mean of the particles within (sqrt(r2), max_angle) of a centre that starts
     at the highest-weight particle, iterated ``steps`` times (see ``estimate``)."""
+    cos_yaw, sin_yaw = yaw_trig(p)
+    return _mean_shift_trig(p, cos_yaw, sin_yaw, w, r2, max_angle, steps)
+
+
+@numba.njit(cache=True)
+def _mean_shift_trig(p, cos_yaw, sin_yaw, w, r2, max_angle, steps):  # pragma: no cover
+    """:func:`_mean_shift` with the yaws' cos and sin given (taken once per update, not
+    once per particle and step)."""
     centre = p[np.argmax(w)].copy()
     two_pi = 2.0 * math.pi
     for _ in range(steps):
@@ -166,8 +215,8 @@ def _mean_shift(p, w, r2, max_angle, steps):  # pragma: no cover - compiled
                 sw += w[i]
                 sx += w[i] * p[i, 0]
                 sy += w[i] * p[i, 1]
-                ss += w[i] * math.sin(p[i, 2])
-                sc += w[i] * math.cos(p[i, 2])
+                ss += w[i] * sin_yaw[i]
+                sc += w[i] * cos_yaw[i]
         if sw <= 0.0:
             break
         centre[0] = sx / sw
@@ -228,6 +277,24 @@ def _spread(p, weights):  # pragma: no cover - compiled
     return math.sqrt(max(0.0, cxx + cyy)), math.sqrt(max(0.0, caa))
 
 
+@numba.njit(cache=True)
+def _weigh(particles, weights, ranges, angles, beams, offset, table, geometry, r2, max_angle,
+           steps, out):  # pragma: no cover - compiled
+    """The compiled part of :meth:`ParticleFilter.update` in one call (issue 17: one
+    dispatch instead of three, no glue between): scan log-likelihoods, reweighting into
+    ``out``, mean-shift estimate. Returns (beams with a return, log normaliser, effective
+    sample size, estimate); with no beam ``out`` is untouched and the rest is zeros."""
+    loglik = np.empty(particles.shape[0])
+    cos_yaw, sin_yaw = yaw_trig(particles)
+    k = _scan_kernel(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table,
+                     geometry, loglik)
+    if k == 0:
+        return 0, 0.0, 0.0, np.zeros(3)
+    total, ess = _reweight(weights, loglik, out)
+    return k, total, ess, _mean_shift_trig(particles, cos_yaw, sin_yaw, out, r2, max_angle,
+                                           steps)
+
+
 def mean_shift_numpy(p: NDArray[np.float64], w: NDArray[np.float64], r2: float,
                      max_angle: float, steps: int) -> NDArray[np.float64]:
     """Plain-numpy reference of the compiled mean shift of :meth:`ParticleFilter.estimate`."""
@@ -258,6 +325,9 @@ class ParticleFilter:
     ``n_resamples``, ``n_injected`` (total particles injected), ``last_fit`` (per-beam
     likelihood of the last update).
     """
+
+    #: mean-shift iterations of the estimate
+    _MODE_STEPS = 3
 
     def __init__(self, grid: OccupancyMap | LikelihoodField, params: MCLParams | None = None,
                  rng: np.random.Generator | None = None) -> None:
@@ -342,7 +412,7 @@ class ParticleFilter:
                 delta: NDArray[np.float64] | None = None) -> None:
         """Move the particles by the odometry motion ``odom_prev -> odom_now`` (with noise).
 
-        ``delta``: ``relative(odom_prev, odom_now)`` ``(3,)`` when the caller has computed
+        ``delta``: ``relative(odom_prev, odom_now)`` (3 numbers) when the caller has computed
         it already (the tracker has, to decide whether to update; ~35 us saved per update).
         """
         self._check_init()
@@ -370,25 +440,24 @@ class ParticleFilter:
         Returns False (and changes nothing) when none of the beams used has a return.
         """
         self._check_init()
-        idx = self.beam_subset(len(scan.ranges))
-        ranges = np.asarray(scan.ranges, dtype=np.float64)[idx]
-        angles = np.asarray(scan.angles, dtype=np.float64)[idx]
-        k_used = int(np.isfinite(ranges).sum())
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        weights = np.empty_like(self.weights)
+        p = self.params
+        k_used, total, ess, estimate = _weigh(
+            self.particles, self.weights, ranges, np.asarray(scan.angles, dtype=np.float64),
+            self.beam_subset(len(ranges)), np.asarray(scan.sensor_offset, dtype=np.float64),
+            self.field.log_table, self.field.geometry, p.estimate_radius ** 2,
+            p.estimate_angle, self._MODE_STEPS, weights)
         if k_used == 0:
             return False
-        loglik = self.field.log_likelihoods(self.particles, ranges, angles,
-                                            np.asarray(scan.sensor_offset, dtype=np.float64))
-        weights = np.empty_like(self.weights)
-        total, ess = _reweight(self.weights, loglik, weights)  # one fused compiled pass
         self.weights = weights
         # Per-beam geometric mean of the predictive likelihood sum_i w_i p(z | x_i).
         fit = math.exp(total / k_used)
         self.last_fit = fit
-        p = self.params
         self.w_slow += p.alpha_slow * (fit - self.w_slow)
         self.w_fast += p.alpha_fast * (fit - self.w_fast)
         self.n_updates += 1
-        self._estimate = self._mode_estimate()
+        self._estimate = estimate
         inject = self.injection_probability
         if inject > 0 or ess < p.resample_threshold * p.n_particles:
             self._resample(inject)
@@ -403,8 +472,10 @@ class ParticleFilter:
 
     def _resample(self, inject: float) -> None:
         n = self.params.n_particles
-        idx = low_variance_resample(self.weights, n, self.rng)
-        new = self.particles[idx]
+        u = self.rng.random()  # the draw of low_variance_resample
+        new = np.empty((n, 3))
+        if not _resample_into(self.weights, u, self.particles, new):
+            new = self.particles[_low_variance_indices(self.weights, n, u)]
         if inject > 0:
             mask = self.rng.random(n) < inject
             m = int(mask.sum())
@@ -416,10 +487,6 @@ class ParticleFilter:
         self.n_resamples += 1
 
     # ------------------------------------------------------------------ estimates
-    def _mode_estimate(self, steps: int = 3) -> NDArray[np.float64]:
-        return _mean_shift(self.particles, self.weights, self.params.estimate_radius ** 2,
-                           self.params.estimate_angle, steps)
-
     def estimate(self) -> NDArray[np.float64]:
         """Pose estimate ``(3,)`` (x, y, yaw): the strongest mode at the last update, moved
         by the odometry since (see the module docstring)."""

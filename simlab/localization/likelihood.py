@@ -100,6 +100,8 @@ class LikelihoodField:
         distance: ``(H, W)`` float64 distance (m) from each pixel centre to the nearest
             occupied pixel centre (``inf`` if the map has none), not clipped.
         log_table: ``(H, W)`` float64 ``log p`` of an end point in each pixel.
+        geometry: ``(6,)`` float64 map origin x, y (m), cos and sin of its yaw, 1 /
+            resolution (1/m), and the log density of an end point outside the map.
     """
 
     def __init__(self, grid: OccupancyMap, params: SensorModelParams | None = None) -> None:
@@ -117,6 +119,8 @@ class LikelihoodField:
         ox, oy, yaw = grid.origin
         self._geometry = (float(ox), float(oy), math.cos(yaw), math.sin(yaw),
                           1.0 / grid.resolution)
+        #: ``_geometry`` and the outside score as one array (one argument of a kernel)
+        self.geometry = np.array([*self._geometry, self.params.outside_log_density])
 
     def log_likelihoods(self, particles: NDArray[np.float64], ranges: NDArray[np.float64],
                         angles: NDArray[np.float64],
@@ -140,21 +144,47 @@ def _finite_beams(ranges: NDArray[np.float64], angles: NDArray[np.float64]
     return r[ok], a[ok]
 
 
+@numba.njit(cache=True)
+def yaw_trig(particles):  # pragma: no cover - compiled
+    """``(cos, sin)`` ``(N,)`` of the particles' yaws (libm's, as ``math.cos``), computed
+    once per update for the likelihood and the estimate (issue 17)."""
+    n = particles.shape[0]
+    cos_yaw = np.empty(n)
+    sin_yaw = np.empty(n)
+    for i in range(n):
+        cos_yaw[i] = math.cos(particles[i, 2])
+        sin_yaw[i] = math.sin(particles[i, 2])
+    return cos_yaw, sin_yaw
+
+
 @numba.njit(cache=True, fastmath=False)
 def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, cm, sm,
                   inv_res, outside, out):  # pragma: no cover - compiled
+    cos_yaw, sin_yaw = yaw_trig(particles)
+    return _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x, off_y,
+                              table, ox, oy, cm, sm, inv_res, outside, out)
+
+
+@numba.njit(cache=True, fastmath=False)
+def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x, off_y, table,
+                       ox, oy, cm, sm, inv_res, outside, out):  # pragma: no cover - compiled
+    """The likelihood field of each particle, in two passes per particle: the beams' end
+    cells as floats (a loop the compiler vectorises: ~1.5x faster, issue 17), then the
+    table look-ups. A float cell index compares as its integer does (NaN and overflow
+    fall outside either way), so the sums are the same bits."""
     n = particles.shape[0]
     k = ranges.shape[0]
     h = table.shape[0]
     w = table.shape[1]
+    rows = np.empty(k)
+    cols = np.empty(k)
     for i in range(n):
         x = particles[i, 0]
         y = particles[i, 1]
-        c = math.cos(particles[i, 2])
-        s = math.sin(particles[i, 2])
+        c = cos_yaw[i]
+        s = sin_yaw[i]
         sx = x + c * off_x - s * off_y
         sy = y + s * off_x + c * off_y
-        acc = 0.0
         for j in range(k):
             bc = c * cos_a[j] - s * sin_a[j]
             bs = s * cos_a[j] + c * sin_a[j]
@@ -162,14 +192,49 @@ def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, 
             dy = sy + ranges[j] * bs - oy
             mx = cm * dx + sm * dy
             my = -sm * dx + cm * dy
-            col = math.floor(mx * inv_res)
-            row = math.floor(h - my * inv_res)
-            if 0 <= row < h and 0 <= col < w:
-                acc += table[row, col]
+            cols[j] = np.floor(mx * inv_res)
+            rows[j] = np.floor(h - my * inv_res)
+        acc = 0.0
+        for j in range(k):
+            row = rows[j]
+            col = cols[j]
+            if 0.0 <= row < h and 0.0 <= col < w:
+                acc += table[int(row), int(col)]
             else:
                 acc += outside
         out[i] = acc
     return out
+
+
+@numba.njit(cache=True)
+def _scan_kernel(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table, geometry,
+                 out):  # pragma: no cover - compiled
+    """:func:`scan_log_likelihoods` of the beams ``beams`` of a scan, with no numpy glue
+    (issue 17): the beams with a return are picked, and their cos/sin taken, here, in the
+    order the numpy path keeps them. ``cos_yaw``, ``sin_yaw``: :func:`yaw_trig` of the
+    particles. ``geometry`` is :attr:`LikelihoodField.geometry`.
+    Returns the number of beams with a return; ``out`` is left untouched when it is 0."""
+    k = 0
+    for j in range(beams.shape[0]):
+        if math.isfinite(ranges[beams[j]]):
+            k += 1
+    if k == 0:
+        return 0
+    r = np.empty(k)
+    cos_a = np.empty(k)
+    sin_a = np.empty(k)
+    m = 0
+    for j in range(beams.shape[0]):
+        b = beams[j]
+        if math.isfinite(ranges[b]):
+            r[m] = ranges[b]
+            cos_a[m] = math.cos(angles[b])
+            sin_a[m] = math.sin(angles[b])
+            m += 1
+    _field_kernel_trig(particles, cos_yaw, sin_yaw, r, cos_a, sin_a, offset[0], offset[1],
+                       table, geometry[0], geometry[1], geometry[2], geometry[3], geometry[4],
+                       geometry[5], out)
+    return k
 
 
 def scan_log_likelihoods(field: LikelihoodField, particles: NDArray[np.float64],

@@ -31,7 +31,7 @@ from discretize.gridmap import OccupancyMap
 from simlab.errors import ConfigError
 from simlab.localization.filter import MCLParams, ParticleFilter, ScanLike
 from simlab.localization.likelihood import LikelihoodField
-from simlab.localization.motion import compose, relative, wrap
+from simlab.localization.motion import compose, relative, relative3, wrap
 
 
 @dataclass(frozen=True)
@@ -129,7 +129,7 @@ class MCLTracker:
         self._odom_last = odom
         if self._odom_ref is None:
             self._odom_ref = odom
-        d = relative(self._odom_ref, odom)
+        d = relative3(self._odom_ref.tolist(), odom.tolist())  # floats: ~10x cheaper
         p = self.params
         moved = math.hypot(d[0], d[1]) >= p.update_min_distance or abs(d[2]) >= p.update_min_angle
         if not (moved or self._fresh):
