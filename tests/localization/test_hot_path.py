@@ -34,6 +34,27 @@ from simlab.localization.motion import (
 )
 
 
+def _numpy_trig_is_libm() -> bool:
+    """Whether numpy's float64 cos/sin give the C library's bits here (the compiled code
+    calls libm). True on the x86-64 hosts checked (SIMD level X86_V3); numpy's AVX-512
+    kernels may differ in the last bit, and there the replay is still deterministic per
+    host but these comparisons can only be within an ulp or two."""
+    x = np.random.default_rng(0).uniform(-20.0, 20.0, 20_000)
+    return (np.array_equal(np.cos(x), np.array([math.cos(v) for v in x]))
+            and np.array_equal(np.sin(x), np.array([math.sin(v) for v in x])))
+
+
+LIBM_TRIG = _numpy_trig_is_libm()
+
+
+def _assert_same(fast: np.ndarray, ref: np.ndarray) -> None:
+    """Bit equality where numpy's trig is libm's, else at most 4 ulp apart."""
+    if LIBM_TRIG:
+        assert np.array_equal(fast, ref)
+    else:  # pragma: no cover - AVX-512 hosts
+        np.testing.assert_array_max_ulp(fast, ref, maxulp=4)
+
+
 def _poses(n: int, seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     p = rng.uniform(-1.0, 1.0, (n, 3))
@@ -46,9 +67,9 @@ def test_single_pose_math_is_the_array_math() -> None:
     a, b = _poses(2000, 1), _poses(2000, 2)
     comp, rel = compose(a, b), relative(a, b)  # the vectorised (N, 3) path
     for i in range(len(a)):
-        assert compose3(a[i].tolist(), b[i].tolist()) == tuple(comp[i].tolist())
-        assert relative3(a[i].tolist(), b[i].tolist()) == tuple(rel[i].tolist())
-        assert np.array_equal(compose(a[i], b[i]), comp[i])
+        _assert_same(np.array(compose3(a[i].tolist(), b[i].tolist())), comp[i])
+        _assert_same(np.array(relative3(a[i].tolist(), b[i].tolist())), rel[i])
+        _assert_same(compose(a[i], b[i]), comp[i])
         assert wrap1(float(a[i, 2])) == float(wrap(a[i, 2]))
 
 
@@ -78,7 +99,7 @@ def test_compiled_motion_is_the_numpy_motion() -> None:
         now = prev + np.asarray(step)
         fast = sample_odometry_motion(p, prev, now, params, np.random.default_rng(k))
         ref = _numpy_motion(p, prev, now, params, np.random.default_rng(k))
-        assert np.array_equal(fast, ref)
+        _assert_same(fast, ref)
 
 
 def test_fused_weighing_is_the_three_kernels(table_grid) -> None:
@@ -128,7 +149,7 @@ def test_likelihood_kernel_is_the_numpy_field_summed_in_beam_order(table_grid) -
     for j in range(len(ranges)):
         ref = ref + scan_log_likelihoods_numpy(field, particles, ranges[j:j + 1],
                                                angles[j:j + 1], offset)
-    assert np.array_equal(fast, ref)
+    _assert_same(fast, ref)
 
 
 def test_compiled_resampling_is_numpy_search_or_declines() -> None:
