@@ -32,6 +32,7 @@ __all__ = [
     "masked_q",
     "plot_q_heatmap",
     "rasterize_cells",
+    "render_q_heatmap",
     "save_heatmap_grid",
     "save_q_heatmap",
 ]
@@ -203,14 +204,43 @@ def plot_q_heatmap(
     return img
 
 
-def _save(fig, path: str | os.PathLike[str]) -> None:
+def _png(fig) -> bytes:
+    """The PNG bytes of ``fig`` (then closed): rendering is separate from writing so a
+    worker process can draw a figure that this process writes (:func:`simlab.training.train`)."""
+    import io
+
     import matplotlib.pyplot as plt
 
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _write_png(path: str | os.PathLike[str], png: bytes) -> None:
     from simlab.io import atomic_write
 
     with atomic_write(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=110)
-    plt.close(fig)
+        fh.write(png)
+
+
+def render_q_heatmap(
+    centres: np.ndarray,
+    Q: np.ndarray,
+    bounds: Sequence[float] | None = None,
+    goal_mask: np.ndarray | None = None,
+    **kwargs: Any,
+) -> bytes:
+    """The PNG bytes of one heat map (:func:`plot_q_heatmap`'s keywords)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.2, 4.6))
+    plot_q_heatmap(ax, centres, Q, bounds, goal_mask, **kwargs)
+    fig.tight_layout()
+    return _png(fig)
 
 
 def save_q_heatmap(
@@ -222,15 +252,7 @@ def save_q_heatmap(
     **kwargs: Any,
 ) -> None:
     """Save one heat map as a PNG (atomic write; the caller checks overwrite)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.2, 4.6))
-    plot_q_heatmap(ax, centres, Q, bounds, goal_mask, **kwargs)
-    fig.tight_layout()
-    _save(fig, path)
+    _write_png(path, render_q_heatmap(centres, Q, bounds, goal_mask, **kwargs))
 
 
 def save_heatmap_grid(
@@ -277,4 +299,4 @@ def save_heatmap_grid(
     fig.colorbar(img, cax=cax, label="max_a Q(s, a)")
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
-    _save(fig, path)
+    _write_png(path, _png(fig))
