@@ -740,8 +740,9 @@ def _write_outputs(job: _TrainJob, res: _Results, files: dict[str, Path],
 def _write_figures(job: _TrainJob, res: _Results, files: dict[str, Path], runs: int) -> None:
     """The learning curves and, with centres, the Q heat maps.
 
-    With ``job.pool`` the pool draws the curves while this process draws the grid, and the
-    per-goal heat maps come ready from :func:`_train_goals_shared` (``res.pngs``).
+    With ``job.pool`` the pool draws the curves (unless it has not started them when this
+    process is done with the grid) while this process draws the grid; the per-goal heat
+    maps come ready from :func:`_train_goals_shared` (``res.pngs``).
     """
     from simlab.training.curves import render_learning_curves, save_learning_curves
 
@@ -756,7 +757,9 @@ def _write_figures(job: _TrainJob, res: _Results, files: dict[str, Path], runs: 
         curves = job.pool.submit(render_learning_curves, panels, suptitle=suptitle)
     if m.centres is not None:
         _write_heatmaps(job, res, files)
-    if curves is not None:
+    if curves is not None and curves.cancel():  # the pool is busy elsewhere: draw it here
+        save_learning_curves(files["curves_png"], panels, suptitle=suptitle)
+    elif curves is not None:
         _write_bytes(files["curves_png"], curves.result())
 
 
