@@ -613,37 +613,79 @@ def _train_goals(job: _TrainJob) -> tuple[dict[str, Any], dict[str, Any]]:
     return results, evaluations
 
 
+class _SharedGoals:
+    """Goals shared between this process, which takes them from the first, and a pool, fed
+    from the last one at a time per worker (a goal handed over when a worker's previous
+    one ends): neither side claims work it has not started, so the two meet wherever their
+    speeds make them, without a guess of how warm the worker is."""
+
+    def __init__(self, pool: Any, work: _GoalWork, names: list[str], on_done: Any) -> None:
+        import collections
+        import threading
+
+        self._pool, self._work, self._on_done = pool, work, on_done
+        self._todo = collections.deque(names)
+        self._lock = threading.Lock()  # this thread and the pool's callback thread
+        self.futures: dict[str, Any] = {}
+
+    def take_first(self) -> str | None:
+        """The next goal for this process (None: none left)."""
+        with self._lock:
+            return self._todo.popleft() if self._todo else None
+
+    def feed(self, finished: Any = None) -> None:
+        """Hand the last goal left to the pool (also the done-callback of each of its
+        goals, so a worker gets its next goal when it ends one)."""
+        if finished is not None and not finished.cancelled():
+            self._on_done()
+        with self._lock:
+            if not self._todo:
+                return
+            g = self._todo.pop()
+            future = self.futures[g] = self._pool.submit(_train_and_draw_goal, self._work, g)
+        future.add_done_callback(self.feed)
+
+    def handed_over(self) -> dict[str, Any]:
+        """Once this process is out of goals: the pool's, by goal (no more will come)."""
+        with self._lock:
+            self._todo.clear()
+            return dict(self.futures)
+
+
 def _train_goals_shared(job: _TrainJob
                         ) -> tuple[dict[str, Any], dict[str, Any], dict[str, bytes]]:
     """:func:`_train_goals` with ``job.pool``: (runs, evaluations, heat-map PNGs by goal).
 
-    Every goal (training, evaluation and heat map) is submitted to the pool, last goal
-    first, while this process works from the first goal on, each time taking its goal
-    back from the pool (``cancel``) while the pool has not started it: the two meet
-    wherever their speeds make them, without a guess of how warm the worker is. Results
-    do not depend on where a goal ran (its seed is its own).
+    A goal (training, evaluation and heat map) is the unit shared with the pool
+    (:class:`_SharedGoals`); a goal the pool has not started when this process is out of
+    work is taken back (``cancel``). Results do not depend on where a goal ran (its seed
+    is its own).
     """
     from tqdm.auto import tqdm
 
     cfg, names = job.cfg, job.names
-    work = _goal_work(job, heatmaps=True)
     bar = tqdm(total=len(names) * cfg.runs, disable=not cfg.progress,
                desc=f"train {cfg.agent}", unit="run")
-    futures = {g: job.pool.submit(_train_and_draw_goal, work, g) for g in reversed(names)}
+    work = _goal_work(job, heatmaps=True)
+    shared = _SharedGoals(job.pool, work, list(names), lambda: bar.update(cfg.runs))
+    futures: dict[str, Any] = {}
     try:
-        for f in futures.values():
-            f.add_done_callback(lambda f: f.cancelled() or bar.update(cfg.runs))
+        # ProcessPoolExecutor's worker count (private; other executors: one at a time)
+        for _ in range(getattr(job.pool, "_max_workers", 1)):
+            shared.feed()
         done = {}
-        for g in names:
-            if not futures[g].cancel():
-                break
+        while (g := shared.take_first()) is not None:
             done[g] = _train_and_draw_goal(work, g, lambda: bar.update(1))
-        for g in names:
+        futures = shared.handed_over()
+        for g, future in futures.items():
+            if future.cancel():  # not started: the pool is busy elsewhere
+                done[g] = _train_and_draw_goal(work, g, lambda: bar.update(1))
+        for g, future in futures.items():
             if g not in done:
-                done[g] = futures[g].result()
+                done[g] = future.result()
     finally:
-        for f in futures.values():
-            f.cancel()
+        for future in shared.handed_over().values():
+            future.cancel()
         bar.close()
     return ({g: done[g][0] for g in names}, {g: done[g][1] for g in names},
             {g: done[g][2] for g in names if done[g][2] is not None})
