@@ -16,7 +16,7 @@ import numpy as np
 
 from simlab.errors import ConfigError
 
-__all__ = ["curve_points", "plot_learning_curves", "save_learning_curves"]
+__all__ = ["curve_points", "plot_learning_curves", "render_learning_curves", "save_learning_curves"]
 
 
 def curve_points(
@@ -72,23 +72,20 @@ def plot_learning_curves(
     ax.grid(alpha=0.3)
 
 
-def save_learning_curves(
-    path: str | os.PathLike[str],
+def render_learning_curves(
     panels: Sequence[tuple[str, Mapping[str, np.ndarray], float | None]],
     *,
     n_points: int = 100,
     suptitle: str | None = None,
-) -> None:
-    """Save a PNG with one panel per ``(title, curves, reference)`` (grid up to 3 columns).
+) -> bytes:
+    """The PNG bytes of :func:`save_learning_curves`'s figure (a worker process can draw
+    it while this process does other work)."""
+    import io
 
-    Written atomically (temporary file then rename); the caller checks overwrite.
-    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from simlab.io import atomic_write
 
     n = len(panels)
     cols = min(3, n)
@@ -103,6 +100,25 @@ def save_learning_curves(
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
-    with atomic_write(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=110)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
+    return buf.getvalue()
+
+
+def save_learning_curves(
+    path: str | os.PathLike[str],
+    panels: Sequence[tuple[str, Mapping[str, np.ndarray], float | None]],
+    *,
+    n_points: int = 100,
+    suptitle: str | None = None,
+) -> None:
+    """Save a PNG with one panel per ``(title, curves, reference)`` (grid up to 3 columns).
+
+    Written atomically (temporary file then rename); the caller checks overwrite.
+    """
+    from simlab.io import atomic_write
+
+    png = render_learning_curves(panels, n_points=n_points, suptitle=suptitle)
+    with atomic_write(path, "wb") as fh:
+        fh.write(png)

@@ -327,12 +327,20 @@ class TrainConfig(CommandConfig):
     plots: bool = option(True, "the PNG figures (--no-plots skips them)")
     overwrite: bool = option(False, "replace existing outputs")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
+    workers: int = option(1, "processes sharing the goals and figures (1: this one only; N "
+                          "starts N-1 worker processes)")
+    pool: Any | None = option(
+        None, "a concurrent.futures process executor (e.g. simlab.parallel.spawn_worker()) "
+        "whose workers train and draw part of the goals; the caller owns it", cli=False)
 
     def validate(self) -> None:
         v.whole(self.episodes, "episodes", minimum=1)
         v.whole(self.runs, "runs", minimum=1)
         v.whole(self.seed, "seed")
         v.whole(self.horizon, "horizon", minimum=1)
+        v.whole(self.workers, "workers", minimum=1)
+        if self.pool is not None and self.workers != 1:
+            raise ConfigError("give either a pool or workers", key="workers")
         if self.bounds is not None and len(self.bounds) != 4:
             raise ConfigError(f"expected 4 numbers XMIN YMIN XMAX YMAX, got {self.bounds}",
                               key="bounds")
@@ -374,6 +382,9 @@ def train(cfg: TrainConfig) -> TrainSummary:
     * ``out``: output directory (created); ``None`` writes nothing and only returns.
     * ``plots``, ``overwrite``, ``progress``: write PNGs; replace existing outputs; show a
       progress bar.
+    * ``pool`` (Python only) or ``workers``: a process executor, or the number of processes,
+      sharing the work with this process (:func:`_train_goals_shared`); the outputs are
+      the same bytes as without.
     * ``task`` (a :class:`TrainTask` or its mode) with ``goal_states``, ``start_states``,
       ``unvisited``: task mode, goal/start states, unvisited rule (default: per-step, the
       MDP's goals and rule).
@@ -413,13 +424,19 @@ def train(cfg: TrainConfig) -> TrainSummary:
     out = cfg.out
     files = {} if out is None else _output_files(out, names, cfg.plots, m.centres is not None)
     with contextlib.ExitStack() as stack:
+        pool = cfg.pool
+        if pool is None and cfg.workers > 1:
+            from simlab.parallel import worker_pool
+
+            pool = worker_pool(cfg.workers - 1)
+            stack.callback(pool.shutdown, wait=True, cancel_futures=True)
         txn = None
         if out is not None:  # refuses existing outputs and takes the --out lock before training
             txn = stack.enter_context(output_transaction(out, files.values(),
                                                          overwrite=cfg.overwrite))
         job = _TrainJob(cfg=cfg, m=m, names=names, start=start, valid=m.valid, gamma=gamma,
                         files=files, plot_bounds=plot_bounds, background=background, t0=t0,
-                        states_hash=states_hash)
+                        states_hash=states_hash, pool=pool)
         return _train_and_write(job, txn)
     raise AssertionError("unreachable")  # pragma: no cover
 
@@ -465,6 +482,7 @@ class _TrainJob:
     background: Any
     t0: float
     states_hash: str | None = None
+    pool: Any = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -478,18 +496,24 @@ class _Results:
     rewards: np.ndarray
     Qs: dict[str, np.ndarray]
     config: Any
+    pngs: dict[str, bytes] = dataclasses.field(default_factory=dict)
+    """Heat maps already drawn by :func:`_train_goals_shared`, by goal."""
 
 
 def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
     """The body of :func:`train` inside its output transaction ``txn`` (None: no outputs)."""
     cfg = job.cfg
-    runs, evaluations = _train_goals(job)
+    pngs: dict[str, bytes] = {}
+    if job.pool is None:
+        runs, evaluations = _train_goals(job)
+    else:
+        runs, evaluations, pngs = _train_goals_shared(job)
     summaries, curve_rows = _goal_summaries(job, runs, evaluations)
     names = job.names
     res = _Results(runs=runs, evaluations=evaluations, summaries=summaries,
                    curve_rows=curve_rows, rewards=np.stack([runs[g].rewards for g in names]),
                    Qs={g: runs[g].Q_runs.mean(axis=0) for g in names},
-                   config=runs[names[0]].config)
+                   config=runs[names[0]].config, pngs=pngs)
     if txn is not None:
         staged = {k: txn.path(v) for k, v in job.files.items()}
         run_meta = dict(seed=cfg.seed, episodes=cfg.episodes, runs=cfg.runs,
@@ -504,37 +528,167 @@ def _train_and_write(job: _TrainJob, txn: Any) -> TrainSummary:
     )  # fmt: skip
 
 
+@dataclasses.dataclass(frozen=True)
+class _GoalWork:
+    """What training, evaluating and drawing one goal needs, and nothing else: the
+    picklable job of a worker process (the config holds the pool, the job its files)."""
+
+    agent: str
+    params: Any
+    episodes: int
+    runs: int
+    seed: int
+    horizon: int
+    episodic: bool
+    m: Any
+    start: Any
+    valid: Any
+    gamma: float
+    heatmap: dict[str, Any] | None = None
+    """:func:`~simlab.training.heatmap.render_q_heatmap` keywords, None: no heat map."""
+
+
+def _goal_work(job: _TrainJob, heatmaps: bool = False) -> _GoalWork:
+    cfg, m = job.cfg, job.m
+    draw = heatmaps and "heatmaps" in job.files  # plots, centres and an output directory
+    heatmap = dict(centres=m.centres, bounds=job.plot_bounds, background=job.background,
+                   action_set=m.action_set, valid=m.valid) if draw else None
+    return _GoalWork(agent=cfg.agent, params=cfg.params, episodes=cfg.episodes, runs=cfg.runs,
+                     seed=cfg.seed, horizon=cfg.horizon, episodic=cfg.task.mode == "episodic",
+                     m=m, start=job.start, valid=job.valid, gamma=job.gamma,
+                     heatmap=heatmap)  # fmt: skip
+
+
+def _train_goal(work: _GoalWork, g: str, on_run_done: Any = None) -> tuple[Any, Any]:
+    """Train and evaluate goal ``g``: (training result, evaluation). Its seed depends on
+    the goal's index only, so any process computes the same numbers."""
+    from simlab.training.harness import evaluate_q, train_runs
+
+    m, valid = work.m, work.valid
+    gi = m.goal_index(g)
+    reward = m.goal_reward(g)
+    terminal = m.goal_mask(g) if work.episodic else None
+    seq = np.random.SeedSequence(work.seed, spawn_key=(gi,))
+    res = train_runs(
+        m.T, reward, work.agent, episodes=work.episodes, runs=work.runs, seed=seq,
+        horizon=work.horizon, start=work.start, overrides=work.params,
+        on_run_done=on_run_done, **_harness_kwargs(train_runs, valid=valid, terminal=terminal),
+    )  # fmt: skip
+    Q_mean = res.Q_runs.mean(axis=0)
+    evaluation = evaluate_q(m.T, reward, np.concatenate([res.Q_runs, Q_mean[None]]),
+                            work.gamma, work.horizon, work.start,
+                            **_harness_kwargs(evaluate_q, valid=valid, terminal=terminal))  # fmt: skip
+    return res, evaluation
+
+
+def _train_and_draw_goal(work: _GoalWork, g: str, on_run_done: Any = None
+                         ) -> tuple[Any, Any, bytes | None]:
+    """:func:`_train_goal` and, when ``work.heatmap``, the goal's heat map as PNG bytes
+    (the unit of work shared with the pool: the driver alone writes files)."""
+    res, evaluation = _train_goal(work, g, on_run_done)
+    png = None
+    if work.heatmap is not None:
+        from simlab.training.heatmap import render_q_heatmap
+
+        kw = dict(work.heatmap)
+        png = render_q_heatmap(kw.pop("centres"), res.Q_runs.mean(axis=0), kw.pop("bounds"),
+                               work.m.goal_mask(g), title=f"{work.agent}: goal {g}", **kw)
+    return res, evaluation, png
+
+
 def _train_goals(job: _TrainJob) -> tuple[dict[str, Any], dict[str, Any]]:
     """Train and evaluate every goal: (runs by goal, evaluations by goal)."""
     from tqdm.auto import tqdm
 
-    from simlab.training.harness import evaluate_q, train_runs
-
-    cfg, m, valid = job.cfg, job.m, job.valid
+    cfg = job.cfg
+    work = _goal_work(job)
     results, evaluations = {}, {}
     bar = tqdm(total=len(job.names) * cfg.runs, disable=not cfg.progress,
                desc=f"train {cfg.agent}", unit="run")
     try:
         for g in job.names:
-            gi = m.goal_index(g)
-            reward = m.goal_reward(g)
-            terminal = m.goal_mask(g) if cfg.task.mode == "episodic" else None
-            seq = np.random.SeedSequence(cfg.seed, spawn_key=(gi,))
-            res = train_runs(
-                m.T, reward, cfg.agent, episodes=cfg.episodes, runs=cfg.runs, seed=seq,
-                horizon=cfg.horizon, start=job.start, overrides=cfg.params,
-                on_run_done=lambda: bar.update(1),
-                **_harness_kwargs(train_runs, valid=valid, terminal=terminal),
-            )  # fmt: skip
-            results[g] = res
-            Q_mean = res.Q_runs.mean(axis=0)
-            evaluations[g] = evaluate_q(m.T, reward, np.concatenate([res.Q_runs, Q_mean[None]]),
-                                        job.gamma, cfg.horizon, job.start,
-                                        **_harness_kwargs(evaluate_q, valid=valid,
-                                                          terminal=terminal))  # fmt: skip
+            results[g], evaluations[g] = _train_goal(work, g, lambda: bar.update(1))
     finally:
         bar.close()
     return results, evaluations
+
+
+class _SharedGoals:
+    """Goals shared between this process, which takes them from the first, and a pool, fed
+    from the last one at a time per worker (a goal handed over when a worker's previous
+    one ends): neither side claims work it has not started, so the two meet wherever their
+    speeds make them, without a guess of how warm the worker is."""
+
+    def __init__(self, pool: Any, work: _GoalWork, names: list[str], on_done: Any) -> None:
+        import collections
+        import threading
+
+        self._pool, self._work, self._on_done = pool, work, on_done
+        self._todo = collections.deque(names)
+        self._lock = threading.Lock()  # this thread and the pool's callback thread
+        self.futures: dict[str, Any] = {}
+
+    def take_first(self) -> str | None:
+        """The next goal for this process (None: none left)."""
+        with self._lock:
+            return self._todo.popleft() if self._todo else None
+
+    def feed(self, finished: Any = None) -> None:
+        """Hand the last goal left to the pool (also the done-callback of each of its
+        goals, so a worker gets its next goal when it ends one)."""
+        if finished is not None and not finished.cancelled():
+            self._on_done()
+        with self._lock:
+            if not self._todo:
+                return
+            g = self._todo.pop()
+            future = self.futures[g] = self._pool.submit(_train_and_draw_goal, self._work, g)
+        future.add_done_callback(self.feed)
+
+    def handed_over(self) -> dict[str, Any]:
+        """Once this process is out of goals: the pool's, by goal (no more will come)."""
+        with self._lock:
+            self._todo.clear()
+            return dict(self.futures)
+
+
+def _train_goals_shared(job: _TrainJob
+                        ) -> tuple[dict[str, Any], dict[str, Any], dict[str, bytes]]:
+    """:func:`_train_goals` with ``job.pool``: (runs, evaluations, heat-map PNGs by goal).
+
+    A goal (training, evaluation and heat map) is the unit shared with the pool
+    (:class:`_SharedGoals`); a goal the pool has not started when this process is out of
+    work is taken back (``cancel``). Results do not depend on where a goal ran (its seed
+    is its own).
+    """
+    from tqdm.auto import tqdm
+
+    cfg, names = job.cfg, job.names
+    bar = tqdm(total=len(names) * cfg.runs, disable=not cfg.progress,
+               desc=f"train {cfg.agent}", unit="run")
+    work = _goal_work(job, heatmaps=True)
+    shared = _SharedGoals(job.pool, work, list(names), lambda: bar.update(cfg.runs))
+    futures: dict[str, Any] = {}
+    try:
+        # ProcessPoolExecutor's worker count (private; other executors: one at a time)
+        for _ in range(getattr(job.pool, "_max_workers", 1)):
+            shared.feed()
+        done = {}
+        while (g := shared.take_first()) is not None:
+            done[g] = _train_and_draw_goal(work, g, lambda: bar.update(1))
+        futures = shared.handed_over()
+        for g, future in futures.items():
+            if future.cancel():  # not started: the pool is busy elsewhere
+                done[g] = _train_and_draw_goal(work, g, lambda: bar.update(1))
+        for g, future in futures.items():
+            if g not in done:
+                done[g] = future.result()
+    finally:
+        for future in shared.handed_over().values():
+            future.cancel()
+        bar.close()
+    return ({g: done[g][0] for g in names}, {g: done[g][1] for g in names},
+            {g: done[g][2] for g in names if done[g][2] is not None})
 
 
 def _goal_summaries(job: _TrainJob, results: dict[str, Any], evaluations: dict[str, Any]
@@ -626,23 +780,48 @@ def _write_outputs(job: _TrainJob, res: _Results, files: dict[str, Path],
 
 
 def _write_figures(job: _TrainJob, res: _Results, files: dict[str, Path], runs: int) -> None:
-    """The learning curves and, with centres, the Q heat maps."""
-    from simlab.training.curves import save_learning_curves
+    """The learning curves and, with centres, the Q heat maps.
 
-    m, names, agent = job.m, job.names, job.cfg.agent
+    With ``job.pool`` the pool draws the curves (unless it has not started them when this
+    process is done with the grid) while this process draws the grid; the per-goal heat
+    maps come ready from :func:`_train_goals_shared` (``res.pngs``).
+    """
+    from simlab.training.curves import render_learning_curves, save_learning_curves
+
+    m, agent = job.m, job.cfg.agent
     panels = [(f"{s.goal}: final {s.final_mean_reward:.1f} / optimal {s.optimal_return:.1f}",
                {agent: res.runs[s.goal].rewards}, s.optimal_return) for s in res.summaries]  # fmt: skip
-    save_learning_curves(
-        files["curves_png"],
-        panels,
-        suptitle=f"{agent}, {runs} runs, mean and std per block",
-    )
-    if m.centres is None:
-        return
+    suptitle = f"{agent}, {runs} runs, mean and std per block"
+    curves = None
+    if job.pool is None:
+        save_learning_curves(files["curves_png"], panels, suptitle=suptitle)
+    else:
+        curves = job.pool.submit(render_learning_curves, panels, suptitle=suptitle)
+    if m.centres is not None:
+        _write_heatmaps(job, res, files)
+    if curves is not None and curves.cancel():  # the pool is busy elsewhere: draw it here
+        save_learning_curves(files["curves_png"], panels, suptitle=suptitle)
+    elif curves is not None:
+        _write_bytes(files["curves_png"], curves.result())
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    from simlab.io import atomic_write
+
+    with atomic_write(path, "wb") as fh:
+        fh.write(data)
+
+
+def _write_heatmaps(job: _TrainJob, res: _Results, files: dict[str, Path]) -> None:
+    """The per-goal heat maps (drawn here unless ``res.pngs`` has them) and the grid."""
     from simlab.training.heatmap import save_heatmap_grid, save_q_heatmap
 
+    m, names, agent = job.m, job.names, job.cfg.agent
     masks = [m.goal_mask(g) for g in names]
     for g, mask in zip(names, masks, strict=True):
+        if g in res.pngs:
+            _write_bytes(files[f"heatmap_{g}"], res.pngs[g])
+            continue
         save_q_heatmap(files[f"heatmap_{g}"], m.centres, res.Qs[g], job.plot_bounds, mask,
                        background=job.background, title=f"{agent}: goal {g}",
                        action_set=m.action_set, valid=m.valid)  # fmt: skip
