@@ -300,7 +300,7 @@ class PhysicsChain:
             res = train(parent.path / "mdp.npz", agent=s.agent, goals="all",
                         episodes=s.episodes, runs=s.runs, seed=seed, out=d, horizon=s.horizon,
                         arena=s.arena, occupancy_map=occupancy, overwrite=True,
-                        progress=self.progress)
+                        progress=self.progress, pool=self.worker)
             return {"goals": {g.goal: g.as_dict() for g in res.goals},
                     "train_seconds": res.seconds}
 
