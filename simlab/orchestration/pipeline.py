@@ -204,10 +204,11 @@ def _run_stages(out: Path, chain: PhysicsChain, s: PhysicsSettings, seed: int,
         if name == "train":
             _await_warmup(warm, state, say)
             chain.worker = warm.worker
-        if name == "replay" and chain.worker is not None:
-            # the report's visits figure needs only the walk: the lent worker draws it
-            # once it has run the replay's baseline, while the learned run goes on here
-            visits = chain.worker.submit(_visits_figure, out)
+            if chain.worker is not None:
+                # the report's visits figure needs only the walk: the lent worker draws it
+                # first (the training takes back the goals it cannot start meanwhile), so
+                # that it is idle again when the replay counts the idle cores
+                visits = chain.worker.submit(_visits_figure, out)
         stage = build[name]()
         _link(out / link, stage.path)
         record = {**stage.summary, "folder": link, "built": stage.built,
