@@ -40,10 +40,18 @@ def test_a_second_writer_on_a_locked_out_stops_at_once(command: str, work: Path,
     assert tree_hashes(work) == before
 
 
+def _default_sigint() -> None:
+    # A shell's background job ignores SIGINT, and a child inherits an ignored signal
+    # (CI started with `cmd &` did: the Ctrl-C test then trained on for ever). The child
+    # gets the default disposition back, so Python installs its KeyboardInterrupt handler.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _simlab(*args: str, cwd: Path) -> subprocess.Popen[str]:
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     return subprocess.Popen([sys.executable, "-m", "simlab", *args], cwd=cwd, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_sigint)
 
 
 def _wait_for(predicate, what: str, limit: float = 120.0) -> None:
@@ -108,7 +116,11 @@ def test_ctrl_c_during_train_is_130_and_leaves_no_output(work: Path) -> None:
                    "--runs", "4", "--out", str(work / "t"), cwd=work)
     _wait_for(lambda: (work / "t").exists(), "train to start")  # the lock is taken
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate()
+    try:
+        _, err = proc.communicate(timeout=300)  # a hang guard, not a speed check
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError("simlab train ignored Ctrl-C for 300 s") from None
     assert proc.returncode == 130, (proc.returncode, err)
     assert "simlab train: interrupted" in err and "Traceback" not in err
     assert not (work / "t").exists()
