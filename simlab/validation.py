@@ -107,6 +107,16 @@ def boolean(value: Any, key: str, *, path: Where = None) -> bool:
     raise ConfigError(f"expected true or false, got {value!r}", key=key, path=path)
 
 
+def executor(value: Any, key: str = "pool") -> Any:
+    """None or an executor (anything with ``submit``, e.g. a ``concurrent.futures`` pool):
+    a Python-only option, which a TOML file cannot give."""
+    if value is None or callable(getattr(value, "submit", None)):
+        return value
+    raise ConfigError(f"expected a process executor from Python, got {value!r}", key=key,
+                      fix=f"remove {key!r} from the options file (Python callers pass e.g. "
+                          "simlab.parallel.spawn_worker())")
+
+
 def choice(value: Any, allowed: Iterable[str], key: str, *, path: Where = None) -> str:
     """One of ``allowed`` (exact, case-sensitive)."""
     allowed = tuple(allowed)

@@ -92,6 +92,7 @@ class ReplayConfig(CommandConfig):
         v.number(self.escape_radius, "escape_radius", low=0.0)
         v.probability(self.epsilon, "epsilon")
         v.whole(self.max_frames, "max_frames", minimum=1)
+        v.executor(self.pool)
         if self.qtables is None and self.policy == "greedy":
             raise ConfigError("a greedy replay needs Q-tables", key="qtables",
                               fix="pass --qtables DIR (the output of `simlab train`) or "

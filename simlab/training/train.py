@@ -339,6 +339,7 @@ class TrainConfig(CommandConfig):
         v.whole(self.seed, "seed")
         v.whole(self.horizon, "horizon", minimum=1)
         v.whole(self.workers, "workers", minimum=1)
+        v.executor(self.pool)
         if self.pool is not None and self.workers != 1:
             raise ConfigError("give either a pool or workers", key="workers")
         if self.bounds is not None and len(self.bounds) != 4:

@@ -126,3 +126,15 @@ def test_pool_is_python_only_and_excludes_workers(small_mdp_file, tmp_path, caps
         main(["train", "--mdp", str(small_mdp_file), "--out", str(tmp_path / "o"),
               "--pool", "x"])  # fmt: skip
     assert "--pool" in capsys.readouterr().err
+    # nor can an options file give one: a clear error naming the file and the key
+    from simlab.replay.config import ReplayConfig
+    from simlab.training.train import TrainConfig
+
+    toml = tmp_path / "train.toml"
+    toml.write_text(f'mdp = "{small_mdp_file.as_posix()}"\npool = "x"\n')
+    replay_options = {"arena": "table", "states": "s.json", "pool": "x"}
+    for build in (lambda: TrainConfig.from_toml(toml),
+                  lambda: ReplayConfig.from_mapping(replay_options, path=toml)):
+        with pytest.raises(ConfigError, match="executor from Python") as err:
+            build()
+        assert err.value.key == "pool" and str(toml) in str(err.value)
