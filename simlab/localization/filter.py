@@ -53,7 +53,7 @@ from simlab.errors import ConfigError
 from simlab.localization.likelihood import (
     LikelihoodField,
     SensorModelParams,
-    _scan_kernel,
+    beam_log_likelihoods,
     yaw_trig,
 )
 from simlab.localization.motion import (
@@ -286,8 +286,8 @@ def _weigh(particles, weights, ranges, angles, beams, offset, table, geometry, r
     sample size, estimate); with no beam ``out`` is untouched and the rest is zeros."""
     loglik = np.empty(particles.shape[0])
     cos_yaw, sin_yaw = yaw_trig(particles)
-    k = _scan_kernel(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table,
-                     geometry, loglik)
+    k = beam_log_likelihoods(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset,
+                             table, geometry, loglik)
     if k == 0:
         return 0, 0.0, 0.0, np.zeros(3)
     total, ess = _reweight(weights, loglik, out)

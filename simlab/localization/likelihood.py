@@ -207,8 +207,8 @@ def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x,
 
 
 @numba.njit(cache=True)
-def _scan_kernel(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table, geometry,
-                 out):  # pragma: no cover - compiled
+def beam_log_likelihoods(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table,
+                         geometry, out):  # pragma: no cover - compiled
     """:func:`scan_log_likelihoods` of the beams ``beams`` of a scan, with no numpy glue
     (issue 17): the beams with a return are picked, and their cos/sin taken, here, in the
     order the numpy path keeps them. ``cos_yaw``, ``sin_yaw``: :func:`yaw_trig` of the
