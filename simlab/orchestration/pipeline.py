@@ -34,7 +34,7 @@ from typing import Any
 
 from simlab import validation
 from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, exclusive_directory
+from simlab.io import atomic_write_bytes, atomic_write_json, exclusive_directory
 from simlab.localization.sources import POSE_SOURCES
 from simlab.options import CommandConfig, command, option
 from simlab.orchestration.report import train_ratios
@@ -253,8 +253,7 @@ def _visits_figure(out: Path) -> None:
     visits = visits_from_dataset(out / "dataset" / "data", disc.n_states)
     png = render_states_png(read_map(out / "map" / "map.yaml"), disc, visits,
                             title=f"{disc.n_states} states, visits of the random walk")
-    with atomic_write(out / "figures" / "states_visits.png", "wb") as fh:
-        fh.write(png)
+    atomic_write_bytes(out / "figures" / "states_visits.png", png)
 
 
 def _headline(name: str, r: dict[str, Any], s: PhysicsSettings) -> str:

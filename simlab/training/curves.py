@@ -80,12 +80,12 @@ def render_learning_curves(
 ) -> bytes:
     """The PNG bytes of :func:`save_learning_curves`'s figure (a worker process can draw
     it while this process does other work)."""
-    import io
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from simlab.training.heatmap import figure_png
 
     n = len(panels)
     cols = min(3, n)
@@ -100,10 +100,7 @@ def render_learning_curves(
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig)
 
 
 def save_learning_curves(
@@ -117,8 +114,7 @@ def save_learning_curves(
 
     Written atomically (temporary file then rename); the caller checks overwrite.
     """
-    from simlab.io import atomic_write
+    from simlab.io import atomic_write_bytes
 
-    png = render_learning_curves(panels, n_points=n_points, suptitle=suptitle)
-    with atomic_write(path, "wb") as fh:
-        fh.write(png)
+    atomic_write_bytes(path, render_learning_curves(panels, n_points=n_points,
+                                                    suptitle=suptitle))

@@ -25,11 +25,13 @@ from scipy.spatial import cKDTree
 
 from simlab.actions import SIMLAB16, ActionSet
 from simlab.errors import ConfigError
+from simlab.io import atomic_write_bytes
 
 __all__ = [
     "ARROW_DIRECTIONS",
     "arrow_vectors",
     "bounds_from_centres",
+    "figure_png",
     "masked_q",
     "plot_q_heatmap",
     "rasterize_cells",
@@ -216,9 +218,10 @@ def plot_q_heatmap(
     return img
 
 
-def _png(fig) -> bytes:
-    """The PNG bytes of ``fig`` (then closed): rendering is separate from writing so a
-    worker process can draw a figure that this process writes (:func:`simlab.training.train`)."""
+def figure_png(fig) -> bytes:
+    """The PNG bytes (110 dpi) of ``fig``, then closed: rendering is separate from writing
+    so a worker process can draw a figure that this process writes
+    (:func:`simlab.training.train`)."""
     import io
 
     import matplotlib.pyplot as plt
@@ -227,13 +230,6 @@ def _png(fig) -> bytes:
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
     return buf.getvalue()
-
-
-def _write_png(path: str | os.PathLike[str], png: bytes) -> None:
-    from simlab.io import atomic_write
-
-    with atomic_write(path, "wb") as fh:
-        fh.write(png)
 
 
 def render_q_heatmap(
@@ -252,7 +248,7 @@ def render_q_heatmap(
     fig, ax = plt.subplots(figsize=(5.2, 4.6))
     plot_q_heatmap(ax, centres, Q, bounds, goal_mask, **kwargs)
     fig.tight_layout()
-    return _png(fig)
+    return figure_png(fig)
 
 
 def save_q_heatmap(
@@ -264,7 +260,7 @@ def save_q_heatmap(
     **kwargs: Any,
 ) -> None:
     """Save one heat map as a PNG (atomic write; the caller checks overwrite)."""
-    _write_png(path, render_q_heatmap(centres, Q, bounds, goal_mask, **kwargs))
+    atomic_write_bytes(path, render_q_heatmap(centres, Q, bounds, goal_mask, **kwargs))
 
 
 def save_heatmap_grid(
@@ -311,4 +307,4 @@ def save_heatmap_grid(
     fig.colorbar(img, cax=cax, label="max_a Q(s, a)")
     if suptitle:
         fig.suptitle(suptitle, fontsize=10)
-    _write_png(path, _png(fig))
+    atomic_write_bytes(path, figure_png(fig))

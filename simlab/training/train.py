@@ -69,7 +69,7 @@ import numpy as np
 from simlab import validation as v
 from simlab.data.goals import state_goal_name
 from simlab.errors import ConfigError
-from simlab.io import atomic_write_json, output_transaction
+from simlab.io import atomic_write_bytes, atomic_write_json, output_transaction
 from simlab.options import CommandConfig, command, option
 
 __all__ = ["TASK_MODES", "GoalSummary", "TrainConfig", "TrainSummary", "TrainTask", "resolve_goals", "train"]
@@ -803,14 +803,7 @@ def _write_figures(job: _TrainJob, res: _Results, files: dict[str, Path], runs: 
     if curves is not None and curves.cancel():  # the pool is busy elsewhere: draw it here
         save_learning_curves(files["curves_png"], panels, suptitle=suptitle)
     elif curves is not None:
-        _write_bytes(files["curves_png"], curves.result())
-
-
-def _write_bytes(path: Path, data: bytes) -> None:
-    from simlab.io import atomic_write
-
-    with atomic_write(path, "wb") as fh:
-        fh.write(data)
+        atomic_write_bytes(files["curves_png"], curves.result())
 
 
 def _write_heatmaps(job: _TrainJob, res: _Results, files: dict[str, Path]) -> None:
@@ -821,7 +814,7 @@ def _write_heatmaps(job: _TrainJob, res: _Results, files: dict[str, Path]) -> No
     masks = [m.goal_mask(g) for g in names]
     for g, mask in zip(names, masks, strict=True):
         if g in res.pngs:
-            _write_bytes(files[f"heatmap_{g}"], res.pngs[g])
+            atomic_write_bytes(files[f"heatmap_{g}"], res.pngs[g])
             continue
         save_q_heatmap(files[f"heatmap_{g}"], m.centres, res.Qs[g], job.plot_bounds, mask,
                        background=job.background, title=f"{agent}: goal {g}",
