@@ -69,18 +69,27 @@ def exit_with_parent(parent_pid: int, interval: float = PARENT_POLL_SECONDS) -> 
                      name="simlab-parent-watchdog").start()
 
 
-def worker_pool(processes: int) -> cf.ProcessPoolExecutor:
+class WorkerPool(cf.ProcessPoolExecutor):
+    """The executor :func:`worker_pool` returns: a ``ProcessPoolExecutor`` that says how many
+    processes it has (:attr:`processes`), for callers that feed it one job per process
+    (``simlab train``'s goals) instead of reading the executor's private count."""
+
+    def __init__(self, processes: int, **kwargs: Any) -> None:
+        super().__init__(max_workers=processes, **kwargs)
+        self.processes = int(processes)
+
+
+def worker_pool(processes: int) -> WorkerPool:
     """A pool of ``processes`` local worker processes: ``spawn`` context (no PyBullet
     client, thread or lock of the parent inherited), each exiting with this process
     (:func:`exit_with_parent`). The caller shuts it down."""
     import multiprocessing
 
-    return cf.ProcessPoolExecutor(max_workers=processes,
-                                  mp_context=multiprocessing.get_context("spawn"),
-                                  initializer=exit_with_parent, initargs=(os.getpid(),))
+    return WorkerPool(processes, mp_context=multiprocessing.get_context("spawn"),
+                      initializer=exit_with_parent, initargs=(os.getpid(),))
 
 
-def spawn_worker() -> cf.ProcessPoolExecutor:
+def spawn_worker() -> WorkerPool:
     """A single fresh worker process (:func:`worker_pool` of one): for work that must run
     outside this process (its own PyBullet client, its own numba threads)."""
     return worker_pool(1)

@@ -331,7 +331,8 @@ class TrainConfig(CommandConfig):
                           "starts N-1 worker processes)")
     pool: Any | None = option(
         None, "a concurrent.futures process executor (e.g. simlab.parallel.spawn_worker()) "
-        "whose workers train and draw part of the goals; the caller owns it", cli=False)
+        "whose workers train and draw part of the goals; the caller owns it (a simlab "
+        "WorkerPool gets a goal per process at a time, any other executor one)", cli=False)
 
     def validate(self) -> None:
         v.whole(self.episodes, "episodes", minimum=1)
@@ -671,8 +672,9 @@ def _train_goals_shared(job: _TrainJob
     shared = _SharedGoals(job.pool, work, list(names), lambda: bar.update(cfg.runs))
     futures: dict[str, Any] = {}
     try:
-        # ProcessPoolExecutor's worker count (private; other executors: one at a time)
-        for _ in range(getattr(job.pool, "_max_workers", 1)):
+        # one goal per process of a simlab pool (simlab.parallel.WorkerPool); any other
+        # executor is fed one goal at a time
+        for _ in range(getattr(job.pool, "processes", 1)):
             shared.feed()
         done = {}
         while (g := shared.take_first()) is not None:

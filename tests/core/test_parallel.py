@@ -52,12 +52,12 @@ def test_pool_workers_are_other_processes_and_single_worker_spawns() -> None:
     pool = spawn_worker()
     try:
         assert pool.submit(_pid).result() != os.getpid()
-        assert pool._max_workers == 1
+        assert pool._max_workers == pool.processes == 1
     finally:
         pool.shutdown()
     pool = worker_pool(3)
     try:
-        assert pool._max_workers == 3
+        assert pool._max_workers == pool.processes == 3
         assert pool._mp_context.get_start_method() == "spawn"
     finally:
         pool.shutdown()
