@@ -117,10 +117,15 @@ class LikelihoodField:
         self.log_table = self.params.log_density(self.distance)
         self.log_table.setflags(write=False)
         ox, oy, yaw = grid.origin
-        self._geometry = (float(ox), float(oy), math.cos(yaw), math.sin(yaw),
-                          1.0 / grid.resolution)
-        #: ``_geometry`` and the outside score as one array (one argument of a kernel)
-        self.geometry = np.array([*self._geometry, self.params.outside_log_density])
+        self.geometry = np.array([ox, oy, math.cos(yaw), math.sin(yaw), 1.0 / grid.resolution,
+                                  self.params.outside_log_density], dtype=np.float64)
+
+    @property
+    def frame(self) -> tuple[float, float, float, float, float]:
+        """The first five :attr:`geometry` values as Python floats (origin x, y, cos and sin
+        of the yaw, 1 / resolution): the arguments of the per-call kernels."""
+        ox, oy, cm, sm, inv_res = (float(v) for v in self.geometry[:5])
+        return ox, oy, cm, sm, inv_res
 
     def log_likelihoods(self, particles: NDArray[np.float64], ranges: NDArray[np.float64],
                         angles: NDArray[np.float64],
@@ -244,7 +249,7 @@ def scan_log_likelihoods(field: LikelihoodField, particles: NDArray[np.float64],
     r, a = _finite_beams(ranges, angles)
     p = np.ascontiguousarray(particles, dtype=np.float64)
     out = np.empty(p.shape[0], dtype=np.float64)
-    ox, oy, cm, sm, inv_res = field._geometry
+    ox, oy, cm, sm, inv_res = field.frame
     return _field_kernel(p, r, np.cos(a), np.sin(a), float(sensor_offset[0]),
                          float(sensor_offset[1]), field.log_table, ox, oy, cm, sm, inv_res,
                          field.params.outside_log_density, out)
@@ -262,7 +267,7 @@ def scan_log_likelihoods_numpy(field: LikelihoodField, particles: NDArray[np.flo
     ca, sa = np.cos(a)[None, :], np.sin(a)[None, :]
     ex = sx + r[None, :] * (c * ca - s * sa)
     ey = sy + r[None, :] * (s * ca + c * sa)
-    ox, oy, cm, sm, inv_res = field._geometry
+    ox, oy, cm, sm, inv_res = field.frame
     dx, dy = ex - ox, ey - oy
     mx = cm * dx + sm * dy
     my = -sm * dx + cm * dy
