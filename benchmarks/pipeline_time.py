@@ -24,6 +24,13 @@ The numba compile time of the run (``numba:compile`` events of this process; com
 in worker processes are not seen) is printed separately, as is the load average before
 and after (the machine may be shared: compare runs made one after the other).
 
+Then the lower bounds no schedule of this run's work can beat on this machine: all its CPU
+seconds / cores, and every physics stage exactly at its floor plus the stages without
+physics as measured (and the same at 1.3x every floor). ``--before SECONDS`` (the old
+code's wall time, measured one after the other) prints this run / before and the bounds in
+the same unit, so a target such as "0.5 x before" can be checked against what the work
+itself allows.
+
 ``--profile FILE`` runs the pipeline under :mod:`cProfile` (this process only: the map, the
 in-process replay runs and the stages' writing; the dataset's workers are not seen), writes
 the statistics to ``FILE`` (read them with :mod:`pstats`) and prints the functions with the
@@ -31,7 +38,7 @@ most own time. The profiler slows Python-heavy code more than the physics: use i
 where the non-physics time goes, not for the ratios.
 
     python benchmarks/pipeline_time.py [--quick] [--out DIR] [--bare-seconds 30]
-                                       [--profile FILE]
+                                       [--before SECONDS] [--profile FILE]
 """
 
 from __future__ import annotations
@@ -176,6 +183,27 @@ def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, tuple[float,
     PhysicsChain.cached_stage = cached_stage  # type: ignore[method-assign]
 
 
+def print_bounds(total: float, cpu_run: float, cores: int, floors: float, others: float,
+                 before: float | None) -> None:
+    """What no schedule of this run's work can beat on this machine, and the issue's
+    targets against it (``before``: the old code's wall time, measured one after the other).
+
+    * CPU bound: all the run's CPU seconds (every process; probes excluded) / cores;
+    * floor bound: every physics stage exactly at its physics floor, plus the wall time of
+      the stages without physics and of the report, as measured (``others``);
+    * the same with every physics stage at the allowed 1.3x its floor.
+    """
+    print(f"lower bounds: all CPU {cpu_run:.1f} s / {cores} cores = {cpu_run / cores:.1f} s; "
+          f"physics floors {floors:.1f} s + stages without physics and report {others:.1f} s "
+          f"= {floors + others:.1f} s; at 1.3x every floor {1.3 * floors + others:.1f} s; "
+          f"this run {total:.1f} s")
+    if before:
+        print(f"before {before:.1f} s: this run / before = {total / before:.2f}; a target of "
+              f"0.5 x before = {0.5 * before:.1f} s against the bounds above: CPU "
+              f"{cpu_run / cores / before:.2f}, floors {(floors + others) / before:.2f}, "
+              f"1.3x floors {(1.3 * floors + others) / before:.2f} (x before)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a small budget (minutes, not hours)")
@@ -184,6 +212,10 @@ def main() -> None:
     ap.add_argument("--bare-seconds", type=float, default=30.0,
                     help="simulated seconds of each bare-stepping measurement (3 per probe)")
     ap.add_argument("--seed", type=int, default=0, help="root seed of the pipeline")
+    ap.add_argument("--before", type=float, default=None, metavar="SECONDS",
+                    help="wall time of the code before the change under test, measured one "
+                         "after the other on this machine: prints this run / before and what "
+                         "the bounds below allow")
     ap.add_argument("--profile", default=None, metavar="FILE",
                     help="run the pipeline under cProfile and write its statistics here "
                          "(default: no profile)")
@@ -196,14 +228,15 @@ def main() -> None:
     settings = QUICK if args.quick else {}
     cpu: dict[str, float] = {}
     rates: dict[str, Any] = {}
-    probing = [0.0]
+    probing = [0.0, 0.0]  # wall, CPU seconds of the probes
 
     def probe() -> tuple[float, float]:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         try:
             return bare_rate(args.arena, args.bare_seconds)
         finally:
             probing[0] += time.perf_counter() - t
+            probing[1] += time.process_time() - c
 
     run_rates = [probe()]
     with tempfile.TemporaryDirectory() as tmp:
@@ -215,7 +248,8 @@ def main() -> None:
         def log(msg: str) -> None:
             lines.append(f"{time.perf_counter() - t0:8.1f} s  {msg}")
 
-        probing[0] = 0.0
+        probing[0] = probing[1] = 0.0
+        cpu0 = _cpu()
         with CompileTimer() as ct:
             if args.profile:
                 import cProfile
@@ -227,6 +261,7 @@ def main() -> None:
             else:
                 pipeline(args.arena, out, seed=args.seed, progress=False, log=log, **settings)
         total = time.perf_counter() - t0 - probing[0]
+        cpu_run = _cpu() - cpu0 - probing[1]
         run_rates.append(probe())
         rec = json.loads((out / "pipeline.json").read_text())
         stepped = stepped_seconds(out)
@@ -242,7 +277,7 @@ def main() -> None:
     print(f"budget: {'--quick ' + json.dumps(QUICK) if args.quick else 'defaults'}")
     print(f"{'stage':<8} {'wall s':>8} {'stepped s':>10} {'worlds':>6} {'bare x':>7} "
           f"{'floor s':>8} {'wall/floor':>10} {'CPU s':>8} {'CPU/physics':>11}")
-    floor_total = cpu_total = 0.0
+    floor_total = cpu_total = other_wall = 0.0
     for name, r in rec["stages"].items():
         sec, worlds = stepped.get(name, (0.0, 1))
         wall = float(r["wall_seconds"])
@@ -251,6 +286,7 @@ def main() -> None:
         cpu_rate = (pair[0][1] + pair[1][1]) / 2 if pair[0] else run_rates[0][1]
         floor = sec / rate / min(cores, worlds) if sec else 0.0
         floor_total += floor
+        other_wall += 0.0 if sec else wall
         ratio = f"{wall / floor:10.2f}" if floor else f"{'-':>10}"
         c = cpu.get(name, float("nan"))
         cpu_total += c
@@ -264,6 +300,8 @@ def main() -> None:
     print(f"pipeline: done in {total:.1f} s without the {probing[0]:.1f} s of probes "
           f"(stages + report {total - stages_wall:.1f} s); whole / physics floor = "
           f"{total / floor_total:.2f}")
+    print_bounds(total, cpu_run, cores, floor_total, other_wall + total - stages_wall,
+                 args.before)
     try:
         from simlab.replay.scheduling import shares_per_session
 
