@@ -275,7 +275,9 @@ class PrimitiveResult:
     farther surfaces read ``inf``). ``stop_reason`` says why the translation ended:
     ``"blocked"`` (never started), ``"fixed"`` (``drive_time`` elapsed), or in
     ``until_state_change`` mode ``"state_change"``, ``"detector"`` (blocked while driving)
-    or ``"timeout"``; ``drive_duration`` is the time driven (s).
+    or ``"timeout"``; ``drive_duration`` is the time driven (s). ``pose_turned`` is the
+    true pose after the rotation (before the check and the drive): the turn in place moves
+    the centre by a few mm, which is the turn's error, not the drive's.
     """
 
     action: int
@@ -289,6 +291,7 @@ class PrimitiveResult:
     scan: LidarScan
     stop_reason: str = "fixed"
     drive_duration: float = 0.0
+    pose_turned: NDArray[np.float64] | None = None
 
 
 #: Speeds below which the robot counts as at rest (m/s, rad/s).
@@ -544,6 +547,7 @@ def execute_primitive(
 
     # 1. Rotate.
     heading_error = _rotate(world, stepper, p, target, heading, noise)
+    pose_turned = world.pose()
 
     # 2. Obstacle check on the corridor of a nominal drive.
     v = p.speed_of(action)
@@ -591,4 +595,5 @@ def execute_primitive(
         scan=scan,
         stop_reason=reason,
         drive_duration=driven,
+        pose_turned=pose_turned,
     )
