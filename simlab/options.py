@@ -115,22 +115,30 @@ class CommandConfig:
     @classmethod
     def from_mapping(cls: type[C], values: Mapping[str, Any], *,
                      path: str | os.PathLike[str] | None = None) -> C:
-        """Build from a mapping of field names (TOML keys may use dashes or underscores);
-        unknown keys and missing required fields name the file and the key."""
+        """Build from a mapping of field names or long option names (``--id`` of a field
+        ``dataset_id``: key ``id``; dashes or underscores); unknown keys, a field given
+        twice and missing required fields name the file and the key."""
         known = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        alias = {f.metadata["flag"].replace("-", "_"): f.name for f in known.values()
+                 if f.metadata.get("flag")}
         kwargs: dict[str, Any] = {}
         for key, value in values.items():
             name = key.replace("-", "_")
+            name = name if name in known else alias.get(name, name)
             if name not in known:
                 raise ConfigError(f"unknown option {key!r}", path=path, key=key,
-                                  fix="known options: " + ", ".join(sorted(known)))
+                                  fix="known options: " + ", ".join(sorted({*known, *alias})))
+            if name in kwargs:
+                raise ConfigError(f"option {name!r} given twice (as its field name and as "
+                                  "its option name)", path=path, key=key,
+                                  fix="keep one of the two keys")
             kwargs[name] = value
-        missing = [f.name for f in known.values() if f.name not in kwargs
+        missing = [f for f in known.values() if f.name not in kwargs
                    and f.default is _MISSING and f.default_factory is _MISSING]
         if missing:
-            flags = ", ".join(f"{m} (--{m.replace('_', '-')})" for m in missing)
+            flags = ", ".join(f"{f.name} ({_flag_name(f)})" for f in missing)
             raise ConfigError(f"missing required option(s): {flags}", path=path,
-                              key=missing[0])
+                              key=missing[0].name)
         try:
             return cls(**kwargs)
         except ConfigError as exc:

@@ -83,6 +83,31 @@ def test_bad_toml_names_the_file_and_the_key(tmp_path: Path, text: str, key: str
     assert str(toml) in str(info.value)
 
 
+@dataclass(frozen=True, kw_only=True)
+class FlagConfig(CommandConfig):
+    dataset_id: str = option(help="dataset id", flag="id")
+    episode_length: int = option(10, "steps per episode")
+
+
+def test_a_field_with_its_own_flag_reads_either_key_and_errors_name_the_flag(
+        tmp_path: Path) -> None:
+    parser = argparse.ArgumentParser()
+    FlagConfig.add_arguments(parser)
+    assert FlagConfig.from_args(parser.parse_args(["--id", "a/b-v0"])).dataset_id == "a/b-v0"
+    for key in ("id", "dataset_id", "dataset-id"):
+        assert FlagConfig.from_mapping({key: "x", "episode-length": 3}) == FlagConfig(
+            dataset_id="x", episode_length=3)
+    with pytest.raises(ConfigError, match=r"dataset_id \(--id\)") as info:
+        FlagConfig.from_mapping({"episode_length": 3}, path=tmp_path / "f.toml")
+    assert info.value.key == "dataset_id"
+    with pytest.raises(ConfigError, match="given twice") as info:
+        FlagConfig.from_mapping({"id": "x", "dataset_id": "y"})
+    assert info.value.key == "dataset_id"
+    with pytest.raises(ConfigError, match="unknown option 'ids'") as info:
+        FlagConfig.from_mapping({"ids": "x"})
+    assert "id" in (info.value.fix or "").split(", ")
+
+
 def test_configs_are_frozen_and_replace_validates() -> None:
     cfg = DemoConfig(out="o.npz")
     assert cfg.out == Path("o.npz")  # strings become paths
