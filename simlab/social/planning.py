@@ -12,9 +12,12 @@ their own heading error. Waypoints are the path's turning points.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,10 +28,36 @@ from simlab.social.human import is_free
 _MOVES = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
 
 
-def free_grid(arena: ArenaConfig, clearance: float, step: float,
-              discs: Sequence[tuple[NDArray[np.float64], float]] = ()
-              ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
-    """Free nodes (nx, ny) bool and the node coordinates xs (nx,), ys (ny,) in m."""
+@dataclass(frozen=True)
+class _StaticGrid:
+    """The cache key of :func:`_static_free`: the arena's geometry as :func:`is_free` reads
+    it (centre, size, obstacles, map wall boxes; plain floats, so always hashable), the
+    clearance and the step. ``arena`` rides along for the computation but is left out of
+    the key (an ArenaConfig holds a map's wall array and need not be hashable)."""
+
+    geometry: tuple[Any, ...]
+    clearance: float
+    step: float
+    arena: ArenaConfig = field(compare=False, hash=False, repr=False)
+
+
+def _geometry(arena: ArenaConfig) -> tuple[Any, ...]:
+    obstacles = tuple((ob.kind, float(ob.x), float(ob.y), tuple(float(v) for v in ob.size),
+                       float(ob.yaw), float(ob.radius)) for ob in arena.obstacles)
+    walls = None if arena.map_walls is None else tuple(
+        tuple(float(v) for v in box) for box in arena.map_walls.boxes)
+    return (tuple(float(v) for v in arena.center), tuple(float(v) for v in arena.size),
+            obstacles, walls)
+
+
+@functools.lru_cache(maxsize=16)
+def _static_free(key: _StaticGrid
+                 ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
+    """The arena's free nodes (no discs) and node coordinates, read-only: the same for
+    every GO_TO_HUMAN of a run, so computed once (one :func:`is_free` per node) and
+    kept, keyed by value: an equal arena loaded again hits the entry, a changed one
+    cannot."""
+    arena, clearance, step = key.arena, key.clearance, key.step
     cx, cy = arena.center
     nx, ny = (max(1, math.floor(arena.size[k] / step)) for k in (0, 1))
     xs = cx - arena.size[0] / 2 + (np.arange(nx) + 0.5) * arena.size[0] / nx
@@ -36,11 +65,41 @@ def free_grid(arena: ArenaConfig, clearance: float, step: float,
     free = np.zeros((nx, ny), dtype=bool)
     for i, x in enumerate(xs):
         for j, y in enumerate(ys):
-            ok = is_free(arena, (x, y), clearance)
-            for centre, r in discs:
-                ok = ok and math.hypot(x - centre[0], y - centre[1]) > r + clearance
-            free[i, j] = ok
+            free[i, j] = is_free(arena, (x, y), clearance)
+    for a in (free, xs, ys):
+        a.setflags(write=False)
     return free, xs, ys
+
+
+def _outside_disc(xs: NDArray[np.float64], ys: NDArray[np.float64],
+                  centre: NDArray[np.float64], radius: float, clearance: float
+                  ) -> NDArray[np.bool_]:
+    """Nodes (nx, ny) farther than ``radius + clearance`` (m) from ``centre``.
+
+    ``np.hypot`` (libm) and ``math.hypot`` (Python's own) may round differently in the
+    last bit, so the nodes within a relative 1e-9 of the bound are decided by
+    ``math.hypot``, as the node-by-node grid always did: the same booleans, ties included."""
+    bound = radius + clearance
+    d = np.hypot(xs[:, None] - centre[0], ys[None, :] - centre[1])
+    out = d > bound
+    for i, j in np.argwhere(np.abs(d - bound) <= 1e-9 * max(1.0, abs(bound))):
+        out[i, j] = math.hypot(xs[i] - centre[0], ys[j] - centre[1]) > bound
+    return out
+
+
+def free_grid(arena: ArenaConfig, clearance: float, step: float,
+              discs: Sequence[tuple[NDArray[np.float64], float]] = ()
+              ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
+    """Free nodes (nx, ny) bool and the node coordinates xs (nx,), ys (ny,) in m (fresh
+    arrays: the caller may write them). A node is free when a disc of ``clearance`` m
+    there is (:func:`is_free`) and it is more than ``radius + clearance`` from every disc
+    ``(centre (2,), radius)``. The arena part is cached (:func:`_static_free`)."""
+    key = _StaticGrid(_geometry(arena), float(clearance), float(step), arena)
+    static, xs, ys = _static_free(key)
+    free = static.copy()
+    for centre, r in discs:
+        free &= _outside_disc(xs, ys, centre, r, clearance)
+    return free, xs.copy(), ys.copy()
 
 
 def _nearest_free(free: NDArray[np.bool_], xs: NDArray[np.float64], ys: NDArray[np.float64],
