@@ -307,13 +307,15 @@ def closed_loop_frames(run: ClosedLoopRun, config: ClosedLoopConfig | None = Non
     ``trail`` positions, the robot; the caption gives time, level, action, goals reached."""
     from simlab.physics.arena import load_arena
     from simlab.physics.robot import load_robot_spec
-    from simlab.social.render import closed_loop_frame
+    from simlab.social.render import LoopFrame, LoopScene, closed_loop_frame
 
     cfg = config or ClosedLoopConfig()
     validation.whole(count, "count", minimum=1)
     validation.whole(stride, "stride", minimum=1)
     validation.whole(start, "start", minimum=0)
-    arena, spec = load_arena(cfg.social.arena), load_robot_spec("turtlebot3_burger")
+    scene = LoopScene(load_arena(cfg.social.arena), load_robot_spec("turtlebot3_burger"),
+                      cfg.social.body, cfg.social.perception, pixels_per_metre,
+                      cfg.social.human_body)
     n = run.time.size
     robots = np.vstack([run.start_robot[None], run.robot])
     humans = np.vstack([run.start_human[None], run.human])
@@ -328,10 +330,9 @@ def closed_loop_frames(run: ClosedLoopRun, config: ClosedLoopConfig | None = Non
         act = f" a={int(run.action[k - 1])}" if k else ""
         caption = (f"{run.policy} t={t:7.1f}s level={int(levels[k])}{act} goal={goal} "
                    f"reached={reached}")
-        frames.append(closed_loop_frame(arena, spec, robots[k], humans[k], int(levels[k]),
-                                        goal, caption, cfg.social.body, cfg.social.perception,
-                                        humans[max(0, k - trail):k + 1, :2], pixels_per_metre,
-                                        human_body=cfg.social.human_body))
+        frames.append(closed_loop_frame(LoopFrame(scene, robots[k], humans[k], int(levels[k]),
+                                                  goal, caption,
+                                                  humans[max(0, k - trail):k + 1, :2])))
     return frames
 
 

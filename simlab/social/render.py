@@ -1,6 +1,8 @@
 """Top-down pictures of the social task: the table, the robot and the human's disc with
 its visual and facing fields (issue 18); :func:`closed_loop_frame` draws one frame of the
-closed loop's GIF (:func:`simlab.social.closedloop.write_closed_loop_gif`).
+closed loop's GIF (:func:`simlab.social.closedloop.write_closed_loop_gif`), what it draws
+given as one :class:`LoopFrame` (the run's :class:`LoopScene` and the frame's poses, level,
+goal, caption and trail).
 
 Fields are drawn as wedges of radius ``field_reach`` (m, default the last distance bound:
 beyond it the human is "too far" anyway), clipped to nothing: a field drawn through a wall
@@ -11,16 +13,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab import validation
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.render import TopDown
 from simlab.physics.robot import RobotSpec
 from simlab.social.human import HumanBody
 from simlab.social.perception import SocialPerception
+from simlab.social.task import HUMAN_BODIES
 
 HUMAN = (200, 60, 140)
 ENGAGED = (220, 30, 30)
@@ -80,24 +85,55 @@ def render_social(arena: ArenaConfig, spec: RobotSpec, robot_pose: Sequence[floa
 HEADER_PX = 22
 
 
-def closed_loop_frame(arena: ArenaConfig, spec: RobotSpec, robot_pose: Sequence[float],
-                      human_pose: Sequence[float], level: int, goal: str | None,
-                      caption: str = "", body: HumanBody | None = None,
-                      perception: SocialPerception | None = None,
-                      trail: NDArray[np.float64] | None = None,
-                      pixels_per_metre: float = 200.0, human_body: str = "disc"
-                      ) -> NDArray[np.uint8]:
+@dataclass(frozen=True)
+class LoopScene:
+    """What every frame of one closed-loop run shares: the ``arena`` and the robot
+    ``spec`` drawn, the human's ``body`` and ``perception`` (the fields' angles and
+    reach), the scale ``pixels_per_metre`` and ``human_body`` (``"disc"``, or
+    ``"turtlebot"``: the human drawn as a second robot)."""
+
+    arena: ArenaConfig
+    spec: RobotSpec
+    body: HumanBody = field(default_factory=HumanBody)
+    perception: SocialPerception = field(default_factory=SocialPerception)
+    pixels_per_metre: float = 200.0
+    human_body: str = "disc"
+
+    def __post_init__(self) -> None:
+        validation.positive(self.pixels_per_metre, "LoopScene.pixels_per_metre")
+        validation.choice(self.human_body, HUMAN_BODIES, "LoopScene.human_body")
+
+
+@dataclass(frozen=True, eq=False)
+class LoopFrame:
+    """What one frame of the closed loop draws (:func:`closed_loop_frame`): the run's
+    ``scene``, the ``robot_pose`` and ``human_pose`` (x, y, theta; m, m, rad), the human's
+    social ``level`` (red when engaged, >= 5), the active ``goal`` area highlighted (None:
+    none), the header's ``caption`` and the human's recent path ``trail`` (n, 2) m (None
+    or fewer than 2 points: no trail). Compared by identity (it holds arrays)."""
+
+    scene: LoopScene
+    robot_pose: Sequence[float]
+    human_pose: Sequence[float]
+    level: int
+    goal: str | None
+    caption: str = ""
+    trail: NDArray[np.float64] | None = None
+
+
+def closed_loop_frame(frame: LoopFrame) -> NDArray[np.uint8]:
     """One frame of a closed-loop run: RGB (HEADER_PX + H, W, 3) uint8, a white header
-    with ``caption`` above the arena with the active ``goal`` area highlighted, the
-    human's recent path ``trail`` (n, 2) (m), the human with its visual and facing fields
-    (red disc when engaged; a second robot with ``human_body="turtlebot"``) and the robot."""
-    canvas = TopDown(arena, pixels_per_metre).draw_arena(active_goal=goal)
-    if trail is not None and len(trail) >= 2:
-        canvas.draw_trail(np.asarray(trail, dtype=float)[:, :2], color=HUMAN, thickness=1)
-    draw_human(canvas, human_pose, body or HumanBody(), perception or SocialPerception(),
-               level, robot=spec if human_body == "turtlebot" else None)
-    canvas.draw_robot(robot_pose, spec)
+    with the caption above the arena with the active goal area highlighted, the human's
+    trail, the human with its visual and facing fields and the robot (:class:`LoopFrame`)."""
+    scene = frame.scene
+    canvas = TopDown(scene.arena, scene.pixels_per_metre).draw_arena(active_goal=frame.goal)
+    if frame.trail is not None and len(frame.trail) >= 2:
+        canvas.draw_trail(np.asarray(frame.trail, dtype=float)[:, :2], color=HUMAN,
+                          thickness=1)
+    draw_human(canvas, frame.human_pose, scene.body, scene.perception, frame.level,
+               robot=scene.spec if scene.human_body == "turtlebot" else None)
+    canvas.draw_robot(frame.robot_pose, scene.spec)
     header = np.full((HEADER_PX, canvas.width, 3), 255, dtype=np.uint8)
-    cv2.putText(header, caption, (4, HEADER_PX - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+    cv2.putText(header, frame.caption, (4, HEADER_PX - 7), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
                 (0, 0, 0), 1, cv2.LINE_AA)
     return np.concatenate([header, canvas.image], axis=0)
