@@ -4,7 +4,9 @@ Not a figure of the thesis: its conclusion names it as the next step ("have the 
 deal with a social navigation problem"). The runner calls
 :func:`simlab.social.pipeline.social_pipeline` (train the grid social module, lead the
 simulated human through the table's goal areas, against a uniformly random policy on the
-same seeds) and turns its summary into metrics.
+same seeds) and turns its summary into metrics. The physics walk of the empirical module
+runs its segments on the reproduction's executor (``ctx.executor``), like the other
+experiments' jobs; the data do not depend on it.
 """
 
 from __future__ import annotations
@@ -28,9 +30,12 @@ def closed_loop(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext)
 
     settings = {**params, **budget}
     settings["runs"] = settings.pop("seeds")  # the framework's seeds = closed-loop runs
+    # the walk's segments run on the reproduction's executor (its --workers / --backend),
+    # not on worker processes of their own: a budget's ``workers`` gives way to it
+    settings.pop("workers", None)
     cfg = SocialPipelineConfig.from_mapping(
         {**settings, "out": ctx.out / "run", "seed": int(ctx.root_seed)})
-    res = social_pipeline(cfg)
+    res = social_pipeline(cfg, executor=ctx.executor)
     s = res.summary
     c, r = s["pooled"]["combined"], s["pooled"]["random"]
     metrics = {

@@ -11,9 +11,11 @@ does not fit the CI-small budgets of the existing pipeline and CLI tests that ru
 defaults; the ``social_table_closed_loop`` experiment asks for ``"both"``. ``"empirical"``
 collects a social walk (:func:`simlab.social.walk.social_walk`, seed ``seed``, the walk's
 seed rules, the paper's ``redraw_p`` 0.2, the loop's GO_TO_HUMAN offsets; ``walk_segments``
-independent segments of the ``walk_policy`` behaviour, run by ``workers`` processes: the
-data do not depend on ``workers``), estimates the sparse MDP and plans on it (:func:`simlab.social.empirical.train_empirical`), then runs the
-closed loop with that Q-table on the same seeds as the others.
+independent segments of the ``walk_policy`` behaviour, run by ``workers`` processes, or
+by the ``executor`` a Python caller passes, e.g. ``simlab reproduce``'s: the data do not
+depend on where they ran), estimates the sparse MDP and plans on it
+(:func:`simlab.social.empirical.train_empirical`), then runs the closed loop with that
+Q-table on the same seeds as the others.
 
 :func:`social_pipeline` writes into ``out`` (one output transaction, :mod:`simlab.io`):
 
@@ -73,6 +75,7 @@ from typing import Any
 import numpy as np
 
 from simlab import validation as v
+from simlab.errors import ConfigError
 from simlab.io import atomic_write, atomic_write_json, output_transaction
 from simlab.options import CommandConfig, command, option
 from simlab.social.closedloop import (
@@ -218,8 +221,10 @@ def plot_cumulative(runs: dict[str, list[ClosedLoopRun]], path: Path) -> None:
         fig.savefig(fh, format="png", dpi=100)
 
 
-def train_empirical_module(cfg: SocialPipelineConfig) -> tuple[Any, list[Any], dict[str, Any]]:
-    """The empirical module (module docstring): ``(EmpiricalSocial, walks, figures)``."""
+def train_empirical_module(cfg: SocialPipelineConfig, executor: Any | None = None
+                           ) -> tuple[Any, list[Any], dict[str, Any]]:
+    """The empirical module (module docstring): ``(EmpiricalSocial, walks, figures)``; the
+    walk's segments run on ``executor`` when given (``cfg.workers`` must then be 1)."""
     from simlab.social.empirical import rule_agreement, train_empirical
     from simlab.social.walk import WalkConfig, social_walk
 
@@ -228,12 +233,13 @@ def train_empirical_module(cfg: SocialPipelineConfig) -> tuple[Any, list[Any], d
     per_segment = -(-cfg.walk_steps // cfg.walk_segments)
     walks = social_walk(WalkConfig(steps=per_segment, workers=cfg.walk_segments, seed=cfg.seed,
                                    social=social, policy=cfg.walk_policy),
-                        processes=cfg.workers)
+                        processes=cfg.workers, executor=executor)
     walk_s = time.perf_counter() - start
     emp = train_empirical(walks, redraw_p=social.redraw_p)
     info = {**emp.summary(), "walk_steps": per_segment * cfg.walk_segments,
             "walk_segments": cfg.walk_segments, "walk_policy": cfg.walk_policy,
-            "walk_workers": cfg.workers, "redraw_p": social.redraw_p,
+            "walk_workers": cfg.workers if executor is None else int(executor.workers),
+            "redraw_p": social.redraw_p,
             "walk_simulated_hours": round(sum(w.simulated_hours for w in walks), 6),
             "walk_rewards": int(sum(w.reward.sum() for w in walks)),
             "rule_reward_agreement": round(rule_agreement(walks), 6),
@@ -242,16 +248,22 @@ def train_empirical_module(cfg: SocialPipelineConfig) -> tuple[Any, list[Any], d
     return emp, walks, info
 
 
-@command(SocialPipelineConfig)
-def social_pipeline(cfg: SocialPipelineConfig) -> SocialPipelineResult:
+@command(SocialPipelineConfig, extras=("executor",))
+def social_pipeline(cfg: SocialPipelineConfig, executor: Any | None = None
+                    ) -> SocialPipelineResult:
     """Train the social module(s) (``module``), run the closed loop with each and the random
     baseline for ``runs`` seeds of ``hours`` simulated hours each, write the outputs
     (module docstring).
 
     Takes a :class:`SocialPipelineConfig` or its fields
     (``social_pipeline(out="runs/social", hours=0.25, trials=10000)``). Same seed -> the
-    same runs and summary (apart from the wall-clock figures).
+    same runs and summary (apart from the wall-clock figures and ``walk_workers``), whether
+    the walk ran here, on ``workers`` processes or on ``executor`` (a
+    :mod:`simlab.parallel` executor the caller owns, run-time only: not an option).
     """
+    if executor is not None and cfg.workers != 1:
+        raise ConfigError("give either workers or an executor for the walk", key="workers",
+                          fix="drop workers: the executor's workers run the walk")
     out = Path(cfg.out)
     wanted = {"social_q.npy": "combined" in cfg.policies,
               "social_q_empirical.npy": "empirical" in cfg.policies,
@@ -261,7 +273,8 @@ def social_pipeline(cfg: SocialPipelineConfig) -> SocialPipelineResult:
     with output_transaction(out, finals, overwrite=cfg.overwrite,
                             what="social pipeline output") as txn:
         q, training = train_social(cfg) if "combined" in cfg.policies else (None, {})
-        emp, walks, emp_info = (train_empirical_module(cfg) if "empirical" in cfg.policies
+        emp, walks, emp_info = (train_empirical_module(cfg, executor)
+                                if "empirical" in cfg.policies
                                 else (None, [], None))
         tables = {"combined": q, "empirical": None if emp is None else emp.q, "random": None}
         start = time.perf_counter()

@@ -28,6 +28,8 @@ Decisions (the issue left them open):
   ``simlab collect``, or ``ray``), each job on its own PyBullet world; results come back
   in segment order, so the data do not depend on ``processes`` (a test checks 1 vs 2).
   With ``processes=1`` the segments run one after the other on one world in this process.
+  A caller that already has an executor (``simlab reproduce``'s) passes it as ``executor``:
+  the same jobs run there, no second pool is started.
 * **Behaviour policy** (``policy``, decision): ``"uniform"`` draws each action uniformly
   from the 22 (the first version; one draw of the action stream per decision).
   ``"least-tried"`` seeks coverage: at each decision it picks uniformly among the actions
@@ -57,11 +59,13 @@ import dataclasses
 import hashlib
 import os
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from simlab import validation
+from simlab.errors import ConfigError
 from simlab.physics.motion import N_ACTIONS
 from simlab.social.actions import N_SOCIAL_ACTIONS, SocialAction
 from simlab.social.perception import SOCIAL_DIMS
@@ -212,11 +216,20 @@ def walk_segment(cfg: WalkConfig, index: int) -> SocialWalk:
 
 
 def social_walk(cfg: WalkConfig, *, processes: int = 1, backend: str = "local",
-                address: str | None = None) -> list[SocialWalk]:
+                address: str | None = None, executor: Any | None = None) -> list[SocialWalk]:
     """Run the walk: one :class:`SocialWalk` per segment, in segment order (module
     docstring). ``processes`` > 1 (or ``backend="ray"``) runs the segments as jobs of a
-    :func:`simlab.parallel.make_executor` executor; the result does not depend on it."""
+    :func:`simlab.parallel.make_executor` executor; ``executor`` (a :mod:`simlab.parallel`
+    executor the caller owns and closes, e.g. the one of ``simlab reproduce``) runs them
+    on it instead (``processes`` and ``backend`` must then keep their defaults). The
+    result does not depend on where the segments ran."""
     validation.whole(processes, "processes", minimum=1)
+    jobs = [{"cfg": cfg, "index": i} for i in range(cfg.workers)]
+    if executor is not None:
+        if processes != 1 or backend != "local" or address is not None:
+            raise ConfigError("give either an executor or processes/backend/address",
+                              key="executor")
+        return executor.map(walk_segment, jobs, desc="social walk")
     seqs = np.random.SeedSequence(cfg.seed).spawn(cfg.workers)
     if backend == "local" and (processes == 1 or cfg.workers == 1):
         with SocialTable(cfg.social) as table:
@@ -225,7 +238,7 @@ def social_walk(cfg: WalkConfig, *, processes: int = 1, backend: str = "local",
 
     workers = None if backend == "ray" else min(processes, cfg.workers)
     with make_executor(backend, workers=workers, address=address) as ex:
-        return ex.map(walk_segment, [{"cfg": cfg, "index": i} for i in range(cfg.workers)])
+        return ex.map(walk_segment, jobs)
 
 
 def write_social_dataset(out: str | os.PathLike[str], cfg: WalkConfig, *,
