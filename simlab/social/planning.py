@@ -8,6 +8,10 @@ description: :func:`simlab.social.human.is_free`) and from extra discs (the huma
 diagonal step is refused if either orthogonal neighbour is blocked (no corner cutting).
 The path's moves are the 8 primitive directions, so the primitives follow it exactly up to
 their own heading error. Waypoints are the path's turning points.
+
+The arena's part of the free grid is the same on every call of a run, so it is computed
+once per (arena geometry, clearance, step) and kept (:func:`_static_free`); the discs,
+which move, are applied on top of it with numpy on each call.
 """
 
 from __future__ import annotations
