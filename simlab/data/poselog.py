@@ -37,14 +37,16 @@ ISIR logs). With 16 actions the speed is ``fast`` when the mean translation spee
 
 **States**: from the log's ``cell`` column (option) or the nearest centre of the states
 file. :func:`import_log` writes the dataset with :func:`simlab.data.writer.write_dataset`
-(pose source ``log``); ``simlab import-log`` is its command line.
+(pose source ``log``); ``simlab import-log`` is its command line, its options the fields of
+:class:`ImportLogConfig`. The option groups :class:`SegmentOptions` (the thresholds) and
+:class:`RobotActionOptions` (the log's action numbering) are shared with ``import-bag``.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +56,7 @@ from numpy.typing import NDArray
 from simlab import validation
 from simlab.actions import ActionSet, parse_action_set
 from simlab.errors import ConfigError
+from simlab.options import CommandConfig, command, option
 
 _MOVE, _TURN, _IDLE = 2, 1, 0
 
@@ -164,6 +167,56 @@ class SegmentParams:
             validation.positive(value, name, allow_zero=True)
         if self.move_speed <= 0 or self.turn_rate <= 0:
             raise ConfigError("move_speed and turn_rate must be > 0", key="segment")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SegmentOptions(CommandConfig):
+    """The segmentation-threshold field group of ``import-log`` and ``import-bag``
+    (``--move-speed``, ``--turn-rate``, ``--join-gap``, ``--speed-split``): inherit it in a
+    command's config and call :meth:`segment_params`. Defaults and checks are
+    :class:`SegmentParams`'s, so the thresholds are spelled once, there."""
+
+    move_speed: float = option(SegmentParams.move_speed,
+                               "translation faster than this is a move", metavar="M/S")
+    turn_rate: float = option(SegmentParams.turn_rate, "rotation faster than this is a turn",
+                              metavar="RAD/S")
+    join_gap: float = option(SegmentParams.join_gap,
+                             "longest pause between a turn and its move", metavar="S")
+    speed_split: float = option(SegmentParams.speed_split,
+                                "16 actions: faster mean translation = fast primitive",
+                                metavar="M/S")
+
+    def validate(self) -> None:
+        super().validate()
+        self.segment_params()  # a bad threshold names its field here
+
+    def segment_params(self) -> SegmentParams:
+        """The :class:`SegmentParams` of the group's fields."""
+        return SegmentParams(**{f.name: getattr(self, f.name) for f in fields(SegmentParams)})
+
+
+@dataclass(frozen=True, kw_only=True)
+class RobotActionOptions(CommandConfig):
+    """The ``--n-actions/--convention`` field group of the robot-data importers
+    (``import-log``, ``import-bag``): the action set the imported decisions are numbered in.
+
+    Not :class:`~simlab.actions.ActionSetOptions`: its defaults are simlab's own robot (16
+    actions, ``simlab`` order, ``n_actions`` None = not given, plus ``--speed``), these are
+    the ISIR robot's logs (8 actions counted ``ccw-east``), and the importers never had a
+    speed option (an 8-action import is ``slow``).
+    """
+
+    n_actions: int = option(8, "number of actions of the robot", choices=(8, 16))
+    convention: str = option("ccw-east", "direction numbering: simlab, ccw-east (the ISIR "
+                             "robot's) or 8 comma-separated numbers")
+
+    def validate(self) -> None:
+        super().validate()
+        self.make_action_set()  # a bad convention names its field here
+
+    def make_action_set(self) -> ActionSet:
+        """The :class:`~simlab.actions.ActionSet` of the fields."""
+        return parse_action_set(self.n_actions, self.convention)
 
 
 @dataclass(frozen=True)
@@ -312,41 +365,54 @@ def _check_poses(log: PoseLog, map_path: str | os.PathLike[str], flip_y: bool) -
     return int(check.bad.size)
 
 
-def import_log(
-    log: str | os.PathLike[str],
-    *,
-    states: Any,
-    out: str | os.PathLike[str],
-    n_actions: int = 8,
-    convention: str = "ccw-east",
-    use_cell_column: bool = False,
-    segment: SegmentParams | None = None,
-    overwrite: bool = False,
-    map: str | os.PathLike[str] | None = None,
-    flip_y: bool = False,
-) -> ImportLogResult:
+@dataclass(frozen=True, kw_only=True)
+class ImportLogConfig(RobotActionOptions, SegmentOptions):
+    """Options of ``simlab import-log`` / :func:`import_log` (the groups:
+    :class:`RobotActionOptions`, :class:`SegmentOptions`)."""
+
+    COMMAND = "import-log"
+    ARGUMENTS = ("log",)
+
+    log: Path = option(help="pose log: whitespace text 't x y yaw [cell [n_cells]]', '#' "
+                       "comments", positional=True)
+    states: Any = option(help="states: `simlab discretize` JSON or centres text ('x y' or "
+                         "'id x y theta' lines; from Python also a discretizer)")
+    out: Path = option(help="dataset directory to write")
+    use_cell_column: bool = option(False, "states from the log's cell column (default: "
+                                   "nearest centre)")
+    map: Any | None = option(None, "map_server map to check the poses against (default: no "
+                             "check)", metavar="YAML")
+    flip_y: bool = option(False, "flip the --map image vertically (stored bottom row first)")
+    overwrite: bool = option(False, "replace a dataset in --out")
+
+
+@command(ImportLogConfig)
+def import_log(cfg: ImportLogConfig) -> ImportLogResult:
     """``simlab import-log``: a pose log -> a simlab dataset (pose source ``log``).
 
-    Args:
-        log: pose-log text file (module docstring).
-        states: states file (``simlab discretize`` JSON, or centres text ``x y`` /
-            ``id x y theta``) or a discretizer object.
-        out: dataset directory to write.
-        n_actions: 8 or 16. convention: ``simlab``, ``ccw-east`` or 8 numbers.
-        use_cell_column: states from the log's ``cell`` column instead of the centres.
-        segment: thresholds (:class:`SegmentParams`).
-        overwrite: replace a dataset in ``out``.
-        map: map_server YAML to check the poses against (optional). Every sample off
-            free pixels is counted; more than :data:`MAX_OFF_MAP_FRACTION` of them is
-            refused, listing them (and suggesting ``--flip-y`` when the flipped image
-            frees most); fewer are recorded in the provenance (SLAM poses brush walls).
-        flip_y: flip the map image vertically first.
+    Takes an :class:`ImportLogConfig` or its fields (``import_log(log, states=..., out=...)``):
+
+    * ``log``: pose-log text file (module docstring).
+    * ``states``: states file (``simlab discretize`` JSON, or centres text ``x y`` /
+      ``id x y theta``) or a discretizer object.
+    * ``out``: dataset directory to write.
+    * ``n_actions``: 8 or 16. ``convention``: ``simlab``, ``ccw-east`` or 8 numbers.
+    * ``use_cell_column``: states from the log's ``cell`` column instead of the centres.
+    * ``move_speed``, ``turn_rate``, ``join_gap``, ``speed_split``: thresholds
+      (:class:`SegmentParams`).
+    * ``overwrite``: replace a dataset in ``out``.
+    * ``map``: map_server YAML to check the poses against (optional). Every sample off
+      free pixels is counted; more than :data:`MAX_OFF_MAP_FRACTION` of them is
+      refused, listing them (and suggesting ``--flip-y`` when the flipped image
+      frees most); fewer are recorded in the provenance (SLAM poses brush walls).
+    * ``flip_y``: flip the map image vertically first.
     """
     from discretize.voronoi import load_states
     from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
 
-    aset = parse_action_set(n_actions, convention)
-    segment = SegmentParams() if segment is None else segment
+    log, states = cfg.log, cfg.states
+    aset = cfg.make_action_set()
+    segment = cfg.segment_params()
     disc = load_states(states) if isinstance(states, str | os.PathLike) else states
     plog = read_pose_log(log)
     dec = segment_decisions(plog.t, plog.xy, plog.yaw, segment)
@@ -354,8 +420,8 @@ def import_log(
         raise ConfigError("no motion found in the log (nothing turns or moves faster than "
                           "the thresholds)", path=plog.path, fix="check the units or lower "
                           "--move-speed / --turn-rate")
-    off_map = 0 if map is None else _check_poses(plog, map, flip_y)
-    s, s2, source = _log_states(plog, dec, disc, use_cell_column)
+    off_map = 0 if cfg.map is None else _check_poses(plog, cfg.map, cfg.flip_y)
+    s, s2, source = _log_states(plog, dec, disc, cfg.use_cell_column)
     actions = decision_actions(dec, aset, segment)
     pose = np.column_stack([plog.xy, plog.yaw])
     walk = TransitionArrays(t=plog.t[dec.start], a=actions, pose=pose[dec.start],
@@ -366,12 +432,12 @@ def import_log(
         provenance={"importer": "simlab import-log", "log": str(plog.path),
                     "states": str(states) if isinstance(states, str | os.PathLike) else None,
                     "samples": len(plog.t), "state_source": source,
-                    "map": None if map is None else str(map), "flip_y": bool(flip_y),
+                    "map": None if cfg.map is None else str(cfg.map), "flip_y": cfg.flip_y,
                     "samples_off_free_map": off_map,
                     "segmentation": asdict(segment)},
         arena={"name": Path(log).stem, "file": None, "bounds": None, "goals": []},
         parameters={"importer": "pose-log"})
-    res = write_dataset(out, walk, info, overwrite=overwrite)
+    res = write_dataset(cfg.out, walk, info, overwrite=cfg.overwrite)
     return ImportLogResult(out=res.out, samples=len(plog.t), decisions=len(dec),
                            blocked=int(dec.blocked.sum()), actions=actions, action_set=aset,
                            state_source=source, off_map=off_map)

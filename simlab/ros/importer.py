@@ -17,6 +17,11 @@
   recorded in the provenance.
 * **States**: nearest centre of the states file (the writer's rule). Written with
   :func:`simlab.data.writer.write_dataset`, pose source ``log``.
+
+The options are the fields of :class:`ImportBagConfig`; the action numbering and the
+thresholds are ``import-log``'s option groups
+(:class:`~simlab.data.poselog.RobotActionOptions`,
+:class:`~simlab.data.poselog.SegmentOptions`).
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from simlab.data.poselog import RobotActionOptions, SegmentOptions
 from simlab.errors import ConfigError
+from simlab.options import command, option
 
 
 @dataclass(frozen=True)
@@ -63,30 +70,48 @@ def _decisions_from_actions(t: np.ndarray, xy: np.ndarray, yaw: np.ndarray,
     return start, end, blocked, actions
 
 
-def import_bag(
-    bag: str | os.PathLike[str],
-    *,
-    states: Any,
-    out: str | os.PathLike[str],
-    n_actions: int = 8,
-    convention: str = "ccw-east",
-    pose_topic: str | None = None,
-    action_topic: str | None = "/simlab/action",
-    segment: Any = None,
-    overwrite: bool = False,
-) -> ImportBagResult:
-    """Import a bag (module docstring). ``states``: states file or discretizer;
-    ``n_actions``/``convention``: the action set (as ``import-log``); ``segment``:
-    :class:`~simlab.data.poselog.SegmentParams` thresholds; ``action_topic=None`` forces
-    the segmentation even when the bag has an action topic."""
+@dataclass(frozen=True, kw_only=True)
+class ImportBagConfig(RobotActionOptions, SegmentOptions):
+    """Options of ``simlab import-bag`` / :func:`import_bag`."""
+
+    COMMAND = "import-bag"
+    ARGUMENTS = ("bag",)
+
+    bag: Path = option(help="ROS 2 bag directory (MCAP or sqlite3)", positional=True)
+    states: Any = option(help="states: `simlab discretize` JSON or centres text (from Python "
+                         "also a discretizer)")
+    out: Path = option(help="dataset directory to write")
+    pose_topic: str | None = option(None, "pose topic (default: /amcl_pose if present, else "
+                                    "/odom)")
+    action_topic: str | None = option(
+        "/simlab/action", "std_msgs/Int32 action topic; absent from the bag -> the pose "
+        "segmentation of import-log (from Python, None = --segment)")
+    segment: bool = option(False, "ignore the action topic and segment the poses")
+    overwrite: bool = option(False, "replace a dataset in --out")
+
+    @property
+    def actions_from(self) -> str | None:
+        """The action topic to read, None when the poses are to be segmented."""
+        return None if self.segment else self.action_topic
+
+
+@command(ImportBagConfig)
+def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
+    """Import a bag (module docstring). Takes an :class:`ImportBagConfig` or its fields
+    (``import_bag(bag, states=..., out=...)``). ``states``: states file or discretizer;
+    ``n_actions``/``convention``: the action set (as ``import-log``); ``move_speed``,
+    ``turn_rate``, ``join_gap``, ``speed_split``: the
+    :class:`~simlab.data.poselog.SegmentParams` thresholds; ``segment=True`` (or
+    ``action_topic=None``) forces the segmentation even when the bag has an action topic."""
     from discretize.voronoi import load_states
-    from simlab.actions import parse_action_set
-    from simlab.data.poselog import SegmentParams, decision_actions, segment_decisions
+    from simlab.data.poselog import decision_actions, segment_decisions
     from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
     from simlab.ros.bag import read_bag
 
-    aset = parse_action_set(n_actions, convention)
-    segment = SegmentParams() if segment is None else segment
+    bag, states, pose_topic = cfg.bag, cfg.states, cfg.pose_topic
+    action_topic = cfg.actions_from
+    aset = cfg.make_action_set()
+    segment = cfg.segment_params()
     disc = load_states(states) if isinstance(states, str | os.PathLike) else states
     traj = read_bag(bag, pose_topic=pose_topic, action_topic=action_topic)
     t, xy, yaw = traj.t, traj.pose[:, :2], traj.pose[:, 2]
@@ -114,6 +139,6 @@ def import_bag(
                     "segmentation": asdict(segment)},
         arena={"name": Path(bag).name, "file": None, "bounds": None, "goals": []},
         parameters={"importer": "ros-bag"})
-    res = write_dataset(out, walk, info, overwrite=overwrite)
+    res = write_dataset(cfg.out, walk, info, overwrite=cfg.overwrite)
     return ImportBagResult(out=res.out, samples=len(t), decisions=len(start),
                            blocked=int(np.sum(blocked)), action_source=source)
