@@ -16,19 +16,22 @@ Sources (the directory decides):
 ``/scan`` is **cast again** at every sample pose in the source's arena (noise-free, the
 LIDAR of :mod:`simlab.physics.lidar`): neither source stores scans. ``/map`` is the arena
 rasterized at ``resolution`` (0 free, 100 occupied), or a map_server map given as ``map``.
+
+The options are the fields of :class:`ExportBagConfig`.
 """
 
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
+from simlab.options import CommandConfig, command, option
 
 
 @dataclass(frozen=True)
@@ -131,42 +134,59 @@ def arena_map(arena: Any, resolution: float = 0.02, margin: float = 0.1) -> Any:
     return OccupancyMap(occupancy=occ, resolution=resolution, origin=(*origin, 0.0))
 
 
-def export_bag(
-    source: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    *,
-    worker: int = 0,
-    arena: str | None = None,
-    map: str | os.PathLike[str] | None = None,
-    scans: bool = True,
-    resolution: float = 0.02,
-    overwrite: bool = False,
-) -> ExportBagResult:
+@dataclass(frozen=True, kw_only=True)
+class ExportBagConfig(CommandConfig):
+    """Options of ``simlab export-bag`` / :func:`export_bag`."""
+
+    COMMAND = "export-bag"
+    ARGUMENTS = ("source", "out")
+
+    source: Path = option(help="dataset directory (simlab collect / import-log) or replay "
+                          "directory (simlab replay)", positional=True)
+    out: Path = option(help="bag directory to write")
+    worker: int = option(0, "dataset: which worker's walk to export")
+    arena: Any | None = option(None, "arena (name or TOML) for the scans and the map "
+                               "(default: the source's)")
+    map: Any | None = option(None, "map_server map to publish on /map (default: the arena "
+                             "rasterized)", metavar="YAML")
+    resolution: float = option(0.02, "pixel size of the rasterized arena map", metavar="M")
+    scans: bool = option(True, "/scan cast at every sample pose (--no-scans leaves it out)")
+    overwrite: bool = option(False, "replace a bag in --out")
+
+    def validate(self) -> None:
+        validation.whole(self.worker, "worker")
+        validation.positive(self.resolution, "resolution")
+
+
+@command(ExportBagConfig)
+def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
     """Write a dataset or replay directory ``source`` as the bag ``out`` (module docstring).
 
-    ``arena`` overrides the source's arena (name or TOML) for the scans and the map;
-    ``map`` is a map_server YAML to publish instead of the rasterized arena;
-    ``scans=False`` leaves out ``/scan``.
+    Takes an :class:`ExportBagConfig` or its fields (``export_bag(source, out, scans=False)``):
+    ``worker`` is the dataset worker whose walk is exported; ``arena`` overrides the
+    source's arena (name or TOML) for the scans and the map; ``map`` is a map_server YAML to
+    publish instead of the arena rasterized at ``resolution`` (m/pixel); ``scans=False``
+    leaves out ``/scan``; ``overwrite`` replaces a bag in ``out``.
     """
     from simlab.physics.arena import load_arena
     from simlab.ros.bag import BagTrajectory, write_bag
 
-    source = Path(source)
+    source = cfg.source
     if (source / "_manifest.json").is_file():
-        rec, kind = _from_dataset(source, worker), "dataset"
+        rec, kind = _from_dataset(source, cfg.worker), "dataset"
     elif (source / "replay.json").is_file() and (source / "transitions.parquet").is_file():
         rec, kind = _from_replay(source), "replay"
     else:
         raise ConfigError("neither a dataset (_manifest.json) nor a replay (replay.json + "
                           "transitions.parquet)", path=source)
-    arena_cfg = load_arena(arena or rec["arena"])
-    if map is not None:
+    arena_cfg = load_arena(cfg.arena or rec["arena"])
+    if cfg.map is not None:
         from discretize.mapio import read_map
 
-        grid = read_map(map)
+        grid = read_map(cfg.map)
     else:
-        grid = arena_map(arena_cfg, resolution)
-    scan_arr, geom, offset = (_scans(arena_cfg, rec["pose"]) if scans
+        grid = arena_map(arena_cfg, cfg.resolution)
+    scan_arr, geom, offset = (_scans(arena_cfg, rec["pose"]) if cfg.scans
                               else (None, None, (-0.032, 0.0, 0.182)))
     from simlab.ros.bag import ScanGeometry
 
@@ -174,5 +194,5 @@ def export_bag(
                          scan_geometry=geom or ScanGeometry(), state=rec["state"],
                          goal=rec["goal"], actions=rec["actions"], action_t=rec["action_t"],
                          map=grid, scan_offset=offset)
-    path = write_bag(out, traj, overwrite=overwrite)
+    path = write_bag(cfg.out, traj, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)
