@@ -30,6 +30,9 @@ refused unless ``overwrite``) before anything is written; the dataset is built u
 temporary datasets root beside Minari's (``MINARI_DATASETS_PATH`` pointed there for the
 duration of the call, so the export is not thread-safe) and renamed into place, so a
 failure never leaves a partial dataset that would break ``minari list local``.
+
+The options of :func:`export_minari` (``simlab export-minari``) are the fields of
+:class:`ExportMinariConfig`.
 """
 
 from __future__ import annotations
@@ -46,7 +49,9 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError
+from simlab.options import CommandConfig, command, option
 
 
 @dataclass(frozen=True)
@@ -120,7 +125,8 @@ def _env_spec(ds: Any, arena: str | None, goal: str | None, episode_length: int)
     except (ConfigError, OSError) as exc:
         warnings.warn(f"no env spec recorded (recover_environment() will not work): the "
                       f"arena {arena or m['arena']['name']!r} does not load ({exc}); pass "
-                      f"--arena NAME_OR_TOML", UserWarning, stacklevel=3)
+                      f"--arena NAME_OR_TOML", UserWarning,
+                      stacklevel=4)  # _env_spec < export_minari < @command wrapper < caller
         return None
     names = [g["name"] for g in m["arena"].get("goals", [])]
     kwargs: dict[str, Any] = {
@@ -138,28 +144,49 @@ def _env_spec(ds: Any, arena: str | None, goal: str | None, episode_length: int)
     )
 
 
-def export_minari(
-    dataset: str | os.PathLike[str],
-    dataset_id: str,
-    *,
-    episode_length: int | None = None,
-    goal: str | None = None,
-    author: str = "simlab",
-    author_email: str = "unknown",
-    overwrite: bool = False,
-    arena: str | None = None,
-) -> MinariExportResult:
+@dataclass(frozen=True, kw_only=True)
+class ExportMinariConfig(CommandConfig):
+    """Options of ``simlab export-minari`` / :func:`export_minari`. The Minari id is the
+    field ``dataset_id`` (``--id`` on the command line; ``dataset_id`` in a TOML file)."""
+
+    COMMAND = "export-minari"
+    ARGUMENTS = ("dataset", "dataset_id")
+
+    dataset: Path = option(help="dataset directory written by `simlab collect`",
+                           positional=True)
+    dataset_id: str = option(help="Minari dataset id, e.g. simlab/table-walk-v0", flag="id")
+    episode_length: int | None = option(None, "transitions per episode (default: the "
+                                        "dataset's part size)")
+    goal: str | None = option(None, "goal area name: reward 1 when s' is in it (default: "
+                              "rewards 0)")
+    author: str = option("simlab", "Minari metadata: author", cli=False)
+    author_email: str = option("unknown", "Minari metadata: author's e-mail", cli=False)
+    overwrite: bool = option(False, "replace a local Minari dataset with the same id")
+    arena: Any | None = option(None, "arena (built-in name or TOML path) recorded in the env "
+                               "spec for recover_environment() (default: the manifest's "
+                               "arena name)")
+
+    def validate(self) -> None:
+        if self.episode_length is not None:
+            validation.whole(self.episode_length, "episode_length", minimum=1)
+
+
+@command(ExportMinariConfig)
+def export_minari(cfg: ExportMinariConfig) -> MinariExportResult:
     """Write the dataset directory ``dataset`` as the Minari dataset ``dataset_id``.
 
-    Args:
-        dataset: a directory written by ``simlab collect`` (validated on read).
-        dataset_id: Minari id, ``[namespace/]name-v<version>`` (e.g. ``simlab/table-walk-v0``).
-        episode_length: transitions per episode (default: the dataset's part size).
-        goal: name of a goal area of the dataset's arena: reward 1 when s' is in it.
-        author, author_email: Minari metadata.
-        overwrite: replace an existing local Minari dataset with this id.
-        arena: arena (built-in name or TOML path) of the recorded env spec (default: the
-            manifest's arena name).
+    Takes an :class:`ExportMinariConfig` or its fields
+    (``export_minari(dataset, dataset_id, episode_length=64)``):
+
+    * ``dataset``: a directory written by ``simlab collect`` (validated on read).
+    * ``dataset_id``: Minari id, ``[namespace/]name-v<version>`` (e.g.
+      ``simlab/table-walk-v0``).
+    * ``episode_length``: transitions per episode (default: the dataset's part size).
+    * ``goal``: name of a goal area of the dataset's arena: reward 1 when s' is in it.
+    * ``author``, ``author_email``: Minari metadata.
+    * ``overwrite``: replace an existing local Minari dataset with this id.
+    * ``arena``: arena (built-in name or TOML path) of the recorded env spec (default: the
+      manifest's arena name).
 
     The dataset is stored where Minari keeps local datasets (``MINARI_DATASETS_PATH``
     or ``~/.minari/datasets``) in Minari's Arrow format.
@@ -172,30 +199,31 @@ def export_minari(
                           fix='pip install "simlab[minari]"') from None
     from minari.storage import get_dataset_path
 
-    from simlab import validation
     from simlab.data.dataset import open_dataset
 
+    dataset_id, goal = cfg.dataset_id, cfg.goal
     check_dataset_id(dataset_id)
-    ds = open_dataset(dataset, validate=True)
+    ds = open_dataset(cfg.dataset, validate=True)
     ds.warn_if_incomplete("the Minari dataset")
-    if episode_length is None:
-        episode_length = int(ds.manifest["parameters"].get("part_size", 250))
-    episode_length = validation.whole(episode_length, "episode_length", minimum=1)
+    episode_length = cfg.episode_length
+    if episode_length is None:  # the manifest's part size, checked like the option
+        episode_length = validation.whole(int(ds.manifest["parameters"].get("part_size", 250)),
+                                          "episode_length", minimum=1)
     if ds.table.num_rows == 0:
         raise ConfigError("the dataset has no transitions yet", path=ds.directory)
     reward_states = _goal_states(ds, goal)
     target = get_dataset_path(dataset_id)
-    if target.exists() and not overwrite:
+    if target.exists() and not cfg.overwrite:
         raise ConfigError(f"a Minari dataset {dataset_id!r} already exists", path=target,
                           fix="choose another --id or pass --overwrite")
     episodes = _episodes(ds, reward_states, episode_length)
     _publish(dataset_id, target, episodes, dict(
-        env=_env_spec(ds, arena, goal, episode_length),
+        env=_env_spec(ds, cfg.arena, goal, episode_length),
         observation_space=spaces.Discrete(ds.n_states),
         action_space=spaces.Discrete(ds.n_actions),
         algorithm_name="epsilon-greedy, epsilon = 1 (uniform random actions)",
-        author=author,
-        author_email=author_email,
+        author=cfg.author,
+        author_email=cfg.author_email,
         code_permalink="simlab collect",
         description=_description(ds.manifest, goal),
         data_format="arrow",
