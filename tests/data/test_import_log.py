@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,8 @@ from simlab.actions import parse_action_set
 from simlab.cli import main
 from simlab.data.dataset import open_dataset
 from simlab.data.poselog import (
+    ImportLogConfig,
+    SegmentOptions,
     SegmentParams,
     decision_actions,
     import_log,
@@ -301,3 +305,96 @@ def test_poses_are_checked_against_a_map_and_a_flipped_image_is_spotted(
     assert not (tmp_path / "b").exists()
     res = import_log(log, states=states, out=tmp_path / "c", map=flipped, flip_y=True)
     assert res.off_map == 0 and open_dataset(tmp_path / "c").manifest["provenance"]["flip_y"]
+
+
+# ----------------------------------------------------------------- options (ImportLogConfig)
+def _toml_text(**values: object) -> str:
+    return "".join(f"{k} = {json.dumps(v)}\n" for k, v in values.items())
+
+
+def test_cli_config_file_gives_options_and_the_command_line_wins(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(7))
+    log = _write_log(tmp_path / "run.log", samples)
+    out = tmp_path / "ds"
+    toml = tmp_path / "import.toml"
+    toml.write_text(_toml_text(states=str(_states(tmp_path)), out=str(out), convention="simlab",
+                               **{"move-speed": 0.05, "join_gap": 1.5}))
+    assert main(["import-log", str(log), "--config", str(toml), "--convention",
+                 "ccw-east"]) == 0
+    assert f"{len(PLAN)} decisions" in capsys.readouterr().out
+    manifest = json.loads((out / "_manifest.json").read_text())
+    assert manifest["action_set"]["convention"] == "ccw-east"  # the command line's
+    assert manifest["provenance"]["segmentation"] == {  # the file's, and the defaults
+        "move_speed": 0.05, "turn_rate": SegmentParams.turn_rate, "join_gap": 1.5,
+        "speed_split": SegmentParams.speed_split}
+    assert open_dataset(out).column("a").tolist() == [a for a, _ in PLAN]
+
+
+def help_blocks(text: str) -> dict[str, str]:
+    """``--help`` text -> option flag: its line(s) of help, whitespace collapsed."""
+    blocks = re.split(r"\n  (?=-)", text)
+    return {b.split()[0].rstrip(","): " ".join(b.split()) for b in blocks[1:]}
+
+
+def test_cli_help_shows_the_defaults(capsys: pytest.CaptureFixture[str],
+                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("COLUMNS", "200")  # one option per line: no wrapped defaults
+    with pytest.raises(SystemExit) as exit_:
+        main(["import-log", "--help"])
+    text = capsys.readouterr().out
+    d = SegmentParams()
+    assert exit_.value.code == 0
+    for flag, default in (("--move-speed", d.move_speed), ("--turn-rate", d.turn_rate),
+                          ("--join-gap", d.join_gap), ("--speed-split", d.speed_split),
+                          ("--n-actions", 8), ("--convention", "ccw-east")):
+        assert f"(default {default})" in help_blocks(text)[flag]
+    for flag in ("--states", "--out", "--use-cell-column", "--map", "--flip-y", "--overwrite",
+                 "--config"):
+        assert flag in text
+
+
+def test_cli_unknown_config_key_names_the_file_and_the_key(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    samples, _ = _simulate(PLAN[:3], np.random.default_rng(7))
+    log = _write_log(tmp_path / "run.log", samples)
+    toml = tmp_path / "import.toml"
+    toml.write_text(_toml_text(states=str(_states(tmp_path)), **{"move-sped": 0.05}))
+    code = main(["import-log", str(log), "--config", str(toml), "--out", str(tmp_path / "ds")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert str(toml) in err and "move_sped: unknown option" in err and "move_speed" in err
+    assert not (tmp_path / "ds").exists()
+
+
+def test_python_function_takes_the_config_or_its_fields(tmp_path: Path) -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(8), speed=0.22)  # fast by default
+    log = _write_log(tmp_path / "run.log", samples)
+    states = _states(tmp_path)
+    cfg = ImportLogConfig(log=log, states=states, out=tmp_path / "a", n_actions=16,
+                          convention="simlab", turn_rate=0.4, speed_split=0.3)
+    by_config = import_log(cfg)
+    by_fields = import_log(str(log), states=states, out=tmp_path / "b", n_actions=16,
+                           convention="simlab", turn_rate=0.4, speed_split=0.3)
+    assert by_config.action_set == by_fields.action_set == parse_action_set(16, "simlab")
+    np.testing.assert_array_equal(by_config.actions, by_fields.actions)
+    simlab16 = parse_action_set(16, "simlab")  # 0.22 m/s is below the 0.3 split: all slow
+    assert by_config.actions.tolist() == [simlab16.from_primitive(CCW.to_primitive(a))
+                                          for a, _ in PLAN]
+    a, b = open_dataset(tmp_path / "a").table, open_dataset(tmp_path / "b").table
+    assert a.equals(b)
+    with pytest.raises(ConfigError, match="turn_rate"):
+        import_log(log, states=states, out=tmp_path / "c", turn_rate=-1.0)
+    with pytest.raises(ConfigError, match=r"unknown option.*'segment'"):
+        import_log(log, states=states, out=tmp_path / "c", segment=SegmentParams())
+    assert not (tmp_path / "c").exists()
+
+
+def test_segment_options_are_segment_params_spelled_once() -> None:
+    fields = {f.name for f in dataclasses.fields(SegmentParams)}
+    assert {f.name for f in dataclasses.fields(SegmentOptions)} == fields
+    assert SegmentOptions().segment_params() == SegmentParams()
+    group = SegmentOptions(move_speed=0.08, join_gap=0.0)
+    assert group.segment_params() == SegmentParams(move_speed=0.08, join_gap=0.0)
+    with pytest.raises(ConfigError, match="must be > 0"):
+        SegmentOptions(move_speed=0.0)
