@@ -3,6 +3,8 @@ export of a collection; the two CLI commands."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +22,7 @@ from simlab.errors import ConfigError
 from simlab.ros.bag import BagTrajectory, read_bag, write_bag
 from simlab.ros.importer import import_bag
 from tests.data.test_import_log import _simulate as simulate_log
+from tests.data.test_import_log import help_blocks
 
 CCW = parse_action_set(8, "ccw-east")
 CENTRES = np.array([[x, y] for y in (2.0, 1.0, 0.0) for x in (0.0, 1.0, 2.0, 3.0)])
@@ -167,17 +170,15 @@ def test_export_bag_of_a_collection_and_import_cli(tmp_path: Path, capsys) -> No
     assert code == 2 and capsys.readouterr().err.count("\n") == 1
 
 
-def test_export_bag_of_a_replay_carries_goals_and_states(tmp_path: Path) -> None:
+def _replay_dir(path: Path) -> Path:
+    """A replay directory of 4 transitions along +x (goals C, C, NE, NE) in the table."""
     import json
 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from simlab.ros.export import export_bag
-
-    run = tmp_path / "replay"
-    run.mkdir()
-    (run / "replay.json").write_text(json.dumps({"arena": "table"}))
+    path.mkdir()
+    (path / "replay.json").write_text(json.dumps({"arena": "table"}))
     n = 4
     xs = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
     cols = {"t": np.arange(n) * 2.0, "duration": np.full(n, 1.0), "s": np.arange(n),
@@ -187,7 +188,15 @@ def test_export_bag_of_a_replay_carries_goals_and_states(tmp_path: Path) -> None
     for axis, before, after in (("x", xs[:-1], xs[1:]), ("y", np.zeros(n), np.zeros(n)),
                                 ("yaw", np.zeros(n), np.zeros(n))):
         cols[f"{axis}_true"], cols[f"{axis}_true_next"] = before, after
-    pq.write_table(pa.table(cols), run / "transitions.parquet")
+    pq.write_table(pa.table(cols), path / "transitions.parquet")
+    return path
+
+
+def test_export_bag_of_a_replay_carries_goals_and_states(tmp_path: Path) -> None:
+    from simlab.ros.export import export_bag
+
+    run = _replay_dir(tmp_path / "replay")
+    n = 4
     res = export_bag(run, tmp_path / "bag", scans=False)
     assert res.source == "replay" and res.samples == 2 * n
     back = read_bag(tmp_path / "bag")
@@ -196,3 +205,122 @@ def test_export_bag_of_a_replay_carries_goals_and_states(tmp_path: Path) -> None
     assert back.state.tolist() == [0, 1, 1, 2, 2, 3, 3, 4]
     assert back.goal.tolist() == ["C"] * 4 + ["NE"] * 4
     assert back.scans is None and back.actions.tolist() == [3, 3, 11, 3]
+
+
+# ------------------------------------------- options (ImportBagConfig, ExportBagConfig)
+def _toml(path: Path, **values: object) -> Path:
+    path.write_text("".join(f"{k} = {json.dumps(v)}\n" for k, v in values.items()))
+    return path
+
+
+def _help(command: str, capsys, monkeypatch) -> dict[str, str]:
+    monkeypatch.setenv("COLUMNS", "200")  # one option per line: no wrapped defaults
+    with pytest.raises(SystemExit) as exit_:
+        main([command, "--help"])
+    assert exit_.value.code == 0
+    return help_blocks(capsys.readouterr().out)
+
+
+def test_import_bag_config_file_and_command_line(tmp_path: Path, capsys) -> None:
+    samples, starts = _simulate(PLAN, np.random.default_rng(5))
+    bag = write_bag(tmp_path / "b", _traj(samples, actions=np.array([p[0] for p in PLAN]),
+                                          action_t=starts))
+    out = tmp_path / "ds"
+    toml = _toml(tmp_path / "import.toml", states=str(_centres_file(tmp_path / "c.txt")),
+                 out=str(out), segment=True, convention="simlab")
+    assert main(["import-bag", str(bag), "--config", str(toml), "--convention",
+                 "ccw-east"]) == 0
+    # the file's --segment: the poses are segmented although the bag has an action topic
+    assert "actions from the segmentation of the pose" in capsys.readouterr().out
+    ds = open_dataset(out)
+    assert ds.action_set == CCW  # the command line's convention
+    assert ds.column("a").tolist() == [p[0] for p in PLAN]
+
+
+def test_import_bag_help_shows_the_defaults_and_shares_import_logs_groups(
+        capsys, monkeypatch) -> None:
+    bag = _help("import-bag", capsys, monkeypatch)
+    log = _help("import-log", capsys, monkeypatch)
+    assert "(default /simlab/action)" in bag["--action-topic"]
+    assert "(default 0.04)" in bag["--move-speed"] and "(default 8)" in bag["--n-actions"]
+    assert {"--pose-topic", "--segment", "--overwrite", "--config"} <= set(bag)
+    shared = ("--move-speed", "--turn-rate", "--join-gap", "--speed-split", "--n-actions",
+              "--convention")
+    assert [bag[f] for f in shared] == [log[f] for f in shared]  # one spelling
+
+
+def test_import_bag_unknown_config_key_names_the_file_and_the_key(tmp_path: Path,
+                                                                  capsys) -> None:
+    toml = _toml(tmp_path / "import.toml", states=str(_centres_file(tmp_path / "c.txt")),
+                 out=str(tmp_path / "ds"), **{"action-topik": "/a"})
+    code = main(["import-bag", str(tmp_path / "b"), "--config", str(toml)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert str(toml) in err and "action_topik: unknown option" in err
+    assert not (tmp_path / "ds").exists()
+
+
+def test_import_bag_takes_the_config_or_its_fields(tmp_path: Path) -> None:
+    from simlab.ros.importer import ImportBagConfig
+
+    samples, starts = _simulate(PLAN, np.random.default_rng(6))
+    actions = np.array([(p[0] + 1) % 8 for p in PLAN])  # not what the robot did
+    bag = write_bag(tmp_path / "b", _traj(samples, actions=actions, action_t=starts))
+    states = Discretizer(centres=CENTRES)
+    by_config = import_bag(ImportBagConfig(bag=bag, states=states, out=tmp_path / "a",
+                                           segment=True, move_speed=0.05))
+    by_fields = import_bag(str(bag), states=states, out=tmp_path / "b2", action_topic=None,
+                           move_speed=0.05)
+    assert by_config == dataclasses.replace(by_fields, out=by_config.out)
+    assert by_config.action_source.startswith("segmentation")
+    a, b = read_dataset(tmp_path / "a"), read_dataset(tmp_path / "b2")
+    assert a.equals(b) and a.column("a").to_pylist() == [p[0] for p in PLAN]
+    topic = import_bag(bag, states=states, out=tmp_path / "t")
+    assert read_dataset(tmp_path / "t").column("a").to_pylist() == actions.tolist()
+    assert topic.action_source == "action topic /simlab/action"
+
+
+def test_export_bag_config_file_and_command_line(tmp_path: Path, capsys) -> None:
+    run = _replay_dir(tmp_path / "replay")
+    toml = _toml(tmp_path / "export.toml", out=str(tmp_path / "bag"), scans=False,
+                 resolution=0.05)
+    assert main(["export-bag", str(run), "--config", str(toml), "--resolution", "0.1"]) == 0
+    assert "8 pose samples of the replay" in capsys.readouterr().out
+    back = read_bag(tmp_path / "bag")
+    assert back.scans is None  # the file's scans = false
+    assert back.map.resolution == pytest.approx(0.1)  # the command line's
+
+
+def test_export_bag_help_shows_the_defaults(capsys, monkeypatch) -> None:
+    blocks = _help("export-bag", capsys, monkeypatch)
+    assert "(default 0.02)" in blocks["--resolution"] and "(default 0)" in blocks["--worker"]
+    assert {"--out", "--arena", "--map", "--no-scans", "--overwrite", "--config"} <= set(blocks)
+
+
+def test_export_bag_unknown_config_key_names_the_file_and_the_key(tmp_path: Path,
+                                                                  capsys) -> None:
+    run = _replay_dir(tmp_path / "replay")
+    toml = _toml(tmp_path / "export.toml", out=str(tmp_path / "bag"), scan=False)
+    code = main(["export-bag", str(run), "--config", str(toml)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert str(toml) in err and "scan: unknown option" in err and "scans" in err
+    assert not (tmp_path / "bag").exists()
+
+
+def test_export_bag_takes_the_config_or_its_fields(tmp_path: Path) -> None:
+    from simlab.ros.export import ExportBagConfig, export_bag
+
+    run = _replay_dir(tmp_path / "replay")
+    by_config = export_bag(ExportBagConfig(source=run, out=tmp_path / "a", scans=False,
+                                           resolution=0.05))
+    by_fields = export_bag(str(run), tmp_path / "b", scans=False, resolution=0.05)
+    assert (by_config.samples, by_config.source) == (by_fields.samples, by_fields.source)
+    a, b = read_bag(tmp_path / "a"), read_bag(tmp_path / "b")
+    np.testing.assert_array_equal(a.pose, b.pose)
+    np.testing.assert_array_equal(a.map.occupancy, b.map.occupancy)
+    assert a.map.resolution == b.map.resolution == pytest.approx(0.05)
+    for bad in ({"resolution": 0.0}, {"worker": -1}):
+        with pytest.raises(ConfigError, match=next(iter(bad))):
+            export_bag(run, tmp_path / "c", **bad)
+    assert not (tmp_path / "c").exists()
