@@ -11,6 +11,7 @@ import pytest
 from simlab.cli import main
 from simlab.data.dataset import read_dataset
 from simlab.data.schema import MANIFEST_NAME
+from simlab.errors import ConfigError
 
 
 def test_collect_estimate_cli(tmp_path: Path, grid_states_file: Path,
@@ -199,3 +200,70 @@ def test_minari_export_of_an_incomplete_dataset_warns(dataset_copy: Path,
     manifest.write_text(json.dumps(m))
     with pytest.warns(IncompleteDatasetWarning, match="Minari dataset covers only its finished"):
         export_minari(dataset_copy, "simlab/part-walk-v0", episode_length=64)
+
+
+# ----------------------------------------------------------- options (ExportMinariConfig)
+def test_minari_cli_config_file_and_command_line(kinematic_dataset: Path, minari_home: Path,
+                                                 tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    import minari
+
+    toml = tmp_path / "export.toml"
+    toml.write_text('dataset_id = "simlab/cfg-walk-v0"\nepisode-length = 50\ngoal = "C"\n')
+    code = main(["export-minari", str(kinematic_dataset), "--config", str(toml),
+                 "--episode-length", "64"])
+    assert code == 0 and "Minari dataset simlab/cfg-walk-v0:" in capsys.readouterr().out
+    data = minari.load_dataset("simlab/cfg-walk-v0")
+    assert data.spec.env_spec.max_episode_steps == 64  # the command line's
+    assert data.spec.env_spec.kwargs["goal"] == "C"  # the file's
+    lengths = [len(e.actions) for e in data.iterate_episodes()]
+    assert max(lengths) == 64 and sum(lengths) == read_dataset(kinematic_dataset).num_rows
+
+
+def test_minari_cli_help_shows_the_options(capsys: pytest.CaptureFixture[str],
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    from tests.data.test_import_log import help_blocks
+
+    monkeypatch.setenv("COLUMNS", "200")
+    with pytest.raises(SystemExit):
+        main(["export-minari", "--help"])
+    blocks = help_blocks(capsys.readouterr().out)
+    assert "(required)" in blocks["--id"]
+    assert "(default: the dataset's part size)" in blocks["--episode-length"]
+    assert {"--goal", "--arena", "--overwrite", "--config"} <= set(blocks)
+    assert "--author" not in blocks  # Python and TOML only
+
+
+def test_minari_cli_unknown_config_key_names_the_file_and_the_key(
+        kinematic_dataset: Path, minari_home: Path, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    toml = tmp_path / "export.toml"
+    toml.write_text('dataset_id = "simlab/typo-v0"\nepisode-lenght = 64\n')
+    code = main(["export-minari", str(kinematic_dataset), "--config", str(toml)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert str(toml) in err and "episode_lenght: unknown option" in err
+    assert not minari_home.exists() or not any(minari_home.rglob("*typo*"))
+
+
+def test_minari_export_takes_the_config_or_its_fields(kinematic_dataset: Path,
+                                                      minari_home: Path) -> None:
+    import minari
+
+    from simlab.envs.minari_export import ExportMinariConfig, export_minari
+
+    by_config = export_minari(ExportMinariConfig(
+        dataset=kinematic_dataset, dataset_id="simlab/by-config-v0", episode_length=96,
+        goal="C", author="lab"))
+    by_fields = export_minari(str(kinematic_dataset), "simlab/by-fields-v0",
+                              episode_length=96, goal="C", author="lab")
+    assert (by_config.episodes, by_config.steps) == (by_fields.episodes, by_fields.steps)
+    a, b = minari.load_dataset("simlab/by-config-v0"), minari.load_dataset("simlab/by-fields-v0")
+    assert a.storage.metadata["author"] == b.storage.metadata["author"] == {"lab"}
+    for x, y in zip(a.iterate_episodes(), b.iterate_episodes(), strict=True):
+        np.testing.assert_array_equal(x.observations, y.observations)
+        np.testing.assert_array_equal(x.actions, y.actions)
+        np.testing.assert_array_equal(x.rewards, y.rewards)
+    with pytest.raises(ConfigError, match="episode_length"):
+        export_minari(kinematic_dataset, "simlab/zero-v0", episode_length=0)
+    assert "simlab/zero-v0" not in minari.list_local_datasets()
