@@ -165,8 +165,9 @@ class SegmentParams:
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
             validation.positive(value, name, allow_zero=True)
-        if self.move_speed <= 0 or self.turn_rate <= 0:
-            raise ConfigError("move_speed and turn_rate must be > 0", key="segment")
+        for name in ("move_speed", "turn_rate"):  # at 0, pose noise would be motion
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"must be > 0, got {getattr(self, name)!r}", key=name)
 
 
 @dataclass(frozen=True, kw_only=True)
