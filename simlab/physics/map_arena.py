@@ -14,7 +14,10 @@ the real robot's poses, centres and goals are used unchanged (see
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +26,7 @@ from numpy.typing import NDArray
 
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_text, ensure_new
+from simlab.options import CommandConfig, command, option
 from simlab.physics.arena import START_CLEARANCE, load_arena
 
 _NINTHS = ("NW", "N", "NE", "W", "C", "E", "SW", "S", "SE")
@@ -61,39 +65,82 @@ def _auto_goals(grid: Any, clear: NDArray[np.float64], radius: float
     return goals
 
 
-def arena_from_map(
-    map_yaml: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    *,
-    states: Any = None,
-    start: tuple[float, float, float] | None = None,
-    goal_radius: float = 0.15,
-    unknown_as_wall: bool = False,
-    name: str | None = None,
-    overwrite: bool = False,
-) -> Path:
+def _start_pose(text: str) -> tuple[float, float, float]:
+    """``--start X,Y,YAW``: the command line's spelling of ``start`` (argparse turns the
+    ArgumentTypeError into its usage error, as for any bad option value)."""
+    import argparse
+
+    try:
+        x, y, yaw = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,YAW_DEGREES, got {text!r}") from None
+    return x, y, yaw
+
+
+def _check_start(value: Any) -> tuple[float, float, float]:
+    """``start`` as three finite numbers (a TOML list or a Python tuple)."""
+    ok = (isinstance(value, list | tuple) and len(value) == 3
+          and all(isinstance(v, numbers.Real) and not isinstance(v, bool)
+                  and math.isfinite(v) for v in value))
+    if not ok:
+        raise ConfigError(f"expected [x, y, yaw_degrees], got {value!r}", key="start")
+    return float(value[0]), float(value[1]), float(value[2])
+
+
+@dataclass(frozen=True, kw_only=True)
+class ArenaFromMapConfig(CommandConfig):
+    """Options of ``simlab arena-from-map`` / :func:`arena_from_map`."""
+
+    COMMAND = "arena-from-map"
+    ARGUMENTS = ("map_yaml", "out")
+
+    map_yaml: Path = option(help="map_server YAML (image beside it)", positional=True,
+                            metavar="MAP.yaml")
+    out: Path = option(help="arena TOML to write")
+    states: Any | None = option(
+        None, "states file (JSON): one goal per state centre (default: 3 x 3 goals at the "
+        "freest points)")
+    start: Any | None = option(
+        None, "start pose in map coordinates, yaw in degrees (default: the freest state "
+        "centre or pixel, facing +y)", metavar="X,Y,YAW", parse=_start_pose)
+    goal_radius: float = option(0.15, "radius of every goal circle in m")
+    unknown_as_wall: bool = option(
+        False, "extrude unknown pixels as walls too (default: only occupied)")
+    name: str | None = option(None, "arena name (default: the file's stem)")
+    overwrite: bool = option(False, "replace an existing --out")
+
+    def validate(self) -> None:
+        if not self.goal_radius > 0:
+            raise ConfigError(f"expected a radius > 0, got {self.goal_radius}",
+                              key="goal_radius")
+        if self.start is not None:
+            object.__setattr__(self, "start", _check_start(self.start))
+
+
+@command(ArenaFromMapConfig)
+def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
     """Write an arena TOML ``out`` for the map ``map_yaml``; returns the path.
 
-    Args:
-        map_yaml: map_server YAML (its image beside it).
-        out: the TOML to write (refused if it exists, unless ``overwrite``).
-        states: optional states file (``simlab discretize`` JSON) or discretizer: its
-            centres become goals ``s<id>``.
-        start: ``(x, y, yaw_degrees)`` in map coordinates; default: see module doc.
-        goal_radius: radius (m) of every goal circle.
-        unknown_as_wall: extrude unknown pixels too.
-        name: arena name (default: the TOML's stem).
-        overwrite: replace an existing ``out``.
+    Takes an :class:`ArenaFromMapConfig` or its fields
+    (``arena_from_map(map_yaml, out, states=..., ...)``):
+
+    * ``map_yaml``: map_server YAML (its image beside it).
+    * ``out``: the TOML to write (refused if it exists, unless ``overwrite``).
+    * ``states``: optional states file (``simlab discretize`` JSON) or discretizer: its
+      centres become goals ``s<id>``.
+    * ``start``: ``(x, y, yaw_degrees)`` in map coordinates; default: see module doc.
+    * ``goal_radius``: radius (m) of every goal circle.
+    * ``unknown_as_wall``: extrude unknown pixels too.
+    * ``name``: arena name (default: the TOML's stem).
+    * ``overwrite``: replace an existing ``out``.
 
     The written file is loaded back (validated) before it is renamed into place.
     """
     from discretize.mapio import read_map
 
-    out = Path(out)
-    map_yaml = Path(map_yaml)
-    ensure_new(out, overwrite=overwrite, what="arena file")
-    if not goal_radius > 0:
-        raise ConfigError(f"expected a radius > 0, got {goal_radius}", key="goal_radius")
+    out, map_yaml, states, start, goal_radius = (cfg.out, cfg.map_yaml, cfg.states, cfg.start,
+                                                 cfg.goal_radius)
+    ensure_new(out, overwrite=cfg.overwrite, what="arena file")
     grid = read_map(map_yaml)
     clear = _clearance(grid.occupancy, grid.resolution)
     if clear.max() < START_CLEARANCE:
@@ -123,11 +170,11 @@ def arena_from_map(
     rel = os.path.relpath(map_yaml.resolve(), out.resolve().parent)
     lines = [
         f"# Arena built from the map {map_yaml} by `simlab arena-from-map`; map frame kept.",
-        f'name = "{name or out.stem}"',
+        f'name = "{cfg.name or out.stem}"',
         "",
         "[map]",
         f'yaml = "{Path(rel).as_posix()}"',
-        f"unknown_as_wall = {'true' if unknown_as_wall else 'false'}",
+        f"unknown_as_wall = {'true' if cfg.unknown_as_wall else 'false'}",
         "",
         "[walls]",
         "height = 0.25",
