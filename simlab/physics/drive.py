@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -11,10 +12,13 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from simlab.errors import ConfigError
 from simlab.io import atomic_write, ensure_new
+from simlab.options import command, option
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams
+from simlab.physics.primitive_options import PrimitiveOptions
 from simlab.physics.render import render_topdown
 from simlab.physics.world import World
 
@@ -44,35 +48,64 @@ class DriveSummary:
         return self.stepped_time / self.wall_time if self.wall_time > 0 else float("inf")
 
 
-def drive(
-    arena: ArenaConfig | str = "table",
-    steps: int = 100,
-    seed: int = 0,
-    *,
-    gui: bool = False,
-    png: str | Path | None = None,
-    overwrite: bool = False,
-    params: PrimitiveParams | str | Path | None = None,
-    progress: bool = True,
-    states: Any = None,
-) -> DriveSummary:
+@dataclass(frozen=True, kw_only=True)
+class DriveConfig(PrimitiveOptions):
+    """Options of ``simlab drive`` / :func:`drive`. The primitive options
+    (:class:`PrimitiveOptions`) and ``params`` are two ways to give the primitive
+    parameters: the flags for the command line, ``params`` (a ``PrimitiveParams`` or a
+    ``[primitives]`` TOML path) from Python; giving both is refused."""
+
+    COMMAND = "drive"
+    ARGUMENTS = ("arena", "steps", "seed")
+
+    arena: ArenaConfig | str = option("table", "built-in arena name or .toml path")
+    steps: int = option(100, "number of primitives")
+    seed: int = option(0, "random seed")
+    gui: bool = option(False, "open the PyBullet GUI (needs a display)")
+    png: Path | None = option(None, "write a top-down picture of the trajectory here")
+    overwrite: bool = option(False, "replace an existing --png file")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+    states: Any | None = option(
+        None, "states file (JSON of `simlab discretize`); needed by --mode "
+        "until_state_change (default: none)")
+    params: Any | None = option(
+        None, "PrimitiveParams or [primitives] TOML path (Python and TOML only; default: "
+        "built-in)", cli=False)
+
+    def validate(self) -> None:
+        if self.steps < 0:
+            raise ConfigError(f"must be >= 0, got {self.steps}", key="steps")
+        if self.primitive_options_given and self.params is not None:
+            raise ConfigError("give the primitive parameters once: params or the "
+                              "primitive options", key="params")
+
+    def resolved_params(self) -> PrimitiveParams:
+        """The primitive parameters of the drive: the primitive options, else ``params``,
+        else the built-in ones."""
+        if self.primitive_options_given:
+            return self.primitive_params()
+        if isinstance(self.params, str | os.PathLike):
+            return PrimitiveParams.from_toml(self.params)
+        return self.params or PrimitiveParams()
+
+
+@command(DriveConfig)
+def drive(cfg: DriveConfig) -> DriveSummary:
     """Execute ``steps`` uniformly random primitives; optionally save a top-down PNG.
 
-    ``params``: PrimitiveParams or a ``[primitives]`` TOML file (default: built-in).
+    Takes a :class:`DriveConfig` or its fields (``drive("table", 100, 0, png=...)``).
+    ``params`` or the primitive options: the primitive parameters (default: built-in).
     ``states``: a states file or discretizer, required by ``mode = "until_state_change"``.
     """
-    if steps < 0:
-        raise ValueError(f"steps must be >= 0, got {steps}")
+    arena, steps, seed, png = cfg.arena, cfg.steps, cfg.seed, cfg.png
     if png is not None:
-        ensure_new(png, overwrite=overwrite, what="PNG output")
-    if isinstance(params, str | Path):
-        params = PrimitiveParams.from_toml(params)
-    params = params or PrimitiveParams()
+        ensure_new(png, overwrite=cfg.overwrite, what="PNG output")
+    params = cfg.resolved_params()
     state_of = None
     if params.mode == "until_state_change":
         from simlab.physics.inputs import load_discretizer
 
-        disc = load_discretizer(states)
+        disc = load_discretizer(cfg.states)
         state_of = lambda xy: int(np.asarray(disc.state_of(np.asarray(xy)[None, :2]))[0])  # noqa: E731
     policy_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
     policy_rng, noise_rng = np.random.default_rng(policy_seq), np.random.default_rng(noise_seq)
@@ -80,12 +113,12 @@ def drive(
     def choose(_pose: NDArray[np.float64], _state: int | None) -> int:
         return int(policy_rng.integers(N_ACTIONS))
 
-    with World(arena, gui=gui) as world:
+    with World(arena, gui=cfg.gui) as world:
         driver = DecisionDriver(world, params, watch_state=state_of)
         trail = [world.pose()]
         blocked = 0
         stepped = 0.0
-        for _ in tqdm(range(steps), desc="drive", unit="primitive", disable=not progress):
+        for _ in tqdm(range(steps), desc="drive", unit="primitive", disable=not cfg.progress):
             res = driver.step(choose, noise_rng).result
             trail.append(res.pose_after)
             blocked += res.blocked
