@@ -44,7 +44,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import ndimage
@@ -54,6 +54,7 @@ from discretize.gridmap import OccupancyMap
 from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write_json, ensure_new
+from simlab.options import CommandConfig, command, option
 
 #: Half-diagonal of the TurtleBot3 Burger footprint 138 x 178 mm, metres.
 TURTLEBOT3_BURGER_RADIUS = 0.5 * math.hypot(0.138, 0.178)
@@ -651,3 +652,73 @@ def discretize_map(
         with atomic_write(png_path, "wb") as fh:
             fh.write(figure_bytes)
     return DiscretizeResult(discretizer=disc, out=out, png=png_path, visits=visits)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DiscretizeConfig(CommandConfig):
+    """Options of ``simlab discretize`` / :func:`discretize_command`.
+
+    ``states``, ``radius`` and ``centres`` are three ways to get the centres: at most one
+    is given. ``map``, ``centres``, ``png`` and ``dataset`` keep the spelling they were
+    given (the states file records the map's or the centres file's name as given).
+    """
+
+    COMMAND = "discretize"
+    ARGUMENTS = ("map", "out", "states")
+
+    map: Any = option(help="map_server map.yaml", metavar="YAML")
+    out: Path = option(help="states file to write", metavar="JSON")
+    states: int | None = option(None, "number of states (default 41)", metavar="N")
+    radius: float | None = option(
+        None, "cell-radius rule: N = eroded free area / (pi r^2) (thesis r_V = 0.09 m)",
+        metavar="M")
+    centres: Any | None = option(
+        None, "use these centres (text file, one 'x y' or 'id x y theta' line per state, "
+        "metres; ids number the states)", metavar="TXT")
+    renumber: bool = option(
+        False, "renumber --centres row-major from the top-left (default: file order)")
+    robot_radius: float = option(
+        DEFAULT_ROBOT_RADIUS, "erode free space by this radius in m (TurtleBot3 Burger)",
+        metavar="M")
+    all_components: bool = option(False, "keep every free region, not only the largest")
+    flip_y: bool = option(
+        False, "flip the map image vertically (images stored bottom row first; default off)")
+    png: Any | None = option(None, "also draw the states figure", metavar="PNG")
+    dataset: Any | None = option(
+        None, "Parquet dataset (column s) to colour the figure by visits", metavar="DIR")
+    overwrite: bool = option(False, "replace existing outputs")
+    progress: bool = option(True, "progress bars (--no-progress hides them)")
+
+    #: The fields of which at most one is given (one mutually exclusive group on the
+    #: command line).
+    EXCLUSIVE: ClassVar[tuple[str, ...]] = ("states", "radius", "centres")
+
+    def validate(self) -> None:
+        for key in ("map", "centres", "png", "dataset"):
+            value = getattr(self, key)
+            if value is not None and not (isinstance(value, str | os.PathLike) and str(value)):
+                raise ConfigError(f"expected a path, got {value!r}", key=key)
+        if self.centres is not None and (self.states is not None or self.radius is not None):
+            raise ConfigError("give --centres or --states/--radius, not both", key="centres")
+        if self.states is not None and self.radius is not None:
+            raise ConfigError("give either a number of states or a cell radius, not both",
+                              key="states")
+        if self.states is not None:
+            validation.whole(self.states, "states", minimum=1)
+        if self.radius is not None:
+            validation.positive(self.radius, "radius")
+        validation.positive(self.robot_radius, "robot_radius", allow_zero=True)
+        if self.dataset is not None and self.png is None:
+            raise ConfigError("--dataset colours the figure; give --png too", key="dataset")
+
+
+@command(DiscretizeConfig)
+def discretize_command(cfg: DiscretizeConfig) -> DiscretizeResult:
+    """``simlab discretize`` with its options as one :class:`DiscretizeConfig` (or its
+    fields as arguments): :func:`discretize_map`, whose signature Python callers use."""
+    return discretize_map(
+        cfg.map, cfg.out, cfg.states, radius=cfg.radius, robot_radius=cfg.robot_radius,
+        centres=cfg.centres, renumber=cfg.renumber,
+        component="all" if cfg.all_components else "largest", png=cfg.png,
+        dataset=cfg.dataset, overwrite=cfg.overwrite, progress=cfg.progress,
+        flip_y=cfg.flip_y)
