@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from simlab.actions import SIMLAB16, ActionSet
+from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
 from simlab.calibration.report import check_outputs, write_outputs
 from simlab.calibration.search import (
     CalibrationConfig,
@@ -24,6 +24,7 @@ from simlab.calibration.search import (
 )
 from simlab.calibration.space import ParameterSpace, default_space, load_space
 from simlab.errors import ConfigError
+from simlab.options import command, option
 
 
 def load_base(path: str | os.PathLike[str] | None, simulator: str) -> Any:
@@ -111,3 +112,80 @@ def calibrate_files(
     arena_cfg = load_arena_config(arena)
     result = calibrate(rt, arena_cfg, disc, space=sp, base=base, config=config)
     return CalibrateFiles(result=result, files=write_outputs(result, out, overwrite=overwrite))
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibrateConfig(ActionSetOptions):
+    """Options of ``simlab calibrate`` / :func:`calibrate_command`: the files, the real
+    table's action set (:class:`~simlab.actions.ActionSetOptions`; ``n_actions`` None =
+    16) and the search options, which become a :class:`CalibrationConfig` (checked there,
+    so their errors name ``calibration.<field>`` as they always did)."""
+
+    COMMAND = "calibrate"
+    ARGUMENTS = ("real", "states", "arena", "out")
+
+    real: Any = option(help="real counts: CSV/JSON (s, a, s_next, count) or ISIR model JSON")
+    states: Any = option(help="states file (JSON of `simlab discretize`) the real states use")
+    arena: Any = option("table", "arena name or TOML")
+    out: Path = option(help="output directory: primitives.toml, report.json/.md, figure")
+    hours_per_candidate: float = option(2.0, "simulated hours of each candidate's walk")
+    candidates: int = option(16, "candidates evaluated, the starting point included")
+    workers: int = option(2, "candidates simulated in parallel processes")
+    real_hours: float | None = option(
+        None, "duration of the real data in hours; fits the decision latency (default: "
+        "unknown, latency kept)")
+    space: Any | None = option(
+        None, "TOML [parameters.NAME] low/high/scale of the searched fields (default: drive "
+        "time, used speeds, detector margin)")
+    primitives: Any | None = option(
+        None, "[primitives] TOML to start from (default: built-in defaults)")
+    simulator: str = option("physics", "physics or the physics-free kinematic dry run",
+                            choices=("physics", "kinematic"))
+    pose_source: str = option("truth", "pose source of the simulated walks")
+    n_boot: int = option(200, "bootstrap resamples of the sampling floor")
+    unvisited: str = option("report", "real pairs never simulated: report them or count "
+                            "them as distance 1 (max)", choices=("report", "max"))
+    objective: str = option(
+        "excess", "minimised: the TV distance in excess of its sampling floor (unbiased with "
+        "few real visits per pair), the plain visit-weighted TV distance, or bits per real "
+        "transition under the simulated T", choices=("excess", "tv", "loglik"))
+    confirm: bool = option(True, "re-simulate the winner on a fresh seed (--no-confirm "
+                           "skips it)")
+    seed: int = option(0, "seed of walks and search")
+    overwrite: bool = option(False, "replace existing outputs")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        for key, kinds in (("real", str | os.PathLike), ("primitives", str | os.PathLike),
+                           ("space", str | os.PathLike | ParameterSpace)):
+            value = getattr(self, key)
+            if value is not None and not isinstance(value, kinds):
+                raise ConfigError(f"expected a path, got {value!r}", key=key)
+        self.search_config()
+        self.real_action_set()
+
+    def search_config(self) -> CalibrationConfig:
+        """The search options as the :class:`CalibrationConfig` Python callers use."""
+        return CalibrationConfig(
+            hours_per_candidate=self.hours_per_candidate, candidates=self.candidates,
+            workers=self.workers, seed=self.seed, simulator=self.simulator,
+            pose_source=self.pose_source, n_boot=self.n_boot, unvisited=self.unvisited,
+            objective=self.objective, confirm=self.confirm, progress=self.progress)
+
+    def real_action_set(self) -> ActionSet:
+        """What the real table's actions mean. ``speed`` is kept as given even for 16
+        actions, where it changes nothing but the report's record (the command always
+        did so; :meth:`make_action_set` would record "slow")."""
+        n = 16 if self.n_actions is None else self.n_actions
+        return parse_action_set(n, self.convention, self.speed)
+
+
+@command(CalibrateConfig)
+def calibrate_command(cfg: CalibrateConfig) -> CalibrateFiles:
+    """``simlab calibrate`` with its options as one :class:`CalibrateConfig` (or its
+    fields as arguments): :func:`calibrate_files` with the config's search options and
+    action set."""
+    return calibrate_files(cfg.real, cfg.states, cfg.arena, cfg.out,
+                           config=cfg.search_config(), action_set=cfg.real_action_set(),
+                           real_hours=cfg.real_hours, space=cfg.space,
+                           primitives=cfg.primitives, overwrite=cfg.overwrite)
