@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -62,7 +61,7 @@ class DriveConfig(PrimitiveOptions):
     steps: int = option(100, "number of primitives")
     seed: int = option(0, "random seed")
     gui: bool = option(False, "open the PyBullet GUI (needs a display)")
-    png: Path | None = option(None, "write a top-down picture of the trajectory here")
+    png: Any | None = option(None, "write a top-down picture of the trajectory here")
     overwrite: bool = option(False, "replace an existing --png file")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
     states: Any | None = option(
@@ -73,6 +72,10 @@ class DriveConfig(PrimitiveOptions):
         "built-in)", cli=False)
 
     def validate(self) -> None:
+        # png stays as spelled: the summary reports it so
+        if self.png is not None and not (isinstance(self.png, str | os.PathLike)
+                                         and str(self.png)):
+            raise ConfigError(f"expected a path, got {self.png!r}", key="png")
         if self.steps < 0:
             raise ConfigError(f"must be >= 0, got {self.steps}", key="steps")
         if self.primitive_options_given and self.params is not None:
