@@ -57,3 +57,53 @@ def test_console_script_help_lists_subcommands():
     out = subprocess.run([sys.executable, "-m", "simlab", "drive", "--help"], capture_output=True,
                          text=True, check=True).stdout
     assert "--steps" in out and "--png" in out
+
+
+# ---- the options as DriveConfig: --config FILE, --help, the Python function
+
+def _drive_config(argv):
+    import argparse
+
+    from simlab.cli.drive import add_arguments
+    from simlab.physics.drive import DriveConfig
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return DriveConfig.from_args(parser.parse_args(argv)), parser.format_help()
+
+
+def test_drive_config_file_and_the_command_line_wins(tmp_path, capsys):
+    toml = tmp_path / "drive.toml"
+    toml.write_text('steps = 5\nseed = 4\nprogress = false\ndrive-time = 0.3\n')
+    cfg, text = _drive_config(["--config", str(toml), "--steps", "2"])
+    assert (cfg.steps, cfg.seed, cfg.progress, cfg.arena) == (2, 4, False, "table")
+    assert cfg.resolved_params() == PrimitiveParams(drive_time=0.3)
+    assert "(default 100)" in text and "(default table)" in text and "--max-drive-time" in text
+    # the run prints what the same options give from Python
+    assert main(["drive", "--config", str(toml), "--steps", "2"]) == 0
+    s = drive("table", 2, 4, drive_time=0.3, progress=False)
+    assert f"2 primitives, {s.distance:.2f} m driven" in capsys.readouterr().out
+
+
+def test_drive_config_unknown_key_names_file_and_key(tmp_path, capsys):
+    toml = tmp_path / "drive.toml"
+    toml.write_text("stepz = 3\n")
+    assert main(["drive", "--config", str(toml)]) == 2
+    err = capsys.readouterr().err
+    assert str(toml) in err and "'stepz'" in err and err.count("\n") == 1
+
+
+def test_drive_takes_the_config_or_its_fields():
+    from simlab.errors import ConfigError
+    from simlab.physics.drive import DriveConfig
+
+    by_config = drive(DriveConfig(steps=3, seed=2, slow_speed=0.15, progress=False))
+    by_fields = drive("table", 3, 2, slow_speed=0.15, progress=False)
+    by_params = drive("table", 3, 2, params=PrimitiveParams(slow_speed=0.15), progress=False)
+    np.testing.assert_array_equal(by_config.trail, by_fields.trail)
+    np.testing.assert_array_equal(by_config.trail, by_params.trail)
+    assert not np.array_equal(by_config.trail, drive("table", 3, 2, progress=False).trail)
+    with pytest.raises(ConfigError, match="once"):  # both ways of giving the parameters
+        DriveConfig(params=PrimitiveParams(), slow_speed=0.1)
+    with pytest.raises(ValueError, match="steps"):
+        drive("table", -1)
