@@ -199,3 +199,57 @@ def test_arena_from_map_writes_a_loadable_arena(tmp_path: Path) -> None:
     assert main(["arena-from-map", str(tmp_path / "room.yaml"), "--out", str(out)]) == 2
     before = out.read_text()
     assert out.read_text() == before  # refused, not overwritten
+
+
+# ---- the options as ArenaFromMapConfig: --config FILE, --help, the Python function
+
+def test_arena_from_map_config_file_and_the_command_line_wins(tmp_path: Path, capsys) -> None:
+    import argparse
+
+    from simlab.cli import main
+    from simlab.cli.arena import add_arguments
+    from simlab.physics.map_arena import ArenaFromMapConfig
+
+    write_map(tmp_path / "room.yaml", room_map())
+    toml = tmp_path / "a.toml"
+    toml.write_text(f'out = "{tmp_path / "lab.toml"}"\nname = "lab"\ngoal-radius = 0.2\n'
+                    'start = [-2.0, 13.5, 0.0]\n')
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert "(default 0.15)" in parser.format_help()
+    cfg = ArenaFromMapConfig.from_args(parser.parse_args(
+        [str(tmp_path / "room.yaml"), "--config", str(toml), "--start=-1.5,13.4,90"]))
+    assert (cfg.name, cfg.goal_radius, cfg.start) == ("lab", 0.2, (-1.5, 13.4, 90.0))
+    assert main(["arena-from-map", str(tmp_path / "room.yaml"), "--config", str(toml),
+                 "--goal-radius", "0.25"]) == 0
+    assert "arena lab" in capsys.readouterr().out
+    arena = load_arena(tmp_path / "lab.toml")
+    assert {g.radius for g in arena.goals} == {0.25}
+    assert arena.start[:2] == pytest.approx((-2.0, 13.5))
+
+
+def test_arena_from_map_config_refusals(tmp_path: Path, capsys) -> None:
+    from simlab.cli import main
+    from simlab.physics.map_arena import ArenaFromMapConfig
+
+    write_map(tmp_path / "room.yaml", room_map())
+    toml = tmp_path / "a.toml"
+    toml.write_text('out = "x.toml"\ngoal-radiuss = 0.2\n')
+    assert main(["arena-from-map", str(tmp_path / "room.yaml"), "--config", str(toml)]) == 2
+    err = capsys.readouterr().err
+    assert str(toml) in err and "goal_radiuss" in err and err.count("\n") == 1
+    with pytest.raises(ConfigError, match="start"):
+        ArenaFromMapConfig(map_yaml="m.yaml", out="a.toml", start=(0.0, 1.0))
+    with pytest.raises(ConfigError, match="goal_radius"):
+        ArenaFromMapConfig(map_yaml="m.yaml", out="a.toml", goal_radius=0.0)
+
+
+def test_arena_from_map_takes_the_config_or_its_fields(tmp_path: Path) -> None:
+    from simlab.physics.map_arena import ArenaFromMapConfig, arena_from_map
+
+    write_map(tmp_path / "room.yaml", room_map())
+    a = arena_from_map(ArenaFromMapConfig(map_yaml=tmp_path / "room.yaml", out=tmp_path / "a.toml",
+                                          name="lab", unknown_as_wall=True))
+    b = arena_from_map(tmp_path / "room.yaml", tmp_path / "b.toml", name="lab",
+                       unknown_as_wall=True)
+    assert a.read_text() == b.read_text() and 'name = "lab"' in a.read_text()
