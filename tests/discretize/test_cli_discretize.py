@@ -9,9 +9,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from discretize.mapio import write_map
+from discretize.mapio import read_map, write_map
 from discretize.voronoi import Discretizer
 from simlab.cli import main
+from simlab.errors import ConfigError
 
 
 @pytest.fixture
@@ -134,3 +135,49 @@ def test_existing_output_kept_without_overwrite(tmp_path, map_yaml, capsys):
     assert out.read_text() == "precious"
     assert main([*argv, "--overwrite"]) == 0
     assert Discretizer.load(out).n_states == 4
+
+
+# ---- the options as DiscretizeConfig: --config FILE, --help, the Python function
+
+def test_config_file_and_the_command_line_wins(tmp_path, map_yaml, capsys):
+    toml = tmp_path / "d.toml"
+    toml.write_text(f'map = "{map_yaml}"\nout = "{tmp_path / "s.json"}"\nstates = 7\n'
+                    "robot-radius = 0.05\nprogress = false\n")
+    assert main(["discretize", "--config", str(toml), "--states", "6"]) == 0
+    assert "6 states" in capsys.readouterr().out
+    disc = Discretizer.load(tmp_path / "s.json")
+    assert disc.n_states == 6
+    direct = Discretizer.from_map(read_map(map_yaml), 6, robot_radius=0.05)  # file's radius
+    np.testing.assert_array_equal(disc.centres, direct.centres)
+    # one way to get the centres, across the file and the command line too
+    assert main(["discretize", "--config", str(toml), "--radius", "0.1", "--overwrite"]) == 2
+    assert "not both" in capsys.readouterr().err
+
+
+def test_help_shows_defaults_and_unknown_key_is_refused(tmp_path, map_yaml, capsys):
+    with pytest.raises(SystemExit):
+        main(["discretize", "--help"])
+    text = capsys.readouterr().out
+    assert "(default 0.113)" in text and "--all-components" in text and "--config FILE" in text
+    toml = tmp_path / "d.toml"
+    toml.write_text("robot_radious = 0.05\n")
+    assert main(["discretize", "--config", str(toml), "--map", str(map_yaml),
+                 "--out", str(tmp_path / "s.json")]) == 2
+    err = capsys.readouterr().err
+    assert str(toml) in err and "robot_radious" in err and err.count("\n") == 1
+    assert not (tmp_path / "s.json").exists()
+
+
+def test_command_takes_the_config_or_its_fields(tmp_path, map_yaml):
+    from discretize.voronoi import DiscretizeConfig, discretize_command, discretize_map
+
+    a = discretize_command(DiscretizeConfig(map=map_yaml, out=tmp_path / "a.json", states=5,
+                                            all_components=True, progress=False))
+    b = discretize_command(map_yaml, tmp_path / "b.json", 5, all_components=True,
+                           progress=False)
+    c = discretize_map(map_yaml, tmp_path / "c.json", 5, component="all", progress=False)
+    assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes() \
+        == (tmp_path / "c.json").read_bytes()
+    assert a.discretizer.n_states == b.discretizer.n_states == c.discretizer.n_states == 5
+    with pytest.raises(ConfigError, match="give --png too"):
+        DiscretizeConfig(map=map_yaml, out=tmp_path / "d.json", dataset=tmp_path)
