@@ -112,3 +112,61 @@ def test_physics_primitives_file_round_trip(tmp_path) -> None:
     path.write_text("[primitives]\ndrive_time = -1.0\n")
     with pytest.raises(ConfigError, match="drive_time"):
         load_base(path, "physics")
+
+
+# ---- the options as CalibrateConfig: --config FILE, --help, the Python function
+
+FAST = dict(simulator="kinematic", n_actions=8, convention="ccw-east", hours_per_candidate=0.25,
+            candidates=2, workers=1, n_boot=10, confirm=False, progress=False)
+
+
+def _same_run(report: dict) -> dict:
+    """The report without its wall-clock times."""
+    report = {k: v for k, v in report.items() if k != "wall_seconds"}
+    report["candidates"] = [{k: v for k, v in c.items() if k != "wall_seconds"}
+                            for c in report["candidates"]]
+    return report
+
+
+def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None:
+    import argparse
+
+    from simlab.calibration.command import CalibrateConfig
+    from simlab.calibration.search import CalibrationConfig
+    from simlab.cli.calibrate import add_arguments
+
+    real, states, _ = inputs
+    toml = tmp_path / "cal.toml"
+    toml.write_text(f'real = "{real}"\nstates = "{states}"\nsimulator = "kinematic"\n'
+                    'n-actions = 8\nconvention = "ccw-east"\ncandidates = 5\nseed = 3\n'
+                    "confirm = false\n")
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    text = parser.format_help()
+    assert "(default 16)" in text and "(default excess)" in text and "--no-confirm" in text
+    cfg = CalibrateConfig.from_args(parser.parse_args(
+        ["--config", str(toml), "--out", "o", "--candidates", "3"]))
+    assert cfg.real_action_set() == CCW8 and cfg.real == str(real)
+    assert cfg.search_config() == CalibrationConfig(candidates=3, seed=3, simulator="kinematic",
+                                                    confirm=False)
+    toml.write_text("candidatez = 3\n")
+    err = refused(argv(real, states, tmp_path / "out", "--config", str(toml)), capsys)
+    assert str(toml) in err and "candidatez" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_calibrate_command_takes_the_config_or_its_fields(inputs, tmp_path) -> None:
+    from simlab.calibration.command import CalibrateConfig, calibrate_command, calibrate_files
+    from simlab.calibration.search import CalibrationConfig
+
+    real, states, _ = inputs
+    calibrate_command(CalibrateConfig(real=real, states=states, out=tmp_path / "a", **FAST))
+    calibrate_command(real, states, "table", tmp_path / "b", **FAST)
+    search = {k: v for k, v in FAST.items() if k not in ("n_actions", "convention")}
+    calibrate_files(real, states, "table", tmp_path / "c", action_set=CCW8,
+                    config=CalibrationConfig(**search))
+    a, b, c = (_same_run(json.loads((tmp_path / d / "report.json").read_text())) for d in "abc")
+    assert a == b == c and len(a["candidates"]) == 2
+    assert a["real"]["action_set"]["convention"] == "ccw-east"
+    with pytest.raises(ConfigError, match=r"calibration\.n_boot"):  # CalibrationConfig's check
+        CalibrateConfig(real=real, states=states, out=tmp_path / "d", n_boot=0)
