@@ -44,7 +44,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -689,9 +689,7 @@ class DiscretizeConfig(CommandConfig):
     overwrite: bool = option(False, "replace existing outputs")
     progress: bool = option(True, "progress bars (--no-progress hides them)")
 
-    #: The fields of which at most one is given (one mutually exclusive group on the
-    #: command line).
-    EXCLUSIVE: ClassVar[tuple[str, ...]] = ("states", "radius", "centres")
+    EXCLUSIVE = ("states", "radius", "centres")  # the three ways to get the centres
 
     def validate(self) -> None:
         for key in ("map", "centres", "png", "dataset"):

@@ -93,6 +93,9 @@ class CommandConfig:
     #: The fields a call may give positionally, in order (default: every field, in field
     #: order). Set it when field groups from base classes come first in the field order.
     ARGUMENTS: ClassVar[tuple[str, ...]] = ()
+    #: Fields of which at most one may be given on the command line (one argparse mutually
+    #: exclusive group); ``validate()`` checks the same for files and Python calls.
+    EXCLUSIVE: ClassVar[tuple[str, ...]] = ()
 
     # -- construction -----------------------------------------------------------------
 
@@ -174,9 +177,10 @@ class CommandConfig:
         """Add one argparse option per field (an option not given stays a marker in the
         namespace so that :meth:`from_args` can tell it from one given)."""
         hints = _hints(cls)
+        group = parser.add_mutually_exclusive_group() if cls.EXCLUSIVE else parser
         for f in dataclasses.fields(cls):  # type: ignore[arg-type]
             if f.metadata.get("cli", True):
-                _add_field(parser, f, hints[f.name])
+                _add_field(group if f.name in cls.EXCLUSIVE else parser, f, hints[f.name])
         if config_file:
             parser.add_argument("--config", default=None, metavar="FILE",
                                 help="TOML file of these options (keys as the long option "

@@ -6,30 +6,14 @@ The options are the fields of :class:`discretize.voronoi.DiscretizeConfig`.
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 HELP = "place Voronoi state centres on a map_server map and save them as JSON (and a figure)"
-
-
-class _OneOf:
-    """The parser as :meth:`DiscretizeConfig.add_arguments` sees it: the options of
-    ``DiscretizeConfig.EXCLUSIVE`` go into one mutually exclusive group (argparse refuses
-    ``--states 5 --radius 0.1`` as it always did), every other option to the parser."""
-
-    def __init__(self, parser: argparse.ArgumentParser, dests: tuple[str, ...]) -> None:
-        self._parser = parser
-        self._group = parser.add_mutually_exclusive_group()
-        self._dests = dests
-
-    def add_argument(self, *names: str, **kwargs: Any) -> argparse.Action:
-        target = self._group if kwargs.get("dest") in self._dests else self._parser
-        return target.add_argument(*names, **kwargs)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from discretize.voronoi import DiscretizeConfig
 
-    DiscretizeConfig.add_arguments(_OneOf(parser, DiscretizeConfig.EXCLUSIVE))  # type: ignore[arg-type]
+    DiscretizeConfig.add_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -108,6 +108,24 @@ def test_a_field_with_its_own_flag_reads_either_key_and_errors_name_the_flag(
     assert "id" in (info.value.fix or "").split(", ")
 
 
+@dataclass(frozen=True, kw_only=True)
+class OneOfConfig(CommandConfig):
+    states: int | None = option(None, "number of states")
+    radius: float | None = option(None, "cell radius")
+    seed: int = option(0, "root seed")
+    EXCLUSIVE = ("states", "radius")
+
+
+def test_exclusive_fields_are_one_argparse_group(capsys) -> None:
+    parser = argparse.ArgumentParser()
+    OneOfConfig.add_arguments(parser)
+    assert OneOfConfig.from_args(parser.parse_args(["--radius", "0.1", "--seed", "2"])) == \
+        OneOfConfig(radius=0.1, seed=2)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--states", "4", "--radius", "0.1"])
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
 def test_configs_are_frozen_and_replace_validates() -> None:
     cfg = DemoConfig(out="o.npz")
     assert cfg.out == Path("o.npz")  # strings become paths
