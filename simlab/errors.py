@@ -7,6 +7,8 @@ one-line message and exit code 2 (see :mod:`simlab.cli`).
 from __future__ import annotations
 
 from os import PathLike
+from os import sep as _sep
+from pathlib import Path as _Path
 
 
 class SimlabError(Exception):
@@ -47,3 +49,25 @@ class ConfigError(SimlabError, ValueError):
 
 class DataError(SimlabError, ValueError):
     """A data file (dataset part, manifest, npz, map image) is missing or corrupt."""
+
+
+#: Source folders whose frames :func:`warn` skips: simlab's and discretize's packages.
+_OURS = tuple(str(_Path(__file__).parent.parent / pkg) + _sep
+              for pkg in ("simlab", "discretize"))
+
+
+def warn(message: str, category: type[Warning] = UserWarning) -> None:
+    """``warnings.warn`` attributed to the first caller outside simlab and discretize.
+
+    A warning is about the caller's input, so its location should be the caller's line,
+    whatever the depth of simlab's own calls in between (the ``@command`` wrapper, stage
+    helpers). Counting that depth by hand at every call (``stacklevel=3``) breaks when a
+    call path changes. (Python 3.12's ``skip_file_prefixes`` does the same.) When every
+    frame is simlab's (``python -m simlab``), the outermost one is used."""
+    import sys
+    import warnings
+
+    frame, level = sys._getframe(1), 2
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(_OURS):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)

@@ -19,12 +19,11 @@ from __future__ import annotations
 
 import json
 import os
-import warnings
 from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.errors import ConfigError, warn
 
 __all__ = ["MAX_BAD_FRACTION", "check_centres_in_arena", "check_states_hash",
            "npz_states_hash"]
@@ -53,7 +52,7 @@ def check_centres_in_arena(centres: Any, arena: Any, *, source: str | None = Non
     if bad.size > MAX_BAD_FRACTION * len(xy):
         raise ConfigError(text, path=source, key="centres",
                           fix="use the states made for this arena (simlab discretize)")
-    warnings.warn(f"{source or 'states'}: {text}", stacklevel=2)
+    warn(f"{source or 'states'}: {text}")
     return int(bad.size)
 
 

@@ -51,7 +51,6 @@ import io
 import json
 import math
 import os
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,7 +59,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.data.schema import N_ACTIONS
-from simlab.errors import ConfigError, DataError
+from simlab.errors import ConfigError, DataError, warn
 
 COLUMNS = ("s", "a", "s_next", "count")
 #: Largest dense ``(S, A, S)`` int64 table :func:`load_counts` allocates (bytes).
@@ -322,7 +321,7 @@ def load_counts(
     triples = (s * n_actions + a) * S + s_next
     duplicates = int(len(triples) - len(np.unique(triples)))
     if duplicates:
-        warnings.warn(f"{path}: {duplicates} duplicated (s, a, s') row(s) summed",
-                      DuplicateRowsWarning, stacklevel=2)
+        warn(f"{path}: {duplicates} duplicated (s, a, s') row(s) summed",
+             DuplicateRowsWarning)
     return CountTable(counts=counts, rows=len(raw), duplicates=duplicates, path=path,
                       format=fmt, metadata=meta)

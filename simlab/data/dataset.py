@@ -27,7 +27,7 @@ import pyarrow.parquet as pq
 from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.data.manifest import file_sha256, manifest_path, read_manifest
 from simlab.data.schema import N_ACTIONS, PARTS_DIR, parse_part_name, part_file, part_name
-from simlab.errors import DataError
+from simlab.errors import DataError, warn
 from simlab.io import atomic_write
 
 #: Key of the Parquet schema metadata holding the discretizer hash of a part.
@@ -185,11 +185,9 @@ class TransitionDataset:
         """Warn (:class:`IncompleteDatasetWarning`) when the collect run did not finish;
         ``use`` says what is built from the finished parts only (``"the model"``)."""
         if not self.manifest.get("complete", False):
-            import warnings
-
-            warnings.warn(f"{self.directory}: the dataset is incomplete (a collect run was "
-                          f"stopped); {use} covers only its finished parts (finish it with "
-                          "`simlab collect --resume`)", IncompleteDatasetWarning, stacklevel=3)
+            warn(f"{self.directory}: the dataset is incomplete (a collect run was stopped); "
+                 f"{use} covers only its finished parts (finish it with `simlab collect "
+                 "--resume`)", IncompleteDatasetWarning)
 
     @property
     def discretizer_hash(self) -> str:

@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from simlab import validation
-from simlab.errors import ConfigError
+from simlab.errors import ConfigError, warn
 from simlab.options import CommandConfig, command, option
 
 
@@ -123,10 +123,9 @@ def _env_spec(ds: Any, arena: str | None, goal: str | None, episode_length: int)
     try:
         load_arena(arena or m["arena"]["name"])
     except (ConfigError, OSError) as exc:
-        warnings.warn(f"no env spec recorded (recover_environment() will not work): the "
-                      f"arena {arena or m['arena']['name']!r} does not load ({exc}); pass "
-                      f"--arena NAME_OR_TOML", UserWarning,
-                      stacklevel=4)  # _env_spec < export_minari < @command wrapper < caller
+        warn(f"no env spec recorded (recover_environment() will not work): the arena "
+             f"{arena or m['arena']['name']!r} does not load ({exc}); pass --arena "
+             "NAME_OR_TOML")
         return None
     names = [g["name"] for g in m["arena"].get("goals", [])]
     kwargs: dict[str, Any] = {

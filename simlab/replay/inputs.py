@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.data.goals import is_state_goal
-from simlab.errors import ConfigError
+from simlab.errors import ConfigError, warn
 
 #: Number of simlab motion primitives (SPEC A4).
 N_ACTIONS = 16
@@ -279,7 +279,6 @@ def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, s
     ``params`` that differ from the dataset's (other than ``heading_source``) raise
     :class:`ConfigError`.
     """
-    import warnings
     from dataclasses import asdict, fields
 
     from simlab.physics.motion import PrimitiveParams
@@ -288,11 +287,9 @@ def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, s
     if recorded is None:
         # only when no dataset was found at all (a kinematic dataset has no primitives)
         if model is not None and model.dataset is None and params is None:
-            warnings.warn(
-                "the MDP carries no record of the motion primitives it was estimated from "
-                "(no dataset manifest beside it); replaying with the default primitives — "
-                "pass the real robot's settings (--primitives FILE.toml) if they differ",
-                UserWarning, stacklevel=2)
+            warn("the MDP carries no record of the motion primitives it was estimated from "
+                 "(no dataset manifest beside it); replaying with the default primitives — "
+                 "pass the real robot's settings (--primitives FILE.toml) if they differ")
         return (params if params is not None else PrimitiveParams()), "default"
     names = {f.name for f in fields(PrimitiveParams)}
     if params is None:

@@ -59,7 +59,6 @@ import inspect
 import os
 import re
 import time
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -68,7 +67,7 @@ import numpy as np
 
 from simlab import validation as v
 from simlab.data.goals import state_goal_name
-from simlab.errors import ConfigError
+from simlab.errors import ConfigError, warn
 from simlab.io import atomic_write_bytes, atomic_write_json, output_transaction
 from simlab.options import CommandConfig, command, option
 
@@ -231,9 +230,8 @@ def _harness_kwargs(fn: Any, *, valid: np.ndarray | None,
         if "valid" in accepted:
             kwargs["valid"] = valid
         else:
-            warnings.warn(f"{fn.__name__} of this simlab cannot mask actions: it ignores the "
-                          "unvisited-pair mask (the saved greedy policies still respect it)",
-                          stacklevel=3)
+            warn(f"{fn.__name__} of this simlab cannot mask actions: it ignores the "
+                 "unvisited-pair mask (the saved greedy policies still respect it)")
     return kwargs
 
 
@@ -446,12 +444,11 @@ def train(cfg: TrainConfig) -> TrainSummary:
 def _warn_about(m: Any) -> None:
     """Warn about an MDP estimated from nothing and about masked (s, a) pairs."""
     if m.counts is not None and int(np.asarray(m.counts).sum()) == 0:
-        warnings.warn(f"{m.source or 'the MDP'}: estimated from 0 transitions; every (s, a) "
-                      "is a self-loop and training learns nothing (collect data first)",
-                      stacklevel=3)
+        warn(f"{m.source or 'the MDP'}: estimated from 0 transitions; every (s, a) is a "
+             "self-loop and training learns nothing (collect data first)")
     if m.valid is not None:
-        warnings.warn(f"{int((~m.valid).sum())} unvisited (s, a) pairs masked: agents never "
-                      "choose them (unvisited='self-loop' for the old rule)", stacklevel=3)
+        warn(f"{int((~m.valid).sum())} unvisited (s, a) pairs masked: agents never choose "
+             "them (unvisited='self-loop' for the old rule)")
 
 
 def _output_files(out: Any, names: list[str], plots: bool, centres: bool) -> dict[str, Path]:
