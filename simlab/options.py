@@ -122,20 +122,7 @@ class CommandConfig:
         ``dataset_id``: key ``id``; dashes or underscores); unknown keys, a field given
         twice and missing required fields name the file and the key."""
         known = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-        alias = {f.metadata["flag"].replace("-", "_"): f.name for f in known.values()
-                 if f.metadata.get("flag")}
-        kwargs: dict[str, Any] = {}
-        for key, value in values.items():
-            name = key.replace("-", "_")
-            name = name if name in known else alias.get(name, name)
-            if name not in known:
-                raise ConfigError(f"unknown option {key!r}", path=path, key=key,
-                                  fix="known options: " + ", ".join(sorted({*known, *alias})))
-            if name in kwargs:
-                raise ConfigError(f"option {name!r} given twice (as its field name and as "
-                                  "its option name)", path=path, key=key,
-                                  fix="keep one of the two keys")
-            kwargs[name] = value
+        kwargs = cls._by_field(values, path)
         missing = [f for f in known.values() if f.name not in kwargs
                    and f.default is _MISSING and f.default_factory is _MISSING]
         if missing:
@@ -148,6 +135,29 @@ class CommandConfig:
             if path is None or exc.path is not None:
                 raise
             raise ConfigError(exc.problem, path=path, key=exc.key, fix=exc.fix) from None
+
+    @classmethod
+    def _by_field(cls, values: Mapping[str, Any], path: str | os.PathLike[str] | None
+                  ) -> dict[str, Any]:
+        """``values`` keyed by field name: a key is a field name or a long option name
+        (dashes or underscores); an unknown key or a field given twice is a ConfigError
+        naming the file and the key."""
+        known = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        alias = {f.metadata["flag"].replace("-", "_"): f.name for f in known.values()
+                 if f.metadata.get("flag")}
+        out: dict[str, Any] = {}
+        for key, value in values.items():
+            name = key.replace("-", "_")
+            name = name if name in known else alias.get(name, name)
+            if name not in known:
+                raise ConfigError(f"unknown option {key!r}", path=path, key=key,
+                                  fix="known options: " + ", ".join(sorted({*known, *alias})))
+            if name in out:
+                raise ConfigError(f"option {name!r} given twice (as its field name and as "
+                                  "its option name)", path=path, key=key,
+                                  fix="keep one of the two keys")
+            out[name] = value
+        return out
 
     @classmethod
     def from_toml(cls: type[C], path: str | os.PathLike[str], table: str | None = None) -> C:
@@ -194,7 +204,7 @@ class CommandConfig:
         if config_path is not None:
             from simlab.io import read_toml
 
-            values.update({k.replace("-", "_"): v for k, v in read_toml(config_path).items()})
+            values.update(cls._by_field(read_toml(config_path), config_path))
         names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
         values.update({k: v for k, v in vars(args).items()
                        if k in names and v is not _UNSET})

@@ -100,6 +100,10 @@ def test_a_field_with_its_own_flag_reads_either_key_and_errors_name_the_flag(
     with pytest.raises(ConfigError, match=r"dataset_id \(--id\)") as info:
         FlagConfig.from_mapping({"episode_length": 3}, path=tmp_path / "f.toml")
     assert info.value.key == "dataset_id"
+    toml = tmp_path / "flag.toml"
+    toml.write_text('id = "from-file"\nepisode-length = 4\n')
+    assert FlagConfig.from_args(parser.parse_args(["--config", str(toml), "--id", "cli"])) == \
+        FlagConfig(dataset_id="cli", episode_length=4)  # the command line wins over a file
     with pytest.raises(ConfigError, match="given twice") as info:
         FlagConfig.from_mapping({"id": "x", "dataset_id": "y"})
     assert info.value.key == "dataset_id"

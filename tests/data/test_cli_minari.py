@@ -242,7 +242,7 @@ def test_minari_cli_unknown_config_key_names_the_file_and_the_key(
     code = main(["export-minari", str(kinematic_dataset), "--config", str(toml)])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
-    assert str(toml) in err and "episode_lenght: unknown option" in err
+    assert str(toml) in err and "episode-lenght: unknown option" in err
     assert not minari_home.exists() or not any(minari_home.rglob("*typo*"))
 
 

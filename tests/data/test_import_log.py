@@ -363,7 +363,7 @@ def test_cli_unknown_config_key_names_the_file_and_the_key(
     code = main(["import-log", str(log), "--config", str(toml), "--out", str(tmp_path / "ds")])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
-    assert str(toml) in err and "move_sped: unknown option" in err and "move_speed" in err
+    assert str(toml) in err and "move-sped: unknown option" in err and "move_speed" in err
     assert not (tmp_path / "ds").exists()
 
 
