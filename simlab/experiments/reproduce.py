@@ -32,6 +32,7 @@ from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.experiments.spec import BUDGETS, FAIL, ExperimentSpec, discover_experiments, select
 from simlab.io import atomic_write_json, atomic_write_text
+from simlab.options import CommandConfig, command, option
 
 RESULTS_MD = "results.md"
 RESULTS_JSON = "results.json"
@@ -176,45 +177,77 @@ def _run_one(spec: ExperimentSpec, budget: str, out: Path, executor: Any, seed: 
     return entry
 
 
-def reproduce(
-    out: str | os.PathLike[str],
-    *,
-    only: str | Sequence[str] | None = None,
-    budget: str = "quick",
-    backend: str = "local",
-    address: str | None = None,
-    workers: int | None = None,
-    experiments: str | os.PathLike[str] | Sequence[str | os.PathLike[str]] | None = None,
-    seed: int = 0,
-    overwrite: bool = False,
-    progress: bool = True,
-    log: Callable[[str], None] | None = print,
-) -> ReproduceResult:
+@dataclass(frozen=True, kw_only=True)
+class ReproduceConfig(CommandConfig):
+    """Options of ``simlab reproduce`` / :func:`reproduce`.
+
+    ``out`` may be None here because ``simlab reproduce --list`` needs no output folder;
+    :func:`reproduce` refuses it. ``strict`` only sets the command's exit code (the
+    function returns the same result either way).
+    """
+
+    COMMAND = "reproduce"
+    ARGUMENTS = ("out",)
+
+    out: Path | None = option(None, "output folder (figures, results.md); required unless "
+                              "--list")
+    only: Any | None = option(None, "run only these experiments (a list from Python or TOML)",
+                              metavar="NAME[,NAME]", parse=str)
+    budget: str = option("quick", "quick: tiny runs (seconds); full: the thesis's trial "
+                         "counts, 10 seeds", choices=BUDGETS)
+    backend: str = option("local", "where independent runs go: local process pool or Ray "
+                          "tasks", choices=("local", "ray"))
+    address: str | None = option(None, "Ray cluster address (default: start Ray locally)")
+    workers: int | None = option(None, "local processes (default: all cores)")
+    experiments: Any | None = option(
+        None, "a folder of experiment TOMLs or one file (a list of files from Python or "
+        "TOML; default: experiments/)", metavar="PATH", parse=str)
+    seed: int = option(0, "root seed")
+    overwrite: bool = option(False, "replace the results of experiments already in --out")
+    strict: bool = option(False, "exit 1 when a check FAILs too")
+    progress: bool = option(True, "progress bars (--no-progress hides them)")
+
+    def validate(self) -> None:
+        validation.whole(self.seed, "seed", minimum=0)
+        if self.workers is not None:
+            validation.whole(self.workers, "workers", minimum=1)
+        for key in ("only", "experiments"):  # lists from TOML/Python: a hashable tuple
+            value = getattr(self, key)
+            if isinstance(value, list):
+                object.__setattr__(self, key, tuple(value))
+            elif not (value is None or isinstance(value, str | os.PathLike | tuple)):
+                raise ConfigError(f"expected a text, a path or a list, got {value!r}", key=key)
+
+
+@command(ReproduceConfig, extras=("log",))
+def reproduce(cfg: ReproduceConfig, log: Callable[[str], None] | None = print
+              ) -> ReproduceResult:
     """Run the thesis experiments and write ``out/results.md`` (see the module docstring).
 
-    Args:
-        out: output folder (created).
-        only: experiment names (``"fig4_8_entropy,fig4_9_training"`` or a list); None: all.
-        budget: ``"quick"`` (tiny, seconds) or ``"full"`` (the thesis's trial counts).
-        backend: ``"local"`` (process pool) or ``"ray"``.
-        address: Ray cluster address (``ray`` only; default: reuse or start a local Ray).
-        workers: processes of the local pool (default: the machine's cores).
-        experiments: a folder of ``*.toml`` or a list of files (default: the repository's
-            ``experiments/``).
-        seed: root seed; experiment ``name`` uses ``SeedSequence(seed, spawn_key=(crc32(name),))``.
-        overwrite: replace the results of experiments that already have an output folder.
-        progress: progress bars.
-        log: receives one line per experiment (None: silent).
+    Takes a :class:`ReproduceConfig` or its fields (``reproduce(out, budget="full")``):
+
+    * ``out``: output folder (created).
+    * ``only``: experiment names (``"fig4_8_entropy,fig4_9_training"`` or a list); None: all.
+    * ``budget``: ``"quick"`` (tiny, seconds) or ``"full"`` (the thesis's trial counts).
+    * ``backend``: ``"local"`` (process pool) or ``"ray"``; ``address``: Ray cluster
+      address (``ray`` only; default: reuse or start a local Ray).
+    * ``workers``: processes of the local pool (default: the machine's cores).
+    * ``experiments``: a folder of ``*.toml`` or a list of files (default: the
+      repository's ``experiments/``).
+    * ``seed``: root seed; experiment ``name`` uses
+      ``SeedSequence(seed, spawn_key=(crc32(name),))``.
+    * ``overwrite``: replace the results of experiments that already have an output folder.
+    * ``progress``: progress bars.
+    * ``log`` (not an option): receives one line per experiment (None: silent).
 
     Returns:
         :class:`ReproduceResult`. Raises :class:`ConfigError` for bad options or experiment
         files, before anything runs; errors inside an experiment are recorded instead.
     """
-    if budget not in BUDGETS:
-        raise ConfigError(f"unknown budget {budget!r}", key="budget",
-                          fix=f"choose one of {', '.join(BUDGETS)}")
-    validation.whole(seed, "seed", minimum=0)
-    specs = select(discover_experiments(experiments), only)
+    if cfg.out is None:
+        raise ConfigError("missing", key="--out", fix="e.g. --out runs/reproduce")
+    budget, seed, experiments = cfg.budget, cfg.seed, cfg.experiments
+    specs = select(discover_experiments(experiments), cfg.only)
     if not specs:
         raise ConfigError("no experiment files found", path=experiments, key="experiments")
     from simlab.experiments.registry import get_runner
@@ -224,14 +257,14 @@ def reproduce(
             get_runner(spec.runner)
         except ConfigError as exc:
             raise ConfigError(exc.problem, path=spec.path, key="runner", fix=exc.fix) from None
-    out = Path(out)
-    _check_outputs(out, specs, overwrite)
+    out = cfg.out
+    _check_outputs(out, specs, cfg.overwrite)
     previous = _read_previous(out / RESULTS_JSON)
 
     from simlab import __version__
     from simlab.parallel import make_executor
 
-    executor = make_executor(backend, workers=workers, address=address)
+    executor = make_executor(cfg.backend, workers=cfg.workers, address=cfg.address)
     say = log or (lambda _line: None)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -243,7 +276,7 @@ def reproduce(
             f"{executor.describe()} -> {out}")
         for i, spec in enumerate(specs, start=1):
             say(f"[{i}/{len(specs)}] {spec.name}: {spec.reference} — {spec.title} ...")
-            entry = _run_one(spec, budget, out, executor, seed, progress, log)
+            entry = _run_one(spec, budget, out, executor, seed, cfg.progress, log)
             done.append(entry)
             say(f"[{i}/{len(specs)}] {spec.name}: {_headline(entry)}")
             header["wall_seconds"] = time.perf_counter() - t_start
