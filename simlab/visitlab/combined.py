@@ -66,9 +66,11 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from simlab import validation
 from simlab.agents import core
 from simlab.agents.kernels import greedy_action
 from simlab.errors import ConfigError
+from simlab.options import CommandConfig, option
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import ACTION_DIR, ACTION_SPEED, Action
 from simlab.visitlab.grid import Layout, make_layout
@@ -269,6 +271,56 @@ def _check_weights(weights: Any) -> tuple[float, float, float]:
         raise ConfigError(f"expected three non-negative numbers, not all 0, got {weights!r}",
                           key="speed_weights")
     return w  # type: ignore[return-value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CombinedConfig(CommandConfig):
+    """Options of ``simlab visitlab combined``: a :class:`CombinedTask` run by
+    :func:`evaluate` with the three trained Q tables of ``visitlab train`` curves files
+    (:class:`Modules`), optionally one episode as a GIF (:func:`write_episode_gif`)."""
+
+    COMMAND = "visitlab combined"
+
+    nav: Path = option(help="curves.npz of the goal-conditioned navigation (random start "
+                       "and goal) module ('visitlab train')", metavar="CURVES")
+    social: Path = option(help="curves.npz of the social module ('visitlab train')",
+                          metavar="CURVES")
+    gotohuman: Path = option(help="curves.npz of the go-to-human module ('visitlab train')",
+                             metavar="CURVES")
+    run: int = option(0, "run index in each curves file")
+    seed_index: int = option(0, "seeded run whose Q tables to use")
+    human: str | None = option(
+        None, "human preset (default: the social module's training human)")
+    layout: str = option("gridworld", "the world (the navigation module's)")
+    steps: int = option(100, "steps per trial")
+    weights: Any = option("0.1,0.1,0.8", "speed coefficients w1,w2,w3 (thesis 0.1,0.1,0.8; "
+                          "paper 1/3 each)", parse=str)
+    trials: int = option(100, "trials")
+    seed: int = option(0, "seed")
+    gif: Any | None = option(
+        None, "write the first trial with two goals or more (else the best) as a GIF")
+    overwrite: bool = option(False, "replace an existing GIF")
+
+    def validate(self) -> None:
+        validation.whole(self.run, "run")
+        validation.whole(self.seed_index, "seed_index")
+        validation.whole(self.steps, "steps", minimum=1)
+        validation.whole(self.trials, "trials", minimum=1)
+        validation.whole(self.seed, "seed")
+        self.speed_weights()
+        # the GIF stays as spelled: the command's "wrote ..." line prints it so
+        if self.gif is not None and not (isinstance(self.gif, str | os.PathLike)
+                                         and str(self.gif)):
+            raise ConfigError(f"expected a path, got {self.gif!r}", key="gif")
+
+    def speed_weights(self) -> tuple[float, ...]:
+        """``weights`` as numbers (a ``w1,w2,w3`` text or a list of numbers)."""
+        words = self.weights.split(",") if isinstance(self.weights, str) else self.weights
+        try:
+            return tuple(float(x) for x in words)
+        except (TypeError, ValueError):
+            raise ConfigError(f"expected three numbers, got {self.weights!r}",
+                              key="--weights") from None
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,18 +17,21 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from simlab.errors import DataError
+from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, atomic_write_json, ensure_new
+from simlab.options import CommandConfig, option
 from simlab.visitlab.training import TrainResult, smooth_curve, summarize_curve
 
 FILES = ("curves.npz", "curves.png", "summary.json")
 
-__all__ = ["FILES", "load_results", "plot_results", "save_results", "smooth_curve",
-           "summarize_curve"]
+__all__ = ["FILES", "PlotConfig", "load_results", "plot_results", "save_results",
+           "smooth_curve", "summarize_curve"]
 
 
 def save_results(results: list[TrainResult], out_dir: str | os.PathLike[str], *,
@@ -98,3 +101,29 @@ def plot_results(results: list[TrainResult], path: str | os.PathLike[str], *,
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png")
     plt.close(fig)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlotConfig(CommandConfig):
+    """Options of ``simlab visitlab plot``: the runs of several curves files drawn by
+    :func:`plot_results` on one figure."""
+
+    COMMAND = "visitlab plot"
+
+    curves: tuple[Path, ...] = option(help="curves.npz files", positional=True)
+    labels: str | None = option(
+        None, "comma-separated legend labels, one per curve in file order")
+    title: str = option("", "plot title")
+    out: Any = option(help="PNG to write")
+    overwrite: bool = option(False, "replace an existing PNG")
+
+    def validate(self) -> None:
+        if not self.curves:
+            raise ConfigError("no curves file given", key="curves")
+        # the PNG stays as spelled: the command's "wrote ..." line prints it so
+        if not (isinstance(self.out, str | os.PathLike) and str(self.out)):
+            raise ConfigError(f"expected a path, got {self.out!r}", key="out")
+
+    def label_list(self) -> list[str] | None:
+        """The legend labels of ``labels`` (None: the runs' own)."""
+        return None if self.labels is None else [x.strip() for x in self.labels.split(",")]

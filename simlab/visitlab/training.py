@@ -47,13 +47,17 @@ agent's — so identical seeds give identical curves and Q tables.
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numba import njit
 
+from simlab import validation
 from simlab.agents import core
 from simlab.agents.config import (
     ModelBasedConfig,
@@ -67,6 +71,7 @@ from simlab.agents.core import agent_params
 from simlab.agents.kernels import count_model_new, rmax_q_init, window_model_new
 from simlab.agents.registry import AGENTS, agent_config
 from simlab.errors import ConfigError
+from simlab.options import CommandConfig, command, option
 from simlab.visitlab import TASKS
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.perception import P_SHARE
@@ -254,6 +259,133 @@ def make_env(task: str, **env_kwargs: Any):
     return classes[task](**env_kwargs)
 
 
+def parse_value(text: str) -> Any:
+    """The value a command-line word spells (``--set``, ``--start``, ``--goal``): ``none``
+    / ``null`` -> None, ``true`` / ``false``, a whole or decimal number, else the text."""
+    low = text.strip().lower()
+    if low in ("none", "null"):
+        return None
+    if low in ("true", "false"):
+        return low == "true"
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_overrides(items: Any) -> dict[str, Any]:
+    """Agent overrides from ``KEY=VALUE`` words (``--set``, or a TOML list of them; values
+    by :func:`parse_value`) or a table ``{key: value}`` (taken as is)."""
+    if isinstance(items, dict):
+        return dict(items)
+    if not isinstance(items, list | tuple):
+        raise ConfigError(f"expected a table or a list of KEY=VALUE, got {items!r}", key="--set")
+    out: dict[str, Any] = {}
+    for item in items:
+        if not isinstance(item, str) or "=" not in item:
+            raise ConfigError(f"expected KEY=VALUE, got {item!r}", key="--set")
+        key, value = item.split("=", 1)
+        out[key.strip()] = parse_value(value)
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class VisitlabEnvOptions(CommandConfig):
+    """The environment options of ``visitlab train`` and ``visitlab show`` (a field group:
+    inherit it). :meth:`env_kwargs` turns them into the keyword arguments of
+    :func:`make_env` / :func:`train`; options that do not apply to ``task`` are refused
+    here, so a run never starts with an option it would ignore."""
+
+    task: str = option("social", "module to run", choices=TASKS)
+    variant: str = option("thesis", "thesis or paper settings", choices=("thesis", "paper"))
+    human: str | None = option(
+        None, "human preset(s), comma-separated: easy, medium, hard, H1, H2, H3 (social "
+        "default: easy / H1; go-to-human default: a still human)")
+    layout: str | None = option(
+        None, "gridworld, gridworld-HxW, paper or lab (default: the task's)")
+    layout_seed: int | None = option(None, "seed of a random lab layout")
+    episode: str | None = option(
+        None, "go-to-human episode variant (thesis Fig. 4.4; default random)",
+        choices=("random", "fixed_positions", "fixed"))
+    start: int | str | None = option(
+        None, "navigation start: 'random' or a cell index (default: the variant's)", parse=str)
+    goal: int | str | None = option(
+        None, "navigation goal room: 'random' or a label (default: the variant's)", parse=str)
+    steps: int | None = option(
+        None, "steps per trial (default: thesis 50 nav / 40 others, paper 20)")
+    seed: int = option(0, "root seed")
+
+    def validate(self) -> None:
+        validation.whole(self.seed, "seed")
+        if self.steps is not None:
+            validation.whole(self.steps, "steps", minimum=1)
+        if self.episode is not None and self.task != "gotohuman":
+            raise ConfigError("only the gotohuman task has episode variants", key="--episode")
+        for key in ("start", "goal"):
+            value = getattr(self, key)
+            if value is not None and self.task != "nav":
+                raise ConfigError("only the nav task has a start and a goal", key=f"--{key}")
+            if isinstance(value, bool) or not isinstance(value, int | str | None):
+                raise ConfigError(f"expected 'random', a number or a label, got {value!r}",
+                                  key=key)
+        if self.human is not None:
+            if self.task == "nav":
+                raise ConfigError("the navigation task has no human", key="--human")
+            from simlab.visitlab.humans import human
+
+            for name in self.humans():
+                human(name)  # an unknown preset is named before any run
+
+    def humans(self) -> list[str | None]:
+        """The human presets of ``human`` (``[None]``: the task's default)."""
+        if self.human is None:
+            return [None]
+        return [h.strip() for h in self.human.split(",") if h.strip()]
+
+    def env_kwargs(self, human: str | None = None) -> dict[str, Any]:
+        """Keyword arguments of the env: the options given (``steps`` as ``max_steps``;
+        ``start`` / ``goal`` words by :func:`parse_value`), and ``human`` when not None."""
+        kw: dict[str, Any] = {}
+        for key in ("layout", "layout_seed", "episode"):
+            if getattr(self, key) is not None:
+                kw[key] = getattr(self, key)
+        for key in ("start", "goal"):
+            value = getattr(self, key)
+            if value is not None:
+                kw[key] = parse_value(value) if isinstance(value, str) else value
+        if self.steps is not None:
+            kw["max_steps"] = self.steps
+        if human is not None:
+            kw["human"] = human
+        return kw
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShowConfig(VisitlabEnvOptions):
+    """Options of ``simlab visitlab show``: one episode of :func:`make_env`'s env with a
+    random policy, or greedy on a Q table of a ``visitlab train`` curves file."""
+
+    COMMAND = "visitlab show"
+
+    q: Path | None = option(None, "curves.npz from 'visitlab train': act greedily with its Q")
+    run: int = option(0, "run index in the curves file")
+    seed_index: int = option(0, "seeded run whose Q to use")
+    png: Any | None = option(None, "also save the last frame as a PNG")
+    overwrite: bool = option(False, "replace an existing --png")
+
+    def validate(self) -> None:
+        super().validate()
+        _check_output_path(self.png, "png")
+
+
+def _check_output_path(value: Any, key: str) -> None:
+    """An output path stays as spelled (the command's "wrote ..." line prints it so)."""
+    if value is not None and not (isinstance(value, str | os.PathLike) and str(value)):
+        raise ConfigError(f"expected a path, got {value!r}", key=key)
+
+
 class _Runner:
     """Binds one env configuration to its fused chunk kernel."""
 
@@ -358,7 +490,7 @@ def smooth_curve(returns: np.ndarray, n_points: int = 100) -> tuple[np.ndarray, 
 
 
 def train(
-    task: str = "social",
+    task: str | VisitlabTrainConfig = "social",
     agent: str = "mb-egreedy",
     trials: int | None = None,
     seeds: int = 10,
@@ -386,7 +518,16 @@ def train(
         workers: processes running seeds in parallel (results do not depend on it).
         env_kwargs: passed to the env (e.g. ``human="medium"``, ``layout="lab"``,
             ``episode="fixed"``, ``max_steps=40``).
+
+    ``train(cfg)`` with a :class:`VisitlabTrainConfig` alone is ``simlab visitlab train``
+    instead: :func:`train_command` (every agent and human of the config, files written
+    into ``cfg.out``), returning its :class:`TrainRuns`.
     """
+    if isinstance(task, VisitlabTrainConfig):
+        given = (agent, trials, seeds, seed, variant, progress, agent_overrides, workers)
+        if env_kwargs or initial_q is not None or given != _TRAIN_DEFAULTS:
+            raise TypeError("train() takes a VisitlabTrainConfig alone, or the arguments")
+        return train_command(task)
     from simlab import validation
     from simlab.guards import array_bytes, check_memory
 
@@ -426,6 +567,94 @@ def train(
                        for k, v in env_kwargs.items()},
     }
     return TrainResult(label, returns, qs, config, wall)
+
+
+#: train()'s defaults after ``task``: a config call must not give any other argument.
+_TRAIN_DEFAULTS = ("mb-egreedy", None, 10, 0, "thesis", True, None, 1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class VisitlabTrainConfig(VisitlabEnvOptions):
+    """Options of ``simlab visitlab train`` / :func:`train_command`: every agent of
+    ``agent`` with every human of ``human`` (comma-separated), trained by :func:`train`
+    and saved together into ``out``. ``agent_overrides`` is ``--set KEY=VALUE``
+    (repeatable, so the CLI module adds it): a TOML ``set`` / ``agent_overrides`` table,
+    or a list of ``KEY=VALUE``."""
+
+    COMMAND = "visitlab train"
+    ARGUMENTS = ("task", "agent")
+
+    agent: str = option(
+        "mb-egreedy", "agent name(s), comma-separated: q-learning, q-softmax, mb-egreedy, "
+        "vi-softmax, rmax, sliding-window, passive-observer")
+    trials: int | None = option(
+        None, "trials per seed (default: nav 2000, social 40000, gotohuman 2000)")
+    seeds: int = option(10, "independent runs")
+    agent_overrides: Any | None = option(
+        None, "agent parameter overrides {key: value} (--set on the command line)",
+        flag="set", cli=False)
+    workers: int = option(1, "processes for the seeds")
+    out: Path = option(help="output directory")
+    title: str = option("", "plot title")
+    overwrite: bool = option(False, "replace existing output files")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        super().validate()
+        if self.trials is not None:
+            validation.whole(self.trials, "trials", minimum=1)
+        validation.whole(self.seeds, "seeds", minimum=1)
+        validation.whole(self.workers, "workers", minimum=1)
+        if self.agent_overrides is not None:
+            object.__setattr__(self, "agent_overrides", parse_overrides(self.agent_overrides))
+        if not self.agents():
+            raise ConfigError("no agent named", key="agent")
+        for name in self.agents():  # unknown agents and overrides named before any run
+            loop_agent_config(name, self.task, self.variant, self.agent_overrides)
+
+    def agents(self) -> list[str]:
+        """The agent names of ``agent``."""
+        return [a.strip() for a in self.agent.split(",") if a.strip()]
+
+
+@dataclass(frozen=True)
+class TrainRuns:
+    """What :func:`train_command` did: one :class:`TrainResult` per (agent, human), in
+    the order trained (agents outer), and the files written (``curves.npz``,
+    ``curves.png``, ``summary.json`` in ``out``)."""
+
+    results: tuple[TrainResult, ...]
+    files: tuple[Path, ...]
+
+
+@command(VisitlabTrainConfig, extras=("on_result",))
+def train_command(cfg: VisitlabTrainConfig,
+                  on_result: Callable[[TrainResult], None] | None = None) -> TrainRuns:
+    """``simlab visitlab train``: :func:`train` for every agent and human of ``cfg`` (a
+    :class:`VisitlabTrainConfig` or its fields), saved into ``cfg.out``. ``on_result``
+    (not an option) is called with each result as it is done (the CLI prints it).
+
+    One output transaction: refused before any training (a file in the way, a locked
+    ``out``), written whole or not at all (a full disk, Ctrl-C).
+    """
+    from simlab.io import output_transaction
+    from simlab.visitlab.results import FILES, save_results
+
+    finals = tuple(cfg.out / name for name in FILES)
+    with output_transaction(cfg.out, list(finals), overwrite=cfg.overwrite,
+                            what="visitlab output") as txn:
+        results = []
+        for agent in cfg.agents():
+            for human in cfg.humans():
+                res = train(cfg.task, agent, trials=cfg.trials, seeds=cfg.seeds, seed=cfg.seed,
+                            variant=cfg.variant, progress=cfg.progress,
+                            agent_overrides=dict(cfg.agent_overrides or {}),
+                            workers=cfg.workers, **cfg.env_kwargs(human))
+                results.append(res)
+                if on_result is not None:
+                    on_result(res)
+        save_results(results, txn.staging, overwrite=True, title=cfg.title)
+    return TrainRuns(tuple(results), finals)
 
 
 def _initial_qs(initial_q: np.ndarray | None, seeds: int, n_states: int, n_actions: int
