@@ -26,7 +26,12 @@ import numpy as np
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, atomic_write_json, ensure_new
 from simlab.options import CommandConfig, option
-from simlab.visitlab.training import TrainResult, smooth_curve, summarize_curve
+from simlab.visitlab.training import (
+    TrainResult,
+    check_output_path,
+    smooth_curve,
+    summarize_curve,
+)
 
 FILES = ("curves.npz", "curves.png", "summary.json")
 
@@ -120,9 +125,7 @@ class PlotConfig(CommandConfig):
     def validate(self) -> None:
         if not self.curves:
             raise ConfigError("no curves file given", key="curves")
-        # the PNG stays as spelled: the command's "wrote ..." line prints it so
-        if not (isinstance(self.out, str | os.PathLike) and str(self.out)):
-            raise ConfigError(f"expected a path, got {self.out!r}", key="out")
+        check_output_path(self.out, "out")
 
     def label_list(self) -> list[str] | None:
         """The legend labels of ``labels`` (None: the runs' own)."""

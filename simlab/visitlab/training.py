@@ -377,11 +377,12 @@ class ShowConfig(VisitlabEnvOptions):
 
     def validate(self) -> None:
         super().validate()
-        _check_output_path(self.png, "png")
+        check_output_path(self.png, "png")
 
 
-def _check_output_path(value: Any, key: str) -> None:
-    """An output path stays as spelled (the command's "wrote ..." line prints it so)."""
+def check_output_path(value: Any, key: str) -> None:
+    """Check an output file option that stays as spelled, not made a :class:`Path` (the
+    command's "wrote ..." line prints it so: ``./f.png`` stays ``./f.png``); None passes."""
     if value is not None and not (isinstance(value, str | os.PathLike) and str(value)):
         raise ConfigError(f"expected a path, got {value!r}", key=key)
 
@@ -501,7 +502,7 @@ def train(
     initial_q: np.ndarray | None = None,
     workers: int = 1,
     **env_kwargs: Any,
-) -> TrainResult:
+) -> TrainResult | TrainRuns:
     """Train one agent on one Visit-the-lab task for ``seeds`` seeded runs.
 
     Args:
