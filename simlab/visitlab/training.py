@@ -74,6 +74,7 @@ from simlab.errors import ConfigError
 from simlab.options import CommandConfig, command, option
 from simlab.visitlab import TASKS
 from simlab.visitlab import dynamics as dyn
+from simlab.visitlab.humans import human as preset_human
 from simlab.visitlab.perception import P_SHARE
 
 
@@ -333,10 +334,8 @@ class VisitlabEnvOptions(CommandConfig):
         if self.human is not None:
             if self.task == "nav":
                 raise ConfigError("the navigation task has no human", key="--human")
-            from simlab.visitlab.humans import human
-
             for name in self.humans():
-                human(name)  # an unknown preset is named before any run
+                preset_human(name)  # an unknown preset is named before any run
 
     def humans(self) -> list[str | None]:
         """The human presets of ``human`` (``[None]``: the task's default)."""
