@@ -528,7 +528,6 @@ def train(
         if env_kwargs or initial_q is not None or given != _TRAIN_DEFAULTS:
             raise TypeError("train() takes a VisitlabTrainConfig alone, or the arguments")
         return train_command(task)
-    from simlab import validation
     from simlab.guards import array_bytes, check_memory
 
     validation.choice(task, TASKS, "task")
