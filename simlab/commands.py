@@ -15,7 +15,7 @@ _FUNCTIONS: dict[str, str] = {
     "drive": "simlab.physics.drive:drive",
     "map": "simlab.orchestration.mapping:build_map",
     "arena_from_map": "simlab.physics.map_arena:arena_from_map",
-    "discretize": "discretize.voronoi:discretize_map",
+    "discretize": "discretize.voronoi:discretize_command",
     "collect": "simlab.data.collect:collect",
     "import_log": "simlab.data.poselog:import_log",
     "estimate": "simlab.data.estimate:estimate",
@@ -24,10 +24,10 @@ _FUNCTIONS: dict[str, str] = {
     "import_bag": "simlab.ros.importer:import_bag",
     "train": "simlab.training.train:train",
     "replay": "simlab.replay.replay:replay",
-    "calibrate": "simlab.calibration.command:calibrate_files",
+    "calibrate": "simlab.calibration.command:calibrate_command",
     "pipeline": "simlab.orchestration.pipeline:pipeline",
     "social_pipeline": "simlab.social.pipeline:social_pipeline",
-    "visitlab_train": "simlab.visitlab.training:train",
+    "visitlab_train": "simlab.visitlab.training:train_command",
     "reproduce": "simlab.experiments.reproduce:reproduce",
 }
 

@@ -490,7 +490,7 @@ def smooth_curve(returns: np.ndarray, n_points: int = 100) -> tuple[np.ndarray, 
 
 
 def train(
-    task: str | VisitlabTrainConfig = "social",
+    task: str = "social",
     agent: str = "mb-egreedy",
     trials: int | None = None,
     seeds: int = 10,
@@ -501,7 +501,7 @@ def train(
     initial_q: np.ndarray | None = None,
     workers: int = 1,
     **env_kwargs: Any,
-) -> TrainResult | TrainRuns:
+) -> TrainResult:
     """Train one agent on one Visit-the-lab task for ``seeds`` seeded runs.
 
     Args:
@@ -519,15 +519,9 @@ def train(
         env_kwargs: passed to the env (e.g. ``human="medium"``, ``layout="lab"``,
             ``episode="fixed"``, ``max_steps=40``).
 
-    ``train(cfg)`` with a :class:`VisitlabTrainConfig` alone is ``simlab visitlab train``
-    instead: :func:`train_command` (every agent and human of the config, files written
-    into ``cfg.out``), returning its :class:`TrainRuns`.
+    ``simlab visitlab train`` (every agent and human of a :class:`VisitlabTrainConfig`,
+    files written into its ``out``) is :func:`train_command`.
     """
-    if isinstance(task, VisitlabTrainConfig):
-        given = (agent, trials, seeds, seed, variant, progress, agent_overrides, workers)
-        if env_kwargs or initial_q is not None or given != _TRAIN_DEFAULTS:
-            raise TypeError("train() takes a VisitlabTrainConfig alone, or the arguments")
-        return train_command(task)
     from simlab.guards import array_bytes, check_memory
 
     validation.choice(task, TASKS, "task")
@@ -569,9 +563,6 @@ def train(
 
 
 #: train()'s defaults after ``task``: a config call must not give any other argument.
-_TRAIN_DEFAULTS = ("mb-egreedy", None, 10, 0, "thesis", True, None, 1)
-
-
 @dataclass(frozen=True, kw_only=True)
 class VisitlabTrainConfig(VisitlabEnvOptions):
     """Options of ``simlab visitlab train`` / :func:`train_command`: every agent of

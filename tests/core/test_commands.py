@@ -20,6 +20,16 @@ def test_every_subcommand_has_a_python_function():
     assert set(dir(commands)) >= {_function_name(n) for n in SUBCOMMANDS}
 
 
+def test_every_subcommand_function_takes_its_config():
+    """Each command's options are one CommandConfig (simlab.options): the function takes
+    the config or its fields, and the CLI reads --config files of the same names."""
+    from simlab.options import CommandConfig
+
+    for name in SUBCOMMANDS:
+        function = getattr(commands, _function_name(name))
+        assert issubclass(getattr(function, "config_class", type), CommandConfig), name
+
+
 def test_every_subcommand_is_registered_in_the_parser():
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")

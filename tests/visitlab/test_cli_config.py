@@ -149,8 +149,6 @@ def test_train_by_config_or_fields_or_the_old_call(tmp_path):
         assert a.config == b.config
     np.testing.assert_array_equal(by_config.results[0].returns, old.returns)
     assert by_config.results[0].config == old.config
-    with pytest.raises(TypeError, match="alone"):
-        train(cfg, seeds=3)
     with pytest.raises(ConfigError, match="unknown agent"):
         train_command(task="nav", agent="q-learning,sarsa", out=tmp_path / "c")
     assert not (tmp_path / "c").exists()
