@@ -256,7 +256,7 @@ def test_import_bag_unknown_config_key_names_the_file_and_the_key(tmp_path: Path
     code = main(["import-bag", str(tmp_path / "b"), "--config", str(toml)])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
-    assert str(toml) in err and "action_topik: unknown option" in err
+    assert str(toml) in err and "action-topik: unknown option" in err
     assert not (tmp_path / "ds").exists()
 
 
