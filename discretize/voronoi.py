@@ -693,9 +693,7 @@ class DiscretizeConfig(CommandConfig):
 
     def validate(self) -> None:
         for key in ("map", "centres", "png", "dataset"):
-            value = getattr(self, key)
-            if value is not None and not (isinstance(value, str | os.PathLike) and str(value)):
-                raise ConfigError(f"expected a path, got {value!r}", key=key)
+            validation.spelled_path(getattr(self, key), key)
         if self.centres is not None and (self.states is not None or self.radius is not None):
             raise ConfigError("give --centres or --states/--radius, not both", key="centres")
         if self.states is not None and self.radius is not None:

@@ -145,6 +145,15 @@ def existing_dir(value: Any, key: str, *, what: str = "directory") -> Path:
     return p
 
 
+def spelled_path(value: Any, key: str) -> Any:
+    """An optional path option kept as the user spelled it, not made a :class:`Path` (the
+    "wrote ..." lines and the records print it as given: ``./f.png`` stays ``./f.png``):
+    a non-empty text or path-like, or None; returned unchanged."""
+    if value is not None:
+        _path(value, key)
+    return value
+
+
 def _path(value: Any, key: str) -> Path:
     if not isinstance(value, str | os.PathLike) or not str(value):
         raise ConfigError(f"expected a path, got {value!r}", key=key)

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.io import atomic_write, ensure_new
 from simlab.options import command, option
@@ -73,9 +74,7 @@ class DriveConfig(PrimitiveOptions):
 
     def validate(self) -> None:
         # png stays as spelled: the summary reports it so
-        if self.png is not None and not (isinstance(self.png, str | os.PathLike)
-                                         and str(self.png)):
-            raise ConfigError(f"expected a path, got {self.png!r}", key="png")
+        validation.spelled_path(self.png, "png")
         if self.steps < 0:
             raise ConfigError(f"must be >= 0, got {self.steps}", key="steps")
         if self.primitive_options_given and self.params is not None:

@@ -77,7 +77,6 @@ from simlab.visitlab.grid import Layout, make_layout
 from simlab.visitlab.humans import Human
 from simlab.visitlab.humans import human as get_human
 from simlab.visitlab.perception import Perception, perception_for
-from simlab.visitlab.training import check_output_path
 
 #: Thesis speed coefficients w = (p1, p2, p3) (Section 3.1.1).
 THESIS_SPEED_WEIGHTS = (0.1, 0.1, 0.8)
@@ -309,7 +308,7 @@ class CombinedConfig(CommandConfig):
         validation.whole(self.trials, "trials", minimum=1)
         validation.whole(self.seed, "seed")
         self.speed_weights()
-        check_output_path(self.gif, "gif")
+        validation.spelled_path(self.gif, "gif")
 
     def speed_weights(self) -> tuple[float, ...]:
         """``weights`` as numbers (a ``w1,w2,w3`` text or a list of numbers)."""

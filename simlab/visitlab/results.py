@@ -23,15 +23,11 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, atomic_write_json, ensure_new
 from simlab.options import CommandConfig, option
-from simlab.visitlab.training import (
-    TrainResult,
-    check_output_path,
-    smooth_curve,
-    summarize_curve,
-)
+from simlab.visitlab.training import TrainResult, smooth_curve, summarize_curve
 
 FILES = ("curves.npz", "curves.png", "summary.json")
 
@@ -125,7 +121,7 @@ class PlotConfig(CommandConfig):
     def validate(self) -> None:
         if not self.curves:
             raise ConfigError("no curves file given", key="curves")
-        check_output_path(self.out, "out")
+        validation.spelled_path(self.out, "out")
 
     def label_list(self) -> list[str] | None:
         """The legend labels of ``labels`` (None: the runs' own)."""

@@ -47,7 +47,6 @@ agent's — so identical seeds give identical curves and Q tables.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -376,14 +375,7 @@ class ShowConfig(VisitlabEnvOptions):
 
     def validate(self) -> None:
         super().validate()
-        check_output_path(self.png, "png")
-
-
-def check_output_path(value: Any, key: str) -> None:
-    """Check an output file option that stays as spelled, not made a :class:`Path` (the
-    command's "wrote ..." line prints it so: ``./f.png`` stays ``./f.png``); None passes."""
-    if value is not None and not (isinstance(value, str | os.PathLike) and str(value)):
-        raise ConfigError(f"expected a path, got {value!r}", key=key)
+        validation.spelled_path(self.png, "png")
 
 
 class _Runner:
@@ -562,7 +554,6 @@ def train(
     return TrainResult(label, returns, qs, config, wall)
 
 
-#: train()'s defaults after ``task``: a config call must not give any other argument.
 @dataclass(frozen=True, kw_only=True)
 class VisitlabTrainConfig(VisitlabEnvOptions):
     """Options of ``simlab visitlab train`` / :func:`train_command`: every agent of

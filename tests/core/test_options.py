@@ -161,6 +161,7 @@ def test_command_takes_the_config_or_its_fields() -> None:
     (lambda x: v.discount(x), [0, 0.99], [1.0, -0.1]),
     (lambda x: v.boolean(x, "b"), [True, np.bool_(False)], [0, 1, "yes"]),
     (lambda x: v.choice(x, ("a", "b"), "c"), ["a"], ["A", None, 1]),
+    (lambda x: v.spelled_path(x, "png"), [None, "./f.png", Path("f.png")], ["", 3, ["f"]]),
 ])
 def test_validation_accepts_good_and_names_the_key_on_bad(check, good, bad) -> None:
     for value in good:
@@ -169,6 +170,10 @@ def test_validation_accepts_good_and_names_the_key_on_bad(check, good, bad) -> N
         with pytest.raises(ConfigError) as info:
             check(value)
         assert info.value.key is not None and repr(value) in str(info.value)
+
+
+def test_a_spelled_path_comes_back_as_given() -> None:
+    assert v.spelled_path("./f.png", "png") == "./f.png"  # not Path("f.png")
 
 
 def test_paths_exist_checks(tmp_path: Path) -> None:
