@@ -75,8 +75,7 @@ class DriveConfig(PrimitiveOptions):
     def validate(self) -> None:
         # png stays as spelled: the summary reports it so
         validation.spelled_path(self.png, "png")
-        if self.steps < 0:
-            raise ConfigError(f"must be >= 0, got {self.steps}", key="steps")
+        validation.whole(self.steps, "steps")
         if self.primitive_options_given and self.params is not None:
             raise ConfigError("give the primitive parameters once: params or the "
                               "primitive options", key="params")

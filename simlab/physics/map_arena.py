@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab import validation
 from simlab.errors import ConfigError
 from simlab.io import atomic_write_text, ensure_new
 from simlab.options import CommandConfig, command, option
@@ -110,9 +111,7 @@ class ArenaFromMapConfig(CommandConfig):
     overwrite: bool = option(False, "replace an existing --out")
 
     def validate(self) -> None:
-        if not self.goal_radius > 0:
-            raise ConfigError(f"expected a radius > 0, got {self.goal_radius}",
-                              key="goal_radius")
+        validation.positive(self.goal_radius, "goal_radius")
         if self.start is not None:
             object.__setattr__(self, "start", _check_start(self.start))
 
