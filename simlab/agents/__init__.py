@@ -9,6 +9,8 @@ Layers, each its own module:
 * :mod:`simlab.agents.config` — frozen, validated hyper-parameter dataclasses;
 * :mod:`simlab.agents.agents` — thin agent classes (``act``, ``update``, ``fit``);
 * :mod:`simlab.agents.registry` — agent names (``vi-softmax``, ``rmax``, ...) and presets;
+* :mod:`simlab.agents.policy` — the greedy policy of a Q-table, untried actions masked
+  (:func:`greedy`);
 * :mod:`simlab.agents.storage` — save/load of Q-tables, models and agents (npz, no pickle).
 
 Agents know only ``(state, action, reward, next state)`` or ``(P, R)``; nothing
@@ -45,6 +47,7 @@ from simlab.agents.planning import (
     validate_mdp,
     value_iteration,
 )
+from simlab.agents.policy import greedy, masked_argmax
 from simlab.agents.registry import AGENTS, agent_config, agent_names, make_agent
 from simlab.agents.sparse_model import CountModel
 from simlab.agents.storage import (
@@ -78,11 +81,13 @@ __all__ = [
     "bellman_expectation_operator",
     "bellman_optimality_operator",
     "expected_return",
+    "greedy",
     "greedy_policy",
     "load_agent",
     "load_model",
     "load_q_table",
     "make_agent",
+    "masked_argmax",
     "optimal_finite_horizon_return",
     "policy_evaluation",
     "policy_iteration",

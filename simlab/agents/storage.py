@@ -4,7 +4,10 @@ Files are ``.npz`` archives of plain numeric arrays plus one ``meta_json``
 array (a 0-d numpy unicode string holding JSON). They are written atomically
 (temporary name, then rename) and loaded with ``allow_pickle=False``.
 
-* Q-table: ``Q`` (S, A) float64 plus any extra arrays you pass, and metadata.
+* Q-table: ``Q`` (S, A) float64, its greedy policy ``greedy`` (S,) int64 (argmax over
+  the valid actions, :mod:`simlab.agents.policy`; ``valid`` (S, A) bool is one of the
+  extra arrays when some actions were never tried), any extra arrays you pass, and
+  metadata.
 * Count model: ``n_sa`` (S, A), ``r_sum`` (S, A), and the observed triples
   ``triple_s``, ``triple_a``, ``triple_next``, ``triple_count`` (n,) int64.
 * Window model: ``n_sa``, ``slot_pair`` (n,), ``win_state`` / ``win_reward``
@@ -104,14 +107,25 @@ def save_q_table(
     arrays: dict[str, np.ndarray] | None = None,
     overwrite: bool = False,
 ) -> Path:
-    """Write ``Q`` (S, A) (+ extra ``arrays``, JSON ``metadata``) to ``path``."""
+    """Write ``Q`` (S, A) (+ extra ``arrays``, JSON ``metadata``) to ``path``.
+
+    The file also carries ``greedy`` (S,) int64, the policy
+    :func:`simlab.agents.greedy` returns: the argmax of each row over ``arrays["valid"]``
+    (S, A) bool when given (unless ``metadata["unvisited"]`` is ``"self-loop"``), so that a
+    reader who never heard of the mask still acts on tried actions only.
+    """
+    from simlab.agents.policy import masked_argmax, qtable_mask
+
     Q = np.asarray(Q, dtype=np.float64)
     if Q.ndim != 2:
         raise ConfigError(f"expected an (S, A) array, got shape {Q.shape}", key="Q")
     extra = dict(arrays or {})
-    if "Q" in extra or "meta_json" in extra:
-        raise ConfigError("extra arrays may not be named 'Q' or 'meta_json'", key="arrays")
-    return _write_npz(path, {"Q": Q, **extra}, {"kind": "q_table", **(metadata or {})}, overwrite)
+    if {"Q", "meta_json", "greedy"} & set(extra):
+        raise ConfigError("extra arrays may not be named 'Q', 'greedy' or 'meta_json'",
+                          key="arrays")
+    meta = {"kind": "q_table", **(metadata or {})}
+    greedy = masked_argmax(Q, qtable_mask(extra, meta))
+    return _write_npz(path, {"Q": Q, "greedy": greedy, **extra}, meta, overwrite)
 
 
 def load_q_table(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:

@@ -11,6 +11,7 @@ from simlab.agents import (
     AGENTS,
     CountModel,
     WindowModel,
+    greedy,
     load_agent,
     load_model,
     load_q_table,
@@ -112,3 +113,58 @@ def test_a_loaded_agent_continues_exactly_like_the_original(tmp_path, name):
     _drive(agent, env_a, 150, S)
     _drive(clone, env_b, 150, S)
     np.testing.assert_array_equal(clone.Q, agent.Q)
+
+
+# --- the greedy policy carried by Q-table files -----------------------------------------
+
+_Q_HAND = np.array([[1.0, 10.0, 2.0], [10.0, 10.0, 3.0], [5.0, 10.0, 7.0], [4.0, 4.0, 9.0]])
+_VALID_HAND = np.array([[True, False, True], [False, False, False], [True, False, True],
+                        [True, True, False]])
+
+
+def test_greedy_skips_untried_actions_on_a_hand_worked_table():
+    # column 1 holds the optimistic 10.0 of never-tried pairs; row 1 has no tried action
+    # (all allowed, tie to the lowest index); row 3's best tried actions tie: lowest index
+    np.testing.assert_array_equal(greedy(_Q_HAND, _VALID_HAND), [2, 0, 2, 0])
+    np.testing.assert_array_equal(greedy(_Q_HAND), [1, 0, 1, 2])  # unmasked argmax
+
+
+def test_greedy_of_a_file_is_the_masked_argmax(tmp_path):
+    rng = np.random.default_rng(7)
+    S, A = 40, 16
+    Q = rng.normal(size=(S, A))
+    valid = rng.random((S, A)) < 0.6
+    valid[3] = False  # a state with no tried action
+    Q[~valid] = 10.0  # optimistic initial values where nothing was tried
+    path = save_q_table(tmp_path / "q.npz", Q, arrays={"valid": valid},
+                        metadata={"unvisited": "mask"})
+    expected = [int(np.flatnonzero(row)[np.argmax(q[row])]) if row.any() else int(np.argmax(q))
+                for q, row in zip(Q, valid, strict=True)]
+    pi = greedy(path)
+    np.testing.assert_array_equal(pi, expected)
+    np.testing.assert_array_equal(pi, greedy(str(path)))
+    assert pi.dtype == np.int64 and all(valid[s, a] for s, a in enumerate(pi) if s != 3)
+    with np.load(path, allow_pickle=False) as data:  # stored: readable without simlab
+        np.testing.assert_array_equal(data["greedy"], expected)
+    assert (np.argmax(Q, axis=1) != pi).any()  # the plain argmax would differ
+
+
+def test_greedy_of_older_and_self_loop_files(tmp_path):
+    np.savez(tmp_path / "old.npz", Q=_Q_HAND, valid=_VALID_HAND)  # no stored policy
+    np.testing.assert_array_equal(greedy(tmp_path / "old.npz"), [2, 0, 2, 0])
+    # under the self-loop rule an untried pair is a modelled stay: it may be chosen
+    path = save_q_table(tmp_path / "loop.npz", _Q_HAND, arrays={"valid": _VALID_HAND},
+                        metadata={"unvisited": "self-loop"})
+    np.testing.assert_array_equal(greedy(path), [1, 0, 1, 2])
+
+
+def test_greedy_refuses_bad_input_with_the_field(tmp_path):
+    np.savez(tmp_path / "bad.npz", Q=_Q_HAND, greedy=np.array([0, 1, 5, 0]))
+    with pytest.raises(ConfigError, match=r"bad\.npz: greedy: .*0\.\.2"):
+        greedy(tmp_path / "bad.npz")
+    with pytest.raises(ConfigError, match=r"valid: expected a \(4, 3\) bool mask"):
+        greedy(_Q_HAND, np.ones((4, 2), dtype=bool))
+    with pytest.raises(ConfigError, match="valid: a Q-table file carries its own mask"):
+        greedy(tmp_path / "bad.npz", _VALID_HAND)
+    with pytest.raises(ConfigError, match=r"arrays: .*'greedy'"):
+        save_q_table(tmp_path / "q.npz", _Q_HAND, arrays={"greedy": np.zeros(4, dtype=int)})
