@@ -38,6 +38,7 @@ import numpy as np
 import pyarrow as pa
 
 from simlab import validation as v
+from simlab.actions import SIMLAB16, ActionSetOptions
 from simlab.data.backends import BACKENDS, make_backend
 from simlab.data.dataset import unlisted_parts, validate_part, write_part
 from simlab.data.manifest import (
@@ -50,7 +51,6 @@ from simlab.data.manifest import (
 )
 from simlab.data.schema import (
     MANIFEST_NAME,
-    N_ACTIONS,
     TRUTH_COLUMNS,
     schema_to_json,
     transition_schema,
@@ -91,6 +91,8 @@ class CollectResult:
         complete: every worker finished its budget.
         worker_cpu_seconds: CPU time each worker's parts took in this run (s); on an
             idle machine with a core per worker, the wall time is about their maximum.
+        states_visited: states the walk was in (``s`` or ``s_next``) at least once, of
+            ``n_states``: the walk's coverage of the lab.
     """
 
     directory: Path
@@ -102,6 +104,8 @@ class CollectResult:
     peak_worker_rss_mb: float
     complete: bool
     worker_cpu_seconds: tuple[float, ...] = ()
+    states_visited: int = 0
+    n_states: int = 0
 
     @property
     def simulated_hours(self) -> float:
@@ -218,9 +222,11 @@ class _WorkerState:
 
 
 def _worker_states(manifest: dict[str, Any], workers: int, per_worker: list[int] | None,
-                   out: Path) -> list[_WorkerState]:
+                   out: Path, poses: list[tuple[float, float, float]] | None = None
+                   ) -> list[_WorkerState]:
     states = [
-        _WorkerState(remaining=None if per_worker is None else per_worker[w])
+        _WorkerState(remaining=None if per_worker is None else per_worker[w],
+                     pose=None if poses is None else poses[w])
         for w in range(workers)
     ]
     by_worker: dict[int, list[dict[str, Any]]] = {}
@@ -277,12 +283,18 @@ def _part_table(result: PartResult, step0: int, discretizer: Any, pose_source: s
 
 
 @dataclass(frozen=True, kw_only=True)
-class CollectConfig(PrimitiveOptions):
+class CollectConfig(PrimitiveOptions, ActionSetOptions):
     """Options of ``simlab collect`` / :func:`collect` (one budget: ``hours`` or
     ``transitions``). The primitive options (:class:`PrimitiveOptions`) and ``params``
     are two ways to give the primitive parameters: the flags for the command line,
     ``params`` (a ``PrimitiveParams``, ``KinematicParams`` or a ``[primitives]`` TOML
-    path) from Python; giving both is refused."""
+    path) from Python; giving both is refused.
+
+    The action-set fields (``--n-actions 8 --convention ccw-east --speed fast``) restrict
+    the walk to a real robot's actions: it draws uniformly over their primitives and
+    records ``a`` in their numbering (the manifest records the set), so the estimated MDP
+    and the Q-tables trained on it have the real data's actions and a twin-trained Q-table
+    is scored on the real model directly. Default: simlab's 16 primitives."""
 
     COMMAND = "collect"
     ARGUMENTS = ("arena", "states")
@@ -309,6 +321,10 @@ class CollectConfig(PrimitiveOptions):
                          "(Python and TOML only; default: the simulator's defaults)", cli=False)
     pose_source_options: Any | None = option(None, "keyword arguments of the pose source factory",
                                       cli=False)
+    start_states: Any | None = option(
+        None, "start a walk at the centre of each of these states, the budget split evenly "
+        "over them: 'all' or a list such as 0,5,12 (default: one walk per worker from the "
+        "arena's start pose)", metavar="all|LIST")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
 
     def validate(self) -> None:
@@ -329,6 +345,9 @@ class CollectConfig(PrimitiveOptions):
                 key="workers", fix="use fewer workers or more transitions")
         v.whole(self.seed, "seed")
         v.whole(self.part_size, "part_size", minimum=1)
+        self.make_action_set()  # a bad convention names its field here
+        if self.start_states is not None:
+            parse_start_states(self.start_states, None)
         self._check_backend()
         check_pose_source(self.pose_source, self.simulator)
         if self.primitive_options_given:
@@ -361,6 +380,42 @@ class CollectConfig(PrimitiveOptions):
         return self.params
 
 
+def parse_start_states(value: Any, n_states: int | None) -> list[int] | None:
+    """The start states of ``start_states`` (``"all"``, ``"0,5,12"`` or a list of ints);
+    None for the arena's start pose. ``n_states`` None checks the spelling only."""
+    if value is None:
+        return None
+    if isinstance(value, str) and value.strip().lower() == "all":
+        return None if n_states is None else list(range(int(n_states)))
+    items = value.split(",") if isinstance(value, str) else list(value)
+    try:
+        if any(isinstance(x, bool | float) for x in items):
+            raise ValueError
+        starts = [int(str(x).strip()) for x in items]
+    except (TypeError, ValueError):
+        raise ConfigError(f"expected 'all' or state numbers such as 0,5,12, got {value!r}",
+                          key="start_states") from None
+    if not starts:
+        raise ConfigError("no start state given", key="start_states", fix="'all' or 0,5,12")
+    if len(set(starts)) != len(starts):
+        raise ConfigError(f"a state is listed twice: {starts}", key="start_states")
+    if n_states is not None:
+        bad = [s for s in starts if not 0 <= s < n_states]
+        if bad:
+            raise ConfigError(f"state {bad[0]} is not one of the {n_states} states",
+                              key="start_states", fix=f"use states 0..{n_states - 1}")
+    return starts
+
+
+def _start_poses(starts: list[int] | None, disc: Any) -> list[tuple[float, float, float]] | None:
+    """Truth start pose of each walk: the state's centre, facing +x (the first primitive
+    turns to its own heading anyway)."""
+    if starts is None:
+        return None
+    centres = np.asarray(disc.centres, dtype=np.float64)
+    return [(float(centres[s, 0]), float(centres[s, 1]), 0.0) for s in starts]
+
+
 @dataclass(frozen=True)
 class _Run:
     """What every part of one collection shares (built once by :func:`collect`)."""
@@ -372,6 +427,7 @@ class _Run:
     spec: WalkSpec
     per_worker: list[int] | None
     t_budget: float | None
+    walks: int
 
 
 @command(CollectConfig)
@@ -419,17 +475,25 @@ def collect(cfg: CollectConfig) -> CollectResult:
     arena_cfg = load_arena_config(cfg.arena)
     disc = load_discretizer(cfg.states)
     params = cfg.resolved_params()
+    starts = parse_start_states(cfg.start_states, int(disc.n_states))
+    walks = cfg.workers if starts is None else len(starts)
+    if cfg.transitions is not None and cfg.transitions < walks:
+        raise ConfigError(f"{cfg.transitions} transitions cannot be split over {walks} "
+                          "start states", key="start_states",
+                          fix="use fewer start states or more transitions")
     per_worker = None if cfg.transitions is None else _split_transitions(
-        int(cfg.transitions), cfg.workers)
-    t_budget = None if cfg.hours is None else float(cfg.hours) * 3600.0 / cfg.workers
+        int(cfg.transitions), walks)
+    t_budget = None if cfg.hours is None else float(cfg.hours) * 3600.0 / walks
     schema = transition_schema(cfg.pose_source)
-    manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget)
+    manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
+                             starts)
     # One run per directory: a second collect on the same --out stops here.
     with exclusive_directory(out, what="dataset directory"):
         manifest = _prepare_directory(out, manifest, cfg.resume)
         run = _Run(cfg=cfg, out=out, disc=disc, schema=schema, per_worker=per_worker,
-                   t_budget=t_budget, spec=_walk_spec(cfg, manifest, arena_cfg, disc, params))
-        wstates = _worker_states(manifest, cfg.workers, per_worker, out)
+                   t_budget=t_budget, spec=_walk_spec(cfg, manifest, arena_cfg, disc, params),
+                   walks=walks)
+        wstates = _worker_states(manifest, walks, per_worker, out, _start_poses(starts, disc))
         orphans = _orphans(out, manifest)
         written, peak_rss, cpu = _run_parts(run, manifest, wstates, orphans)
         for name in orphans:  # left by a run killed at a point this run never reached
@@ -444,20 +508,35 @@ def collect(cfg: CollectConfig) -> CollectResult:
             peak_worker_rss_mb=peak_rss,
             complete=bool(manifest["complete"]),
             worker_cpu_seconds=tuple(cpu),
+            states_visited=_states_visited(out, manifest),
+            n_states=int(disc.n_states),
         )
+
+
+def _states_visited(out: Path, manifest: dict[str, Any]) -> int:
+    """Number of states in ``s`` or ``s_next`` of the dataset's parts."""
+    import pyarrow.parquet as pq
+
+    seen: set[int] = set()
+    for entry in manifest["parts"]:
+        table = pq.read_table(out / str(entry["file"]), columns=["s", "s_next"])
+        for name in ("s", "s_next"):
+            seen.update(np.unique(table.column(name).to_numpy()).tolist())
+    return len(seen)
 
 
 def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
                   schema: pa.Schema, per_worker: list[int] | None,
-                  t_budget: float | None) -> dict[str, Any]:
+                  t_budget: float | None, starts: list[int] | None) -> dict[str, Any]:
     """The manifest this run writes (or checks a resumed directory's against)."""
     from simlab import __version__
     from simlab.statecheck import check_centres_in_arena
 
     states = cfg.states
+    aset = cfg.make_action_set()
     parameters = _jsonable({
         "epsilon": 1.0,
-        "n_actions": N_ACTIONS,
+        "n_actions": aset.n_actions,
         "hours": None if cfg.hours is None else float(cfg.hours),
         "transitions": None if cfg.transitions is None else int(cfg.transitions),
         "seconds_per_worker": t_budget,
@@ -481,10 +560,15 @@ def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
             "centres": centres.tolist(),
         },
         seed=int(cfg.seed),
-        workers=int(cfg.workers),
+        workers=int(cfg.workers) if starts is None else len(starts),
         parameters=parameters,
         schema=schema_to_json(schema),
     )
+    # Recorded only when given, so that a default collection's manifest is unchanged.
+    if aset != SIMLAB16:
+        manifest["action_set"] = aset.to_json()
+    if starts is not None:
+        manifest["parameters"]["start_states"] = list(starts)
     manifest["sources"] = {
         "arena_file": getattr(arena_cfg, "source", None),
         "states_file": None if not isinstance(states, str | os.PathLike) else str(states),
@@ -505,6 +589,7 @@ def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, dis
         pose_source=cfg.pose_source,
         pose_source_options=dict(cfg.pose_source_options or {}),
         discretizer=disc if getattr(params, "mode", "fixed") == "until_state_change" else None,
+        primitives=tuple(int(p) for p in cfg.make_action_set().primitives()),
     )
 
 
@@ -523,15 +608,15 @@ def _run_parts(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState],
     done_rows = sum(int(e["rows"]) for e in manifest["parts"])
     bar = _Progress(cfg.progress, transitions=cfg.transitions, hours=cfg.hours,
                     done_rows=done_rows, done_seconds=sum(st.t for st in wstates))
-    written, peak_rss, cpu = 0, 0.0, [0.0] * cfg.workers
-    pending = [w for w in range(cfg.workers) if not wstates[w].done]
+    written, peak_rss, cpu = 0, 0.0, [0.0] * run.walks
+    pending = [w for w in range(run.walks) if not wstates[w].done]
     if not pending:
         bar.close()
         if not manifest["complete"]:
             manifest["complete"] = True
             write_manifest(run.out, manifest)
         return written, peak_rss, cpu
-    runner = make_backend(cfg.backend, len(pending), cfg.address)
+    runner = make_backend(cfg.backend, min(cfg.workers, len(pending)), cfg.address)
     try:
         handles = {runner.submit(_job_for(run, wstates[w], w)): w for w in pending}
         while handles:

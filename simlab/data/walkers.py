@@ -302,6 +302,10 @@ class WalkSpec:
         pose_source_options: keyword arguments of the pose-source factory.
         discretizer: the states' discretizer, given to the primitives when they need
             ``state_of`` (``mode = "until_state_change"``); None otherwise.
+        primitives: the primitives the walk draws from, uniformly; the recorded action
+            ``a`` is the index into this tuple (default: all 16, so ``a`` is the
+            primitive). A real robot's 8 actions walk with their 8 primitives
+            (:meth:`simlab.actions.ActionSet.primitives`).
     """
 
     key: str
@@ -311,6 +315,7 @@ class WalkSpec:
     pose_source: str = "truth"
     pose_source_options: dict[str, Any] = field(default_factory=dict, hash=False)
     discretizer: Any = field(default=None, compare=False, hash=False)
+    primitives: tuple[int, ...] = tuple(range(N_ACTIONS))
 
 
 def build_walker(spec: WalkSpec) -> Walker:
@@ -420,7 +425,8 @@ def peak_rss_mb() -> float:
 
 
 def run_part(job: PartJob, cache: WalkerCache | None = None) -> PartResult:
-    """Run one part of an epsilon = 1 random walk (uniform actions over the 16 primitives).
+    """Run one part of an epsilon = 1 random walk (uniform actions over the walk's
+    primitives, ``job.spec.primitives``; all 16 by default).
 
     Deterministic given ``job``: see the module docstring. ``cache`` keeps simulators
     alive between calls (default: this process's cache).
@@ -432,7 +438,8 @@ def run_part(job: PartJob, cache: WalkerCache | None = None) -> PartResult:
     walker.reset(None if job.pose0 is None else np.asarray(job.pose0, dtype=np.float64),
                  source_rng)
     n_max = job.part_size if job.remaining is None else min(job.part_size, job.remaining)
-    actions = actions_rng.integers(0, N_ACTIONS, size=n_max)
+    primitives = job.spec.primitives
+    actions = actions_rng.integers(0, len(primitives), size=n_max)
     t_start = np.empty(n_max)
     duration = np.empty(n_max)
     blocked = np.empty(n_max, dtype=bool)
@@ -444,7 +451,7 @@ def run_part(job: PartJob, cache: WalkerCache | None = None) -> PartResult:
     for i in range(n_max):
         if job.t_budget is not None and t >= job.t_budget:
             break
-        out = walker.step(int(actions[i]), motion_rng)
+        out = walker.step(primitives[int(actions[i])], motion_rng)
         t_start[i] = t
         duration[i] = out.duration
         blocked[i] = out.blocked
