@@ -47,5 +47,6 @@ def run(args: argparse.Namespace) -> int:
         + f"; {result.wall_seconds:.1f} s wall"
         + (f", {rate:.0f} transitions/s" if result.parts_written and not kept else "")
         + ("" if result.complete else " (incomplete)")
+        + f"; the walk reached {result.states_visited} of {result.n_states} states"
     )
     return 0
