@@ -144,6 +144,17 @@ class OutputTransaction:
         self.out = out
         self.staging = staging
         self.finals = finals
+        self.retired: list[Path] = []
+
+    def retire(self, final: str | os.PathLike[str]) -> None:
+        """Remove ``final`` (a previous output of the same command that this run does not
+        write again, e.g. the Q-table of a goal no longer trained) at :meth:`commit`, after
+        the renames: a failed run removes nothing."""
+        final = Path(final)
+        target = final if final.is_absolute() else self.out / final
+        if not _is_inside(target, self.out) or ".." in target.relative_to(self.out).parts:
+            raise ValueError(f"{final} is not inside the output directory {self.out}")
+        self.retired.append(target)
 
     def path(self, final: str | os.PathLike[str]) -> Path:
         """The staged path of ``final`` (a path inside ``out`` or a name relative to it)."""
@@ -167,6 +178,10 @@ class OutputTransaction:
             final.parent.mkdir(parents=True, exist_ok=True)
             os.replace(staged, final)
             written.append(final)
+        for old in self.retired:
+            if old not in written:
+                with contextlib.suppress(FileNotFoundError):
+                    old.unlink()
         return written
 
 

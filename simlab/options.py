@@ -104,6 +104,8 @@ class CommandConfig:
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             value = getattr(self, f.name)
             new = _coerce(value, hints[f.name], f.name)
+            if new is not None and _is_seed(f.name, hints[f.name]):
+                _check_seed(new, f.name)
             choices = f.metadata.get("choices")
             if choices is not None and new is not None and new not in choices:
                 raise ConfigError(f"expected one of {', '.join(map(str, choices))}; "
@@ -311,6 +313,25 @@ def _coerce(value: Any, tp: Any, name: str) -> Any:
             return Path(value)
         raise ConfigError(f"expected a path, got {value!r}", key=name)
     return value  # Any, unions of several types, records: the class's validate() checks
+
+
+#: Largest seed: seeds are stored in int64 arrays and metadata (npz, Parquet) and handed to
+#: compiled code, and ``numpy.random.SeedSequence`` takes only non-negative integers.
+MAX_SEED = 2**63 - 1
+
+
+def _is_seed(name: str, tp: Any) -> bool:
+    """A root seed: an ``int`` field named ``seed`` or ``*_seed`` (``layout_seed``)."""
+    return (name == "seed" or name.endswith("_seed")) and _split_optional(tp)[0] is int
+
+
+def _check_seed(value: int, name: str) -> None:
+    """Every command's seed goes to ``numpy.random.SeedSequence``, which refuses negative
+    numbers with a bare ``ValueError``: checked here once for every command and every way of
+    giving it (option, options file, Python call)."""
+    if not 0 <= value <= MAX_SEED:
+        raise ConfigError(f"expected a whole number in [0, 2**63 - 1], got {value!r}",
+                          key=name, fix="seeds are non-negative: e.g. 5 instead of -5")
 
 
 def _plain(value: Any) -> Any:

@@ -115,11 +115,35 @@ class CountTable:
         return int(self.counts.shape[1])
 
 
+#: Longest number text read (digits and sign): int64 has 19 digits; Python refuses to read
+#: integers beyond 4300 digits anyway (CVE-2020-10735), with a message about its own limit.
+_MAX_DIGITS = 40
+
+
+class _LongNumber(str):
+    """A JSON integer too long to be a count (its text, kept for the message)."""
+
+
+def _parse_json_int(text: str) -> int | _LongNumber:
+    return _LongNumber(text) if len(text) > _MAX_DIGITS else int(text)
+
+
+def _shown(value: Any) -> str:
+    """``repr(value)``, shortened to 40 characters."""
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:20]}...{text[-10:]} ({len(text)} characters)"
+
+
 def _whole(value: Any, path: Path, key: str) -> int:
 
     def bad() -> CountsFileError:
-        return _bad(path, key, f"expected a whole number, got {value!r}")
+        return _bad(path, key, f"expected a whole number, got {_shown(value)}")
 
+    if isinstance(value, _LongNumber) or (isinstance(value, str)
+                                          and len(value.strip()) > _MAX_DIGITS
+                                          and value.strip().lstrip("+-").isdigit()):
+        raise _bad(path, key, f"a {len(value.strip().lstrip('+-'))}-digit number does not fit "
+                   "a 64-bit integer", fix="counts and indices are whole numbers below 2**63")
     if isinstance(value, bool):
         raise bad()
     if isinstance(value, str):
@@ -203,7 +227,7 @@ def _read_isir(path: Path, doc: dict[str, Any]) -> Rows:
 
 def _read_json(path: Path, text: str) -> tuple[Rows, str, dict[str, Any]]:
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_int=_parse_json_int)
     except json.JSONDecodeError as exc:
         raise _bad(path, "", f"not valid JSON ({exc})") from None
     rows: Rows = []
@@ -264,6 +288,13 @@ def _check_size(path: Path, S: int, n_actions: int, given: bool) -> None:
                    "(--states / --n-states)")
 
 
+def _action_fix(n_actions: int) -> str:
+    """The fix for an action index beyond ``n_actions``: the other width, when there is one."""
+    if n_actions == 8:
+        return "--n-actions 16 for a 16-action robot"
+    return "actions are numbered 0..15; check the file's action column"
+
+
 def load_counts(
     path: str | os.PathLike[str],
     *,
@@ -311,7 +342,7 @@ def load_counts(
         if over.size:
             raise _bad(path, raw[over[0]][2][name],
                        f"index {col[over[0]]} out of range 0..{upper - 1}",
-                       fix="--n-actions 8 for an 8-action robot" if name == "a" else None)
+                       fix=_action_fix(n_actions) if name == "a" else None)
     S = int(max(s.max(), s_next.max())) + 1 if n_states is None else int(n_states)
     _check_size(path, S, n_actions, n_states is not None)
     if count.sum(dtype=np.float64) > _INT64_MAX:

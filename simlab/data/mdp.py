@@ -210,6 +210,8 @@ def mdp_from_arrays(
                              ("entropy", entropy, (S, A))):  # fmt: skip
         if arr is not None and np.shape(arr) != shape:
             raise ConfigError(f"expected shape {shape}, got {np.shape(arr)}", path=path, key=name)
+    if counts is not None:
+        counts = _check_counts(np.asarray(counts), path, "counts")
     from simlab.data.estimate import check_unvisited_rule
 
     check_unvisited_rule(unvisited)
@@ -231,6 +233,26 @@ def mdp_from_arrays(
         action_set=action_set,
         unvisited=unvisited,
     )
+
+
+def _check_counts(counts: np.ndarray, path: str | None, key: str) -> np.ndarray:
+    """``counts`` as int64 when every entry is a finite whole number >= 0 (ConfigError
+    naming the file, the array and the first bad entry otherwise: a NaN count would
+    otherwise surface as numpy's cast error deep in training)."""
+    if counts.dtype.kind not in "biuf":
+        raise ConfigError(f"expected numbers, got dtype {counts.dtype}", path=path, key=key,
+                          fix="re-estimate the MDP with simlab estimate")
+    if counts.dtype.kind == "f":
+        bad = ~np.isfinite(counts) | (counts != np.round(counts))
+    else:
+        bad = np.zeros(counts.shape, dtype=bool)
+    bad |= counts < 0
+    if np.any(bad):
+        where = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ConfigError(f"{int(bad.sum())} entr(ies) are not whole numbers >= 0 (first at "
+                          f"{list(where)}: {counts[where]!r})", path=path, key=key,
+                          fix="re-estimate the MDP with simlab estimate")
+    return counts.astype(np.int64, copy=False)
 
 
 def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
@@ -353,6 +375,8 @@ def load_sparse_mdp(path: str | os.PathLike[str]) -> SparseEmpiricalMDP:
         if arr is not None and np.shape(arr) != want:
             raise ConfigError(f"expected shape {want}, got {np.shape(arr)}", path=where,
                               key=name)
+    if counts is not None:
+        counts = _check_counts(np.asarray(counts), where, "counts_data")
     names = arrays.get("goal_names")
     masks = arrays.get("goal_masks")
     if masks is not None and names is not None and np.shape(masks) != (np.size(names), S):

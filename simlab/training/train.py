@@ -276,6 +276,18 @@ def param_pair(text: str) -> tuple[str, Any]:
     return key.strip(), parsed
 
 
+def _param_item(item: Any) -> tuple[str, Any]:
+    """One ``"KEY=VALUE"`` of a list of overrides (an options file's ``param = [...]``)."""
+    import argparse
+
+    try:
+        if not isinstance(item, str):
+            raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {item!r}")
+        return param_pair(item)
+    except argparse.ArgumentTypeError as exc:
+        raise ConfigError(str(exc), key="param", fix='e.g. param = ["tau=0.05"]') from None
+
+
 _AGENTS = "q-learning, q-softmax, mb-egreedy, vi-softmax, rmax, sliding-window, passive-observer"
 
 
@@ -301,7 +313,8 @@ class TrainConfig(CommandConfig):
                               "(required)")
     horizon: int = option(50, "steps per episode")
     start: int | None = option(None, "fixed start state (default: uniform over states)")
-    params: Any | None = option(None, "hyper-parameter overrides {name: value}", cli=False)
+    params: Any | None = option(None, "hyper-parameter overrides {name: value}", cli=False,
+                                flag="param")
     bounds: tuple[float, ...] | None = option(
         None, "heat-map extent XMIN YMIN XMAX YMAX in metres (default: from --arena or the "
         "centres)")
@@ -344,9 +357,12 @@ class TrainConfig(CommandConfig):
         if self.bounds is not None and len(self.bounds) != 4:
             raise ConfigError(f"expected 4 numbers XMIN YMIN XMAX YMAX, got {self.bounds}",
                               key="bounds")
+        if isinstance(self.params, list | tuple):  # `param = ["tau=0.05"]`, as on the CLI
+            object.__setattr__(self, "params", dict(_param_item(p) for p in self.params))
         if self.params is not None and not isinstance(self.params, dict):
             raise ConfigError(f"expected a table of overrides, got {self.params!r}",
-                              key="params")
+                              key="params", fix='e.g. params = {tau = 0.05} or '
+                              'param = ["tau=0.05"]')
         extra = (self.goal_states, self.start_states, self.unvisited)
         if isinstance(self.task, TrainTask):
             if any(x is not None for x in extra):
@@ -434,6 +450,9 @@ def train(cfg: TrainConfig) -> TrainSummary:
         if out is not None:  # refuses existing outputs and takes the --out lock before training
             txn = stack.enter_context(output_transaction(out, files.values(),
                                                          overwrite=cfg.overwrite))
+            if cfg.overwrite:
+                for stale in _previous_outputs(Path(out), files.values()):
+                    txn.retire(stale)
         job = _TrainJob(cfg=cfg, m=m, names=names, start=start, valid=m.valid, gamma=gamma,
                         files=files, plot_bounds=plot_bounds, background=background, t0=t0,
                         states_hash=states_hash, pool=pool)
@@ -449,6 +468,28 @@ def _warn_about(m: Any) -> None:
     if m.valid is not None:
         warn(f"{int((~m.valid).sum())} unvisited (s, a) pairs masked: agents never choose "
              "them (unvisited='self-loop' for the old rule)")
+
+
+#: Names of the files a train run writes per goal or per figure (see :func:`_output_files`):
+#: only files of these names, listed by the previous run's summary.json, are retired.
+_OWN_PATTERNS = ("q_*.npz", "heatmap_*.png", "heatmaps.png", "curves.png")
+
+
+def _previous_outputs(out: Path, now: Any) -> list[Path]:
+    """Files the previous ``train`` into ``out`` wrote (its ``summary.json`` lists them) that
+    this run does not write again: the Q-tables and heat maps of goals no longer trained.
+    ``--overwrite`` replaces them too, so that ``replay`` of ``out`` (every ``q_*.npz``)
+    never picks up a stale goal. Files ``train`` did not write are never touched."""
+    import json
+
+    try:
+        listed = json.loads((out / "summary.json").read_text(encoding="utf-8"))["files"]
+        names = {Path(str(v)).name for v in listed.values()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return []  # no summary of ours: nothing is known to be ours
+    keep = {Path(p).name for p in now}
+    return [out / n for n in sorted(names - keep)
+            if any(Path(n).match(pat) for pat in _OWN_PATTERNS) and (out / n).is_file()]
 
 
 def _output_files(out: Any, names: list[str], plots: bool, centres: bool) -> dict[str, Path]:

@@ -1,0 +1,124 @@
+"""The fault corpus, part 4: the cases found by trying the newer commands as a new user
+would (seeds, count tables, model files, pose logs, options files, outputs that must be
+replaced only when they are the command's own).
+
+Same promise as parts 1-3: exit 2 (130 for Ctrl-C), one line naming the user's file or
+field with a fix that works, no traceback, nothing that existed before changed.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from .conftest import assert_refused, run_cli, tree_hashes
+
+
+def _write(name: str, data: str | bytes) -> Callable[[Path], None]:
+    def setup(w: Path) -> None:
+        p = w / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(data, bytes):
+            p.write_bytes(data)
+        else:
+            p.write_text(data)
+    return setup
+
+
+def _nan_counts(w: Path) -> None:
+    with np.load(w / "mdp.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    counts = arrays["counts"].astype(np.float64)
+    counts[0, 0, 0] = np.nan
+    arrays["counts"] = counts
+    np.savez(w / "nan.npz", **arrays)
+
+
+_DIGITS = "7" * 5000
+_ISIR = json.dumps({"transitionActions": [{"state": 0, "transitions": [
+    {"action": 1, "state": 1, "prob": 3}]}], "actioncount": 1})
+
+NO = None
+# (id, setup, argv ({w}: the work folder), words the one error line must contain)
+CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
+    # ---- seeds: checked once, in the options layer, for every command and every source
+    ("drive-seed-negative", NO, "drive --seed -5 --steps 1 --no-progress", ("seed", "-5")),
+    ("drive-seed-negative-in-config", _write("c.toml", "seed = -5\n"),
+     "drive --config {w}/c.toml --steps 1 --no-progress", ("c.toml", "seed", "-5")),
+    ("train-seed-negative-in-config", _write("c.toml", "seed = -1\n"),
+     "train --mdp {w}/mdp.npz --config {w}/c.toml --out {w}/t --no-progress",
+     ("c.toml", "seed")),
+    ("collect-seed-negative", NO, "collect --states {w}/states.json --transitions 10 "
+     "--seed -3 --simulator kinematic --out {w}/o --no-progress", ("seed",)),
+    # ---- count tables: a number too long for Python's int(), the action-width hint
+    ("counts-isir-5000-digits", _write("isir", _ISIR.replace('"prob": 3',
+                                                             f'"prob": {_DIGITS}')),
+     "estimate --counts {w}/isir --n-actions 8 --out {w}/m.npz --no-plot",
+     ("isir", "transitions[0].prob", "5000-digit")),
+    ("counts-csv-5000-digits", _write("c.csv", f"s,a,s_next,count\n0,0,1,{_DIGITS}\n"),
+     "estimate --counts {w}/c.csv --out {w}/m.npz --no-plot", ("c.csv", "line 2", "5000")),
+    ("counts-16-actions-read-as-8", NO, "estimate --counts {w}/counts.csv --n-actions 8 "
+     "--out {w}/m.npz --no-plot", ("counts.csv", "--n-actions 16")),
+    # ---- model files
+    ("train-mdp-nan-counts", _nan_counts, "train --mdp {w}/nan.npz --episodes 2 --runs 1 "
+     "--out {w}/t --no-progress", ("nan.npz", "counts", "simlab estimate")),
+    # ---- options files: long option names work as keys (train's repeatable --param)
+    ("train-param-in-config-bad", _write("c.toml", 'param = ["tau"]\n'),
+     "train --mdp {w}/mdp.npz --config {w}/c.toml --episodes 2 --runs 1 --out {w}/t "
+     "--no-progress", ("c.toml", "param", "KEY=VALUE")),
+]
+
+
+@pytest.mark.parametrize(("case", "setup", "argv", "needles"), CASES,
+                         ids=[c[0] for c in CASES])
+def test_bad_input_is_one_line_exit_2_and_nothing_changes(
+        case: str, setup: Callable[[Path], None] | None, argv: str, needles: tuple[str, ...],
+        work: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    if setup is not None:
+        setup(work)
+    before = tree_hashes(work)
+    res = run_cli(argv.format(w=work).split(), capsys)
+    assert_refused(res, *needles)
+    assert tree_hashes(work) == before
+
+
+def test_train_overwrite_retires_its_own_stale_goals_and_nothing_else(work: Path,
+                                                                       capsys) -> None:
+    (work / "q" / "q_mine.npz").write_bytes(b"the user's")  # not listed by train's summary
+    res = run_cli(f"train --mdp {work}/mdp.npz --goals N,S --episodes 2 --runs 1 --no-plots "
+                  f"--out {work}/q --overwrite --no-progress".split(), capsys)
+    assert res.code == 0, res.stderr
+    assert sorted(p.name for p in (work / "q").glob("q_*.npz")) == ["q_N.npz", "q_S.npz",
+                                                                     "q_mine.npz"]
+    assert (work / "q" / "q_mine.npz").read_bytes() == b"the user's"
+
+
+def test_a_failed_overwrite_retires_nothing(work: Path, capsys, monkeypatch) -> None:
+    before = tree_hashes(work)
+    real = os.fsync
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "fsync", full)
+    res = run_cli(f"train --mdp {work}/mdp.npz --goals N --episodes 2 --runs 1 --no-plots "
+                  f"--out {work}/q --overwrite --no-progress".split(), capsys)
+    monkeypatch.setattr(os, "fsync", real)
+    assert_refused(res, "no space left")
+    assert tree_hashes(work) == before
+
+
+def test_train_reads_param_from_an_options_file_like_the_command_line(work: Path,
+                                                                      capsys) -> None:
+    (work / "c.toml").write_text('param = ["tau=0.25"]\n')
+    res = run_cli(f"train --mdp {work}/mdp.npz --config {work}/c.toml --goals N --episodes 2 "
+                  f"--runs 1 --no-plots --out {work}/t --no-progress".split(), capsys)
+    assert res.code == 0, res.stderr
+    summary = json.loads((work / "t" / "summary.json").read_text())
+    assert summary["config"]["tau"] == 0.25
