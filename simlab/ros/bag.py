@@ -7,23 +7,41 @@ stamp is ``t0 + t`` with ``t`` the trajectory's seconds):
 topic                  type                                  content
 =====================  ====================================  ===============================
 ``/tf_static``         ``tf2_msgs/msg/TFMessage``            ``base_footprint -> base_link``
-                                                             (identity: simlab's base_link
-                                                             origin is on the floor) and
-                                                             ``base_link -> base_scan``
-                                                             (the URDF's LIDAR offset), once
+                                                             and ``base_link -> base_scan``
+                                                             (the URDF's joints), once,
+                                                             latched
 ``/tf``                ``tf2_msgs/msg/TFMessage``            ``map -> odom`` (= pose * odom
                                                              ^-1) and ``odom ->
                                                              base_footprint`` per sample
-``/odom``              ``nav_msgs/msg/Odometry``             odometry pose (frame ``odom``)
+``/odom``              ``nav_msgs/msg/Odometry``             odometry pose (frame ``odom``),
+                                                             twist and covariances
 ``/amcl_pose``         ``geometry_msgs/msg/                  map-frame pose (the pose a
                        PoseWithCovarianceStamped``           localizer publishes)
-``/scan``              ``sensor_msgs/msg/LaserScan``         float32 ranges, ``inf`` = no
-                                                             return (frame ``base_scan``)
-``/map``               ``nav_msgs/msg/OccupancyGrid``        the map, once (row 0 = bottom)
+``/scan``              ``sensor_msgs/msg/LaserScan``         float32 ranges (frame
+                                                             ``base_scan``): ``+inf`` nothing
+                                                             in range, ``-inf`` too close
+``/map``               ``nav_msgs/msg/OccupancyGrid``        the map, once, latched (row 0 =
+                                                             bottom)
 ``/simlab/state``      ``std_msgs/msg/Int32``                Markov state per sample
 ``/simlab/goal``       ``std_msgs/msg/String``               current goal name per sample
 ``/simlab/action``     ``std_msgs/msg/Int32``                action index at decision starts
+``/simlab/blocked``    ``std_msgs/msg/Bool``                 the decision's translation was
+                                                             not executed (decision starts)
+``/simlab/duration``   ``std_msgs/msg/Float64``              the decision's duration (s,
+                                                             decision starts)
+``/simlab/cells``      ``visualization_msgs/msg/MarkerArray`` the states' Voronoi cells and
+                                                             numbers, once, latched
+``/simlab/goals``      ``visualization_msgs/msg/MarkerArray`` the goal areas, once, latched
+``/simlab/human``      ``visualization_msgs/msg/MarkerArray`` the human per sample (when
+                                                             there is one)
 =====================  ====================================  ===============================
+
+Latched topics are recorded with the transient-local durability that ``tf_static`` and
+``map_server`` offer (``offered_qos_profiles`` of ``metadata.yaml``), so that a player
+replays them to late subscribers (RViz, Foxglove). The bag's ``custom_data`` records
+the writer (``simlab.writer``: what ``--overwrite`` may replace), the action set of
+``/simlab/action`` (``simlab.action_set``, JSON), the pose source of the map pose and the
+time origin (``simlab.time_origin_ns``: the stamp of ``t = 0``).
 
 Poses are float64 in the messages (exact); yaw goes through a quaternion (exact to ~1e-16
 rad); scans are float32 as in ``LaserScan``.
@@ -31,10 +49,14 @@ rad); scans are float32 as in ``LaserScan``.
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import json
 import math
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,19 +65,34 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.errors import ConfigError, DataError
+from simlab.ros.markers import SceneMarkers, voronoi_cells
 
 TOPICS = {
     "tf_static": "/tf_static", "tf": "/tf", "odom": "/odom", "amcl_pose": "/amcl_pose",
     "scan": "/scan", "map": "/map", "state": "/simlab/state", "goal": "/simlab/goal",
-    "action": "/simlab/action",
+    "action": "/simlab/action", "blocked": "/simlab/blocked", "duration": "/simlab/duration",
+    "cells": "/simlab/cells", "goals": "/simlab/goals", "human": "/simlab/human",
 }
 _TYPES = {
     "/tf_static": "tf2_msgs/msg/TFMessage", "/tf": "tf2_msgs/msg/TFMessage",
     "/odom": "nav_msgs/msg/Odometry", "/amcl_pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
     "/scan": "sensor_msgs/msg/LaserScan", "/map": "nav_msgs/msg/OccupancyGrid",
     "/simlab/state": "std_msgs/msg/Int32", "/simlab/goal": "std_msgs/msg/String",
-    "/simlab/action": "std_msgs/msg/Int32",
+    "/simlab/action": "std_msgs/msg/Int32", "/simlab/blocked": "std_msgs/msg/Bool",
+    "/simlab/duration": "std_msgs/msg/Float64",
+    "/simlab/cells": "visualization_msgs/msg/MarkerArray",
+    "/simlab/goals": "visualization_msgs/msg/MarkerArray",
+    "/simlab/human": "visualization_msgs/msg/MarkerArray",
 }
+#: Topics published once and latched: ``static_transform_broadcaster`` and ``map_server``
+#: offer them transient-local (REP-105 tooling; ROS 2 docs "About Quality of Service
+#: settings"), and a late subscriber only gets them if the bag replays them that way.
+LATCHED = ("/tf_static", "/map", "/simlab/cells", "/simlab/goals")
+
+#: Value of the ``simlab.writer`` custom-data key: the mark of a bag this module wrote.
+WRITER_MARK = "simlab.ros.bag"
+#: Prefix of the staging directory of :func:`write_bag`, beside the bag.
+STAGING_PREFIX = ".simlab-bag-"
 
 
 @dataclass(frozen=True)
@@ -72,14 +109,20 @@ class ScanGeometry:
 
 @dataclass(frozen=True)
 class BagTrajectory:
-    """What a bag holds, as arrays (n samples).
+    """What a bag holds, as arrays (n samples, k decisions).
 
     ``t`` (n,) float64 seconds, strictly increasing; ``pose`` (n, 3) map-frame (x, y, yaw)
     (m, m, rad); ``odom`` (n, 3) odometry-frame pose (None: equal to ``pose``, map -> odom
-    identity); ``scans`` (n, B) float32 metres (None: no /scan); ``state`` (n,) int;
-    ``goal`` (n,) str; ``actions`` ``(k,)`` int with ``action_t`` (k,) s (None: no action
-    topic); ``map`` an :class:`~discretize.gridmap.OccupancyMap` (None: no /map);
-    ``scan_offset`` (x, y, z) m of base_scan in base_link.
+    identity); ``scans`` (n, B) float32 metres, ``+inf`` no return, ``-inf`` closer than
+    ``range_min`` (REP-117; None: no /scan); ``state`` (n,) int; ``goal`` (n,) str;
+    ``actions`` ``(k,)`` int with ``action_t`` (k,) s (None: no action topic), and per
+    decision ``blocked`` (k,) bool and ``duration`` (k,) s (None: not recorded);
+    ``action_set`` the :meth:`simlab.actions.ActionSet.to_json` record of the action
+    indices; ``pose_source`` what the map pose is (``truth`` for a simulator's);
+    ``map`` an :class:`~discretize.gridmap.OccupancyMap` (None: no /map);
+    ``scan_offset`` (x, y, z) m of base_scan in base_link; ``base_offset`` (x, y, z) m of
+    base_link in base_footprint; ``scene`` the cells and goals to draw; ``human`` (n, 3)
+    map-frame pose of a human (None: no human).
     """
 
     t: NDArray[np.float64]
@@ -91,8 +134,15 @@ class BagTrajectory:
     goal: NDArray[np.str_] | None = None
     actions: NDArray[np.int64] | None = None
     action_t: NDArray[np.float64] | None = None
+    blocked: NDArray[np.bool_] | None = None
+    duration: NDArray[np.float64] | None = None
+    action_set: dict[str, Any] | None = None
+    pose_source: str | None = None
     map: Any = None
     scan_offset: tuple[float, float, float] = (-0.032, 0.0, 0.182)
+    base_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    scene: SceneMarkers | None = None
+    human: NDArray[np.float64] | None = None
 
 
 def _rosbags() -> tuple[Any, Any, Any]:
@@ -105,6 +155,24 @@ def _rosbags() -> tuple[Any, Any, Any]:
     import rosbags.rosbag2 as rb
 
     return rb, get_typestore(Stores.ROS2_HUMBLE), StoragePlugin
+
+
+def _latched_qos() -> Any:
+    """The QoS profile of a latched topic: reliable, keep-last 1, transient-local."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    never = QosTime(sec=2147483647, nsec=4294967295)  # rmw's "infinite" duration
+    return Qos(history=QosHistory.KEEP_LAST, depth=1, reliability=QosReliability.RELIABLE,
+               durability=QosDurability.TRANSIENT_LOCAL, deadline=never, lifespan=never,
+               liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=never,
+               avoid_ros_namespace_conventions=False)
 
 
 def _quat(yaw: float) -> tuple[float, float, float, float]:
@@ -130,6 +198,77 @@ def inverse(a: NDArray[np.float64]) -> NDArray[np.float64]:
     c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
     return np.stack([-c * a[..., 0] - s * a[..., 1], s * a[..., 0] - c * a[..., 1], -a[..., 2]],
                     axis=-1)
+
+
+def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def odometry_twist(t: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(n, 3)`` twist ``(vx, vy, wz)`` (m/s, m/s, rad/s) of each odometry sample: the mean
+    motion over the interval that ends at the sample, in ``base_footprint`` at the sample
+    (``vx`` forward, ``vy`` left); zero at the first sample. A primitive turns then drives,
+    so its translation lies along the final heading and ``vy`` is ~0."""
+    twist = np.zeros((len(t), 3))
+    if len(t) > 1:
+        dt = np.diff(t)
+        d = np.diff(odom[:, :2], axis=0)
+        c, s = np.cos(odom[1:, 2]), np.sin(odom[1:, 2])
+        twist[1:, 0] = (c * d[:, 0] + s * d[:, 1]) / dt
+        twist[1:, 1] = (-s * d[:, 0] + c * d[:, 1]) / dt
+        twist[1:, 2] = _wrap(np.diff(odom[:, 2])) / dt
+    return twist
+
+
+def odometry_covariance(t: NDArray[np.float64], odom: NDArray[np.float64],
+                        params: Any = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Covariances ``(n, 3, 3)`` of the odometry pose ``(x, y, yaw)`` and of the twist
+    ``(vx, vy, wz)`` under the odometry motion model (Thrun, Burgard & Fox, *Probabilistic
+    Robotics*, 5.4, Table 5.6: noise of ``rot1``, ``trans``, ``rot2`` with variance growing
+    with the motion; ``params`` an :class:`~simlab.localization.motion.OdometryMotionParams`,
+    default its defaults, the particle filter's).
+
+    The pose covariance starts at 0 (odometry starts from a known pose) and is propagated
+    to first order, ``S' = G S G^T + V M V^T`` (the book's EKF linearization, 7.4, with the
+    odometry model's Jacobians); the twist covariance is the last interval's motion noise
+    divided by its duration squared (``var(vx) = var(trans) / dt^2``, ``var(wz) =
+    (var(rot1) + var(rot2)) / dt^2``; ``vy`` is 0 by the model).
+    """
+    from simlab.localization.motion import OdometryMotionParams, odometry_delta
+
+    p = params or OdometryMotionParams()
+    n = len(t)
+    pose_cov, twist_cov = np.zeros((n, 3, 3)), np.zeros((n, 3, 3))
+    sigma = np.zeros((3, 3))
+    for i in range(1, n):
+        rot1, trans, rot2 = odometry_delta(odom[i - 1], odom[i], p.min_translation)
+        m = np.diag([p.alpha1 * rot1**2 + p.alpha2 * trans**2,
+                     p.alpha3 * trans**2 + p.alpha4 * (rot1**2 + rot2**2),
+                     p.alpha1 * rot2**2 + p.alpha2 * trans**2])
+        heading = odom[i - 1, 2] + rot1
+        c, s = math.cos(heading), math.sin(heading)
+        g = np.array([[1.0, 0.0, -trans * s], [0.0, 1.0, trans * c], [0.0, 0.0, 1.0]])
+        v = np.array([[-trans * s, c, 0.0], [trans * c, s, 0.0], [1.0, 0.0, 1.0]])
+        sigma = g @ sigma @ g.T + v @ m @ v.T
+        pose_cov[i] = sigma
+        dt2 = float(t[i] - t[i - 1]) ** 2
+        twist_cov[i, 0, 0] = m[1, 1] / dt2
+        twist_cov[i, 2, 2] = (m[0, 0] + m[2, 2]) / dt2
+    return pose_cov, twist_cov
+
+
+def _cov6(c3: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A planar (x, y, yaw) covariance as ROS's row-major 6x6 (x, y, z, roll, pitch, yaw);
+    z, roll and pitch are exact (the robot stays on the floor): variance 0."""
+    out = np.zeros((6, 6))
+    idx = np.array([0, 1, 5])
+    out[np.ix_(idx, idx)] = c3
+    return out.reshape(-1)
+
+
+_CELL_COLOR = (0.1, 0.4, 0.9, 0.8)
+_GOAL_COLOR = (0.1, 0.8, 0.2, 0.5)
+_HUMAN_COLOR = (0.9, 0.5, 0.1, 0.9)
 
 
 class _Msgs:
@@ -161,16 +300,18 @@ class _Msgs:
     def tf_message(self, transforms: list[Any]) -> Any:
         return self.ts.types["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
-    def odometry(self, ns: int, pose: NDArray[np.float64]) -> Any:
+    def odometry(self, ns: int, pose: NDArray[np.float64], twist: NDArray[np.float64],
+                 pose_cov: NDArray[np.float64], twist_cov: NDArray[np.float64]) -> Any:
         t = self.ts.types
-        zero = self.Vec(x=0.0, y=0.0, z=0.0)
         return t["nav_msgs/msg/Odometry"](
             header=self.header(ns, "odom"), child_frame_id="base_footprint",
             pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose),
-                                                          covariance=np.zeros(36)),
+                                                          covariance=_cov6(pose_cov)),
             twist=t["geometry_msgs/msg/TwistWithCovariance"](
-                twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
-                covariance=np.zeros(36)))
+                twist=t["geometry_msgs/msg/Twist"](
+                    linear=self.Vec(x=float(twist[0]), y=float(twist[1]), z=0.0),
+                    angular=self.Vec(x=0.0, y=0.0, z=float(twist[2]))),
+                covariance=_cov6(twist_cov)))
 
     def amcl(self, ns: int, pose: NDArray[np.float64]) -> Any:
         t = self.ts.types
@@ -202,84 +343,311 @@ class _Msgs:
                 origin=self.pose(ox, oy, oyaw)),
             data=occ.reshape(-1).copy())
 
+    # -- markers ------------------------------------------------------------------------
+    def marker(self, ns: int, namespace: str, ident: int, kind: str, *,
+               pose: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+               scale: tuple[float, float, float] = (1.0, 1.0, 1.0),
+               color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
+               points: NDArray[np.float64] | None = None, text: str = "") -> Any:
+        """One ``visualization_msgs/Marker`` in the map frame; ``pose`` (x, y, z, yaw)."""
+        t = self.ts.types
+        m = t["visualization_msgs/msg/Marker"]
+        pts = [] if points is None else [self.Point(x=float(x), y=float(y), z=0.01)
+                                         for x, y in points]
+        x, y, z, yaw = pose
+        return m(header=self.header(ns, "map"), ns=namespace, id=int(ident),
+                 type=getattr(m, kind), action=m.ADD, pose=self.pose(x, y, yaw, z),
+                 scale=self.Vec(x=float(scale[0]), y=float(scale[1]), z=float(scale[2])),
+                 color=t["std_msgs/msg/ColorRGBA"](*(float(c) for c in color)),
+                 lifetime=t["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+                 frame_locked=False, points=pts, colors=[], texture_resource="",
+                 texture=t["sensor_msgs/msg/CompressedImage"](
+                     header=self.header(0, ""), format="", data=np.zeros(0, np.uint8)),
+                 uv_coordinates=[], text=text, mesh_resource="",
+                 mesh_file=t["visualization_msgs/msg/MeshFile"](
+                     filename="", data=np.zeros(0, np.uint8)),
+                 mesh_use_embedded_materials=False)
+
+    def marker_array(self, markers: list[Any]) -> Any:
+        return self.ts.types["visualization_msgs/msg/MarkerArray"](markers=markers)
+
+    def cells(self, ns: int, scene: SceneMarkers) -> Any:
+        """Each state's Voronoi cell (a closed line strip) and its number at its centre."""
+        out = []
+        centres = np.asarray(scene.centres, dtype=np.float64)
+        for i, poly in enumerate(voronoi_cells(centres, scene.bounds)):
+            if len(poly):
+                out.append(self.marker(ns, "cells", i, "LINE_STRIP", scale=(0.01, 0, 0),
+                                       color=_CELL_COLOR, points=np.vstack([poly, poly[:1]])))
+            out.append(self.marker(ns, "state_ids", i, "TEXT_VIEW_FACING",
+                                   pose=(centres[i, 0], centres[i, 1], 0.05, 0.0),
+                                   scale=(0, 0, 0.06), color=_CELL_COLOR, text=str(i)))
+        return self.marker_array(out)
+
+    def goals(self, ns: int, scene: SceneMarkers) -> Any:
+        """Each goal area as a flat disc and its name."""
+        out = []
+        for i, (name, x, y, r) in enumerate(scene.goals):
+            out.append(self.marker(ns, "goals", i, "CYLINDER", pose=(x, y, 0.005, 0.0),
+                                   scale=(2 * r, 2 * r, 0.01), color=_GOAL_COLOR))
+            out.append(self.marker(ns, "goal_names", i, "TEXT_VIEW_FACING",
+                                   pose=(x, y, 0.1, 0.0), scale=(0, 0, 0.08),
+                                   color=_GOAL_COLOR, text=name))
+        return self.marker_array(out)
+
+    def human(self, ns: int, pose: NDArray[np.float64]) -> Any:
+        """The human as a standing cylinder (0.3 m wide, 1.7 m tall) and a heading arrow."""
+        x, y, yaw = (float(v) for v in pose)
+        return self.marker_array([
+            self.marker(ns, "human", 0, "CYLINDER", pose=(x, y, 0.85, 0.0),
+                        scale=(0.3, 0.3, 1.7), color=_HUMAN_COLOR),
+            self.marker(ns, "human", 1, "ARROW", pose=(x, y, 1.0, yaw),
+                        scale=(0.4, 0.05, 0.05), color=_HUMAN_COLOR)])
+
 
 def _check(traj: BagTrajectory) -> int:
     t = np.asarray(traj.t, dtype=np.float64)
     n = len(t)
-    if n == 0 or np.any(np.diff(t) <= 0) or t[0] < 0:
+    if n == 0 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0:
         raise ConfigError("sample times must be >= 0 and strictly increasing", key="t")
-    for name in ("pose", "odom"):
+    for name in ("pose", "odom", "human"):
         a = getattr(traj, name)
         if a is not None and np.shape(a) != (n, 3):
             raise ConfigError(f"expected shape ({n}, 3), got {np.shape(a)}", key=name)
     if traj.scans is not None and (np.ndim(traj.scans) != 2 or len(traj.scans) != n):
         raise ConfigError(f"expected shape ({n}, beams), got {np.shape(traj.scans)}",
                           key="scans")
+    if traj.actions is not None:
+        k = len(traj.actions)
+        for name in ("action_t", "blocked", "duration"):
+            a = getattr(traj, name)
+            if (a is None and name == "action_t") or (a is not None and np.shape(a) != (k,)):
+                raise ConfigError(f"expected shape ({k},) like actions, got "
+                                  f"{None if a is None else np.shape(a)}", key=name)
     return n
+
+
+# -- the bag directory: what may be replaced, where it is staged ------------------------
+def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The ``rosbag2_bagfile_information`` table of a bag's ``metadata.yaml``;
+    :class:`~simlab.errors.DataError` naming the file when it is missing or not valid."""
+    from ruamel.yaml import YAML
+    from ruamel.yaml.error import YAMLError
+
+    meta = Path(path) / "metadata.yaml"
+    try:
+        text = meta.read_text(encoding="utf-8")
+    except (FileNotFoundError, NotADirectoryError):
+        raise DataError(f"{path}: not a ROS 2 bag (no metadata.yaml; a bag is the directory "
+                        f"that `ros2 bag record` writes)") from None
+    except UnicodeDecodeError:
+        raise DataError(f"{meta}: not a text file") from None
+    try:
+        data = YAML(typ="safe", pure=True).load(text)
+    except YAMLError as exc:
+        line = " ".join(str(exc).split())
+        raise DataError(f"{meta}: not valid YAML ({line})") from None
+    info = data.get("rosbag2_bagfile_information") if isinstance(data, dict) else None
+    if not isinstance(info, dict):
+        raise DataError(f"{meta}: no rosbag2_bagfile_information table (not a ROS 2 bag's "
+                        f"metadata)")
+    return info
+
+
+def simlab_bag_files(path: Path) -> list[Path] | None:
+    """The files of ``path`` when it is a bag that :func:`write_bag` wrote (its
+    ``simlab.writer`` mark, and nothing else in the directory); None otherwise."""
+    if not path.is_dir():
+        return None
+    try:
+        info = read_metadata(path)
+    except DataError:
+        return None
+    custom = info.get("custom_data") or {}
+    files = info.get("relative_file_paths") or []
+    if not isinstance(custom, dict) or custom.get("simlab.writer") != WRITER_MARK:
+        return None
+    own = {"metadata.yaml", *(Path(str(f)).name for f in files)}
+    present = [p for p in path.iterdir()]
+    if any(p.name not in own or not p.is_file() for p in present):
+        return None
+    return present
+
+
+def check_bag_target(path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+    """Refuse ``path`` as the bag to write, before any work: an existing file or
+    directory unless ``overwrite`` and it is a bag written by :func:`write_bag` (anything
+    else is never replaced), a parent that is a file."""
+    path = Path(path)
+    for parent in path.parents:
+        if parent.exists() and not parent.is_dir():
+            raise ConfigError("a parent of this path is a file, not a directory", path=parent,
+                              fix="choose another --out")
+    if not os.path.lexists(path):
+        return path
+    if path.is_dir() and not any(path.iterdir()):
+        return path  # an empty directory: nothing to lose
+    if simlab_bag_files(path) is None:
+        raise ConfigError("exists and is not a bag written by simlab export-bag; it is never "
+                          "replaced, even with --overwrite", path=path,
+                          fix="choose another --out")
+    if not overwrite:
+        raise ConfigError("a bag already exists here", path=path,
+                          fix="choose another --out, or pass --overwrite to replace it")
+    return path
+
+
+@contextlib.contextmanager
+def _lock(directory: Path) -> Iterator[None]:
+    """Hold an exclusive flock on ``directory`` (released when the block ends or the
+    process dies); a second holder gets a :class:`ConfigError` at once."""
+    import fcntl
+
+    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ConfigError("another simlab process is writing a bag here", path=directory,
+                              fix="wait for it to finish, or choose another --out") from None
+        yield
+    finally:
+        os.close(fd)
+
+
+def _remove_stale_staging(parent: Path, name: str) -> None:
+    """Staging directories of ``name`` left by a killed writer (the caller holds the lock
+    of ``parent``, so none of them is in use)."""
+    for stale in parent.glob(f".{name}{STAGING_PREFIX}*"):
+        shutil.rmtree(stale, ignore_errors=True)
+
+
+def _user_os_error(exc: OSError, path: Path) -> OSError:
+    """``exc`` naming the user's bag instead of the staging file it happened on."""
+    return OSError(exc.errno or errno.EIO, exc.strerror or str(exc), str(path))
 
 
 def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 0.0,
               overwrite: bool = False) -> Path:
     """Write ``traj`` as a ROS 2 bag directory ``path`` (MCAP storage, bag version 9).
 
-    The bag is written under a temporary sibling name and renamed, so a failure leaves no
-    partial bag; an existing ``path`` is refused unless ``overwrite``. ``t0`` (s) is added
-    to every stamp (ROS time of the first sample).
+    The bag is written in a hidden staging directory beside ``path`` and renamed, so a
+    failure (full disk, Ctrl-C) leaves no partial bag and any previous bag untouched; a
+    kill leaves only the staging directory, which the next write beside it removes. An
+    existing ``path`` is replaced only with ``overwrite`` and only if it is a bag this
+    function wrote (:func:`check_bag_target`). ``t0`` (s) is added to every stamp (ROS time
+    of ``t = 0``; recorded as ``simlab.time_origin_ns``).
     """
     rb, ts, plugin = _rosbags()
     _check(traj)
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise ConfigError("already exists", path=path, fix="choose another --out or pass "
-                          "--overwrite")
-    m = _Msgs(ts)
-    tmp_dir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
-    tmp = tmp_dir / path.name
+    if not (math.isfinite(t0) and t0 >= 0):
+        raise ConfigError(f"expected a finite number >= 0, got {t0!r}", key="start_time")
+    path = check_bag_target(path, overwrite=overwrite)
+    parent = path.parent
+    created = [p for p in [parent, *parent.parents] if not p.exists()]
     try:
-        with rb.Writer(tmp, version=9, storage_plugin=plugin.MCAP) as w:
-            conns = {}
-
-            def put(topic: str, ns: int, msg: Any) -> None:
-                if topic not in conns:
-                    conns[topic] = w.add_connection(topic, _TYPES[topic], typestore=ts)
-                w.write(conns[topic], ns, ts.serialize_cdr(msg, _TYPES[topic]))
-
-            stamps = [round((t0 + float(ti)) * 1e9) for ti in traj.t]
-            pose = np.asarray(traj.pose, dtype=np.float64)
-            odom = pose if traj.odom is None else np.asarray(traj.odom, dtype=np.float64)
-            map_odom = compose(pose, inverse(odom))
-            sx, sy, sz = traj.scan_offset
-            put("/tf_static", stamps[0], m.tf_message([
-                m.tf(stamps[0], "base_footprint", "base_link", 0, 0, 0),
-                m.tf(stamps[0], "base_link", "base_scan", sx, sy, 0.0, sz)]))
-            if traj.map is not None:
-                put("/map", stamps[0], m.grid(stamps[0], traj.map))
-            for i, ns in enumerate(stamps):
-                put("/tf", ns, m.tf_message([m.tf(ns, "map", "odom", *map_odom[i]),
-                                             m.tf(ns, "odom", "base_footprint", *odom[i])]))
-                put("/odom", ns, m.odometry(ns, odom[i]))
-                put("/amcl_pose", ns, m.amcl(ns, pose[i]))
-                if traj.scans is not None:
-                    put("/scan", ns, m.scan(ns, traj.scans[i], traj.scan_geometry))
-                if traj.state is not None:
-                    put("/simlab/state", ns,
-                        ts.types["std_msgs/msg/Int32"](data=int(traj.state[i])))
-                if traj.goal is not None:
-                    put("/simlab/goal", ns, ts.types["std_msgs/msg/String"](data=str(traj.goal[i])))
-            if traj.actions is not None:
-                for a, ta in zip(traj.actions, traj.action_t, strict=True):
-                    put("/simlab/action", round((t0 + float(ta)) * 1e9),
-                        ts.types["std_msgs/msg/Int32"](data=int(a)))
-        if path.exists():
-            shutil.rmtree(path)
-        os.replace(tmp, path)
-    finally:
-        shutil.rmtree(tmp_dir, ignore_errors=True)
+        parent.mkdir(parents=True, exist_ok=True)
+        with _lock(parent):
+            _remove_stale_staging(parent, path.name)
+            path = check_bag_target(path, overwrite=overwrite)  # the lock is ours now
+            staging = Path(tempfile.mkdtemp(prefix=f".{path.name}{STAGING_PREFIX}", dir=parent))
+            try:
+                _write(rb, ts, plugin, staging / path.name, traj, t0)
+                if os.path.lexists(path):
+                    os.replace(path, staging / "previous")  # a bag of ours or empty
+                os.replace(staging / path.name, path)
+            finally:
+                shutil.rmtree(staging, ignore_errors=True)
+    except OSError as exc:
+        for p in created:  # innermost first: only the directories this call made, if empty
+            with contextlib.suppress(OSError):
+                p.rmdir()
+        raise _user_os_error(exc, path) from None
+    except BaseException:
+        for p in created:
+            with contextlib.suppress(OSError):
+                p.rmdir()
+        raise
     return path
+
+
+def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: float) -> None:
+    m = _Msgs(ts)
+    latched = [_latched_qos()]
+    origin_ns = round(t0 * 1e9)
+    try:
+        w_cm = rb.Writer(out, version=9, storage_plugin=plugin.MCAP)
+    except rb.WriterError as exc:
+        raise OSError(errno.EEXIST, str(exc), str(out)) from None
+    with w_cm as w:
+        conns: dict[str, Any] = {}
+
+        def put(topic: str, ns: int, msg: Any) -> None:
+            if topic not in conns:
+                conns[topic] = w.add_connection(
+                    topic, _TYPES[topic], typestore=ts,
+                    offered_qos_profiles=latched if topic in LATCHED else ())
+            w.write(conns[topic], ns, ts.serialize_cdr(msg, _TYPES[topic]))
+
+        w.set_custom_data("simlab.writer", WRITER_MARK)
+        w.set_custom_data("simlab.time_origin_ns", str(origin_ns))
+        if traj.action_set is not None:
+            w.set_custom_data("simlab.action_set", json.dumps(traj.action_set))
+        if traj.pose_source is not None:
+            w.set_custom_data("simlab.pose_source", str(traj.pose_source))
+        t = np.asarray(traj.t, dtype=np.float64)
+        stamps = [round((t0 + float(ti)) * 1e9) for ti in t]
+        pose = np.asarray(traj.pose, dtype=np.float64)
+        odom = pose if traj.odom is None else np.asarray(traj.odom, dtype=np.float64)
+        map_odom = compose(pose, inverse(odom))
+        twist = odometry_twist(t, odom)
+        pose_cov, twist_cov = odometry_covariance(t, odom)
+        sx, sy, sz = traj.scan_offset
+        bx, by, bz = traj.base_offset
+        put("/tf_static", stamps[0], m.tf_message([
+            m.tf(stamps[0], "base_footprint", "base_link", bx, by, 0.0, bz),
+            m.tf(stamps[0], "base_link", "base_scan", sx, sy, 0.0, sz)]))
+        if traj.map is not None:
+            put("/map", stamps[0], m.grid(stamps[0], traj.map))
+        scene = traj.scene
+        if scene is not None and scene.centres is not None and scene.bounds is not None:
+            put("/simlab/cells", stamps[0], m.cells(stamps[0], scene))
+        if scene is not None and scene.goals:
+            put("/simlab/goals", stamps[0], m.goals(stamps[0], scene))
+        for i, ns in enumerate(stamps):
+            put("/tf", ns, m.tf_message([m.tf(ns, "map", "odom", *map_odom[i]),
+                                         m.tf(ns, "odom", "base_footprint", *odom[i])]))
+            put("/odom", ns, m.odometry(ns, odom[i], twist[i], pose_cov[i], twist_cov[i]))
+            put("/amcl_pose", ns, m.amcl(ns, pose[i]))
+            if traj.scans is not None:
+                put("/scan", ns, m.scan(ns, traj.scans[i], traj.scan_geometry))
+            if traj.state is not None:
+                put("/simlab/state", ns, ts.types["std_msgs/msg/Int32"](data=int(traj.state[i])))
+            if traj.goal is not None:
+                put("/simlab/goal", ns, ts.types["std_msgs/msg/String"](data=str(traj.goal[i])))
+            if traj.human is not None:
+                put("/simlab/human", ns, m.human(ns, traj.human[i]))
+        if traj.actions is not None:
+            types = ts.types
+            for k, (a, ta) in enumerate(zip(traj.actions, traj.action_t, strict=True)):
+                ns = round((t0 + float(ta)) * 1e9)
+                put("/simlab/action", ns, types["std_msgs/msg/Int32"](data=int(a)))
+                if traj.blocked is not None:
+                    put("/simlab/blocked", ns,
+                        types["std_msgs/msg/Bool"](data=bool(traj.blocked[k])))
+                if traj.duration is not None:
+                    put("/simlab/duration", ns,
+                        types["std_msgs/msg/Float64"](data=float(traj.duration[k])))
 
 
 def _stamp_ns(header: Any) -> int:
     return int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
+
+
+#: What rosbags and its MCAP/CDR readers raise on a damaged file (a truncated chunk, bytes
+#: that are not a record, a message shorter than its type).
+_READ_FAILURES: tuple[type[BaseException], ...] = (ValueError, KeyError, IndexError,
+                                                   EOFError, AssertionError, TypeError)
 
 
 def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
@@ -292,30 +660,67 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     ``/odom`` fills ``odom`` when it is not the pose topic and has the same stamps. Scans
     are taken when every pose sample has one with the same stamp (exact nanoseconds; else
     ``scans`` is None); the state and goal topics likewise (by bag time). Times are seconds
-    since ``t0`` (s; default: the first pose stamp). :class:`DataError` names the bag and topic when the pose is missing.
+    since ``t0`` (s; default: the bag's recorded time origin, else the first pose stamp).
+    A missing or damaged bag, or a pose topic that is absent, empty or not a pose, is a
+    :class:`~simlab.errors.DataError` naming the bag (or :class:`ConfigError` when the
+    path does not exist).
     """
     rb, ts, _ = _rosbags()
     path = Path(path)
     if not path.exists():
-        raise ConfigError("bag not found", path=path)
-    topics: dict[str, list[tuple[int, Any]]] = {}
+        raise ConfigError("bag not found", path=path, fix="give the bag's directory")
+    if not path.is_dir():
+        raise ConfigError("a ROS 2 bag is a directory (with metadata.yaml), not a file",
+                          path=path, fix="give the bag's directory")
+    info = read_metadata(path)
+    custom = info.get("custom_data") or {}
+    custom = custom if isinstance(custom, dict) else {}
+    topics: dict[str, list[tuple[int, Any, str]]] = {}
     try:
         with rb.Reader(path) as r:
             names = {c.topic for c in r.connections}
             if pose_topic is None:
                 pose_topic = "/amcl_pose" if "/amcl_pose" in names else "/odom"
             if pose_topic not in names:
-                raise DataError(f"no pose topic {pose_topic!r} (topics: "
-                                f"{', '.join(sorted(names))})", path=path, key="pose_topic")
+                raise DataError(f"{path}: pose_topic: no topic {pose_topic!r} in the bag "
+                                f"(topics: {', '.join(sorted(names)) or 'none'}; give one "
+                                f"of them with --pose-topic)")
             wanted = {pose_topic, "/odom", "/map", "/simlab/state", "/simlab/goal",
-                      scan_topic, action_topic, "/tf_static"} & names
+                      scan_topic, action_topic, "/simlab/blocked", "/simlab/duration",
+                      "/tf_static"} & names
+            if action_topic is None:
+                wanted -= {"/simlab/blocked", "/simlab/duration"}
             conns = [c for c in r.connections if c.topic in wanted]
             for c, ns, raw in r.messages(connections=conns):
                 topics.setdefault(c.topic, []).append(
                     (ns, ts.deserialize_cdr(raw, c.msgtype), c.msgtype))
     except rb.ReaderError as exc:
-        raise DataError(f"not a readable ROS 2 bag: {exc}", path=path) from None
-    return _trajectory(topics, pose_topic, scan_topic, action_topic, t0)
+        raise DataError(f"{path}: not a readable ROS 2 bag ({exc})") from None
+    except _READ_FAILURES as exc:
+        raise DataError(f"{path}: damaged bag, a message cannot be read "
+                        f"({type(exc).__name__}: {exc})") from None
+    if not topics.get(pose_topic):
+        raise DataError(f"{path}: pose_topic: {pose_topic!r} has no messages")
+    if t0 is None and "simlab.time_origin_ns" in custom:
+        with contextlib.suppress(TypeError, ValueError):
+            t0 = int(custom["simlab.time_origin_ns"]) * 1e-9
+    try:
+        traj = _trajectory(topics, pose_topic, scan_topic, action_topic, t0, path)
+    except _READ_FAILURES as exc:
+        raise DataError(f"{path}: damaged bag, a message does not hold what its type says "
+                        f"({type(exc).__name__}: {exc})") from None
+    action_set = None
+    if "simlab.action_set" in custom:
+        try:
+            action_set = json.loads(custom["simlab.action_set"])
+        except (TypeError, ValueError):
+            raise DataError(f"{path / 'metadata.yaml'}: custom_data: simlab.action_set is not "
+                            f"JSON") from None
+    pose_source = custom.get("simlab.pose_source")
+    from dataclasses import replace
+
+    return replace(traj, action_set=action_set,
+                   pose_source=None if pose_source is None else str(pose_source))
 
 
 def _pose_of(msg: Any) -> tuple[float, float, float]:
@@ -324,11 +729,17 @@ def _pose_of(msg: Any) -> tuple[float, float, float]:
 
 
 def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str | None,
-                action_topic: str | None, t0: float | None) -> BagTrajectory:
-    msgs = sorted(topics[pose_topic], key=lambda e: _stamp_ns(e[1].header))
+                action_topic: str | None, t0: float | None, path: Path) -> BagTrajectory:
+    try:
+        msgs = sorted(topics[pose_topic], key=lambda e: _stamp_ns(e[1].header))
+        pose = np.array([_pose_of(m) for _, m, _ in msgs], dtype=np.float64)
+    except AttributeError:
+        raise DataError(f"{path}: pose_topic: {pose_topic!r} carries "
+                        f"{topics[pose_topic][0][2]}, not a pose (give a "
+                        f"PoseWithCovarianceStamped, PoseStamped or Odometry topic with "
+                        f"--pose-topic)") from None
     stamps = [_stamp_ns(m.header) for _, m, _ in msgs]  # int ns (exact keys)
     t0_ns = stamps[0] if t0 is None else round(float(t0) * 1e9)
-    pose = np.array([_pose_of(m) for _, m, _ in msgs], dtype=np.float64)
 
     def aligned(topic: str | None, value: Any) -> list[Any] | None:
         if topic is None or topic not in topics:
@@ -348,26 +759,38 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                                 s0.scan_time)
     state = aligned("/simlab/state", lambda m: int(m.data))
     goal = aligned("/simlab/goal", lambda m: str(m.data))
-    actions = action_t = None
+    actions = action_t = blocked = duration = None
     if action_topic is not None and action_topic in topics:
         acts = sorted(topics[action_topic], key=lambda e: e[0])
         actions = np.array([int(m.data) for _, m, _ in acts], dtype=np.int64)
-        action_t = np.array([(ns - t0_ns) * 1e-9 for ns, _, _ in acts])
+        action_ns = [ns for ns, _, _ in acts]
+        action_t = np.array([(ns - t0_ns) * 1e-9 for ns in action_ns])
+
+        def per_action(topic: str, value: Any, dtype: Any) -> NDArray[Any] | None:
+            by_ns = {ns: value(m) for ns, m, _ in topics.get(topic, [])}
+            out = [by_ns.get(ns) for ns in action_ns]
+            return None if not out or any(v is None for v in out) else np.array(out, dtype)
+
+        blocked = per_action("/simlab/blocked", lambda m: bool(m.data), bool)
+        duration = per_action("/simlab/duration", lambda m: float(m.data), np.float64)
     grid = None
     if "/map" in topics:
         grid = _grid_of(topics["/map"][-1][1])
-    offset = (-0.032, 0.0, 0.182)
+    offset, base = (-0.032, 0.0, 0.182), (0.0, 0.0, 0.0)
     for _, msg, _ in topics.get("/tf_static", []):
         for tr in msg.transforms:
+            v = tr.transform.translation
             if tr.child_frame_id == "base_scan":
-                v = tr.transform.translation
                 offset = (v.x, v.y, v.z)
+            elif tr.child_frame_id == "base_link" and tr.header.frame_id == "base_footprint":
+                base = (v.x, v.y, v.z)
     return BagTrajectory(
-        t=(np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9, pose=pose, odom=None if odom is None else np.array(odom),
+        t=(np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9, pose=pose,
+        odom=None if odom is None else np.array(odom),
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),
         goal=None if goal is None else np.array(goal), actions=actions, action_t=action_t,
-        map=grid, scan_offset=offset)
+        blocked=blocked, duration=duration, map=grid, scan_offset=offset, base_offset=base)
 
 
 def _grid_of(msg: Any) -> Any:
