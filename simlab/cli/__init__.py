@@ -41,6 +41,7 @@ SUBCOMMANDS: dict[str, str] = {
     "train": "train",
     "replay": "replay",
     "calibrate": "calibrate",
+    "transfer": "transfer",
     "pipeline": "pipeline",
     "social-pipeline": "social_pipeline",
     "visitlab": "visitlab",

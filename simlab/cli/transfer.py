@@ -1,0 +1,26 @@
+"""``simlab transfer``: score policies of the simulated twin on the real robot's model.
+
+The options are the fields of :class:`simlab.calibration.transfer.TransferConfig`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = ("score twin policies on the real model: expected steps to the goal vs the real "
+        "optimum, per-state disagreements on the map")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from simlab.calibration.transfer import TransferConfig
+
+    TransferConfig.add_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from simlab.calibration.transfer import TransferConfig, transfer_command
+
+    done = transfer_command(TransferConfig.from_args(args))
+    print(done.result.summary_line())
+    print("wrote " + ", ".join(str(p) for p in done.files.values()))
+    return 0
