@@ -1,30 +1,6 @@
 """``simlab/EmpiricalMDP-v0``: navigation on an empirical transition matrix (thesis 4.5).
 
-Env card
---------
-* **Built from** an ``mdp.npz`` (written by ``simlab estimate``) or arrays, and a
-  goal (name from the file's ``goal_names``, index, or an explicit (S,) mask).
-* **Observation** ``Discrete(S)``: the Markov state (Voronoi cell index).
-* **Action** ``Discrete(A)``: what action ``a`` does is the MDP's ``action_set``
-  (:class:`~simlab.actions.ActionSet`; simlab's 16 primitives ``speed * 8 + direction``
-  for the table arena, 8 actions for a real robot's data). ``env.action_set`` and
-  ``env.valid_actions`` ((S, A) bool, the ``mask`` rule for unvisited pairs; None when every
-  action is allowed) tell an agent which actions mean what and which were never tried.
-* **Dynamics** ``s' ~ T[s, a, :]`` drawn with ``self.np_random``.
-* **Reward** 1.0 when the state reached ``s'`` is in the goal area, else 0.0 (the
-  thesis's +1 per step inside the goal area; the start state earns nothing).
-* **Episode** ``horizon`` steps (thesis: 50), ended by truncation; never terminated.
-  ``horizon=None`` leaves the limit to Gymnasium: the registered id does so and registers
-  ``max_episode_steps=50``, so ``gym.make(id, max_episode_steps=N)`` truncates at N.
-* **Render** ``ansi`` (one text line) or ``rgb_array`` (``render_fps`` 4): an (H, W, 3)
-  uint8 top-down picture of the Voronoi centres (grey), the goal states (green) and the
-  current state (red), or a strip of S squares when the MDP has no centres.
-* **Start** uniform over all states by default (so the learned policy is good
-  everywhere — the replay switches goals without returning to the start), or a
-  fixed ``start_state``. ``reset(options={"state": s, "goal": name})`` overrides
-  both for one episode/for the rest of the run respectively.
-
-The npz arrays are described in :mod:`simlab.data.mdp`.
+The env card is the docstring of :class:`EmpiricalMDPEnv` (``help(env.unwrapped)`` shows it).
 """
 
 from __future__ import annotations
@@ -42,7 +18,44 @@ from simlab.errors import ConfigError
 __all__ = ["EmpiricalMDPEnv", "render_states_rgb"]
 
 class EmpiricalMDPEnv(gym.Env):
-    """Gymnasium env sampling ``s'`` from an empirical ``T`` (see the module's env card).
+    """Gymnasium env sampling ``s'`` from an empirical ``T`` (thesis 4.5).
+
+    * **Built from** an ``mdp.npz`` (written by ``simlab estimate``) or arrays, and a
+      goal (name from the file's ``goal_names``, index, or an explicit (S,) mask).
+    * **Observation** ``Discrete(S)``: the Markov state (Voronoi cell index).
+    * **Action** ``Discrete(A)``: what action ``a`` does is the MDP's ``action_set``
+      (:class:`~simlab.actions.ActionSet`; simlab's 16 primitives ``speed * 8 + direction``
+      for the table arena, 8 actions for a real robot's data). ``env.action_set`` and
+      ``env.valid_actions`` ((S, A) bool, the ``mask`` rule for unvisited pairs; None when every
+      action is allowed) tell an agent which actions mean what and which were never tried.
+    * **Dynamics** ``s' ~ T[s, a, :]`` drawn with ``self.np_random``.
+    * **Reward** 1.0 when the state reached ``s'`` is in the goal area, else 0.0 (the
+      thesis's +1 per step inside the goal area; the start state earns nothing).
+    * **Greedy policy** of a Q-table trained on this MDP: :func:`simlab.agents.greedy` (the
+      argmax over ``valid_actions`` only; an untried pair keeps its optimistic initial value,
+      which a plain ``Q[s].argmax()`` would pick)::
+
+          from simlab.agents import greedy
+
+          env = gym.make("simlab:simlab/EmpiricalMDP-v0", mdp="mdp/table.npz", goal="NE")
+          policy = greedy("q/table/q_NE.npz")
+          s, _ = env.reset(seed=0)
+          s, r, terminated, truncated, info = env.step(int(policy[s]))
+
+    * **Id** ``"simlab:simlab/EmpiricalMDP-v0"`` works in any process (spawned vector-env
+      workers too); the short id needs ``import simlab`` first.
+    * **Episode** ``horizon`` steps (thesis: 50), ended by truncation; never terminated.
+      ``horizon=None`` leaves the limit to Gymnasium: the registered id does so and registers
+      ``max_episode_steps=50``, so ``gym.make(id, max_episode_steps=N)`` truncates at N.
+    * **Render** ``ansi`` (one text line) or ``rgb_array`` (``render_fps`` 4): an (H, W, 3)
+      uint8 top-down picture of the Voronoi centres (grey), the goal states (green) and the
+      current state (red), or a strip of S squares when the MDP has no centres.
+    * **Start** uniform over all states by default (so the learned policy is good
+      everywhere — the replay switches goals without returning to the start), or a
+      fixed ``start_state``. ``reset(options={"state": s, "goal": name})`` overrides
+      both for one episode/for the rest of the run respectively.
+
+    The npz arrays are described in :mod:`simlab.data.mdp`.
 
     Parameters
     ----------

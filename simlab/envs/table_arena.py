@@ -1,40 +1,6 @@
 """``simlab/TableArena-v0``: the physics TurtleBot3 in an arena, acting by motion primitives.
 
-Card
-----
-* **Actions** ``Discrete(action_set.n_actions)``: by default (``action_set`` SIMLAB16)
-  the thesis's 16 motion primitives, index = speed * 8 + direction (UP, DOWN, LEFT, RIGHT,
-  UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT in the map frame; slow 0.10 m/s or fast
-  0.22 m/s for 0.5 s), each preceded by the LIDAR obstacle check (see
-  :mod:`simlab.physics.motion`). Another :class:`~simlab.actions.ActionSet` (e.g. a real
-  robot's 8 actions numbered counter-clockwise from East) renumbers them: action ``a``
-  executes the primitive ``action_set.to_primitive(a)``; ``info["primitive"]`` says which.
-* **Observation** ``Dict(pose=Box(3), lidar=Box(360), lidar_valid=MultiBinary(360))``
-  (``lidar_mode="finite"``, the default): the true pose (x, y in metres, yaw in radians)
-  after the primitive, a full 360-beam LIDAR scan (float32 metres in
-  ``[0, range_max]``) in which every beam without a return in ``[range_min, range_max]``
-  reads ``range_max`` (3.5 m), and ``lidar_valid`` (int8 0/1), 1 where the beam has a real
-  return. Every observation is finite and inside its bounded space, so deep-RL libraries
-  (PPO logits, observation normalisation) can use it as is. ``lidar_mode="raw"``
-  gives the scanner's REP-117 ranges instead, ``Dict(pose, lidar=Box(-inf, inf))`` with
-  ``+inf`` for no return and ``-inf`` for a reading below ``range_min`` (the simulated
-  LDS-01's rays start at ``range_min``, so only range noise produces one).
-* **Reward** 1.0 when the robot ends the step inside the current goal area, else 0.0
-  (thesis eq. 2.1).
-* **Episode** starts at the arena's start pose (or ``options["pose"]``) with a goal drawn
-  uniformly from the arena's goal areas (or ``options["goal"]``); never terminates;
-  truncated after ``max_steps`` primitives when ``max_steps`` is set (the registered id sets
-  ``max_steps=None`` and registers ``max_episode_steps=50``, the thesis's 50-step trials,
-  so Gymnasium's ``TimeLimit`` truncates and ``gym.make(id, max_episode_steps=N)`` works).
-* **Copies** ``copy.deepcopy`` and ``pickle`` rebuild a fresh PyBullet world from the
-  env's configuration (never share the client), with the robot at rest at the copied
-  pose, the same goal, step count and ``np_random`` state; the copy's odometry restarts
-  at that pose. So ``AsyncVectorEnv`` and SB3 subprocess envs are independent. Using a
-  closed env raises ``gymnasium.error.ClosedEnvironmentError``.
-* **Info** ``blocked``, ``duration`` (simulated s stepped), ``time`` (simulated s since
-  reset, including the decision latency), ``goal``, ``odometry`` (3,).
-* **Seeding** the LIDAR noise and the goal draw use ``self.np_random``; the physics is
-  deterministic, so the same seed and actions give identical rollouts.
+The env card is the docstring of :class:`TableArenaEnv` (``help(env.unwrapped)`` shows it).
 """
 
 from __future__ import annotations
@@ -70,20 +36,91 @@ def finite_scan(ranges: np.ndarray, range_max: float) -> tuple[np.ndarray, np.nd
 
 
 def rep117_scan(ranges: np.ndarray, hit: np.ndarray, range_min: float,
-                range_max: float) -> np.ndarray:
-    """REP-117 float32 ranges (n,) from noisy ranges (m) and a hit mask (n,) bool:
-    ``-inf`` for a return read below ``range_min``, ``+inf`` for no return or one read
+                range_max: float, near: np.ndarray | None = None) -> np.ndarray:
+    """Float32 ranges (n,) in the convention of ROS REP 117 from noisy ranges (m), a hit
+    mask (n,) bool (a return in ``[range_min, range_max]``) and ``near`` (n,) bool (a
+    surface closer than ``range_min`` along the beam): ``-inf`` ("too close") for a near
+    surface or a return read below ``range_min``, ``+inf`` for no return or one read
     beyond ``range_max``."""
     r = np.asarray(ranges, dtype=np.float64).copy()
-    near = hit & (r < range_min)
+    too_close = hit & (r < range_min)
+    if near is not None:
+        too_close |= ~hit & np.asarray(near, dtype=bool)
     far = ~hit | (r > range_max)
-    r[near] = -np.inf
     r[far] = np.inf
+    r[too_close] = -np.inf
     return r.astype(np.float32)
 
 
+def near_surface(world: World, beams: np.ndarray) -> np.ndarray:
+    """(k,) bool: whether beam ``beams`` (k,) of ``world``'s LIDAR meets a surface between
+    the sensor centre and ``range_min`` (other than the robot itself).
+
+    The simulated LDS-01 casts its rays from ``range_min`` outwards, as the real sensor
+    sees nothing nearer, so a wall the robot stands against reads as no return; REP 117
+    tells the two apart ("too close" is ``-inf``, nothing in range ``+inf``). One short
+    ray per beam from the sensor centre in the base link's full 3-D pose, as the scan.
+    """
+    client, body, lidar = world.client, world.body, world.lidar
+    com, orn = client.getBasePositionAndOrientation(body)
+    rot = np.array(client.getMatrixFromQuaternion(orn), dtype=np.float64).reshape(3, 3)
+    inertial = np.asarray(client.getDynamicsInfo(body, -1)[3], dtype=np.float64)
+    origin = np.asarray(com, dtype=np.float64) - rot @ inertial + rot @ lidar.offset
+    a = lidar.spec.angles[np.asarray(beams, dtype=np.int64)]
+    dirs = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1) @ rot.T
+    starts = np.repeat(origin[None, :], len(a), axis=0)
+    results = client.rayTestBatch(starts, starts + lidar.spec.range_min * dirs)
+    ids = np.fromiter((r[0] for r in results), dtype=np.int64, count=len(a))
+    return (ids >= 0) & (ids != body)
+
+
 class TableArenaEnv(gym.Env):
-    """The physics TurtleBot3 acting by motion primitives (see the module's env card)."""
+    """The physics TurtleBot3 in an arena, acting by motion primitives.
+
+    * **Actions** ``Discrete(action_set.n_actions)``: by default (``action_set`` SIMLAB16)
+      the thesis's 16 motion primitives, index = speed * 8 + direction (UP, DOWN, LEFT, RIGHT,
+      UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT in the map frame; slow 0.10 m/s or fast
+      0.22 m/s for 0.5 s), each preceded by the LIDAR obstacle check (see
+      :mod:`simlab.physics.motion`). Another :class:`~simlab.actions.ActionSet` (e.g. a real
+      robot's 8 actions numbered counter-clockwise from East) renumbers them: action ``a``
+      executes the primitive ``action_set.to_primitive(a)``; ``info["primitive"]`` says which.
+    * **Observation** ``Dict(pose=Box(3), lidar=Box(360), lidar_valid=MultiBinary(360))``
+      (``lidar_mode="finite"``, the default): the true pose (x, y in metres, yaw in radians)
+      after the primitive, a full 360-beam LIDAR scan (float32 metres in
+      ``[0, range_max]``) in which every beam without a return in ``[range_min, range_max]``
+      reads ``range_max`` (3.5 m), and ``lidar_valid`` (int8 0/1), 1 where the beam has a real
+      return. Every observation is finite and inside its bounded space, so deep-RL libraries
+      (PPO logits, observation normalisation) can use it as is. ``lidar_mode="raw"``
+      gives the scanner's ranges in the convention of ROS REP 117 instead,
+      ``Dict(pose, lidar=Box(-inf, inf))``: ``+inf`` for no return within ``range_max`` and
+      ``-inf`` for "too close", a surface nearer than ``range_min`` (0.12 m) along the beam
+      (the robot's own body excluded) or a noisy reading below ``range_min``.
+    * **Goal-conditioned** ``goal_conditioned=True`` adds the current goal to the observation
+      in the keys of Gymnasium-Robotics' ``GoalEnv`` (used by hindsight experience replay):
+      ``desired_goal`` Box(2), the goal area's centre (x, y in metres), and ``achieved_goal``
+      Box(2), the robot's position (x, y in metres); :meth:`compute_reward` gives the reward
+      of any such pair, so one policy can serve every goal of the arena.
+    * **Reward** 1.0 when the robot ends the step inside the current goal area, else 0.0
+      (thesis eq. 2.1).
+    * **Id** ``gym.make("simlab:simlab/TableArena-v0")`` imports simlab first (Gymnasium's
+      ``module:id`` form), so it also works in a fresh process, e.g. the workers of
+      ``AsyncVectorEnv(..., context="spawn")``; ``gym.make("simlab/TableArena-v0")`` needs
+      ``import simlab`` in that process first.
+    * **Episode** starts at the arena's start pose (or ``options["pose"]``) with a goal drawn
+      uniformly from the arena's goal areas (or ``options["goal"]``); never terminates;
+      truncated after ``max_steps`` primitives when ``max_steps`` is set (the registered id sets
+      ``max_steps=None`` and registers ``max_episode_steps=50``, the thesis's 50-step trials,
+      so Gymnasium's ``TimeLimit`` truncates and ``gym.make(id, max_episode_steps=N)`` works).
+    * **Copies** ``copy.deepcopy`` and ``pickle`` rebuild a fresh PyBullet world from the
+      env's configuration (never share the client), with the robot at rest at the copied
+      pose, the same goal, step count and ``np_random`` state; the copy's odometry restarts
+      at that pose. So ``AsyncVectorEnv`` and SB3 subprocess envs are independent. Using a
+      closed env raises ``gymnasium.error.ClosedEnvironmentError``.
+    * **Info** ``blocked``, ``duration`` (simulated s stepped), ``time`` (simulated s since
+      reset, including the decision latency), ``goal``, ``odometry`` (3,).
+    * **Seeding** the LIDAR noise and the goal draw use ``self.np_random``; the physics is
+      deterministic, so the same seed and actions give identical rollouts.
+    """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
@@ -98,6 +135,7 @@ class TableArenaEnv(gym.Env):
         physics_hz: float = 200.0,
         action_set: ActionSet | Mapping[str, Any] | None = None,
         lidar_mode: str = "finite",
+        goal_conditioned: bool = False,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}, "
@@ -107,9 +145,13 @@ class TableArenaEnv(gym.Env):
         if lidar_mode not in LIDAR_MODES:
             raise ConfigError(f"expected one of {', '.join(LIDAR_MODES)}, got {lidar_mode!r}",
                               key="lidar_mode")
+        if not isinstance(goal_conditioned, bool):
+            raise ConfigError(f"expected true or false, got {goal_conditioned!r}",
+                              key="goal_conditioned")
         self._config = {"arena": arena, "goal": goal, "max_steps": max_steps, "params": params,
                         "render_mode": render_mode, "physics_hz": physics_hz,
-                        "action_set": action_set, "lidar_mode": lidar_mode}
+                        "action_set": action_set, "lidar_mode": lidar_mode,
+                        "goal_conditioned": goal_conditioned}
         self.world: World | None = World(arena, physics_hz=physics_hz)
         self.arena = self.world.arena
         if goal is not None:
@@ -119,6 +161,10 @@ class TableArenaEnv(gym.Env):
         self.params = params or PrimitiveParams()
         self.render_mode = render_mode
         self.lidar_mode = lidar_mode
+        self.goal_conditioned = goal_conditioned
+        #: (G, 2) goal centres and (G,) radii (m), for :meth:`compute_reward`
+        self._goal_xy = np.array([[g.x, g.y] for g in self.arena.goals], dtype=np.float64)
+        self._goal_r = np.array([g.radius for g in self.arena.goals], dtype=np.float64)
         self.observation_space = self._observation_space()
         if isinstance(action_set, Mapping):  # the JSON record, e.g. from a Q-table's metadata
             action_set = ActionSet.from_json(action_set)
@@ -143,14 +189,19 @@ class TableArenaEnv(gym.Env):
         pose = spaces.Box(np.array([x0, y0, -math.pi], dtype=np.float32),
                           np.array([x1, y1, math.pi], dtype=np.float32), dtype=np.float32)
         if self.lidar_mode == "raw":
-            return spaces.Dict({"pose": pose,
-                                "lidar": spaces.Box(-np.inf, np.inf, shape=(n,),
-                                                    dtype=np.float32)})
-        return spaces.Dict({
-            "pose": pose,
-            "lidar": spaces.Box(0.0, np.float32(spec.range_max), shape=(n,), dtype=np.float32),
-            "lidar_valid": spaces.MultiBinary(n),
-        })
+            keys: dict[str, spaces.Space[Any]] = {
+                "pose": pose, "lidar": spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)}
+        else:
+            keys = {"pose": pose,
+                    "lidar": spaces.Box(0.0, np.float32(spec.range_max), shape=(n,),
+                                        dtype=np.float32),
+                    "lidar_valid": spaces.MultiBinary(n)}
+        if self.goal_conditioned:
+            xy = spaces.Box(np.array([x0, y0], dtype=np.float32),
+                            np.array([x1, y1], dtype=np.float32), dtype=np.float32)
+            keys["achieved_goal"] = xy
+            keys["desired_goal"] = copy.deepcopy(xy)
+        return spaces.Dict(keys)
 
     def _live(self) -> World:
         """The world, or :class:`ClosedEnvironmentError` after :meth:`close`."""
@@ -166,6 +217,13 @@ class TableArenaEnv(gym.Env):
         return np.clip(self._live().pose().astype(np.float32), box.low, box.high)
 
     def _observe(self) -> dict[str, np.ndarray]:
+        obs = self._observe_sensors()
+        if self.goal_conditioned:
+            obs["achieved_goal"] = obs["pose"][:2].copy()
+            obs["desired_goal"] = np.array([self.goal.x, self.goal.y], dtype=np.float32)
+        return obs
+
+    def _observe_sensors(self) -> dict[str, np.ndarray]:
         world = self._live()
         spec = world.lidar_spec
         if self.lidar_mode == "raw":
@@ -176,13 +234,32 @@ class TableArenaEnv(gym.Env):
             if spec.noise_sigma > 0:
                 ranges = ranges + self.np_random.normal(0.0, spec.noise_sigma, size=ranges.shape)
             hit = scan.hit_ids >= 0
-            lidar = rep117_scan(ranges, hit, spec.range_min, spec.range_max)
+            near = np.zeros_like(hit)
+            if not hit.all():
+                near[~hit] = near_surface(world, np.flatnonzero(~hit))
+            lidar = rep117_scan(ranges, hit, spec.range_min, spec.range_max, near=near)
             self._scan_points = scan.points_world()
             return {"pose": self._pose_obs(), "lidar": lidar}
         scan = world.scan(self.np_random)
         self._scan_points = scan.points_world()
         lidar, valid = finite_scan(scan.ranges, spec.range_max)
         return {"pose": self._pose_obs(), "lidar": lidar, "lidar_valid": valid}
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                       info: Any = None) -> np.ndarray:
+        """Reward (...,) float64 of robot positions ``achieved_goal`` (..., 2) (m) against
+        goal centres ``desired_goal`` (..., 2) (m): 1.0 inside the goal area, else 0.0.
+
+        The area's radius is that of the arena goal nearest to ``desired_goal`` (exactly
+        the goal itself for observed goals; a relabelled goal, as hindsight experience
+        replay makes them, gets its nearest goal's radius). ``info`` is unused (the
+        ``GoalEnv`` signature). Equals the step reward for the observed pair.
+        """
+        a = np.asarray(achieved_goal, dtype=np.float64)
+        d = np.asarray(desired_goal, dtype=np.float64)
+        nearest = np.argmin(np.linalg.norm(d[..., None, :] - self._goal_xy, axis=-1), axis=-1)
+        inside = np.linalg.norm(a - d, axis=-1) <= self._goal_r[nearest]
+        return inside.astype(np.float64)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

@@ -1,33 +1,7 @@
 """``simlab/TableArenaStates-v0``: the physics robot seen through the Voronoi states.
 
-Card
-----
-The physics of :class:`~simlab.envs.table_arena.TableArenaEnv` (same primitives, obstacle
-check, decision latency, seeding, copies, close), observed and rewarded as the empirical
-MDP that ``simlab train`` learned on, so a Q-table from training is evaluated in physics
-with three lines of Gymnasium code::
-
-    env = gym.make("simlab/TableArenaStates-v0", states="states.json", goal="NE",
-                   q_table="q_NE.npz")
-    s, _ = env.reset(seed=0)
-    while True: s, r, term, trunc, _ = env.step(int(Q[s].argmax())); ...
-
-* **States** ``states``: a states file (``simlab discretize`` JSON or centres text), a
-  :class:`~discretize.voronoi.Discretizer`, or the centres (S, 2) in metres in state
-  order (JSON-able, as a Minari env spec records them).
-* **Observation** ``Discrete(S)``: the Voronoi state (nearest centre, see
-  :mod:`discretize.voronoi`) of the pose after the primitive; the pose source is the
-  simulator's truth (``pose_source="truth"``) or the wheel odometry (``"odometry"``).
-* **Actions** as ``TableArena-v0``: ``action_set`` (an ActionSet or its JSON record), or
-  the action set recorded in a Q-table file ``q_table`` (only its metadata is read).
-* **Reward** 1.0 when the state reached is a goal state of the current goal
-  (:func:`simlab.data.goals.goal_state_masks`, the rule ``simlab estimate`` and ``replay``
-  use), else 0.0: the empirical MDP's reward, not the metric goal circle.
-* **Episode** registered ``max_episode_steps=50`` (thesis trials); never terminates.
-* **Info** as ``TableArena-v0`` plus ``pose`` (3,) (m, m, rad) of the pose source.
-
-No LIDAR scan is taken for the observation (the obstacle check still casts its beams), so
-this env steps faster than ``TableArena-v0``.
+The env card is the docstring of :class:`TableArenaStatesEnv` (``help(env.unwrapped)``
+shows it).
 """
 
 from __future__ import annotations
@@ -76,7 +50,47 @@ def _qtable_action_set(path: str | os.PathLike[str]) -> ActionSet:
 
 
 class TableArenaStatesEnv(TableArenaEnv):
-    """Physics TurtleBot3 with Voronoi-state observations (see the module's card)."""
+    """The physics TurtleBot3 observed through the Voronoi states of a discretization.
+
+    The physics of :class:`~simlab.envs.table_arena.TableArenaEnv` (same primitives, obstacle
+    check, decision latency, seeding, copies, close), observed and rewarded as the empirical
+    MDP that ``simlab train`` learned on, so a Q-table from training is evaluated in physics
+    with a few lines of Gymnasium code::
+
+        import gymnasium as gym
+        from simlab.agents import greedy
+
+        env = gym.make("simlab:simlab/TableArenaStates-v0", states="states.json", goal="NE",
+                       q_table="q/table/q_NE.npz")
+        policy = greedy("q/table/q_NE.npz")  # (S,) the best *tried* action of each state
+        s, _ = env.reset(seed=0)
+        done = False
+        while not done:
+            s, r, terminated, truncated, _ = env.step(int(policy[s]))
+            done = terminated or truncated
+
+    Use :func:`simlab.agents.greedy`, not ``Q[s].argmax()``: a pair the robot never tried keeps
+    its optimistic initial value (10.0), which ``argmax`` would pick.
+
+    * **States** ``states``: a states file (``simlab discretize`` JSON or centres text), a
+      :class:`~discretize.voronoi.Discretizer`, or the centres (S, 2) in metres in state
+      order (JSON-able, as a Minari env spec records them).
+    * **Observation** ``Discrete(S)``: the Voronoi state (nearest centre, see
+      :mod:`discretize.voronoi`) of the pose after the primitive; the pose source is the
+      simulator's truth (``pose_source="truth"``) or the wheel odometry (``"odometry"``).
+    * **Actions** as ``TableArena-v0``: ``action_set`` (an ActionSet or its JSON record), or
+      the action set recorded in a Q-table file ``q_table`` (only its metadata is read).
+    * **Reward** 1.0 when the state reached is a goal state of the current goal
+      (:func:`simlab.data.goals.goal_state_masks`, the rule ``simlab estimate`` and ``replay``
+      use), else 0.0: the empirical MDP's reward, not the metric goal circle.
+    * **Episode** registered ``max_episode_steps=50`` (thesis trials); never terminates.
+    * **Id** ``"simlab:simlab/TableArenaStates-v0"`` works in any process (spawned vector-env
+      workers too); the short id needs ``import simlab`` first.
+    * **Info** as ``TableArena-v0`` plus ``pose`` (3,) (m, m, rad) of the pose source.
+
+    No LIDAR scan is taken for the observation (the obstacle check still casts its beams), so
+    this env steps faster than ``TableArena-v0``.
+    """
 
     def __init__(
         self,
@@ -114,6 +128,7 @@ class TableArenaStatesEnv(TableArenaEnv):
         self._config.update(states=self.discretizer, pose_source=pose_source,
                             action_set=self.action_set)
         self._config.pop("lidar_mode", None)
+        self._config.pop("goal_conditioned", None)
         self._state = 0
 
     def _observation_space(self) -> spaces.Discrete:
