@@ -495,7 +495,8 @@ def twin_columns(twin: ActionSet | None, real: ActionSet | None, *, n_twin: int,
         raise ConfigError(f"has {twin.describe()}, none of which does real action {a} "
                           f"({real.direction(a).name}, {'fast' if real.speed_index(a) else 'slow'})"
                           f" of {real.describe()}", path=where, key="action_set",
-                          fix="score it on a model of the same action set")
+                          fix="score it on a model of the same action set; a real count file takes "
+                              "--n-actions and --convention")
     return np.array(cols, dtype=np.int64)
 
 
@@ -1123,6 +1124,16 @@ def _check_outputs(cfg: TransferConfig) -> dict[str, Path]:
         if any(_resolve(p) == rs for p in paths.values()):
             raise ConfigError("an output would replace this input", path=src, key="out",
                               fix="choose another --out")
+    from simlab.io import ensure_new
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError("the output directory is a file", path=out, key="out",
+                          fix="choose another --out, or remove the file in the way")
+    for p in paths.values():
+        if p.is_dir():
+            raise ConfigError("transfer output is a directory", path=p,
+                              fix="choose another --out")
+        ensure_new(p, overwrite=cfg.overwrite, what="transfer output")
     report = paths["transfer.json"]
     if cfg.overwrite and report.is_file():
         try:
