@@ -122,7 +122,8 @@ class BagTrajectory:
     ``map`` an :class:`~discretize.gridmap.OccupancyMap` (None: no /map);
     ``scan_offset`` (x, y, z) m of base_scan in base_link; ``base_offset`` (x, y, z) m of
     base_link in base_footprint; ``scene`` the cells and goals to draw; ``human`` (n, 3)
-    map-frame pose of a human (None: no human).
+    map-frame pose of a human (None: no human); ``custom`` further ``custom_data`` entries
+    of the bag's metadata (written as given; read back: every entry).
     """
 
     t: NDArray[np.float64]
@@ -143,6 +144,7 @@ class BagTrajectory:
     base_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     scene: SceneMarkers | None = None
     human: NDArray[np.float64] | None = None
+    custom: dict[str, str] | None = None
 
 
 def _rosbags() -> tuple[Any, Any, Any]:
@@ -589,6 +591,8 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                     offered_qos_profiles=latched if topic in LATCHED else ())
             w.write(conns[topic], ns, ts.serialize_cdr(msg, _TYPES[topic]))
 
+        for key, value in (traj.custom or {}).items():
+            w.set_custom_data(str(key), str(value))
         w.set_custom_data("simlab.writer", WRITER_MARK)
         w.set_custom_data("simlab.time_origin_ns", str(origin_ns))
         if traj.action_set is not None:
@@ -720,7 +724,8 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     from dataclasses import replace
 
     return replace(traj, action_set=action_set,
-                   pose_source=None if pose_source is None else str(pose_source))
+                   pose_source=None if pose_source is None else str(pose_source),
+                   custom={str(k): str(v) for k, v in custom.items()})
 
 
 def _pose_of(msg: Any) -> tuple[float, float, float]:

@@ -17,12 +17,27 @@ Sources (the directory decides):
 LIDAR of :mod:`simlab.physics.lidar`): neither source stores scans. ``/map`` is the arena
 rasterized at ``resolution`` (0 free, 100 occupied), or a map_server map given as ``map``.
 
+Each decision's ``blocked`` flag and ``duration`` (the motion, without the decision
+latency) go on ``/simlab/blocked`` and ``/simlab/duration`` at its start, and the action
+set, the dataset's pose source and the time origin in the bag's ``custom_data``, so that
+``simlab import-bag`` gives the dataset back column for column. The states' Voronoi cells
+and the arena's goal areas are ``MarkerArray`` topics (``/simlab/cells``,
+``/simlab/goals``), the ``tf_static`` transforms are the robot URDF's joints, and beams
+that face a surface nearer than ``range_min`` read ``-inf`` (REP-117).
+
+Safety: the output is checked before any work (an existing path is replaced only with
+``overwrite`` and only if it is a bag that simlab wrote; an output that equals, contains or
+lies inside an input is refused), and the bag appears whole or not at all
+(:func:`simlab.ros.bag.write_bag`).
+
 The options are the fields of :class:`ExportBagConfig`.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from simlab import validation
-from simlab.errors import ConfigError
+from simlab.errors import ConfigError, DataError
 from simlab.options import CommandConfig, command, option
 
 
@@ -45,7 +60,8 @@ class ExportBagResult:
 
 def _samples(t: np.ndarray, dur: np.ndarray, before: np.ndarray, after: np.ndarray,
              s: np.ndarray, s_next: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Interleave starts and ends: ``(t, pose, state, index of the transition, is_end)``."""
+    """Interleave starts and ends: ``(t, pose, state, index of the transition)``. An end
+    that coincides with the next start is dropped (the next start's sample stands for it)."""
     n = len(t)
     t_end = t + dur
     keep_end = np.ones(n, dtype=bool)
@@ -70,7 +86,8 @@ def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
     w = tab.column("worker").to_numpy()
     if not np.any(w == worker):
         raise ConfigError(f"no transitions of worker {worker} (workers: "
-                          f"{sorted(set(w.tolist()))})", path=path, key="worker")
+                          f"{sorted(set(w.tolist()))})", path=path, key="worker",
+                          fix="choose one of the workers listed")
     tab = tab.filter(w == worker)
     names = tab.column_names
     truth = "x_true" in names
@@ -81,44 +98,117 @@ def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
     tt, pose, state, _ = _samples(t, dur, before, after, tab.column("s").to_numpy(),
                                   tab.column("s_next").to_numpy())
     odom = None
-    if ds.manifest.get("pose_source") == "odometry":
+    pose_source = ds.manifest.get("pose_source")
+    if pose_source == "odometry":
         src_b, src_a = _cols(tab, ["x", "y", "yaw"]), _cols(tab, ["x_next", "y_next", "yaw_next"])
         odom = _samples(t, dur, src_b, src_a, np.zeros(len(t)), np.zeros(len(t)))[1]
+    centres = (ds.manifest.get("discretizer") or {}).get("centres")
     return {"t": tt, "pose": pose, "odom": odom, "state": state, "goal": None,
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
+            "blocked": tab.column("blocked").to_numpy().astype(bool), "duration": dur,
+            "action_set": None if ds.action_set is None else ds.action_set.to_json(), "pose_source": pose_source,
+            "centres": None if centres is None else np.asarray(centres, dtype=np.float64),
+            "custom": {"simlab.part_size": str((ds.manifest.get("parameters") or {}).get(
+                "part_size", ""))},
             "arena": ds.manifest["arena"].get("file") or ds.manifest["arena"]["name"]}
 
 
 def _from_replay(path: Path) -> dict[str, Any]:
     import pyarrow.parquet as pq
 
-    summary = json.loads((path / "replay.json").read_text())
-    tab = pq.read_table(path / "transitions.parquet")
+    try:
+        summary = json.loads((path / "replay.json").read_text(encoding="utf-8"))
+        tab = pq.read_table(path / "transitions.parquet")
+    except (ValueError, OSError) as exc:  # JSON, Arrow and Parquet errors are ValueErrors
+        raise DataError(f"{path}: not a readable replay ({exc})") from None
     before = _cols(tab, ["x_true", "y_true", "yaw_true"])
     after = _cols(tab, ["x_true_next", "y_true_next", "yaw_true_next"])
     t, dur = tab.column("t").to_numpy(), tab.column("duration").to_numpy()
     tt, pose, state, idx = _samples(t, dur, before, after, tab.column("s").to_numpy(),
                                     tab.column("s_next").to_numpy())
     goals = np.asarray(tab.column("goal").to_pylist(), dtype=str)
+    blocked = (tab.column("blocked").to_numpy().astype(bool) if "blocked" in tab.column_names
+               else None)
     return {"t": tt, "pose": pose, "odom": None, "state": state, "goal": goals[idx],
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
+            "blocked": blocked, "duration": dur, "action_set": summary.get("action_set"),
+            "pose_source": "truth", "centres": _replay_centres(summary), "custom": None,
             "arena": summary["arena"]}
 
 
+def _replay_centres(summary: dict[str, Any]) -> np.ndarray | None:
+    """The replay's state centres, when its states file is still where it was."""
+    record = summary.get("states")
+    src = record.get("file") if isinstance(record, dict) else None
+    if not isinstance(src, str) or not Path(src).is_file():
+        return None
+    from discretize.voronoi import load_states
+
+    try:
+        return np.asarray(load_states(src).centres, dtype=np.float64)
+    except (ValueError, OSError):
+        return None
+
+
 def _scans(arena: Any, pose: np.ndarray) -> tuple[np.ndarray, Any, tuple[float, ...]]:
+    """Noise-free scans ``(n, B)`` float32 at each pose; a beam that would hit a surface
+    nearer than ``range_min`` reads ``-inf`` (REP-117 "too close"), one that hits nothing
+    within ``range_max`` ``+inf``.
+
+    simlab's LIDAR starts its rays at ``range_min`` (it cannot see nearer, like the real
+    sensor), so it reads +inf there; a second, short cast from the sensor centre to
+    ``range_min`` tells "too close" from "nothing". The robot is placed upright at rest on
+    the floor (:meth:`World.set_pose`), so its base link frame is ``(x, y, 0)`` rotated by
+    yaw.
+    """
+    from simlab.physics.lidar import Lidar, LidarSpec
     from simlab.physics.world import World
     from simlab.ros.bag import ScanGeometry
 
     with World(arena) as world:
         spec = world.lidar_spec
+        near = Lidar(world.client, world.body, tuple(world.lidar.offset),
+                     LidarSpec(n_beams=spec.n_beams, range_min=0.0, range_max=spec.range_min,
+                               noise_sigma=0.0))
         out = np.empty((len(pose), spec.n_beams), dtype=np.float32)
         for i, p in enumerate(pose):
             world.set_pose(p)
-            out[i] = world.scan(None).ranges.astype(np.float32)
+            ranges = world.scan(None).ranges
+            c, s = math.cos(float(p[2])), math.sin(float(p[2]))
+            rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            close = near.scan(np.array([float(p[0]), float(p[1]), 0.0]), rot, p, None)
+            too_close = (np.isinf(ranges) & np.isfinite(close.ranges)
+                         & (close.hit_ids != world.body))
+            ranges = np.where(too_close, -np.inf, ranges)
+            out[i] = ranges.astype(np.float32)
         offset = tuple(float(v) for v in world.lidar.offset)
     geom = ScanGeometry(0.0, 2 * np.pi / spec.n_beams, spec.range_min, spec.range_max,
                         1.0 / spec.rate_hz)
     return out, geom, offset
+
+
+def urdf_base_offset(urdf: str | os.PathLike[str]) -> tuple[float, float, float]:
+    """``(x, y, z)`` m of ``base_link`` in ``base_footprint``, from the URDF's fixed joint
+    between them (either direction; the ROBOTIS TurtleBot3 description has
+    ``base_footprint`` as the root), read by tag name. (0, 0, 0) when the URDF has no
+    ``base_footprint``."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(urdf).getroot()
+    for joint in root.findall("joint"):
+        parent = joint.find("parent")
+        child = joint.find("child")
+        if parent is None or child is None:
+            continue
+        pair = (parent.get("link"), child.get("link"))
+        if pair not in (("base_footprint", "base_link"), ("base_link", "base_footprint")):
+            continue
+        origin = joint.find("origin")
+        xyz = [0.0, 0.0, 0.0] if origin is None else [
+            float(v) for v in (origin.get("xyz") or "0 0 0").split()]
+        sign = 1.0 if pair[0] == "base_footprint" else -1.0
+        return (sign * xyz[0], sign * xyz[1], sign * xyz[2])
+    return (0.0, 0.0, 0.0)
 
 
 def arena_map(arena: Any, resolution: float = 0.02, margin: float = 0.1) -> Any:
@@ -132,6 +222,23 @@ def arena_map(arena: Any, resolution: float = 0.02, margin: float = 0.1) -> Any:
              int(np.ceil((x1 - x0 + 2 * margin) / resolution)))
     occ = np.where(arena.rasterize(resolution, origin, shape), 100, 0).astype(np.int8)
     return OccupancyMap(occupancy=occ, resolution=resolution, origin=(*origin, 0.0))
+
+
+def _overlaps(a: Path, b: Path) -> bool:
+    """``a`` equals ``b`` or one lies inside the other (resolved: links and ``..``)."""
+    a, b = a.resolve(), b.resolve()
+    return a == b or a in b.parents or b in a.parents
+
+
+def _refuse_overlap(out: Path, inputs: list[tuple[str, Path]]) -> None:
+    """An output equal to, containing or inside an input would destroy the input (or
+    write into it): refused before any work."""
+    for what, src in inputs:
+        if _overlaps(out, src):
+            raise ConfigError(f"the output overlaps the {what} {src} (the same path, or one "
+                              f"inside the other): writing the bag would destroy or change "
+                              f"it", path=out, key="out",
+                              fix="choose an --out outside the inputs")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -151,11 +258,14 @@ class ExportBagConfig(CommandConfig):
                              "rasterized)", metavar="YAML")
     resolution: float = option(0.02, "pixel size of the rasterized arena map", metavar="M")
     scans: bool = option(True, "/scan cast at every sample pose (--no-scans leaves it out)")
-    overwrite: bool = option(False, "replace a bag in --out")
+    start_time: float = option(0.0, "ROS time of the source's t = 0 (s since the epoch, "
+                               "e.g. 1700000000; default 0)", metavar="S")
+    overwrite: bool = option(False, "replace a bag that simlab export-bag wrote in --out")
 
     def validate(self) -> None:
         validation.whole(self.worker, "worker")
         validation.positive(self.resolution, "resolution")
+        validation.positive(self.start_time, "start_time", allow_zero=True)
 
 
 @command(ExportBagConfig)
@@ -166,19 +276,33 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
     ``worker`` is the dataset worker whose walk is exported; ``arena`` overrides the
     source's arena (name or TOML) for the scans and the map; ``map`` is a map_server YAML to
     publish instead of the arena rasterized at ``resolution`` (m/pixel); ``scans=False``
-    leaves out ``/scan``; ``overwrite`` replaces a bag in ``out``.
+    leaves out ``/scan``; ``start_time`` (s) is the stamp of the source's ``t = 0``;
+    ``overwrite`` replaces a bag that this command wrote in ``out`` (nothing else).
     """
     from simlab.physics.arena import load_arena
-    from simlab.ros.bag import BagTrajectory, write_bag
+    from simlab.physics.robot import load_robot_spec
+    from simlab.ros.bag import BagTrajectory, ScanGeometry, check_bag_target, write_bag
+    from simlab.ros.markers import SceneMarkers
 
-    source = cfg.source
+    source, out = Path(cfg.source), Path(cfg.out)
+    inputs = [("source", source)]
+    for what, value in (("map", cfg.map), ("arena file", cfg.arena)):
+        if isinstance(value, str | os.PathLike) and Path(value).exists():
+            inputs.append((what, Path(value)))
+    _refuse_overlap(out, inputs)
+    check_bag_target(out, overwrite=cfg.overwrite)  # before the work, not after
     if (source / "_manifest.json").is_file():
         rec, kind = _from_dataset(source, cfg.worker), "dataset"
     elif (source / "replay.json").is_file() and (source / "transitions.parquet").is_file():
         rec, kind = _from_replay(source), "replay"
+    elif not source.exists():
+        raise ConfigError("source not found", path=source,
+                          fix="give a dataset or replay directory")
     else:
         raise ConfigError("neither a dataset (_manifest.json) nor a replay (replay.json + "
-                          "transitions.parquet)", path=source)
+                          "transitions.parquet)", path=source,
+                          fix="give the directory that simlab collect, import-log, "
+                              "import-bag or replay wrote")
     arena_cfg = load_arena(cfg.arena or rec["arena"])
     if cfg.map is not None:
         from discretize.mapio import read_map
@@ -188,11 +312,15 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
         grid = arena_map(arena_cfg, cfg.resolution)
     scan_arr, geom, offset = (_scans(arena_cfg, rec["pose"]) if cfg.scans
                               else (None, None, (-0.032, 0.0, 0.182)))
-    from simlab.ros.bag import ScanGeometry
-
+    goals = tuple((g.name, float(g.x), float(g.y), float(g.radius)) for g in arena_cfg.goals)
+    scene = SceneMarkers(centres=rec["centres"], bounds=tuple(arena_cfg.bounds), goals=goals)
     traj = BagTrajectory(t=rec["t"], pose=rec["pose"], odom=rec["odom"], scans=scan_arr,
                          scan_geometry=geom or ScanGeometry(), state=rec["state"],
                          goal=rec["goal"], actions=rec["actions"], action_t=rec["action_t"],
-                         map=grid, scan_offset=offset)
-    path = write_bag(cfg.out, traj, overwrite=cfg.overwrite)
+                         blocked=rec["blocked"], duration=rec["duration"],
+                         action_set=rec["action_set"], pose_source=rec["pose_source"],
+                         map=grid, scan_offset=offset,
+                         base_offset=urdf_base_offset(load_robot_spec().urdf_path),
+                         scene=scene, custom=rec["custom"])
+    path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)

@@ -13,10 +13,21 @@
   last sample for the final action). It is **blocked** when no interval of it is a
   ``move`` in the pose-log labelling (:func:`~simlab.data.poselog.interval_labels`): the
   robot did not translate.
+* **A bag that simlab export-bag wrote** records more, and it is used: the action set
+  (``n_actions``/``convention`` then default to it, and a different one given is refused),
+  each decision's ``blocked`` flag and ``duration`` (the motion without the decision
+  latency), the time origin and the pose source (``truth``: the map pose; ``odometry``:
+  the ``/odom`` pose with the map pose as the truth), so that export then import gives
+  the dataset back column for column.
 * **Scans** (optional ``/scan``) are not needed for the transitions; their number is
   recorded in the provenance.
 * **States**: nearest centre of the states file (the writer's rule). Written with
-  :func:`simlab.data.writer.write_dataset`, pose source ``log``.
+  :func:`simlab.data.writer.write_dataset` in the one output transaction
+  (:func:`simlab.io.output_transaction`): a failure leaves ``out`` as it was; pose source
+  ``log`` unless the bag records another.
+* **Safety**: ``out`` is checked before the bag is read: an existing dataset is replaced
+  only with ``overwrite`` and only if this command wrote it; ``out`` may not be, contain
+  or lie inside the bag.
 
 The options are the fields of :class:`ImportBagConfig`; the action numbering and the
 thresholds are ``import-log``'s option groups
@@ -26,6 +37,9 @@ thresholds are ``import-log``'s option groups
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import json
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -33,9 +47,14 @@ from typing import Any
 
 import numpy as np
 
+from simlab.actions import ActionSet, parse_action_set
 from simlab.data.poselog import RobotActionOptions, SegmentOptions
 from simlab.errors import ConfigError
 from simlab.options import command, option
+
+#: ``provenance.importer`` of the datasets this command writes: what ``--overwrite`` may
+#: replace.
+IMPORTER = "simlab import-bag"
 
 
 @dataclass(frozen=True)
@@ -52,22 +71,49 @@ class ImportBagResult:
 
 def _decisions_from_actions(t: np.ndarray, xy: np.ndarray, yaw: np.ndarray,
                             actions: np.ndarray, action_t: np.ndarray, segment: Any,
-                            n_actions: int) -> tuple[np.ndarray, ...]:
-    """``(start, end, blocked, actions)`` of the decisions announced by an action topic."""
+                            n_actions: int, blocked: np.ndarray | None = None,
+                            duration: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """``(start, end, blocked, actions, duration)`` of the decisions announced by an action
+    topic (sample indices, bool, int, s).
+
+    With the recorded ``duration`` (k,) s, a decision ends at the sample stamped ``start +
+    duration`` (to 1 us; else at the next decision's start) and keeps that duration; with
+    the recorded ``blocked`` (k,) that flag is kept. Without them the decision ends where
+    the next one starts and is blocked when none of its intervals is a ``move``.
+    """
     from simlab.data.poselog import interval_labels
 
     if np.any((actions < 0) | (actions >= n_actions)):
-        raise ConfigError(f"action topic has indices outside 0..{n_actions - 1}", key="actions")
+        raise ConfigError(f"action topic has indices outside 0..{n_actions - 1} (min "
+                          f"{actions.min()}, max {actions.max()})", key="actions",
+                          fix="give the robot's action set with --n-actions 16 and "
+                              "--convention" if n_actions == 8 else
+                              "check the action topic (--action-topic)")
     keep = action_t >= t[0]
     actions, action_t = actions[keep], action_t[keep]
+    blocked = None if blocked is None else blocked[keep]
+    duration = None if duration is None else duration[keep]
     start = np.searchsorted(t, action_t, side="right") - 1
     end = np.append(start[1:], len(t) - 1)
-    ok = end > start  # two actions within one pose interval: the first has no motion
+    if duration is not None:
+        target = action_t + duration
+        at = np.clip(np.searchsorted(t, target), 0, len(t) - 1)
+        before = np.clip(at - 1, 0, len(t) - 1)
+        nearest = np.where(np.abs(t[before] - target) < np.abs(t[at] - target), before, at)
+        found = np.abs(t[nearest] - target) < 1e-6
+        end = np.where(found & (nearest >= start), nearest, end)
+    # two actions within one pose interval: the first has no motion (unless it is recorded
+    # as a motionless decision of zero duration)
+    ok = end > start if duration is None else (end > start) | (duration == 0)
     start, end, actions = start[ok], end[ok], actions[ok]
-    moving = interval_labels(t, xy, yaw, segment) == 2
-    cum = np.concatenate([[0], np.cumsum(moving)])
-    blocked = (cum[end] - cum[start]) == 0
-    return start, end, blocked, actions
+    if blocked is None:
+        moving = interval_labels(t, xy, yaw, segment) == 2
+        cum = np.concatenate([[0], np.cumsum(moving)])
+        blocked = (cum[end] - cum[start]) == 0
+    else:
+        blocked = blocked[ok]
+    duration = t[end] - t[start] if duration is None else duration[ok]
+    return start, end, blocked, actions, duration
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -81,64 +127,173 @@ class ImportBagConfig(RobotActionOptions, SegmentOptions):
     states: Any = option(help="states: `simlab discretize` JSON or centres text (from Python "
                          "also a discretizer)")
     out: Path = option(help="dataset directory to write")
+    n_actions: int | None = option(None, "number of actions of the robot (default: the "
+                                   "bag's recorded action set, else 8)", choices=(8, 16))
+    convention: str | None = option(None, "direction numbering: simlab, ccw-east (the ISIR "
+                                    "robot's) or 8 comma-separated numbers (default: the "
+                                    "bag's, else ccw-east)")
     pose_topic: str | None = option(None, "pose topic (default: /amcl_pose if present, else "
                                     "/odom)")
     action_topic: str | None = option(
         "/simlab/action", "std_msgs/Int32 action topic; absent from the bag -> the pose "
         "segmentation of import-log (from Python, None = --segment)")
     segment: bool = option(False, "ignore the action topic and segment the poses")
-    overwrite: bool = option(False, "replace a dataset in --out")
+    overwrite: bool = option(False, "replace a dataset that import-bag wrote in --out")
 
     @property
     def actions_from(self) -> str | None:
         """The action topic to read, None when the poses are to be segmented."""
         return None if self.segment else self.action_topic
 
+    def make_action_set(self, recorded: Any = None) -> ActionSet:
+        """The action set: the fields given, else the bag's ``recorded`` record (the
+        :meth:`ActionSet.to_json` of the bag's ``simlab.action_set``), else 8 actions
+        ``ccw-east`` (the ISIR robot's). Fields that contradict the recorded set are
+        refused: the bag's action indices mean what its writer said."""
+        found = None if recorded is None else ActionSet.from_json(
+            recorded, where=f"{self.bag}/metadata.yaml: custom_data: simlab.action_set")
+        if self.n_actions is None and self.convention is None:
+            return found or parse_action_set(8, "ccw-east")
+        base = found or parse_action_set(8, "ccw-east")
+        given = parse_action_set(self.n_actions or base.n_actions,
+                                 self.convention or base.convention)
+        if found is not None and (given.n_actions, given.directions) != (
+                found.n_actions, found.directions):
+            raise ConfigError(f"the bag records its actions as {found.n_actions} actions, "
+                              f"convention {found.convention}; --n-actions/--convention say "
+                              f"{given.n_actions}, {given.convention}", path=self.bag,
+                              key="n_actions", fix="leave out --n-actions and --convention")
+        return given if found is None else found
+
+
+def _check_out(out: Path, bag: Path, overwrite: bool) -> None:
+    """Refuse ``out`` before any work: a file, a directory that overlaps the bag, or one
+    that holds anything but a dataset this command wrote (that one only with
+    ``overwrite``)."""
+    from simlab.data.manifest import read_manifest
+    from simlab.data.schema import PARTS_DIR, parse_part_name
+    from simlab.errors import DataError
+
+    a, b = out.resolve(), bag.resolve()
+    if a == b or a in b.parents or b in a.parents:
+        raise ConfigError(f"the output overlaps the bag {bag} (the same path, or one inside "
+                          f"the other)", path=out, key="out",
+                          fix="choose an --out outside the bag")
+    for parent in out.parents:
+        if parent.exists() and not parent.is_dir():
+            raise ConfigError("a parent of this path is a file, not a directory", path=parent,
+                              fix="choose another --out")
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise ConfigError("exists and is not a directory", path=out, fix="choose another --out")
+    entries = [p for p in out.iterdir() if not p.name.startswith(".")]
+    if not entries:
+        return
+    try:
+        manifest = read_manifest(out)
+    except DataError:
+        manifest = None
+    ours = (isinstance(manifest, dict)
+            and (manifest.get("provenance") or {}).get("importer") == IMPORTER)
+    parts = out / PARTS_DIR
+    foreign = [p.name for p in entries if p.name not in ("_manifest.json", PARTS_DIR)]
+    if parts.is_dir():
+        foreign += [f"{PARTS_DIR}/{p.name}" for p in parts.iterdir()
+                    if parse_part_name(p.name) is None and not p.name.startswith(".")]
+    elif parts.exists():
+        foreign.append(PARTS_DIR)
+    if not ours or foreign:
+        what = (f"holds {foreign[0]}, which is not a dataset's" if foreign else
+                "holds a dataset that simlab import-bag did not write")
+        raise ConfigError(f"output directory {what}; it is never replaced, even with "
+                          f"--overwrite", path=out, fix="choose another --out")
+    if not overwrite:
+        raise ConfigError("output directory holds a dataset", path=out,
+                          fix="choose another --out, or pass --overwrite to replace it")
+
+
+def _write(out: Path, walk: Any, info: Any, overwrite: bool, part_size: int | None) -> None:
+    """``write_dataset`` into the staging directory of one output transaction, renamed
+    into ``out`` at the end; then the old dataset's parts that the new one does not list
+    are removed. OS errors name ``out``, not the staging directory."""
+    from simlab.data.schema import PARTS_DIR
+    from simlab.data.writer import write_dataset
+    from simlab.io import output_transaction
+
+    try:
+        with output_transaction(out, overwrite=overwrite, what="dataset") as txn:
+            result = write_dataset(txn.staging, walk, info, **(
+                {} if part_size is None else {"part_size": part_size}))
+        listed = {Path(str(e.get("file", ""))).name for e in result.manifest.get("parts", [])}
+        if (out / PARTS_DIR).is_dir():
+            for old in (out / PARTS_DIR).iterdir():
+                if old.name not in listed and not old.name.startswith("."):
+                    with contextlib.suppress(FileNotFoundError):
+                        old.unlink()
+    except OSError as exc:
+        raise OSError(exc.errno or errno.EIO, exc.strerror or str(exc), str(out)) from None
+
 
 @command(ImportBagConfig)
 def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
     """Import a bag (module docstring). Takes an :class:`ImportBagConfig` or its fields
     (``import_bag(bag, states=..., out=...)``). ``states``: states file or discretizer;
-    ``n_actions``/``convention``: the action set (as ``import-log``); ``move_speed``,
-    ``turn_rate``, ``join_gap``, ``speed_split``: the
+    ``n_actions``/``convention``: the action set (as ``import-log``; default the bag's
+    recorded one); ``move_speed``, ``turn_rate``, ``join_gap``, ``speed_split``: the
     :class:`~simlab.data.poselog.SegmentParams` thresholds; ``segment=True`` (or
     ``action_topic=None``) forces the segmentation even when the bag has an action topic."""
     from discretize.voronoi import load_states
     from simlab.data.poselog import decision_actions, segment_decisions
-    from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
+    from simlab.data.writer import DatasetInfo, TransitionArrays
     from simlab.ros.bag import read_bag
 
-    bag, states, pose_topic = cfg.bag, cfg.states, cfg.pose_topic
+    bag, states, pose_topic, out = Path(cfg.bag), cfg.states, cfg.pose_topic, Path(cfg.out)
+    _check_out(out, bag, cfg.overwrite)
     action_topic = cfg.actions_from
-    aset = cfg.make_action_set()
     segment = cfg.segment_params()
     disc = load_states(states) if isinstance(states, str | os.PathLike) else states
     traj = read_bag(bag, pose_topic=pose_topic, action_topic=action_topic)
+    aset = cfg.make_action_set(traj.action_set)
     t, xy, yaw = traj.t, traj.pose[:, :2], traj.pose[:, 2]
     if traj.actions is not None:
-        start, end, blocked, actions = _decisions_from_actions(
-            t, xy, yaw, traj.actions, traj.action_t, segment, aset.n_actions)
+        start, end, blocked, actions, duration = _decisions_from_actions(
+            t, xy, yaw, traj.actions, traj.action_t, segment, aset.n_actions,
+            traj.blocked, traj.duration)
         source = f"action topic {action_topic}"
     else:
         dec = segment_decisions(t, xy, yaw, segment)
         start, end, blocked = dec.start, dec.end, dec.blocked
+        duration = t[end] - t[start]
         actions = decision_actions(dec, aset, segment) if len(dec) else np.zeros(0, np.int64)
         source = "segmentation of the pose (as simlab import-log)"
     if len(start) == 0:
         raise ConfigError("no decision found in the bag (nothing turns or moves faster than "
-                          "the thresholds, and no action messages)", path=bag)
-    walk = TransitionArrays(t=t[start], a=actions, pose=traj.pose[start],
-                            pose_next=traj.pose[end], blocked=blocked,
-                            duration=t[end] - t[start])
+                          "the thresholds, and no action messages)", path=bag,
+                          fix="lower --move-speed/--turn-rate, or check --pose-topic")
+    # the bag's own pose source when simlab wrote it and the pose topic is the default
+    pose_source, pose, truth = "log", traj.pose, None
+    if pose_topic is None and traj.pose_source == "truth":
+        pose_source = "truth"
+    elif pose_topic is None and traj.pose_source == "odometry" and traj.odom is not None:
+        pose_source, pose, truth = "odometry", traj.odom, traj.pose
+    walk = TransitionArrays(t=t[start], a=actions, pose=pose[start], pose_next=pose[end],
+                            blocked=blocked, duration=duration,
+                            truth=None if truth is None else truth[start],
+                            truth_next=None if truth is None else truth[end])
     info = DatasetInfo(
-        discretizer=disc, action_set=aset, pose_source="log",
-        provenance={"importer": "simlab import-bag", "bag": str(bag),
+        discretizer=disc, action_set=aset, pose_source=pose_source,
+        provenance={"importer": IMPORTER, "bag": str(bag),
                     "states": str(states) if isinstance(states, str | os.PathLike) else None,
                     "samples": len(t), "scans": 0 if traj.scans is None else len(traj.scans),
                     "pose_topic": pose_topic or "auto", "action_source": source,
-                    "segmentation": asdict(segment)},
-        arena={"name": Path(bag).name, "file": None, "bounds": None, "goals": []},
+                    "action_set": "recorded in the bag" if traj.action_set is not None
+                    and cfg.n_actions is None and cfg.convention is None else "given",
+                    "segmentation": json.loads(json.dumps(asdict(segment)))},
+        arena={"name": bag.name, "file": None, "bounds": None, "goals": []},
         parameters={"importer": "ros-bag"})
-    res = write_dataset(cfg.out, walk, info, overwrite=cfg.overwrite)
-    return ImportBagResult(out=res.out, samples=len(t), decisions=len(start),
+    part_size = (traj.custom or {}).get("simlab.part_size", "")
+    _write(out, walk, info, cfg.overwrite,
+           int(part_size) if part_size.isdigit() and int(part_size) > 0 else None)
+    return ImportBagResult(out=out, samples=len(t), decisions=len(start),
                            blocked=int(np.sum(blocked)), action_source=source)

@@ -242,10 +242,10 @@ def test_import_bag_help_shows_the_defaults_and_shares_import_logs_groups(
     bag = _help("import-bag", capsys, monkeypatch)
     log = _help("import-log", capsys, monkeypatch)
     assert "(default /simlab/action)" in bag["--action-topic"]
-    assert "(default 0.04)" in bag["--move-speed"] and "(default 8)" in bag["--n-actions"]
+    assert "(default 0.04)" in bag["--move-speed"]
+    assert "the bag's recorded action set, else 8" in bag["--n-actions"]
     assert {"--pose-topic", "--segment", "--overwrite", "--config"} <= set(bag)
-    shared = ("--move-speed", "--turn-rate", "--join-gap", "--speed-split", "--n-actions",
-              "--convention")
+    shared = ("--move-speed", "--turn-rate", "--join-gap", "--speed-split")
     assert [bag[f] for f in shared] == [log[f] for f in shared]  # one spelling
 
 

@@ -1,0 +1,224 @@
+"""A bag says what a ROS tool expects and gives the dataset back: export then import is
+the identity, column for column; latched topics are transient-local; too-close beams are
+-inf (REP-117); the odometry twist and covariance follow the motion; the scene markers
+draw the Voronoi cells."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+
+from discretize.voronoi import Discretizer
+from simlab.cli import main
+from simlab.data.dataset import open_dataset, read_dataset
+from simlab.ros.bag import (
+    BagTrajectory,
+    odometry_covariance,
+    odometry_twist,
+    read_bag,
+    read_metadata,
+    write_bag,
+)
+from simlab.ros.markers import voronoi_cells
+
+
+def _lattice() -> Discretizer:
+    g = np.linspace(-0.6, 0.6, 5)
+    return Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g]))
+
+
+@pytest.fixture(scope="module")
+def walks(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Kinematic walks on the table (3 s decision latency, some blocked moves), with the
+    truth and with wheel odometry as the pose source."""
+    from simlab.data.collect import collect
+
+    root = tmp_path_factory.mktemp("walks")
+    _lattice().save(root / "states.json")
+    out = {"states": root / "states.json"}
+    for source in ("truth", "odometry"):
+        collect(arena="table", states=root / "states.json", out=root / source,
+                transitions=120, seed=4, part_size=50, simulator="kinematic",
+                progress=False, pose_source=source)
+        out[source] = root / source
+    return out
+
+
+@pytest.mark.parametrize("source", ["truth", "odometry"])
+def test_export_then_import_gives_the_dataset_back_column_for_column(
+        source: str, walks: dict[str, Path], tmp_path: Path, capsys) -> None:
+    ds = walks[source]
+    assert main(["export-bag", str(ds), "--out", str(tmp_path / "bag"), "--no-scans"]) == 0
+    # no --n-actions/--convention: the bag records its action set
+    assert main(["import-bag", str(tmp_path / "bag"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "back")]) == 0
+    a, b = read_dataset(ds), read_dataset(tmp_path / "back")
+    assert a.column_names == b.column_names and a.num_rows == b.num_rows == 120
+    blocked = a.column("blocked").to_numpy()
+    assert 0 < blocked.sum() < 120  # the walk has blocked moves and free ones
+    t, dur = a.column("t").to_numpy(), a.column("duration").to_numpy()
+    assert np.all(t[1:] - (t[:-1] + dur[:-1]) > 1.0)  # a decision latency between moves
+    for name in a.column_names:
+        x, y = a.column(name).to_pylist(), b.column(name).to_pylist()
+        if name in ("t", "duration"):  # bag stamps are whole nanoseconds
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-9, err_msg=name)
+        elif name.startswith("yaw"):  # through a quaternion
+            d = (np.asarray(y) - np.asarray(x) + np.pi) % (2 * np.pi) - np.pi
+            assert np.abs(d).max() < 1e-12, name
+        else:
+            assert y == x, name
+    assert open_dataset(tmp_path / "back").action_set == open_dataset(ds).action_set
+
+
+def test_a_given_action_set_that_contradicts_the_bags_is_refused(walks, tmp_path: Path,
+                                                                  capsys) -> None:
+    assert main(["export-bag", str(walks["truth"]), "--out", str(tmp_path / "bag"),
+                 "--no-scans"]) == 0
+    capsys.readouterr()
+    code = main(["import-bag", str(tmp_path / "bag"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "x"), "--n-actions", "8"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "records its actions as 16 actions" in err and "leave out --n-actions" in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_latched_topics_are_transient_local_and_the_rest_volatile(walks, tmp_path: Path
+                                                                   ) -> None:
+    from simlab.ros.export import export_bag
+
+    export_bag(walks["truth"], tmp_path / "bag", scans=False, start_time=1.7e9)
+    info = read_metadata(tmp_path / "bag")
+    qos = {e["topic_metadata"]["name"]: e["topic_metadata"]["offered_qos_profiles"]
+           for e in info["topics_with_message_count"]}
+    for topic in ("/tf_static", "/map", "/simlab/cells", "/simlab/goals"):
+        (profile,) = qos[topic]
+        assert profile["durability"] == "transient_local", topic
+        assert profile["reliability"] == "reliable" and profile["depth"] == 1
+    assert qos["/tf"] == qos["/odom"] == []  # recorder default: volatile
+    # the start time: stamps from 1.7e9 s, times read back from the recorded origin
+    assert info["starting_time"]["nanoseconds_since_epoch"] == 1_700_000_000 * 10**9
+    back = read_bag(tmp_path / "bag")
+    t = read_dataset(walks["truth"]).column("t").to_numpy()
+    np.testing.assert_allclose(back.action_t, t, atol=1e-6)
+
+
+def test_beams_nearer_than_range_min_are_minus_inf(tmp_path: Path) -> None:
+    """The table's east wall is at x = 0.75 (inner face): a robot at x = 0.68 facing east
+    has its LIDAR (0.032 m behind the axis) 0.648 m from the centre, about 0.10 m from the
+    wall face, so the beams towards it are too close (< range_min = 0.12 m); beams away
+    from the wall see far surfaces."""
+    from simlab.physics.arena import load_arena
+    from simlab.ros.export import _scans
+
+    arena = load_arena("table")
+    pose = np.array([[0.0, 0.0, 0.0], [0.68, 0.0, 0.0]])
+    scans, geom, offset = _scans(arena, pose)
+    assert not np.any(np.isneginf(scans[0]))  # in the middle, nothing is that close
+    east = scans[1][[0, 1, 359]]  # beams 0, +-1 deg: straight at the wall
+    assert np.all(np.isneginf(east)), east
+    west = scans[1][180]
+    assert np.isfinite(west) and west > 1.0
+    # geometry: a beam at angle a hits the wall plane at d / cos(a); -inf where that is
+    # below range_min, +inf never for a wall in range
+    lidar_x = 0.68 + offset[0]
+    wall = 0.75 - lidar_x
+    ang = np.arange(360) * geom.angle_increment
+    facing = np.cos(ang) > 0
+    expect_close = facing & (wall / np.where(facing, np.cos(ang), 1.0) < geom.range_min)
+    got = np.isneginf(scans[1])
+    # within a degree of the threshold the other walls' corners may intervene
+    margin = facing & (np.abs(wall / np.where(facing, np.cos(ang), 1.0) - geom.range_min)
+                       < 0.003)
+    assert np.array_equal(got[~margin], expect_close[~margin])
+    # written and read back as -inf
+    bag = write_bag(tmp_path / "b", BagTrajectory(t=np.array([0.0, 1.0]), pose=pose,
+                                                  scans=scans, scan_geometry=geom))
+    assert np.array_equal(np.isneginf(read_bag(bag).scans), np.isneginf(scans))
+
+
+def test_odometry_twist_and_covariance_follow_the_motion() -> None:
+    """Hand-worked: a turn of pi/2 in 2 s, then 0.5 m straight north in 2 s, then idle."""
+    t = np.array([0.0, 2.0, 4.0, 7.0])
+    odom = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, np.pi / 2], [0.0, 0.5, np.pi / 2],
+                     [0.0, 0.5, np.pi / 2]])
+    tw = odometry_twist(t, odom)
+    np.testing.assert_allclose(tw, [[0, 0, 0], [0, 0, np.pi / 4], [0.25, 0, 0], [0, 0, 0]],
+                               atol=1e-12)
+    pose_cov, twist_cov = odometry_covariance(t, odom)
+    a = 0.01  # OdometryMotionParams' alphas
+    # the turn: rot1 = 0 (no translation), rot2 = pi/2: var(yaw) = a (pi/2)^2
+    assert pose_cov[1][2, 2] == pytest.approx(a * (np.pi / 2) ** 2)
+    # ... and var(trans) = a4 (rot1^2 + rot2^2) along the heading at the start (east)
+    assert pose_cov[1][0, 0] == pytest.approx(a * (np.pi / 2) ** 2)
+    assert pose_cov[1][1, 1] == 0.0
+    assert twist_cov[1][2, 2] == pytest.approx(a * (np.pi / 2) ** 2 / 4)
+    # the drive north: var(trans) = a3 0.5^2 along y, plus var(rot1) = a2 0.5^2 of the
+    # heading; x gains the heading's variance times the lever arm 0.5^2
+    assert pose_cov[2][1, 1] == pytest.approx(a * 0.25)
+    var_yaw = a * (np.pi / 2) ** 2
+    assert pose_cov[2][0, 0] == pytest.approx(a * (np.pi / 2) ** 2 + 0.25 * var_yaw
+                                              + 0.25 * a * 0.25)
+    assert twist_cov[2][0, 0] == pytest.approx(a * 0.25 / 4)
+    # idle: the pose covariance stays, the twist covariance is zero
+    np.testing.assert_allclose(pose_cov[3], pose_cov[2])
+    assert not twist_cov[3].any()
+    # covariances are symmetric positive semi-definite
+    for c in pose_cov:
+        np.testing.assert_allclose(c, c.T)
+        assert np.linalg.eigvalsh(c).min() > -1e-15
+
+
+def test_voronoi_cells_tile_the_rectangle_and_hold_their_centre() -> None:
+    rng = np.random.default_rng(7)
+    centres = rng.uniform(-1, 1, (12, 2))
+    bounds = (-1.0, -1.0, 1.0, 1.0)
+    cells = voronoi_cells(centres, bounds)
+
+    def area(p):
+        x, y = p[:, 0], p[:, 1]
+        return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+    assert sum(area(c) for c in cells) == pytest.approx(4.0)
+    disc = Discretizer(centres=centres)
+    for i, poly in enumerate(cells):
+        # every corner is nearest to its own centre (ties on the edges)
+        d = np.linalg.norm(poly[:, None, :] - centres[None], axis=2)
+        assert np.all(d[:, i] <= d.min(axis=1) + 1e-9)
+        assert disc.state_of(poly.mean(axis=0)[None])[0] == i
+
+
+def test_the_bag_shows_cells_goals_and_a_human(walks, tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    from simlab.ros.export import export_bag
+    from simlab.ros.markers import SceneMarkers
+
+    export_bag(walks["truth"], tmp_path / "bag", scans=False)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    seen: dict[str, list] = {}
+    with Reader(tmp_path / "bag") as r:
+        for c, _, raw in r.messages():
+            if c.topic in ("/simlab/cells", "/simlab/goals"):
+                seen[c.topic] = ts.deserialize_cdr(raw, c.msgtype).markers
+    cells = [m for m in seen["/simlab/cells"] if m.ns == "cells"]
+    labels = [m.text for m in seen["/simlab/cells"] if m.ns == "state_ids"]
+    assert len(cells) == 25 and labels == [str(i) for i in range(25)]
+    assert all(m.header.frame_id == "map" and len(m.points) >= 4 for m in cells)
+    goals = [m.text for m in seen["/simlab/goals"] if m.ns == "goal_names"]
+    from simlab.physics.arena import load_arena
+
+    assert goals == list(load_arena("table").goal_names)
+    # a human, when the trajectory has one, is drawn at every sample
+    human = np.array([[1.0, 0.5, 0.0], [1.0, 0.6, 0.1]])
+    write_bag(tmp_path / "h", BagTrajectory(t=np.array([0.0, 1.0]), pose=np.zeros((2, 3)),
+                                            human=human, scene=SceneMarkers()))
+    with Reader(tmp_path / "h") as r:
+        hs = [ts.deserialize_cdr(raw, c.msgtype) for c, _, raw in r.messages()
+              if c.topic == "/simlab/human"]
+    assert [m.markers[0].pose.position.y for m in hs] == [0.5, 0.6]
