@@ -30,6 +30,7 @@ _FUNCTIONS: dict[str, str] = {
     "social_pipeline": "simlab.social.pipeline:social_pipeline",
     "visitlab_train": "simlab.visitlab.training:train_command",
     "reproduce": "simlab.experiments.reproduce:reproduce",
+    "online": "simlab.online.command:online",
 }
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, _FUNCTIONS)

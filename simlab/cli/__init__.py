@@ -46,6 +46,7 @@ SUBCOMMANDS: dict[str, str] = {
     "social-pipeline": "social_pipeline",
     "visitlab": "visitlab",
     "reproduce": "reproduce",
+    "online": "online",
 }
 
 

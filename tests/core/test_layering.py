@@ -48,7 +48,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("simlab.data",),
     ("simlab.training",),
     ("simlab.envs", "simlab.replay", "simlab.visitlab", "simlab.social"),
-    ("simlab.orchestration", "simlab.experiments", "simlab.calibration", "simlab.ros"),
+    ("simlab.orchestration", "simlab.experiments", "simlab.calibration", "simlab.ros",
+     "simlab.online"),
     ("simlab.cli", "simlab.commands", "simlab.__main__"),
 )
 

@@ -1,0 +1,274 @@
+"""``simlab online``: agents learning while they act on an empirical MDP, MB/MF meta-control.
+
+Every *arm* (a criterion; ``entropy_and_cost`` once per ``kappa``) runs ``seeds``
+independent runs of ``decisions`` decisions on the task of
+:mod:`simlab.online.task` (start states, goal, one change at ``change_at``), through the
+fused loop of :mod:`simlab.online.loop`; jobs run in parallel through
+:mod:`simlab.parallel`. Seeding: ``SeedSequence(seed).spawn(seeds)[i].spawn(2)`` gives
+run ``i`` its environment and agent streams, the same for every arm (common random
+numbers: arms differ by their decisions, not by their luck).
+
+Defaults are the published ones (Dromnelle et al. 2022, sec. 3-4): MF Q-learning alpha
+0.6, gamma 0.9, softmax inverse temperature beta 50 (``tau = 0.02``); MB value iteration
+on the learned model, gamma 0.9, beta 50, planning until a sweep changes no Q by more than
+1e-4 (at most 100 sweeps); cost filter alpha 0.6; start states 0 and 32, goal 18, change at
+decision 1,601 (index 1600): goal -> 34, or passages 20 <-> 21 and 6 <-> 7 closed.
+Decision: MF starts at Q = 0 (the paper's table), MB at simlab's optimistic
+``r_max / (1 - gamma)`` for pairs it has not tried (:mod:`simlab.agents.config`): on the
+38-state corridor model of :mod:`simlab.online.synthetic` an MB starting at 0 stops
+exploring on the first route it finds and earns ~45 % less.
+
+Outputs in ``out`` (one output transaction: all or nothing):
+
+* ``decisions.parquet`` — one row per decision: ``arm``, ``seed`` (run index), ``t``,
+  ``s``, ``a``, ``s_next``, ``expert`` (``MF``/``MB``), ``h_mf``, ``h_mb`` (normalised
+  entropies), ``c_mf``, ``c_mb`` (filtered costs read by the criterion), ``backups``,
+  ``seconds`` (the chosen expert's planning cost, deterministic and wall clock),
+  ``reward``, ``phase``;
+* ``cumulative_reward.png``, ``cumulative_cost.png``, ``mb_share.png`` (mean over runs,
+  change marked);
+* ``summary.json`` and ``summary.md`` — per arm: reward (total, before / after the
+  change), cost in backups and seconds (absolute and relative to ``mb``), MB share (total
+  and per window), recovery after the change.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab import validation as v
+from simlab.errors import ConfigError
+from simlab.online.meta import CRITERIA
+from simlab.options import CommandConfig, command, option
+
+__all__ = ["MB_DEFAULTS", "MF_DEFAULTS", "OnlineConfig", "OnlineResult", "arm_names",
+           "online", "run_arm"]
+
+#: Published settings applied to the MF expert when its preset has the field.
+MF_DEFAULTS = {"alpha": 0.6, "gamma": 0.9, "tau": 0.02, "q_init": 0.0}
+#: Published settings applied to the MB expert when its preset has the field.
+MB_DEFAULTS = {"gamma": 0.9, "tau": 0.02, "max_sweeps": 100, "tol": 1e-4, "plan_every": 0}
+
+CHANGES = ("none", "goal", "passages")
+FILES = ("decisions.parquet", "cumulative_reward.png", "cumulative_cost.png", "mb_share.png",
+         "summary.json", "summary.md")
+_PLOTS = FILES[1:4]
+
+
+def _expert_config(name: str, defaults: dict[str, Any], params: Any, key: str) -> Any:
+    from simlab.agents.config import config_to_dict
+    from simlab.agents.registry import agent_config
+
+    if params is not None and not isinstance(params, dict):
+        raise ConfigError(f"expected a table of overrides, got {params!r}", key=key)
+    preset = config_to_dict(agent_config(name))
+    merged = {k: val for k, val in defaults.items() if k in preset}
+    merged.update(params or {})
+    try:
+        return agent_config(name, merged)
+    except ConfigError as exc:
+        raise ConfigError(exc.problem, key=f"{key}.{exc.key}" if exc.key else key,
+                          fix=exc.fix) from None
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class OnlineConfig(CommandConfig):
+    """Options of ``simlab online`` / :func:`online` (module docstring)."""
+
+    COMMAND = "online"
+
+    mdp: Any = option(help="mdp.npz written by simlab estimate (Python: or an EmpiricalMDP)",
+                      positional=True, parse=Path)
+    out: Path | None = option(None, "output directory (required; Python: None writes "
+                              "nothing)")
+    criteria: tuple[str, ...] = option(
+        CRITERIA, f"arbitration criteria to compare, any of {', '.join(CRITERIA)} "
+        "(mf / mb: that expert always decides)", metavar="NAME")
+    kappas: tuple[float, ...] = option(
+        (1.0,), "kappa values of entropy_and_cost (one arm each)",
+        metavar="K")
+    decisions: int = option(3200, "decisions per run")
+    seeds: int = option(10, "independent runs per arm")
+    seed: int = option(0, "root seed")
+    goal: tuple[int, ...] = option((18,), "goal state(s): reward 1 on arrival, then restart",
+                                   metavar="S")
+    start_states: tuple[int, ...] = option(
+        (0, 32), "start states, drawn uniformly after each reward",
+        metavar="S")
+    change: str = option("none", "what changes at --change-at: nothing, the goal (to "
+                         "--new-goal) or passages (--passages close)", choices=CHANGES)
+    change_at: int = option(1600, "index of the first decision in the changed task "
+                            "(0-based: 1600 is decision 1,601)")
+    new_goal: tuple[int, ...] = option((34,), "goal state(s) after a goal change",
+                                       metavar="S")
+    passages: tuple[str, ...] = option(("20-21", "6-7"), "passages U-V closed by a passage "
+                                       "change (both directions removed)",
+                                       metavar="U-V")
+    mf: str = option("q-softmax", "agent of the MF expert (simlab agent name)")
+    mb: str = option("vi-softmax", "agent of the MB expert (simlab agent name)")
+    mf_params: Any | None = option(None, "overrides of the MF expert {name: value} (over "
+                                   "the published alpha 0.6, gamma 0.9, tau 0.02, q_init 0)",
+                                   cli=False)
+    mb_params: Any | None = option(None, "overrides of the MB expert {name: value} (over "
+                                   "gamma 0.9, tau 0.02, max_sweeps 100, tol 1e-4)", cli=False)
+    cost: str = option("backups", "cost the criterion reads: backups (deterministic, "
+                       "bit-identical seeded runs) or seconds (wall clock, as published)",
+                       choices=("backups", "seconds"))
+    cost_alpha: float = option(0.6, "rate of the per-state low-pass cost filter, in (0, 1]")
+    window: int = option(200, "decisions per bin of the MB-share curve and of recovery")
+    workers: int | None = option(None, "local worker processes (default: the cores; 1: in "
+                                 "this process)")
+    backend: str = option("local", "where runs execute", choices=("local", "ray"))
+    plots: bool = option(True, "the PNG figures (--no-plots skips them)")
+    overwrite: bool = option(False, "replace outputs a previous simlab online wrote")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        v.whole(self.decisions, "decisions", minimum=1)
+        v.whole(self.seeds, "seeds", minimum=1)
+        v.whole(self.seed, "seed")
+        v.whole(self.window, "window", minimum=1)
+        if self.workers is not None:
+            v.whole(self.workers, "workers", minimum=1)
+        if not self.criteria:
+            raise ConfigError("no criterion given", key="criteria")
+        for c in self.criteria:
+            if c not in CRITERIA:
+                raise ConfigError(f"unknown criterion {c!r}", key="criteria",
+                                  fix=f"choose among {', '.join(CRITERIA)}")
+        if len(set(self.criteria)) != len(self.criteria):
+            raise ConfigError(f"criterion listed twice in {list(self.criteria)}",
+                              key="criteria")
+        if not self.kappas:
+            raise ConfigError("no kappa given", key="kappas")
+        for k in self.kappas:
+            v.positive(k, "kappas", allow_zero=True)
+        if not (0.0 < self.cost_alpha <= 1.0):
+            raise ConfigError(f"expected a rate in (0, 1], got {self.cost_alpha!r}",
+                              key="cost_alpha")
+        if self.change != "none" and not 1 <= self.change_at < self.decisions:
+            raise ConfigError(f"expected a decision in 1..{self.decisions - 1}, got "
+                              f"{self.change_at}", key="change_at",
+                              fix="the change must happen during the run")
+        self.task()
+        self.expert_configs()
+
+    def task(self) -> Any:
+        """The :class:`~simlab.online.task.OnlineTask` of these options."""
+        from simlab.online.task import Change, OnlineTask, parse_passages
+
+        changes = ()
+        if self.change == "goal":
+            changes = (Change(self.change_at, "goal", goal=self.new_goal),)
+        elif self.change == "passages":
+            changes = (Change(self.change_at, "passages",
+                              passages=parse_passages(self.passages)),)
+        return OnlineTask(goal=self.goal, start_states=self.start_states, changes=changes)
+
+    def expert_configs(self) -> tuple[Any, Any]:
+        """The agent configs of the MF and MB experts (published defaults, then overrides)."""
+        return (_expert_config(self.mf, MF_DEFAULTS, self.mf_params, "mf_params"),
+                _expert_config(self.mb, MB_DEFAULTS, self.mb_params, "mb_params"))
+
+
+def arm_names(criteria: tuple[str, ...], kappas: tuple[float, ...]) -> list[tuple[str, str, float]]:
+    """``(arm name, criterion, kappa)`` of every arm: ``entropy_and_cost`` once per kappa,
+    named ``entropy_and_cost_k1`` (``k0.5``...)."""
+    arms = []
+    for c in criteria:
+        if c == "entropy_and_cost":
+            arms += [(f"entropy_and_cost_k{k:g}", c, float(k)) for k in kappas]
+        else:
+            arms.append((c, c, 0.0))
+    return arms
+
+
+def run_arm(T: np.ndarray, task: Any, mf_config: Any, mb_config: Any, criterion: str,
+            kappa: float, cost_alpha: float, use_time: bool, valid: np.ndarray | None,
+            decisions: int, seed: np.random.SeedSequence) -> dict[str, np.ndarray]:
+    """One run (module-level: a parallel job): fresh experts, ``decisions`` decisions on
+    the compiled ``task`` of ``T`` (S, A, S). Returns the log columns."""
+    from simlab.online.loop import run_online
+    from simlab.online.meta import make_meta_agent
+
+    env_seed, agent_seed = seed.spawn(2)
+    S, A = T.shape[:2]
+    agent = make_meta_agent(mf_config, mb_config, S, A, criterion=criterion, kappa=kappa,
+                            cost_alpha=cost_alpha, use_time=use_time, valid=valid)
+    log = run_online(agent, task.compile(T), decisions, np.random.default_rng(env_seed),
+                     np.random.default_rng(agent_seed))
+    return log.columns()
+
+
+@dataclasses.dataclass(frozen=True)
+class OnlineResult:
+    """What :func:`online` did: ``logs[arm]`` (runs,) list of log-column dicts,
+    ``summary`` (JSON-ready, see :func:`simlab.online.report.summarize`), ``files`` the
+    final paths written (empty without ``out``), ``seconds`` wall time."""
+
+    logs: dict[str, list[dict[str, np.ndarray]]]
+    summary: dict[str, Any]
+    files: dict[str, Path]
+    seconds: float
+
+
+@command(OnlineConfig)
+def online(cfg: OnlineConfig) -> OnlineResult:
+    """Run every arm of ``cfg`` on its MDP and write the outputs (module docstring)."""
+    import contextlib
+
+    from simlab.data.mdp import EmpiricalMDP, load_mdp
+    from simlab.io import output_transaction
+    from simlab.parallel import make_executor
+
+    t0 = time.perf_counter()
+    m = cfg.mdp if isinstance(cfg.mdp, EmpiricalMDP) else load_mdp(v.existing_file(
+        cfg.mdp, "mdp", what="MDP file"))
+    task = cfg.task()
+    task.compile(m.T, source=m.source)  # state ids checked before any work
+    mf_cfg, mb_cfg = cfg.expert_configs()
+    arms = arm_names(cfg.criteria, cfg.kappas)
+    out = cfg.out
+    finals: dict[str, Path] = {}
+    if out is not None:
+        names = FILES if cfg.plots else tuple(f for f in FILES if f not in _PLOTS)
+        finals = {n: Path(out) / n for n in names}
+        if m.source is not None and any(Path(m.source).resolve() == p.resolve()
+                                        for p in finals.values()):
+            raise ConfigError("an output would replace the input MDP", path=m.source,
+                              key="out", fix="choose another --out")
+        from simlab.online.report import owned_by_online
+
+        if cfg.overwrite and any(p.exists() for p in finals.values()) \
+                and not owned_by_online(Path(out)):
+            raise ConfigError("--overwrite replaces only the outputs of an earlier simlab "
+                              "online (its summary.json is missing or not ours)", path=out,
+                              key="overwrite", fix="choose another --out")
+    seeds = np.random.SeedSequence(cfg.seed).spawn(cfg.seeds)
+    jobs = [dict(T=np.asarray(m.T), task=task, mf_config=mf_cfg, mb_config=mb_cfg,
+                 criterion=crit, kappa=kappa, cost_alpha=cfg.cost_alpha,
+                 use_time=cfg.cost == "seconds", valid=m.valid, decisions=cfg.decisions,
+                 seed=seeds[i])
+            for _, crit, kappa in arms for i in range(cfg.seeds)]
+    with contextlib.ExitStack() as stack:
+        txn = None
+        if out is not None:  # refuses existing outputs and takes the lock before the runs
+            txn = stack.enter_context(output_transaction(out, finals.values(),
+                                                         overwrite=cfg.overwrite))
+        with make_executor(cfg.backend, workers=cfg.workers, in_process_single=True) as ex:
+            results = ex.map(run_arm, jobs, desc="online runs", progress=cfg.progress)
+        logs = {name: results[j * cfg.seeds:(j + 1) * cfg.seeds]
+                for j, (name, _, _) in enumerate(arms)}
+        from simlab.online.report import summarize, write_outputs
+
+        summary = summarize(logs, cfg, task, m, mf_cfg, mb_cfg)
+        summary["seconds"] = round(time.perf_counter() - t0, 3)
+        if txn is not None:
+            write_outputs(txn, finals, logs, summary, cfg)
+    return OnlineResult(logs=logs, summary=summary, files=finals,
+                        seconds=time.perf_counter() - t0)

@@ -1,0 +1,291 @@
+"""The MB/MF meta-controller: two experts, one arbitration per decision (numba).
+
+Dromnelle, Renaudo, Chetouani, Maragos, Chatila, Girard, Khamassi (2022), "Reducing
+computational cost during robot navigation and human-robot interaction with a
+human-inspired reinforcement learning architecture", Int. J. Social Robotics, sec. 2-3
+(and their Living Machines 2020 paper): a model-free (MF) and a model-based (MB) expert
+act on the same transitions; at each decision a meta-controller picks the expert that
+plans the action, trading the quality of its decision (the entropy of its action
+distribution) against its computation cost.
+
+Experts are :class:`simlab.agents.core.Learner` records (any simlab agent: Q-learning,
+model-based, R-max, sliding window); their act / learn / plan steps are those of
+:mod:`simlab.agents.core`. Both experts learn from every transition, whichever decided
+(the thesis's passive MF observer is criterion ``mb``: MB always decides, MF watches).
+
+Decisions made here (the papers leave them to the implementation):
+
+* **Planning vs learning.** Learning (a Q-learning update; a model count and one
+  incremental backup) happens for both experts after every transition. Planning happens
+  only for the chosen expert, at the decision: a model-based expert runs value iteration
+  on its learned model (its ``max_sweeps`` / ``tol``); a model-free expert's "plan" is
+  reading its Q row. The cost of a decision is the chosen expert's planning cost.
+* **Deterministic cost** (default, ``use_time=False``): Bellman backups. A value-iteration
+  sweep backs up every known pair (``n(s, a) >= max(m_known, 1)``; all ``S * A`` pairs for
+  synchronous sweeps), so a plan of ``k`` sweeps costs ``k`` times that; a model-free
+  decision costs 1. Seeded runs are then bit-identical. The wall-clock planning time (what
+  the paper measured) is recorded beside it, and used instead with ``use_time=True``.
+* **Entropies** are Shannon entropies of each expert's softmax at its own temperature over
+  the valid actions of ``s``, normalised by ``log(n_valid)`` to [0, 1] (``H / H_max``).
+  They are read *before* planning (the arbitration must not pay for the plan it is
+  deciding about); ``exp(-kappa * H_MF)`` uses the normalised ``H_MF``.
+* **Costs per state**, low-pass filtered (``C <- C + alpha_c (c - C)``, alpha_c 0.6), start
+  at 0 and are updated for the expert that planned only; ``C_e / max_e C_e`` is 0 when both
+  are 0.
+* **Ties** of the criteria go to the first expert (MF, the cheap one): no random draw.
+  ``random`` draws one uniform number per decision from the agent's Generator.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+from typing import Any
+
+import numpy as np
+from numba import njit, objmode
+
+from simlab.agents import core
+from simlab.agents.kernels import ALL_VALID, n_valid
+
+__all__ = [
+    "CRITERIA",
+    "EXPERT_MB",
+    "EXPERT_MF",
+    "MetaAgent",
+    "MetaParams",
+    "choose_expert",
+    "criterion_code",
+    "decide",
+    "expert_plan",
+    "learn",
+    "lowpass",
+    "make_expert",
+    "make_meta_agent",
+    "normalised_entropy",
+]
+
+#: Criterion names, their codes are the indices: ``mf`` / ``mb`` (one expert always
+#: decides), ``random`` (a fair coin), ``entropy`` (lowest normalised entropy) and
+#: ``entropy_and_cost`` (Dromnelle et al. 2022, eq. of sec. 2.3, with ``kappa``).
+CRITERIA = ("mf", "mb", "random", "entropy", "entropy_and_cost")
+C_MF, C_MB, C_RANDOM, C_ENTROPY, C_ENTROPY_COST = range(5)
+
+#: Expert indices (rows of the cost tables, values of the ``expert`` log column).
+EXPERT_MF, EXPERT_MB = 0, 1
+
+#: Arbitration parameters: ``criterion`` (code of :data:`CRITERIA`), ``kappa`` (weight of
+#: MF's certainty on the cost term), ``cost_alpha`` (low-pass rate of the per-state costs),
+#: ``use_time`` (decide on wall-clock seconds instead of backups).
+MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time"])
+
+#: The meta-controlled pair: ``mf`` and ``mb`` (:class:`simlab.agents.core.Learner`),
+#: ``cost`` (2, S) float64 filtered backups per expert and state, ``cost_time`` (2, S)
+#: float64 filtered seconds, ``params`` (:class:`MetaParams`), ``valid`` (S, A) bool or
+#: ``core.NO_MASK``. Built by :func:`make_meta_agent`.
+MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "params", "valid"])
+
+
+def criterion_code(name: str) -> int:
+    """Code of a criterion name of :data:`CRITERIA` (``ValueError`` otherwise)."""
+    return CRITERIA.index(name)
+
+
+@njit(cache=True)
+def normalised_entropy(q, vrow, tau):
+    """Shannon entropy of the softmax of ``q`` (A,) at temperature ``tau`` over the valid
+    actions ``vrow`` (A,) bool (:data:`~simlab.agents.kernels.ALL_VALID`: all), divided by
+    its maximum ``log(n_valid)``: a number in [0, 1] (0 with a single valid action).
+    ``tau <= 0`` is the greedy limit (uniform over the maximisers). No allocation:
+    ``H = log Z - sum_b p_b (q_b - q_max) / tau`` with ``Z = sum_b exp((q_b - q_max) / tau)``.
+    """
+    A = q.shape[0]
+    every = vrow.shape[0] == 0 or n_valid(vrow, A) == 0
+    k = A if every else n_valid(vrow, A)
+    if k <= 1:
+        return 0.0
+    qmax = -np.inf
+    for b in range(A):
+        if (every or vrow[b]) and q[b] > qmax:
+            qmax = q[b]
+    if tau <= 0.0:
+        n_best = 0
+        for b in range(A):
+            if (every or vrow[b]) and q[b] == qmax:
+                n_best += 1
+        return np.log(n_best) / np.log(k)
+    z = 0.0
+    m = 0.0
+    for b in range(A):
+        if every or vrow[b]:
+            x = (q[b] - qmax) / tau
+            w = np.exp(x)
+            z += w
+            m += w * x
+    h = np.log(z) - m / z
+    return min(max(h / np.log(k), 0.0), 1.0)
+
+
+@njit(cache=True)
+def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, rng):
+    """The expert that plans: :data:`EXPERT_MF` (0) or :data:`EXPERT_MB` (1).
+
+    ``h_*`` normalised entropies in [0, 1], ``c_*`` the experts' (filtered) costs at this
+    state (any unit, >= 0). ``entropy_and_cost``: value of expert e
+    ``-(h_e + exp(-kappa * h_mf) * c_e / max(c_mf, c_mb))``, the larger wins. Ties go to
+    MF; only ``random`` draws from ``rng``.
+    """
+    if criterion == C_MF:
+        return EXPERT_MF
+    if criterion == C_MB:
+        return EXPERT_MB
+    if criterion == C_RANDOM:
+        return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
+    if criterion == C_ENTROPY:
+        return EXPERT_MB if h_mb < h_mf else EXPERT_MF
+    c_max = max(c_mf, c_mb)
+    w = np.exp(-kappa * h_mf)
+    v_mf = -h_mf
+    v_mb = -h_mb
+    if c_max > 0.0:
+        v_mf -= w * c_mf / c_max
+        v_mb -= w * c_mb / c_max
+    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+
+
+@njit(cache=True, inline="always")
+def lowpass(old, new, alpha):
+    """First-order low-pass filter: ``old + alpha * (new - old)``."""
+    return old + alpha * (new - old)
+
+
+@njit(cache=True)
+def expert_plan(lr, valid):
+    """Planning of expert ``lr`` now; returns its cost in Bellman backups.
+
+    Model-free: 1 (reading its Q row). Model-based: :func:`simlab.agents.core.plan` (its
+    ``max_sweeps`` / ``tol``), costing sweeps x backups per sweep (every pair for
+    synchronous sweeps, else the known pairs ``n(s, a) >= max(m_known, 1)``).
+    """
+    p = lr.params
+    if p.kind == core.KIND_MF:
+        return 1
+    S, A = lr.Q.shape
+    per_sweep = S * A
+    if not (p.synchronous or valid.shape[0] > 0):
+        floor = max(p.m_known, 1)
+        per_sweep = 0
+        for s in range(S):
+            for a in range(A):
+                if lr.model.n_sa[s, a] >= floor:
+                    per_sweep += 1
+    sweeps = core.plan(lr.model, lr.Q, p, valid, core.NO_TERMINAL)
+    return sweeps * per_sweep
+
+
+@njit(cache=True)
+def _now():
+    with objmode(t="float64"):
+        t = _perf_counter()
+    return t
+
+
+def _perf_counter() -> float:
+    import time
+
+    return time.perf_counter()
+
+
+@njit(cache=True)
+def decide(ag, s, rng):
+    """One decision of :class:`MetaAgent` ``ag`` in state ``s``.
+
+    Returns ``(action, expert, h_mf, h_mb, c_mf, c_mb, backups, seconds)``: the entropies
+    and filtered costs the criterion read, and the chosen expert's planning cost in
+    backups and wall-clock seconds (both recorded; the filter of the one the criterion
+    uses decides). Draws from ``rng``: the criterion's (``random`` only), then the chosen
+    expert's action selection.
+    """
+    vrow = ALL_VALID if ag.valid.shape[0] == 0 else ag.valid[s]
+    h_mf = normalised_entropy(ag.mf.Q[s], vrow, ag.mf.params.tau)
+    h_mb = normalised_entropy(ag.mb.Q[s], vrow, ag.mb.params.tau)
+    table = ag.cost_time if ag.params.use_time else ag.cost
+    c_mf = table[EXPERT_MF, s]
+    c_mb = table[EXPERT_MB, s]
+    e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa, rng)
+    t0 = _now()
+    if e == EXPERT_MB:
+        backups = expert_plan(ag.mb, ag.valid)
+    else:
+        backups = expert_plan(ag.mf, ag.valid)
+    seconds = _now() - t0
+    alpha = ag.params.cost_alpha
+    ag.cost[e, s] = lowpass(ag.cost[e, s], float(backups), alpha)
+    ag.cost_time[e, s] = lowpass(ag.cost_time[e, s], seconds, alpha)
+    if e == EXPERT_MB:
+        a = core.act(ag.mb.Q, s, ag.mb.params, ag.valid, rng)
+    else:
+        a = core.act(ag.mf.Q, s, ag.mf.params, ag.valid, rng)
+    return a, e, h_mf, h_mb, c_mf, c_mb, backups, seconds
+
+
+@njit(cache=True)
+def learn(ag, s, a, r, s_next):
+    """Both experts learn from ``(s, a, r, s_next)`` (no randomness): MF's Q-learning
+    update, MB's model count and incremental backup (:func:`simlab.agents.core.learn`;
+    experts never plan here)."""
+    core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
+               core.NO_TERMINAL, 0)
+    core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
+               core.NO_TERMINAL, 0)
+
+
+# --------------------------------------------------------------------------- builders
+def make_expert(config: Any, n_states: int, n_actions: int) -> core.Learner:
+    """A fresh expert (:class:`simlab.agents.core.Learner`) of an agent ``config``
+    (:mod:`simlab.agents.config`): Q at the config's initial value (R-max: optimistic),
+    an empty count model for model-based kinds. Periodic planning is switched off
+    (``plan_every = 0``): an expert plans when the meta-controller picks it."""
+    from simlab.agents.config import PassiveObserverConfig
+    from simlab.agents.kernels import count_model_new, rmax_q_init
+    from simlab.errors import ConfigError
+
+    if isinstance(config, PassiveObserverConfig):
+        raise ConfigError("an expert is a single agent; the passive observer is the "
+                          "criterion 'mb' (MB decides, MF learns from its transitions)",
+                          key="experts")
+    p = core.agent_params(config)._replace(plan_every=0)
+    if p.kind == core.KIND_RMAX:
+        Q = rmax_q_init(n_states, n_actions, float(config.r_max), float(config.gamma))
+    else:
+        Q = np.full((n_states, n_actions), float(config.initial_value))
+    if p.kind == core.KIND_MF:
+        model = core.NO_MODEL
+    else:
+        model = count_model_new(n_states, n_actions, int(config.capacity))
+    return core.Learner(Q, model, p, core.Observer(core.NO_OBSERVER_Q, p, -1))
+
+
+def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: int, *,
+                    criterion: str = "entropy_and_cost", kappa: float = 1.0,
+                    cost_alpha: float = 0.6, use_time: bool = False,
+                    valid: np.ndarray | None = None) -> MetaAgent:
+    """A fresh :class:`MetaAgent`: experts of the two agent configs, per-state costs at 0.
+
+    ``criterion`` one of :data:`CRITERIA`; ``kappa`` >= 0; ``cost_alpha`` in (0, 1];
+    ``valid`` (S, A) bool actions allowed per state (None: all).
+    """
+    from simlab import validation
+    from simlab.errors import ConfigError
+
+    if criterion not in CRITERIA:
+        raise ConfigError(f"unknown criterion {criterion!r}", key="criterion",
+                          fix=f"choose one of {', '.join(CRITERIA)}")
+    validation.positive(kappa, "kappa", allow_zero=True)
+    if not (isinstance(cost_alpha, int | float) and 0.0 < cost_alpha <= 1.0):
+        raise ConfigError(f"expected a rate in (0, 1], got {cost_alpha!r}", key="cost_alpha")
+    mf = make_expert(mf_config, n_states, n_actions)
+    mb = make_expert(mb_config, n_states, n_actions)
+    return MetaAgent(mf, mb, np.zeros((2, n_states)), np.zeros((2, n_states)),
+                     MetaParams(criterion_code(criterion), float(kappa), float(cost_alpha),
+                                bool(use_time)),
+                     core.as_mask(valid, n_states, n_actions))

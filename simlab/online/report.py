@@ -1,0 +1,226 @@
+"""Summary, Parquet log, figures and markdown of ``simlab online`` (:mod:`simlab.online.command`).
+
+Definitions (per arm, each a mean over runs, with the standard deviation beside it):
+
+* ``reward`` — total reward over the run; ``reward_before`` / ``reward_after`` — before and
+  from the change on (None without a change);
+* ``backups`` / ``seconds`` — total planning cost of the deciding experts (deterministic,
+  wall clock); ``cost_vs_mb`` / ``seconds_vs_mb`` — divided by the ``mb`` arm's (None
+  without an ``mb`` arm); the same before / after the change;
+* ``mb_share`` — fraction of decisions planned by MB; ``mb_share_windows`` — per window of
+  ``window`` decisions;
+* ``recovery_decisions`` — decisions after the change until the reward rate of a window
+  (mean over runs) first reaches 80 % of the rate over the last ``3 * window`` decisions
+  before it (None: not within the run). ``rate_after_vs_before`` — reward rate after the
+  change over the rate before (whole phases).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab.io import atomic_write, atomic_write_bytes, atomic_write_json, atomic_write_text
+
+__all__ = ["MARKER", "summarize", "write_outputs"]
+
+#: ``summary.json``'s ``command`` value: what ``--overwrite`` recognises as its own.
+MARKER = "simlab online"
+
+#: Recovery threshold (fraction of the pre-change reward rate).
+RECOVERY = 0.8
+
+
+def _ms(x: np.ndarray) -> dict[str, float]:
+    return {"mean": float(np.mean(x)), "std": float(np.std(x))}
+
+
+def _windows(x: np.ndarray, w: int) -> np.ndarray:
+    """(runs, n) -> (runs, ceil(n / w)) means per window."""
+    runs, n = x.shape
+    k = -(-n // w)
+    pad = np.full((runs, k * w), np.nan)
+    pad[:, :n] = x
+    return np.nanmean(pad.reshape(runs, k, w), axis=2)
+
+
+def _stack(logs: list[dict[str, np.ndarray]], col: str) -> np.ndarray:
+    return np.stack([lg[col] for lg in logs]).astype(np.float64)
+
+
+def _recovery(reward: np.ndarray, at: int, w: int) -> int | None:
+    mean = reward.mean(axis=0)
+    lo = max(0, at - 3 * w)
+    before = mean[lo:at].mean() if at > lo else 0.0
+    if before <= 0:
+        return None
+    for end in range(at + w, mean.shape[0] + 1, max(1, w // 4)):
+        if mean[end - w:end].mean() >= RECOVERY * before:
+            return int(end - at)
+    return None
+
+
+def summarize(logs: dict[str, list[dict[str, np.ndarray]]], cfg: Any, task: Any, m: Any,
+              mf_cfg: Any, mb_cfg: Any) -> dict[str, Any]:
+    """The JSON-ready summary of every arm (module docstring)."""
+    import simlab
+    from simlab.agents.config import config_to_dict
+
+    at = task.changes[0].at if task.changes else None
+    arms: dict[str, Any] = {}
+    totals: dict[str, dict[str, np.ndarray]] = {}
+    for name, runs in logs.items():
+        r = _stack(runs, "reward")
+        b = _stack(runs, "backups")
+        sec = _stack(runs, "seconds")
+        e = _stack(runs, "expert")
+        rec: dict[str, Any] = {
+            "reward": _ms(r.sum(1)), "backups": _ms(b.sum(1)), "seconds": _ms(sec.sum(1)),
+            "mb_share": float(e.mean()),
+            "mb_share_windows": [round(float(x), 4) for x in _windows(e, cfg.window).mean(0)],
+        }
+        totals[name] = {"b": b.sum(1), "s": sec.sum(1)}
+        if at is not None:
+            rec["reward_before"] = _ms(r[:, :at].sum(1))
+            rec["reward_after"] = _ms(r[:, at:].sum(1))
+            rec["mb_share_before"] = float(e[:, :at].mean())
+            rec["mb_share_after"] = float(e[:, at:].mean())
+            rate_b = r[:, :at].mean()
+            rec["rate_after_vs_before"] = (float(r[:, at:].mean() / rate_b) if rate_b > 0
+                                           else None)
+            rec["recovery_decisions"] = _recovery(r, at, cfg.window)
+            totals[name].update(bb=b[:, :at].sum(1), ba=b[:, at:].sum(1))
+        arms[name] = rec
+    if "mb" in totals:
+        ref = totals["mb"]
+        for name, rec in arms.items():
+            t = totals[name]
+            rec["cost_vs_mb"] = float(t["b"].mean() / ref["b"].mean())
+            rec["seconds_vs_mb"] = float(t["s"].mean() / ref["s"].mean())
+            rec["reward_vs_mb"] = (rec["reward"]["mean"] / arms["mb"]["reward"]["mean"]
+                                   if arms["mb"]["reward"]["mean"] > 0 else None)
+            if at is not None:
+                rec["cost_vs_mb_before"] = float(t["bb"].mean() / ref["bb"].mean())
+                rec["cost_vs_mb_after"] = float(t["ba"].mean() / ref["ba"].mean())
+    return {
+        "command": MARKER,
+        "simlab_version": simlab.__version__,
+        "mdp": None if m.source is None else str(m.source),
+        "states": m.n_states, "actions": m.n_actions,
+        "task": task.as_dict(),
+        "change": None if not task.changes else task.changes[0].describe(),
+        "decisions": cfg.decisions, "seeds": cfg.seeds, "seed": cfg.seed,
+        "cost": cfg.cost, "cost_alpha": cfg.cost_alpha, "window": cfg.window,
+        "experts": {"mf": {"agent": cfg.mf, "config": config_to_dict(mf_cfg)},
+                    "mb": {"agent": cfg.mb, "config": config_to_dict(mb_cfg)}},
+        "arms": arms,
+    }
+
+
+def _markdown(summary: dict[str, Any]) -> str:
+    lines = [f"# simlab online: {summary['seeds']} runs x {summary['decisions']} decisions",
+             "", f"MDP: {summary['mdp'] or '(in memory)'} ({summary['states']} states, "
+             f"{summary['actions']} actions); change: {summary['change'] or 'none'}; cost "
+             f"measure deciding: {summary['cost']}.", ""]
+    change = summary["change"] is not None
+    head = "| arm | reward | cost vs MB | wall time vs MB | MB share |"
+    sep = "|---|---|---|---|---|"
+    if change:
+        head += " reward before | reward after | recovery (decisions) |"
+        sep += "---|---|---|"
+    lines += [head, sep]
+
+    def f(x: Any, spec: str = ".2f") -> str:
+        return "-" if x is None else format(x, spec)
+
+    for name, a in summary["arms"].items():
+        row = (f"| {name} | {a['reward']['mean']:.1f} ± {a['reward']['std']:.1f} | "
+               f"{f(a.get('cost_vs_mb'))} | {f(a.get('seconds_vs_mb'))} | "
+               f"{a['mb_share']:.2f} |")
+        if change:
+            row += (f" {a['reward_before']['mean']:.1f} | {a['reward_after']['mean']:.1f} | "
+                    f"{f(a['recovery_decisions'], 'd')} |")
+        lines.append(row)
+    lines += ["", "Costs are planning costs of the deciding expert (value-iteration backups; "
+              "wall-clock seconds beside them), relative to MB deciding alone."]
+    return "\n".join(lines) + "\n"
+
+
+def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, Any],
+             window: int) -> dict[str, bytes]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    at = summary["task"]["changes"][0]["at"] if summary["task"]["changes"] else None
+    out = {}
+    for fname, col, ylabel, cum in (
+            ("cumulative_reward.png", "reward", "cumulative reward", True),
+            ("cumulative_cost.png", "backups", "cumulative planning cost (backups)", True),
+            ("mb_share.png", "expert", f"share of MB decisions (window {window})", False)):
+        fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+        ax = fig.add_subplot()
+        for name, runs in logs.items():
+            x = _stack(runs, col)
+            if cum:
+                y = np.cumsum(x, axis=1)
+                t = np.arange(1, y.shape[1] + 1)
+                mean, std = y.mean(0), y.std(0)
+                ax.plot(t, mean, label=name)
+                ax.fill_between(t, mean - std, mean + std, alpha=0.15)
+            else:
+                y = _windows(x, window).mean(0)
+                t = (np.arange(y.shape[0]) + 0.5) * window
+                ax.plot(t, y, marker="o", ms=3, label=name)
+        if at is not None:
+            ax.axvline(at, color="k", ls="--", lw=1, label="change")
+        if col == "backups":
+            ax.set_yscale("symlog")
+        ax.set_xlabel("decision")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=7)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=90)
+        out[fname] = buf.getvalue()
+    return out
+
+
+def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[str, np.ndarray]]],
+                  summary: dict[str, Any], cfg: Any) -> None:
+    """Write every output to its staged path of the transaction ``txn``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    cols: dict[str, list[np.ndarray]] = {}
+    for name, runs in logs.items():
+        for i, lg in enumerate(runs):
+            n = lg["s"].shape[0]
+            extra = {"arm": np.full(n, name, dtype=object), "seed": np.full(n, i, np.int32),
+                     "t": np.arange(n, dtype=np.int32)}
+            for k, val in {**extra, **lg}.items():
+                if k == "expert":
+                    val = np.where(val == 1, "MB", "MF").astype(object)
+                cols.setdefault(k, []).append(val)
+    table = pa.table({k: pa.array(np.concatenate(v)) for k, v in cols.items()})
+    with atomic_write(txn.path(finals["decisions.parquet"]), "wb") as fh:
+        pq.write_table(table, fh)
+    if cfg.plots:
+        for fname, data in _figures(logs, summary, cfg.window).items():
+            atomic_write_bytes(txn.path(finals[fname]), data)
+    summary = {**summary, "files": {k: str(p) for k, p in finals.items()}}
+    atomic_write_json(txn.path(finals["summary.json"]), summary)
+    atomic_write_text(txn.path(finals["summary.md"]), _markdown(summary))
+
+
+def owned_by_online(out: Path) -> bool:
+    """True when ``out/summary.json`` was written by ``simlab online`` (its marker)."""
+    import json
+
+    try:
+        return json.loads((Path(out) / "summary.json").read_text()).get("command") == MARKER
+    except (OSError, ValueError, AttributeError):
+        return False
