@@ -698,8 +698,12 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
             for c, ns, raw in r.messages(connections=conns):
                 topics.setdefault(c.topic, []).append(
                     (ns, ts.deserialize_cdr(raw, c.msgtype), c.msgtype))
+    except DataError:
+        raise
     except rb.ReaderError as exc:
-        raise DataError(f"{path}: not a readable ROS 2 bag ({exc})") from None
+        raise DataError(f"{path}: not a readable ROS 2 bag ({' '.join(str(exc).split()).rstrip('.')}; "
+                        f"a recording that was cut off can be rescued with `mcap recover`)"
+                        ) from None
     except _READ_FAILURES as exc:
         raise DataError(f"{path}: damaged bag, a message cannot be read "
                         f"({type(exc).__name__}: {exc})") from None
@@ -710,6 +714,8 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
             t0 = int(custom["simlab.time_origin_ns"]) * 1e-9
     try:
         traj = _trajectory(topics, pose_topic, scan_topic, action_topic, t0, path)
+    except DataError:
+        raise
     except _READ_FAILURES as exc:
         raise DataError(f"{path}: damaged bag, a message does not hold what its type says "
                         f"({type(exc).__name__}: {exc})") from None
