@@ -88,6 +88,13 @@ __all__ = [
 #: Relative tolerance of "equal expected steps" (ties, real-optimal actions).
 TIE_RTOL = 1e-9
 
+#: What a twin's choice of a pair the real robot never tried means (``untried`` option).
+UNTRIED_RULES = {
+    "stay": "the twin's policy as it is; an untried real (s, a) keeps the robot in place, "
+            "so it never arrives from there",
+    "mask": "the twin's policy chosen among the (s, a) the real robot tried",
+}
+
 #: Files of ``simlab transfer`` in its ``--out`` directory.
 FILES = ("transfer.json", "transfer.md", "transfer.png")
 
@@ -500,17 +507,23 @@ def twin_columns(twin: ActionSet | None, real: ActionSet | None, *, n_twin: int,
     return np.array(cols, dtype=np.int64)
 
 
-def policy_from_q(table: QTable, columns: NDArray[np.int64]) -> NDArray[np.int64]:
+def policy_from_q(table: QTable, columns: NDArray[np.int64],
+                  restrict: NDArray[np.bool_] | None = None) -> NDArray[np.int64]:
     """(S,) real-numbered greedy policy of a Q-table through the twin ``columns``.
 
     The stored ``greedy`` action when it is one of the real actions and valid; else the
     argmax of ``Q`` over the valid real columns (ties to the lowest real index; a state
-    with no valid real column considers all of them).
+    with no valid real column considers all of them). ``restrict`` (S, A_real) bool narrows
+    the valid actions further where it leaves any (the real robot's tried pairs, rule
+    ``untried="mask"`` of :func:`transfer_report`).
     """
     Q = table.Q[:, columns]
     S, A = Q.shape
     valid = np.ones((S, A), dtype=bool) if table.valid is None else table.valid[:, columns]
     valid = valid | ~valid.any(axis=1, keepdims=True)
+    if restrict is not None:
+        narrowed = valid & restrict
+        valid = np.where(narrowed.any(axis=1, keepdims=True), narrowed, valid)
     pi = np.argmax(np.where(valid, Q, -np.inf), axis=1).astype(np.int64)
     if table.greedy is not None:
         inverse = {int(c): a for a, c in enumerate(columns)}
@@ -533,7 +546,10 @@ class TwinScore:
     ``policy`` (S,) real action numbers; ``steps`` (S,) expected decisions to the goal on
     the real model (inf: never); ``excess`` (S,) ``steps - optimum`` (nan where the optimum
     is infinite, 0 at goal states); ``disagree`` (S,) bool the action is not a real-optimal
-    one (False at goal states and where the optimum is infinite); ``untried`` (S,) bool the
+    one (False at goal states and where the optimum is infinite); ``regret`` (S,) one-step
+    regret, the extra expected steps of taking the twin's action once and then acting
+    optimally, ``Q*(s, pi(s)) - V*(s)`` (inf for an untried action, nan where the optimum is
+    infinite, 0 at goal states); ``untried`` (S,) bool the
     action was never tried by the real robot there; ``mean_steps`` the weighted mean over
     the start states; ``never_share`` share (weighted) of start states that never arrive.
     """
@@ -543,6 +559,7 @@ class TwinScore:
     steps: NDArray[np.float64]
     excess: NDArray[np.float64]
     disagree: NDArray[np.bool_]
+    regret: NDArray[np.float64]
     untried: NDArray[np.bool_]
     mean_steps: float
     never_share: float
@@ -595,6 +612,7 @@ class TransferResult:
     action_set: ActionSet | None
     weighting: str
     centres: NDArray[np.float64] | None = None
+    untried: str = "stay"
 
     def to_json(self) -> dict[str, Any]:
         """Plain types; infinite steps are ``null`` ("never")."""
@@ -604,20 +622,25 @@ class TransferResult:
             "twins": list(self.twin_names),
             "action_set": None if self.action_set is None else self.action_set.to_json(),
             "weights": self.weighting,
-            "rule_untried": "an untried real (s, a) keeps the robot in place: never arrives",
+            "untried": self.untried,
+            "untried_rule": UNTRIED_RULES[self.untried],
             "goals": [_goal_json(g) for g in self.goals],
         }
 
     def summary_line(self) -> str:
-        """``twin policy: mean X steps, worst Y, real optimum Z (+N %)`` (first goal; one
-        such clause per goal when there are several)."""
+        """``twin policy: mean X steps, worst Y, real optimum Z (+N %)``, one such clause
+        per goal (prefixed by its name when there are several); a mean over twins of which
+        some never arrive says how many."""
         parts = []
         for g in self.goals:
             s = g.summary()
             label = "twin policy" if len(self.goals) == 1 else f"goal {g.name}: twin policy"
-            parts.append(f"{label}: mean {_steps(s['mean'])} steps, worst "
-                         f"{_steps(s['worst'])}, real optimum {_steps(g.optimum_mean)} "
-                         f"({_pct(s['excess'])})")
+            never = int(np.sum(~np.isfinite(g.means)))
+            mean = (f"mean {_steps(s['mean'])} steps" if math.isfinite(s["mean"]) else
+                    f"{never} of {len(g.twins)} twin(s) never arrive from some start, best "
+                    f"{_steps(s['best'])} steps")
+            parts.append(f"{label}: {mean}, worst {_steps(s['worst'])}, real optimum "
+                         f"{_steps(g.optimum_mean)} ({_pct(s['excess'])})")
         return "; ".join(parts)
 
 
@@ -656,7 +679,7 @@ def _goal_json(g: GoalTransfer) -> dict[str, Any]:
             "disagreements": int(t.disagree.sum()),
             "untried_choices": int(t.untried.sum()),
             "policy": t.policy.tolist(), "steps": _floats(t.steps),
-            "excess": _floats(t.excess),
+            "excess": _floats(t.excess), "regret": _floats(t.regret),
             "disagree_states": np.flatnonzero(t.disagree).tolist(),
         } for t in g.twins],
     }
@@ -704,7 +727,8 @@ def _weighted_mean(values: NDArray[np.float64], w: NDArray[np.float64]) -> float
 
 
 def _twin_policy_for(twin: TransferModel | QTableTwin, goal: NDArray[np.bool_], name: str,
-                     columns: NDArray[np.int64]) -> NDArray[np.int64]:
+                     columns: NDArray[np.int64], restrict: NDArray[np.bool_] | None
+                     ) -> NDArray[np.int64]:
     if isinstance(twin, QTableTwin):
         table = twin.table_for(goal)
         if table is None:
@@ -712,8 +736,11 @@ def _twin_policy_for(twin: TransferModel | QTableTwin, goal: NDArray[np.bool_], 
                               f"{np.flatnonzero(goal).tolist()})", path=twin.name,
                               key="goal", fix="train it with simlab train --goal-states, or "
                               "choose --goal-states of a trained goal")
-        return policy_from_q(table, columns)
-    return twin_policy(twin.T[:, columns], goal, twin.allowed[:, columns])
+        return policy_from_q(table, columns, restrict)
+    mask = twin.allowed[:, columns]
+    if restrict is not None:
+        mask = mask & restrict
+    return twin_policy(twin.T[:, columns], goal, mask)
 
 
 def transfer_report(
@@ -723,6 +750,7 @@ def transfer_report(
     starts: ArrayLike | None = None,
     *,
     weights: str = "uniform",
+    untried: str = "stay",
 ) -> TransferResult:
     """Score each twin's policy on the real model, for each goal.
 
@@ -739,6 +767,11 @@ def transfer_report(
             robot left (visits > 0, else any tried pair).
         weights: ``uniform`` over the start states, or ``visits`` (the real decisions taken
             in each start state).
+        untried: ``stay`` (default): the twin's policy as it is; where it picks a pair the
+            real robot never tried, the robot stays put (never arrives from there, module
+            docstring). ``mask``: the twin's policy is chosen among the pairs the real
+            robot tried (a twin that knows the real coverage); the strict score is then
+            no longer what the twin alone would do.
 
     Returns:
         A :class:`TransferResult`; steps in decisions (actions), ``inf`` = never arrives.
@@ -753,6 +786,9 @@ def transfer_report(
         raise ConfigError("no goal", key="goal_states", fix="give --goal-states, e.g. 18,34")
     if weights not in ("uniform", "visits"):
         raise ConfigError(f"expected uniform or visits, got {weights!r}", key="weights")
+    if untried not in UNTRIED_RULES:
+        raise ConfigError(f"expected stay or mask, got {untried!r}", key="untried")
+    restrict = real.allowed if untried == "mask" else None
     S, A = real.n_states, real.n_actions
     cols = []
     for t in twins:
@@ -774,18 +810,21 @@ def transfer_report(
         opt_mean = _weighted_mean(V[st], w)
         scores = []
         for t, c in zip(twins, cols, strict=True):
-            pi = _twin_policy_for(t, g, gname, c)
+            pi = _twin_policy_for(t, g, gname, c, restrict)
             steps = _evaluate_policy(real.T, pi, g, real.allowed)
             fin = np.isfinite(V)
             excess = np.where(fin, steps - np.where(fin, V, 0.0), np.nan)
             excess[g] = 0.0
             disagree = fin & ~g & ~best_actions[np.arange(S), pi]
-            untried = ~g & ~real.allowed[np.arange(S), pi]
+            regret = np.where(fin, Q[np.arange(S), pi] - np.where(fin, V, 0.0), np.nan)
+            regret[g] = 0.0
             mean = _weighted_mean(steps[st], w)
             never = float(np.sum(w[~np.isfinite(steps[st])])) if st.size else 0.0
             ratio = mean / opt_mean if opt_mean > 0 else math.nan
             scores.append(TwinScore(name=t.name, policy=pi, steps=steps, excess=excess,
-                                    disagree=disagree, untried=untried, mean_steps=mean,
+                                    disagree=disagree, regret=regret,
+                                    untried=~g & ~real.allowed[np.arange(S), pi],
+                                    mean_steps=mean,
                                     never_share=never, ratio=ratio))
         out.append(GoalTransfer(name=str(gname), goal=g, starts=st, weights=w,
                                 unreachable_starts=unreachable, optimum=V,
@@ -793,7 +832,7 @@ def transfer_report(
     return TransferResult(goals=tuple(out), real_name=real.name,
                           twin_names=tuple(t.name for t in twins),
                           action_set=real.action_set, weighting=weights,
-                          centres=real.centres)
+                          centres=real.centres, untried=untried)
 
 
 # --------------------------------------------------------------------------------------
@@ -809,9 +848,11 @@ def transfer_markdown(result: TransferResult) -> str:
     out.write(f"Real model: `{result.real_name}` ({aset}). Twins: "
               + ", ".join(f"`{n}`" for n in result.twin_names) + ".\n\n"
               "Steps are expected decisions to the goal on the real model; \"never\" = the "
-              "policy is not sure to arrive. A real (s, a) the robot never tried keeps it in "
-              "place, so a twin policy that picks one there never arrives. Start states are "
-              f"weighted `{result.weighting}`.\n")
+              f"policy is not sure to arrive. Rule `{result.untried}`: "
+              f"{UNTRIED_RULES[result.untried]}. A state disagrees when the twin's action is "
+              "not one of the real optimal ones; its one-step regret is the extra expected "
+              "steps of that action once. Start states are weighted "
+              f"`{result.weighting}`.\n")
     for g in result.goals:
         s = g.summary()
         out.write(f"\n## Goal {g.name} (states {', '.join(map(str, np.flatnonzero(g.goal)))})"
@@ -821,11 +862,14 @@ def transfer_markdown(result: TransferResult) -> str:
             out.write(f" Dropped: start states {list(g.unreachable_starts)}, from which no "
                       "real policy reaches the goal.")
         out.write("\n\n| twin | mean steps | / optimum | starts never arriving | "
-                  "states disagreeing | untried real pairs chosen |\n|---|---|---|---|---|---|\n")
+                  "states disagreeing | their mean one-step regret (steps) | "
+                  "untried real pairs chosen |\n|---|---|---|---|---|---|---|\n")
         for t in g.twins:
             ratio = "never" if math.isinf(t.ratio) else _cell(t.ratio, "{:.3f}")
+            r = t.regret[t.disagree]
+            regret = "never" if np.isinf(r).any() else (f"{r.mean():.2f}" if r.size else "-")
             out.write(f"| `{t.name}` | {_steps(t.mean_steps)} | {ratio} | "
-                      f"{100 * t.never_share:.0f} % | {int(t.disagree.sum())} | "
+                      f"{100 * t.never_share:.0f} % | {int(t.disagree.sum())} | {regret} | "
                       f"{int(t.untried.sum())} |\n")
         out.write(f"\nAcross {len(g.twins)} twin(s): mean {_steps(s['mean'])}, worst "
                   f"{_steps(s['worst'])}, best {_steps(s['best'])}, spread (std) "
@@ -1076,6 +1120,10 @@ class TransferConfig(ActionSetOptions):
         parse=str)
     weights: str = option("uniform", "mean over the start states: uniform, or weighted by "
                           "the real visits of each", choices=("uniform", "visits"))
+    untried: str = option(
+        "stay", "a twin action the real robot never tried in that state: stay = it stays "
+        "put there (never arrives); mask = choose the twin's policy among the tried ones",
+        choices=tuple(UNTRIED_RULES))
     plot: bool = option(True, "the figure transfer.png (--no-plot skips it)")
     overwrite: bool = option(False, "replace the outputs of an earlier `simlab transfer`")
 
@@ -1204,7 +1252,8 @@ def transfer_command(cfg: TransferConfig) -> TransferFiles:
     real = _real_model(cfg, n_states, disc)
     goals = _goals(cfg, real, twins)
     try:
-        result = transfer_report(real, twins, goals, cfg.start_states, weights=cfg.weights)
+        result = transfer_report(real, twins, goals, cfg.start_states, weights=cfg.weights,
+                                 untried=cfg.untried)
     except ConfigError as exc:
         if exc.path is not None or exc.key not in ("goal_states", "start_states"):
             raise

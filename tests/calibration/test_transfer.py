@@ -367,3 +367,30 @@ def test_cli_count_file_and_the_q_tables_goal(files, tmp_path, capsys) -> None:
     assert g["optimum_mean"] == pytest.approx((2.5 + 1.25) / 2)
     assert g["twins"][0]["mean_steps"] == pytest.approx(g["optimum_mean"])
     assert not (out / "transfer.png").exists()
+
+
+def test_untried_rule_mask_plans_the_twin_on_the_real_robots_tried_pairs() -> None:
+    # a line 0 - 1 - 2 - 3 (goal): left, right, and a slow right that succeeds w.p. 1/2;
+    # the real robot never tried "right" at 1, so its optimum there is the slow one (2 steps)
+    P = np.zeros((4, 3, 4))
+    for s in range(4):
+        P[s, 0, max(s - 1, 0)] = 1.0
+        P[s, 1, min(s + 1, 3)] = 1.0
+        P[s, 2, [s, min(s + 1, 3)]] += 0.5
+    allowed = np.ones((4, 3), dtype=bool)
+    allowed[1, 1] = False
+    real = TransferModel(T=P, allowed=allowed, name="real")
+    twin = TransferModel(T=P, allowed=np.ones((4, 3), dtype=bool), name="twin")
+    stay = transfer_report(real, [twin], {"end": [3]}).goals[0]
+    mask = transfer_report(real, [twin], {"end": [3]}, untried="mask").goals[0]
+    np.testing.assert_allclose(stay.optimum, [4.0, 3.0, 1.0, 0.0])
+    t = stay.twins[0]
+    assert t.policy.tolist()[:3] == [1, 1, 1] and t.untried.tolist() == [False, True,
+                                                                          False, False]
+    assert np.isinf(t.steps[:2]).all() and np.isinf(t.regret[1])
+    m = mask.twins[0]
+    assert m.policy.tolist()[:3] == [1, 2, 1] and not m.untried.any()
+    np.testing.assert_allclose(m.steps, stay.optimum)
+    np.testing.assert_allclose(m.regret, 0.0)
+    with pytest.raises(ConfigError, match="untried"):
+        transfer_report(real, [twin], {"end": [3]}, untried="ignore")
