@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
 from simlab.calibration.report import check_outputs, write_outputs
 from simlab.calibration.search import (
@@ -22,7 +24,7 @@ from simlab.calibration.search import (
     calibrate,
     default_base,
 )
-from simlab.calibration.space import ParameterSpace, default_space, load_space
+from simlab.calibration.space import ParameterSpace, load_space
 from simlab.errors import ConfigError
 from simlab.options import command, option
 
@@ -65,6 +67,37 @@ class CalibrateFiles:
     files: dict[str, Path]
 
 
+def _real_table(real: str | os.PathLike[str], n_states: int, aset: ActionSet | None,
+                real_hours: float | None) -> RealTable:
+    """The real counts: a count file read in ``aset`` (default simlab's 16), or an
+    ``mdp.npz`` of ``simlab estimate --counts``, which records its action set once: a
+    different ``aset`` given beside it is refused, naming both."""
+    from simlab.data.counts import load_counts
+
+    if Path(real).suffix.lower() == ".npz":
+        from simlab.data.mdp import load_mdp
+
+        mdp = load_mdp(real)
+        if mdp.counts is None:
+            raise ConfigError("this MDP holds no counts to calibrate against", path=real,
+                              fix="estimate it with simlab estimate --counts (it keeps them)")
+        recorded = mdp.action_set or SIMLAB16
+        if aset is not None and aset != recorded:
+            raise ConfigError(f"the MDP records {recorded.describe()}, the options say "
+                              f"{aset.describe()}", path=real, key="action_set",
+                              fix="drop --n-actions/--convention/--speed: the MDP's record "
+                              "is used")
+        if mdp.n_states != n_states:
+            raise ConfigError(f"the MDP has {mdp.n_states} states, the states file "
+                              f"{n_states}", path=real, key="states",
+                              fix="use the states file the real counts were numbered by")
+        return RealTable(counts=np.asarray(mdp.counts, dtype=np.int64), action_set=recorded,
+                         hours=real_hours, source=str(real))
+    aset = SIMLAB16 if aset is None else aset
+    table = load_counts(real, n_states=n_states, n_actions=aset.n_actions)
+    return RealTable(counts=table.counts, action_set=aset, hours=real_hours, source=str(real))
+
+
 def calibrate_files(
     real: str | os.PathLike[str],
     states: str | os.PathLike[str],
@@ -81,37 +114,49 @@ def calibrate_files(
     """Calibrate against the count table ``real`` and write the outputs into ``out``.
 
     Args:
-        real: real counts (CSV, JSON or ISIR JSON; :func:`simlab.data.counts.load_counts`).
+        real: real counts (CSV, JSON or ISIR JSON; :func:`simlab.data.counts.load_counts`),
+            or an ``mdp.npz`` of ``simlab estimate --counts`` (its recorded action set is
+            used; a different ``action_set`` is refused).
         states: states file the real states are numbered by.
         arena: arena name or TOML path.
         out: output directory (see :mod:`simlab.calibration.report`).
         config: search options (:class:`CalibrationConfig`).
-        action_set: meaning of the real actions (default simlab's 16).
+        action_set: meaning of the real actions (default simlab's 16, or the MDP's record).
         real_hours: duration of the real data (h); fits the decision latency when given.
         space: searched fields (TOML path or object); default
-            :func:`~simlab.calibration.space.default_space`.
-        primitives: ``[primitives]`` TOML to start from (default: the record's defaults).
-        overwrite: replace existing outputs.
+            :func:`~simlab.calibration.space.default_space` sized from the real table.
+        primitives: ``[primitives]`` TOML to start from (default: the record's defaults,
+            switched to the mode the real table's signature asks for).
+        overwrite: replace outputs of an earlier ``simlab calibrate`` in ``out``.
     """
-    from simlab.data.counts import load_counts
     from simlab.physics.inputs import load_arena_config, load_discretizer
 
     config = CalibrationConfig() if config is None else config
-    aset = SIMLAB16 if action_set is None else action_set
     check_outputs(out, overwrite=overwrite)
     disc = load_discretizer(states)
-    table = load_counts(real, n_states=int(disc.n_states), n_actions=aset.n_actions)
-    rt = RealTable(counts=table.counts, action_set=aset, hours=real_hours,
-                   source=str(real))
-    base = load_base(primitives, config.simulator)
-    if space is None:
-        sp = default_space(aset.primitives(), config.simulator)
-    else:
+    rt = _real_table(real, int(disc.n_states), action_set, real_hours)
+    base = None if primitives is None else load_base(primitives, config.simulator)
+    sp = None
+    if space is not None:
         sp = space if isinstance(space, ParameterSpace) else load_space(space)
-    sp.check_fields(base)
+        sp.check_fields(base if base is not None else default_base(config.simulator))
     arena_cfg = load_arena_config(arena)
     result = calibrate(rt, arena_cfg, disc, space=sp, base=base, config=config)
-    return CalibrateFiles(result=result, files=write_outputs(result, out, overwrite=overwrite))
+    files = write_outputs(result, out, overwrite=overwrite, grid=_map_of(arena_cfg), disc=disc)
+    return CalibrateFiles(result=result, files=files)
+
+
+def _map_of(arena_cfg: Any) -> Any:
+    """The occupancy map of a map-built arena (drawn under the transfer figure), else None."""
+    path = getattr(arena_cfg, "map_yaml", None)
+    if path is None:
+        return None
+    from discretize.mapio import read_map
+
+    try:
+        return read_map(path)
+    except (OSError, ValueError, ConfigError):
+        return None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -128,31 +173,52 @@ class CalibrateConfig(ActionSetOptions):
     states: Any = option(help="states file (JSON of `simlab discretize`) the real states use")
     arena: Any = option("table", "arena name or TOML")
     out: Path = option(help="output directory: primitives.toml, report.json/.md, figure")
-    hours_per_candidate: float = option(2.0, "simulated hours of each candidate's walk")
-    candidates: int = option(16, "candidates evaluated, the starting point included")
-    workers: int = option(2, "candidates simulated in parallel processes")
+    hours_per_candidate: float | None = option(
+        None, "simulated hours of each screening walk (default: --screen-share of the real "
+        "transitions)")
+    screen_share: float = option(0.25, "screening walk size as a share of the real "
+                                 "transitions")
+    candidates: int = option(16, "candidates screened, the starting point included")
+    confirm_top: int = option(3, "best screened candidates re-simulated on fresh seeds "
+                              "(the starting point too); the winner is picked there")
+    confirm_seeds: int = option(2, "fresh seeds of each confirmed candidate")
+    confirm_hours: float | None = option(
+        None, "simulated hours of each confirming walk (default: sized from the matched "
+        "floor, printed in the report)")
+    transfer_seeds: int = option(5, "twin seeds of the transfer report (0: none)")
+    goal_states: Any | None = option(
+        None, "goal states of the transfer report, e.g. 18,34 (default: every state)",
+        metavar="LIST")
+    start_states: Any | None = option(
+        "all", "where the walks start: all (one walk per state, default), a list such as "
+        "0,5,12, or none (the arena's start pose)", metavar="all|none|LIST")
+    workers: int = option(2, "walks simulated in parallel processes")
+    address: str | None = option(None, "Ray cluster address: simulate the walks as Ray "
+                                 "tasks there (default: local processes)")
     real_hours: float | None = option(
         None, "duration of the real data in hours; fits the decision latency (default: "
         "unknown, latency kept)")
     space: Any | None = option(
-        None, "TOML [parameters.NAME] low/high/scale of the searched fields (default: drive "
-        "time, used speeds, detector margin)")
+        None, "TOML [parameters.NAME] low/high/scale (or choices) of the searched fields "
+        "(default: mode, drive times, detector margin, localization and wheel noise, the "
+        "speed of an 8-action robot; ranges sized from the real cells)")
     primitives: Any | None = option(
-        None, "[primitives] TOML to start from (default: built-in defaults)")
+        None, "[primitives] TOML to start from (default: built-in defaults in the mode the "
+        "real table's signature asks for)")
     simulator: str = option("physics", "physics or the physics-free kinematic dry run",
                             choices=("physics", "kinematic"))
     pose_source: str = option("truth", "pose source of the simulated walks")
     n_boot: int = option(200, "bootstrap resamples of the sampling floor")
-    unvisited: str = option("report", "real pairs never simulated: report them or count "
-                            "them as distance 1 (max)", choices=("report", "max"))
+    unvisited: str = option("max", "real pairs the simulation never tried: a full miss "
+                            "(max, default) or left out and reported", choices=("report", "max"))
     objective: str = option(
         "excess", "minimised: the TV distance in excess of its sampling floor (unbiased with "
         "few real visits per pair), the plain visit-weighted TV distance, or bits per real "
         "transition under the simulated T", choices=("excess", "tv", "loglik"))
-    confirm: bool = option(True, "re-simulate the winner on a fresh seed (--no-confirm "
-                           "skips it)")
+    confirm: bool = option(True, "re-simulate the best candidates on fresh seeds and pick "
+                           "the winner there (--no-confirm skips it, and the transfer report)")
     seed: int = option(0, "seed of walks and search")
-    overwrite: bool = option(False, "replace existing outputs")
+    overwrite: bool = option(False, "replace the outputs of an earlier simlab calibrate")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
 
     def validate(self) -> None:
@@ -170,14 +236,40 @@ class CalibrateConfig(ActionSetOptions):
             hours_per_candidate=self.hours_per_candidate, candidates=self.candidates,
             workers=self.workers, seed=self.seed, simulator=self.simulator,
             pose_source=self.pose_source, n_boot=self.n_boot, unvisited=self.unvisited,
-            objective=self.objective, confirm=self.confirm, progress=self.progress)
+            objective=self.objective, confirm=self.confirm, progress=self.progress,
+            screen_share=self.screen_share, confirm_hours=self.confirm_hours,
+            confirm_top=self.confirm_top, confirm_seeds=self.confirm_seeds,
+            transfer_seeds=self.transfer_seeds, address=self.address,
+            start_states=None if str(self.start_states).strip().lower() == "none"
+            else self.start_states,
+            goal_states=_state_list(self.goal_states))
 
-    def real_action_set(self) -> ActionSet:
-        """What the real table's actions mean. ``speed`` is kept as given even for 16
-        actions, where it changes nothing but the report's record (the command always
+    def real_action_set(self) -> ActionSet | None:
+        """What the real table's actions mean; None when no field of the group was given
+        (simlab's 16, or the record of an ``mdp.npz``). ``speed`` is kept as given even for
+        16 actions, where it changes nothing but the report's record (the command always
         did so; :meth:`make_action_set` would record "slow")."""
+        if not self.action_set_given:
+            return None
         n = 16 if self.n_actions is None else self.n_actions
         return parse_action_set(n, self.convention, self.speed)
+
+
+def _state_list(value: Any) -> tuple[int, ...] | None:
+    """``18,34`` (or a list) as state ids; ConfigError naming ``goal_states`` otherwise."""
+    if value is None:
+        return None
+    items = value.split(",") if isinstance(value, str) else list(value)
+    try:
+        if any(isinstance(x, bool | float) for x in items):
+            raise ValueError
+        ids = tuple(int(str(x).strip()) for x in items)
+    except (TypeError, ValueError):
+        raise ConfigError(f"expected state numbers such as 18,34, got {value!r}",
+                          key="goal_states") from None
+    if not ids:
+        raise ConfigError("no goal state given", key="goal_states", fix="e.g. 18,34")
+    return ids
 
 
 @command(CalibrateConfig)

@@ -10,7 +10,13 @@ temporary sibling and renamed):
 * ``report.json`` — everything, machine-readable;
 * ``report.md`` — sim vs real side by side;
 * ``calibration.png`` — distance of every candidate over the search (with the floor band)
-  and the mean next-state entropy per action, sim vs real.
+  and the mean next-state entropy per action, sim vs real;
+* ``transfer.png`` — with twin seeds: the transfer of twin policies to the real model
+  (:mod:`simlab.calibration.transfer`) for the goal where the twins do worst.
+
+All of them are written in one output transaction (:func:`simlab.io.output_transaction`):
+a failed or killed run leaves the previous outputs as they were, and ``overwrite``
+replaces only these names.
 """
 
 from __future__ import annotations
@@ -25,9 +31,15 @@ from typing import Any
 import numpy as np
 
 from simlab.calibration.search import CalibrationResult
-from simlab.io import atomic_write, atomic_write_json, atomic_write_text, ensure_new
+from simlab.io import (
+    atomic_write,
+    atomic_write_json,
+    atomic_write_text,
+    ensure_new,
+    output_transaction,
+)
 
-FILES = ("primitives.toml", "report.json", "report.md", "calibration.png")
+FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
 
 
 def output_paths(out: str | os.PathLike[str]) -> dict[str, Path]:
@@ -109,7 +121,53 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
                         "wall_seconds": c.sim.wall_seconds} for c in result.candidates],
         "wall_seconds": result.wall_seconds,
         "notes": result.notes,
+        "warnings": result.warnings,
+        "screen_best_candidate": result.screen_best,
+        "coverage": coverage(result),
+        "signature": None if result.signature is None else result.signature.to_json(),
+        "budgets": None if result.budgets is None else result.budgets.to_json(),
+        "confirmed": [{"index": c.index, "seed": c.seed, "distance": _fin(c.distance),
+                       "score": _fin(c.score), "rows": c.sim.rows}
+                      for c in result.confirmed],
+        "transfer": None if result.transfer is None else {
+            "overview": transfer_overview(result.transfer),
+            **result.transfer.to_json()},
     }
+
+
+def coverage(result: CalibrationResult) -> dict[str, Any]:
+    """How much of the real data the calibrated twin's walk covers: real (s, a) pairs
+    tried, the share of the real transitions on them, and the states reached."""
+    tv = result.final.tv
+    n_real = result.real.counts.sum(axis=2)
+    n_sim = result.final.sim.counts
+    reached = (n_sim.sum(axis=(1, 2)) > 0) | (n_sim.sum(axis=(0, 1)) > 0)
+    return {"real_pairs": int((n_real > 0).sum()), "real_pairs_tried": tv.common,
+            "real_weight_tried": _fin(1.0 - tv.real_weight_uncovered),
+            "states_reached": int(reached.sum()), "states": int(reached.size)}
+
+
+def transfer_overview(transfer: Any) -> dict[str, Any]:
+    """One figure per twin over every goal: the ratio of the twin policy's expected steps
+    to the real optimum, summed over the goals (a random start and a random goal), the
+    worst goal's ratio and the goals never reached; then the mean and worst over twins."""
+    twins = []
+    opt = np.array([g.optimum_mean for g in transfer.goals])
+    ok = np.isfinite(opt) & (opt > 0)
+    for k, name in enumerate(transfer.twin_names):
+        steps = np.array([g.twins[k].mean_steps for g in transfer.goals])
+        ratios = np.where(ok, steps / np.where(ok, opt, 1.0), np.nan)
+        never = int(np.sum(ok & ~np.isfinite(steps)))
+        total = float(steps[ok].sum() / opt[ok].sum()) if ok.any() else math.nan
+        worst_i = int(np.nanargmax(ratios)) if np.isfinite(ratios).any() or never else -1
+        twins.append({"twin": name, "ratio": _fin(total),
+                      "worst_goal": transfer.goals[worst_i].name if worst_i >= 0 else None,
+                      "worst_goal_ratio": _fin(float(ratios[worst_i])) if worst_i >= 0
+                      else None, "goals_never": never})
+    r = np.array([t["ratio"] if t["ratio"] is not None else math.inf for t in twins])
+    return {"goals": len(transfer.goals), "twins": twins,
+            "mean_ratio": _fin(float(r.mean())) if r.size else None,
+            "worst_ratio": _fin(float(r.max())) if r.size else None}
 
 
 def _cell(v: Any, fmt: str = "{:.3f}") -> str:
@@ -138,13 +196,30 @@ def report_markdown(result: CalibrationResult) -> str:
         ("blocked rate", _cell(r["blocked_rate"]), _cell(s["blocked_rate"])),
     ]
     out = io.StringIO()
+    cfg = result.config
     out.write(f"# Calibration against {result.real.source or 'the real table'}\n\n")
-    out.write(f"Real actions: {result.real.action_set.describe()}; simulator "
-              f"`{result.config.simulator}`, {result.config.hours_per_candidate:g} h per "
-              f"candidate, {len(result.candidates)} candidates, seed {result.config.seed}.\n\n")
-    sim = result.final.sim
-    out.write(f"The simulated walk draws all 16 primitives; the {sim.rows} of its {sim.walk_rows} "
-              "transitions whose primitive is one of the real actions are compared.\n\n")
+    for w in result.warnings:
+        out.write(f"> **Warning:** {w}.\n\n")
+    starts = cfg.start_states
+    where = ("every state's centre (one walk each)" if str(starts).lower() == "all" else
+             "the arena's start pose" if starts is None else f"states {starts}")
+    out.write(f"Real actions: {result.real.action_set.describe()}; the simulated walks draw "
+              f"the same actions' primitives uniformly, starting from {where}. Simulator "
+              f"`{cfg.simulator}`, pose source `{cfg.pose_source}`, {len(result.candidates)} "
+              f"candidates screened, seed {cfg.seed}.\n\n")
+    sig = result.signature
+    if sig is not None:
+        out.write(f"Real signature: {100 * sig.self_share:.0f} % of the transitions stay in "
+                  f"their state; cells of {sig.cell_size:.2f} m (median distance to the "
+                  f"nearest other centre); the calibration starts in `{result.base.mode}` "
+                  "mode.\n\n" if hasattr(result.base, "mode") else
+                  f"Real signature: {100 * sig.self_share:.0f} % of the transitions stay in "
+                  f"their state; cells of {sig.cell_size:.2f} m.\n\n")
+    cov = coverage(result)
+    tried_share = _cell(100 * (cov["real_weight_tried"] or 0.0), "{:.1f}")
+    rows.append(("real (s, a) pairs tried by the twin", cov["real_pairs"],
+                 f"{cov['real_pairs_tried']} ({tried_share} % of the real transitions)"))
+    rows.append(("states reached", r["states_visited"], f"{cov['states_reached']}"))
     out.write("| | real | sim (calibrated) |\n|---|---|---|\n")
     for name, a, b in rows:
         out.write(f"| {name} | {a} | {b} |\n")
@@ -159,26 +234,93 @@ def report_markdown(result: CalibrationResult) -> str:
         f"the simulation ({_cell(100 * tv.real_weight_uncovered, '{:.1f}')} % of the real "
         f"visits, rule `{tv.unvisited}`), {tv.sim_only} simulated pairs absent from the real "
         "table.\n\n")
+    out.write(_budget_section(result))
+    out.write(_transfer_section(result))
     out.write("## Calibrated parameters\n\n| field | start | calibrated |\n|---|---|---|\n")
     base, new = _record(result.base), _record(result.params)
     changed = [*result.space.names, "decision_latency"] if result.latency_fitted \
         else list(result.space.names)
     for name in changed:
-        out.write(f"| {name} | {_cell(float(base[name]), '{:.4g}')} | "
-                  f"{_cell(float(new[name]), '{:.4g}')} |\n")
+        out.write(f"| {name} | {_value(base[name])} | {_value(new[name])} |\n")
     out.write("\n" + ("Decision latency fitted to the real transitions per hour.\n"
                       if result.latency_fitted else
                       "Decision latency not fitted (real duration unknown).\n"))
     out.write("\n## Search\n\n| # | stage | " + " | ".join(result.space.names)
               + " | distance |\n|" + "---|" * (result.space.dim + 3) + "\n")
     for c in result.candidates:
-        vals = " | ".join(f"{c.values[n]:.4g}" for n in result.space.names)
-        mark = " **best**" if c.index == result.best else ""
+        vals = " | ".join(_value(c.values[n]) for n in result.space.names)
+        mark = " **winner**" if c.index == result.best else (
+            " (screening best)" if c.index == result.screen_best else "")
         out.write(f"| {c.index} | {c.stage} | {vals} | {_cell(c.distance)}{mark} |\n")
     for note in result.notes:
         out.write(f"\n{note}.\n")
     out.write("\n![calibration](calibration.png)\n")
     return out.getvalue()
+
+
+def _value(v: Any) -> str:
+    return v if isinstance(v, str) else _cell(float(v), "{:.4g}")
+
+
+def _budget_section(result: CalibrationResult) -> str:
+    b = result.budgets
+    if b is None:
+        return ""
+    out = io.StringIO()
+    out.write("## Budgets\n\n")
+    screen = (f"{b.screen_hours:g} simulated hours" if b.screen_hours is not None else
+              f"{b.screen_transitions} transitions")
+    confirm = (f"{b.confirm_hours:g} simulated hours" if b.confirm_hours is not None else
+               f"{b.confirm_transitions} transitions ({b.multiple:g} x the real ones)")
+    out.write(f"Screening walks: {screen}; confirming and twin walks: {confirm}. A perfect "
+              "simulator run for a multiple of the real transitions would still lie at the "
+              "matched floor from the real table (bootstrap floor of the real table itself "
+              f"{_cell(result.floor.median)}):\n\n| x real transitions | matched floor |\n"
+              "|---|---|\n")
+    for m, f in b.table:
+        out.write(f"| {m:g} | {_cell(f)} |\n")
+    if result.confirmed:
+        out.write(f"\n{len(result.confirmed)} confirming walks:\n\n| candidate | seed | "
+                  "distance | score |\n|---|---|---|---|\n")
+        for c in result.confirmed:
+            mark = " **winner**" if c.index == result.best else ""
+            out.write(f"| {c.index}{mark} | {c.seed} | {_cell(c.distance)} | "
+                      f"{_cell(c.score)} |\n")
+    out.write("\n")
+    return out.getvalue()
+
+
+def _transfer_section(result: CalibrationResult) -> str:
+    if result.transfer is None:
+        return ""
+    ov = transfer_overview(result.transfer)
+    out = io.StringIO()
+    out.write(f"## Transfer to the real robot\n\nA policy planned on each twin seed (its "
+              "shortest-path policy to the goal) is scored on the real model: expected "
+              f"decisions to reach each of {ov['goals']} goal states from every other "
+              "state, against the real optimum (ratio 1.000 = optimal).\n\n"
+              "| twin | steps / real optimum | worst goal | its ratio | goals never reached |"
+              "\n|---|---|---|---|---|\n")
+    for t in ov["twins"]:
+        ratio = "never" if t["ratio"] is None else f"{t['ratio']:.3f}"
+        worst = "never" if t["worst_goal_ratio"] is None else f"{t['worst_goal_ratio']:.3f}"
+        out.write(f"| {t['twin']} | {ratio} | {t['worst_goal']} | {worst} | "
+                  f"{t['goals_never']} |\n")
+    out.write(f"\nOver the twins: mean ratio {_cell(ov['mean_ratio'])}, worst "
+              f"{_cell(ov['worst_ratio'])}. The figure shows the goal where the twins do "
+              "worst.\n\n![transfer](transfer.png)\n\n")
+    return out.getvalue()
+
+
+def worst_goal(transfer: Any) -> Any:
+    """The transfer result restricted to the goal whose twins do worst (mean ratio)."""
+
+    def badness(g: Any) -> float:
+        r = [t.ratio for t in g.twins]
+        return math.inf if any(not math.isfinite(x) for x in r) else float(np.mean(r))
+
+    g = max(transfer.goals, key=badness)
+    return dataclasses.replace(transfer, goals=(g,))
 
 
 def plot_calibration(result: CalibrationResult, path: Path) -> None:
@@ -190,11 +332,15 @@ def plot_calibration(result: CalibrationResult, path: Path) -> None:
     idx = np.array([c.index for c in result.candidates])
     dist = np.array([c.distance for c in result.candidates])
     init = np.array([c.stage == "init" for c in result.candidates])
+    conf = result.confirmed
     ax1.axhspan(result.floor.low, result.floor.high, color="0.85", label="floor (95 %)")
     ax1.axhline(result.matched_floor.median, color="0.4", ls="--", label="matched floor")
     ax1.plot(idx[init], dist[init], "o", label="initial design")
     ax1.plot(idx[~init], dist[~init], "s", label="refinement")
     ax1.plot(idx, np.minimum.accumulate(dist), "-", color="k", lw=1, label="best so far")
+    if conf:
+        ax1.plot([c.index for c in conf], [c.distance for c in conf], "x", color="tab:red",
+                 label="confirming walks (fresh seeds)")
     ax1.set_xlabel("candidate")
     ax1.set_ylabel("visit-weighted TV distance")
     ax1.legend(fontsize=7)
@@ -211,15 +357,26 @@ def plot_calibration(result: CalibrationResult, path: Path) -> None:
 
 
 def write_outputs(result: CalibrationResult, out: str | os.PathLike[str], *,
-                  overwrite: bool = False, plot: bool = True) -> dict[str, Path]:
-    """Write the files of the module docstring into ``out``; returns them by name."""
+                  overwrite: bool = False, plot: bool = True, grid: Any = None,
+                  disc: Any = None) -> dict[str, Path]:
+    """Write the files of the module docstring into ``out`` in one output transaction;
+    returns them by name. ``grid``/``disc``: the map and states drawn under the transfer
+    figure (optional)."""
     paths = check_outputs(out, overwrite=overwrite)
-    Path(out).mkdir(parents=True, exist_ok=True)
-    atomic_write_text(paths["primitives.toml"], primitives_toml(result))
-    atomic_write_json(paths["report.json"], report_json(result))
-    atomic_write_text(paths["report.md"], report_markdown(result))
-    if plot:
-        plot_calibration(result, paths["calibration.png"])
-    else:
+    if not plot:
         del paths["calibration.png"]
+    if result.transfer is None or not plot:
+        del paths["transfer.png"]
+    with output_transaction(out, paths.values(), overwrite=overwrite,
+                            what="calibration output") as txn:
+        atomic_write_text(txn.path(paths["primitives.toml"]), primitives_toml(result))
+        atomic_write_json(txn.path(paths["report.json"]), report_json(result))
+        atomic_write_text(txn.path(paths["report.md"]), report_markdown(result))
+        if "calibration.png" in paths:
+            plot_calibration(result, txn.path(paths["calibration.png"]))
+        if "transfer.png" in paths:
+            from simlab.calibration.transfer import plot_transfer
+
+            plot_transfer(worst_goal(result.transfer), txn.path(paths["transfer.png"]),
+                          grid=grid, disc=disc)
     return paths

@@ -12,6 +12,11 @@ drive-until-state-change mode) are new entries, nothing else. A TOML file::
     low = 0.05
     high = 0.22
     scale = "log"         # "linear" (default) or "log" (both bounds > 0)
+    [parameters.mode]
+    choices = ["fixed", "until_state_change"]   # a categorical field
+
+A categorical field takes ``choices[k]`` on the ``k``-th of ``len(choices)`` equal slices of
+its unit coordinate, so the same optimiser moves between modes.
 """
 
 from __future__ import annotations
@@ -35,15 +40,24 @@ SCALES = ("linear", "log")
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One searched field: ``low <= value <= high`` on a linear or log scale."""
+    """One searched field: ``low <= value <= high`` on a linear or log scale, or one of
+    ``choices`` (a categorical field; ``low``/``high`` are then unused)."""
 
     name: str
-    low: float
-    high: float
+    low: float = 0.0
+    high: float = 1.0
     scale: str = "linear"
+    choices: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         key = f"parameters.{self.name}"
+        if self.choices is not None:
+            if isinstance(self.choices, str) or len(self.choices) < 2 or not all(
+                    isinstance(c, str) for c in self.choices):
+                raise ConfigError(f"expected a list of two or more names, got {self.choices!r}",
+                                  key=f"{key}.choices")
+            object.__setattr__(self, "choices", tuple(self.choices))
+            return
         for bound in ("low", "high"):
             validation.number(getattr(self, bound), f"{key}.{bound}")
         if not self.low < self.high:
@@ -52,16 +66,28 @@ class ParamSpec:
         if self.scale == "log" and self.low <= 0:
             raise ConfigError("a log scale needs low > 0", key=key)
 
-    def value(self, u: float) -> float:
+    @property
+    def categorical(self) -> bool:
+        return self.choices is not None
+
+    def value(self, u: float) -> Any:
         """Value at ``u`` in [0, 1] (clipped)."""
         u = min(max(float(u), 0.0), 1.0)
+        if self.choices is not None:
+            return self.choices[min(int(u * len(self.choices)), len(self.choices) - 1)]
         if self.scale == "log":
             v = math.exp(math.log(self.low) + u * math.log(self.high / self.low))
             return float(min(max(v, self.low), self.high))  # no rounding past a bound
         return float(self.low + u * (self.high - self.low))
 
-    def unit(self, value: float) -> float:
-        """Inverse of :meth:`value` (clipped to [0, 1])."""
+    def unit(self, value: Any) -> float:
+        """Inverse of :meth:`value` (clipped to [0, 1]; a choice maps to its slice's
+        middle)."""
+        if self.choices is not None:
+            if value not in self.choices:
+                raise ConfigError(f"{value!r} is not one of {list(self.choices)}",
+                                  key=f"parameters.{self.name}")
+            return (self.choices.index(value) + 0.5) / len(self.choices)
         if self.scale == "log":
             u = math.log(max(value, self.low) / self.low) / math.log(self.high / self.low)
         else:
@@ -90,16 +116,17 @@ class ParameterSpace:
     def dim(self) -> int:
         return len(self.specs)
 
-    def values(self, u: ArrayLike) -> dict[str, float]:
+    def values(self, u: ArrayLike) -> dict[str, Any]:
         """``{name: value}`` of a unit-cube point ``u`` ``(d,)``."""
         u = np.asarray(u, dtype=np.float64).ravel()
         if u.size != self.dim:
             raise ValueError(f"expected {self.dim} coordinates, got {u.size}")
         return {p.name: p.value(x) for p, x in zip(self.specs, u, strict=True)}
 
-    def unit(self, values: Mapping[str, float]) -> NDArray[np.float64]:
+    def unit(self, values: Mapping[str, Any]) -> NDArray[np.float64]:
         """Unit-cube point ``(d,)`` of ``{name: value}``."""
-        return np.array([p.unit(float(values[p.name])) for p in self.specs])
+        return np.array([p.unit(values[p.name] if p.categorical else float(values[p.name]))
+                         for p in self.specs])
 
     def check_fields(self, base: Any) -> None:
         """Raise ConfigError unless every name is a numeric field of the record ``base``."""
@@ -109,15 +136,21 @@ class ParameterSpace:
                 raise ConfigError(f"{type(base).__name__} has no field {p.name!r}",
                                   key=f"parameters.{p.name}",
                                   fix="fields: " + ", ".join(sorted(fields)))
-            if not isinstance(getattr(base, p.name), int | float):
-                raise ConfigError(f"{p.name!r} is not a number", key=f"parameters.{p.name}")
+            kind = str if p.categorical else int | float
+            if not isinstance(getattr(base, p.name), kind):
+                raise ConfigError(f"{p.name!r} is not a {'name' if p.categorical else 'number'}",
+                                  key=f"parameters.{p.name}",
+                                  fix="use choices = [...] for a named field, low/high for "
+                                  "a number")
 
     def apply(self, base: Any, u: ArrayLike) -> Any:
         """``base`` with the fields of point ``u`` replaced (validated by the record)."""
         return dataclasses.replace(base, **self.values(u))
 
     def to_json(self) -> list[dict[str, Any]]:
-        return [dataclasses.asdict(p) for p in self.specs]
+        return [{"name": p.name, "choices": list(p.choices)} if p.categorical
+                else {"name": p.name, "low": p.low, "high": p.high, "scale": p.scale}
+                for p in self.specs]
 
 
 def space_from_mapping(table: Mapping[str, Any], *, where: str = "parameters") -> ParameterSpace:
@@ -128,10 +161,16 @@ def space_from_mapping(table: Mapping[str, Any], *, where: str = "parameters") -
     for name, entry in table.items():
         if not isinstance(entry, Mapping):
             raise ConfigError("expected a table with low and high", key=f"{where}.{name}")
+        if "choices" in entry:
+            if set(entry) != {"choices"} or not isinstance(entry["choices"], list):
+                raise ConfigError(f"expected only a list of choices, got {sorted(entry)}",
+                                  key=f"{where}.{name}")
+            specs.append(ParamSpec(str(name), choices=tuple(entry["choices"])))
+            continue
         unknown = set(entry) - {"low", "high", "scale"}
         if unknown or "low" not in entry or "high" not in entry:
-            raise ConfigError(f"expected keys low, high[, scale], got {sorted(entry)}",
-                              key=f"{where}.{name}")
+            raise ConfigError(f"expected keys low, high[, scale] (or choices), got "
+                              f"{sorted(entry)}", key=f"{where}.{name}")
         specs.append(ParamSpec(str(name), entry["low"], entry["high"],
                                str(entry.get("scale", "linear"))))
     return ParameterSpace(tuple(specs))
@@ -149,24 +188,55 @@ def load_space(path: str | os.PathLike[str]) -> ParameterSpace:
         raise ConfigError(exc.problem, path=path, key=exc.key, fix=exc.fix) from None
 
 
-def default_space(primitives: Sequence[int], simulator: str = "physics") -> ParameterSpace:
-    """The default search: the drive time, plus what sets blocking (physics) or noise.
+def default_space(primitives: Sequence[int], simulator: str = "physics", *,
+                  cell_size: float | None = None,
+                  speed_fields: Sequence[str] = ()) -> ParameterSpace:
+    """The default search.
 
-    Decision: the speeds are not searched by default. A primitive's length is about
-    ``speed * drive_time``, so T alone cannot tell a faster, shorter move from a slower,
-    longer one (a ridge the optimiser wanders along); the speeds are the robot's published
-    figures, set with ``--primitives``, and can still be searched with ``--space``.
-    ``primitives`` (the real actions' simlab primitives) only decides which drive-time
-    range makes sense: fast-only tables use a shorter one. Physics adds the obstacle
-    detector's margin (it sets the blocked rate); kinematic its two noise levels. The
-    decision latency is not searched: it changes the rate of transitions, not T, and is set
-    in closed form when the real hours are known.
+    **Physics**: everything that shapes a real robot's T, so that the README command alone
+    reaches a real lab:
+
+    * ``mode``: fixed time (the thesis primitive, section 3.2) or drive until the state
+      changes (the ISIR robot's moves; Chartouny et al. 2024, sec. 3), with
+    * ``drive_time`` (fixed mode) and ``max_drive_time`` (the other), their ranges sized
+      from the real cells (``cell_size``, m) at the used speed: from a fifth of a cell to
+      two cells (at least 0.2-2.0 s and 1-6 s without cells);
+    * ``detector_margin``: sets the blocked rate;
+    * ``pose_noise_xy``: localization error of the poses the states come from (the real
+      robot's states come from its SLAM/AMCL pose, not the truth), up to a quarter cell;
+    * ``wheel_noise``: actuation noise;
+    * the used speed (``speed_fields``) for an 8-action robot: its one speed is a property
+      of that robot. With 16 actions the speeds are not searched: with two speeds and a
+      fixed drive time only the products ``speed * drive_time`` shape T (a ridge), and the
+      thesis robot's speeds are published (0.10 / 0.22 m/s).
+
+    ``primitives`` (the real actions' simlab primitives) and ``speed_fields`` tell which
+    speeds are used. **Kinematic** (the physics-free dry run): drive time and the two
+    noise levels. The decision latency is never searched: it changes the rate of
+    transitions, not T, and is set in closed form when the real hours are known.
     """
     prims = np.asarray(primitives)
-    high = 2.0 if (prims < 8).any() else 1.2
-    specs = [ParamSpec("drive_time", 0.2, high, "log")]
-    if simulator == "physics":
-        specs.append(ParamSpec("detector_margin", 0.0, 0.15))
-    else:
-        specs += [ParamSpec("distance_noise", 0.0, 0.5), ParamSpec("heading_noise", 0.0, 0.5)]
+    if simulator != "physics":
+        high = 2.0 if (prims < 8).any() else 1.2
+        return ParameterSpace((ParamSpec("drive_time", 0.2, high, "log"),
+                               ParamSpec("distance_noise", 0.0, 0.5),
+                               ParamSpec("heading_noise", 0.0, 0.5)))
+    slowest = 0.10 if (prims < 8).any() else 0.22  # the published speeds
+    fastest = 0.22 if (prims >= 8).any() else 0.10
+    drive = (0.2, 2.0 if (prims < 8).any() else 1.2)
+    drive_max = (1.0, 6.0)
+    noise_high = 0.1
+    if cell_size is not None and math.isfinite(cell_size) and cell_size > 0:
+        drive = (min(drive[0], 0.2 * cell_size / fastest),
+                 max(drive[1], 2.0 * cell_size / slowest))
+        drive_max = (min(drive_max[0], 0.5 * cell_size / fastest),
+                     max(drive_max[1], 2.0 * cell_size / slowest))
+        noise_high = max(noise_high, 0.25 * cell_size)
+    specs = [ParamSpec("mode", choices=("fixed", "until_state_change")),
+             ParamSpec("drive_time", *drive, "log"),
+             ParamSpec("max_drive_time", *drive_max, "log"),
+             ParamSpec("detector_margin", 0.0, 0.15),
+             ParamSpec("pose_noise_xy", 0.0, noise_high),
+             ParamSpec("wheel_noise", 0.0, 0.1)]
+    specs += [ParamSpec(f, 0.05, 0.26) for f in speed_fields]
     return ParameterSpace(tuple(specs))

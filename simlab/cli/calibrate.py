@@ -21,9 +21,26 @@ def run(args: argparse.Namespace) -> int:
 
     done = calibrate_command(CalibrateConfig.from_args(args))
     r = done.result
-    values = ", ".join(f"{n}={getattr(r.params, n):.4g}" for n in r.space.names)
-    print(f"best of {len(r.candidates)} candidates: {values}")
+    values = ", ".join(f"{n}={_value(getattr(r.params, n))}" for n in r.space.names)
+    how = (f"confirmed on {r.config.confirm_seeds} fresh seed(s) among "
+           f"{len({c.index for c in r.confirmed})} candidates" if r.confirmed
+           else "screening only")
+    print(f"winner: candidate #{r.best} of {len(r.candidates)} ({how}): {values}")
+    tv = r.final.tv
     print(f"TV distance {r.final.distance:.3f} (floor {r.floor.median:.3f}, matched "
-          f"{r.matched_floor.median:.3f}); argmax agreement {r.agreement:.0%}")
+          f"{r.matched_floor.median:.3f}); the twin tried {tv.common} of "
+          f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement {r.agreement:.0%}")
+    if r.transfer is not None:
+        from simlab.calibration.report import transfer_overview
+
+        ov = transfer_overview(r.transfer)
+        ratios = [t["ratio"] for t in ov["twins"]]
+        shown = ", ".join("never" if x is None else f"{x:.3f}" for x in ratios)
+        print(f"transfer: twin policies on the real model take {shown} x the real optimum's "
+              f"steps ({len(ratios)} twin seeds, {ov['goals']} goals)")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0
+
+
+def _value(v: object) -> str:
+    return v if isinstance(v, str) else f"{v:.4g}"

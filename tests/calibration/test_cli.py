@@ -40,11 +40,23 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     real, states, hours = inputs
     out = tmp_path / "cal"
     assert main(argv(real, states, out, "--real-hours", f"{hours}")) == 0
-    assert "TV distance" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "TV distance" in printed
     assert sorted(p.name for p in out.iterdir()) == [
-        "calibration.png", "primitives.toml", "report.json", "report.md"]
+        "calibration.png", "primitives.toml", "report.json", "report.md", "transfer.png"]
     report = json.loads((out / "report.json").read_text())
     assert len(report["candidates"]) == 3
+    # the summary line names the confirmed winner, the one the report marks
+    assert f"winner: candidate #{report['best_candidate']} of 3" in printed
+    winners = {c["index"] for c in report["confirmed"] if c["index"] == report["best_candidate"]}
+    assert winners == {report["best_candidate"]}
+    # five twin seeds scored on the real model, every state a goal (9 states)
+    overview = report["transfer"]["overview"]
+    assert len(overview["twins"]) == 5 and overview["goals"] == 9
+    assert all(t["ratio"] is None or t["ratio"] >= 1.0 - 1e-9 for t in overview["twins"])
+    assert f"{len(overview['twins'])} twin seeds" in printed
+    cov = report["coverage"]
+    assert cov["real_pairs_tried"] <= cov["real_pairs"] == report["real"]["pairs_visited"]
     assert report["real"]["action_set"]["convention"] == "ccw-east"
     assert report["real"]["transitions"] == int(np.loadtxt(real, delimiter=",",
                                                            skiprows=1)[:, 3].sum())
@@ -57,6 +69,7 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     assert doc["calibration"]["searched"] == ["drive_time", "distance_noise", "heading_noise"]
     md = (out / "report.md").read_text()
     assert "| transitions per hour |" in md and "bootstrap sampling floor" in md
+    assert "## Transfer to the real robot" in md and "## Budgets" in md
 
 
 def refused(args: list[str], capsys) -> str:

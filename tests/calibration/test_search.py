@@ -61,7 +61,7 @@ def test_the_starting_point_is_kept_unless_beaten_on_the_fresh_seed(lattice9) ->
     assert start is not None and res.final.score <= start.score
     if res.best == 0:
         assert res.params.drive_time == KinematicParams().drive_time
-        assert any("starting point is kept" in n for n in res.notes) or \
+        assert any("beat the starting point" in n for n in res.notes) or \
             res.candidates[0].score <= min(c.score for c in res.candidates)
 
 

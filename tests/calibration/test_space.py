@@ -69,8 +69,38 @@ def test_load_space_reads_toml_and_names_the_file(tmp_path: Path) -> None:
         load_space(tmp_path / "missing.toml")
 
 
-def test_default_space_never_searches_speeds() -> None:
+def test_default_physics_space_holds_the_mode_and_sizes_its_ranges_from_the_cells() -> None:
     phys = default_space(np.arange(16), "physics")
-    assert phys.names == ("drive_time", "detector_margin")
+    assert phys.names == ("mode", "drive_time", "max_drive_time", "detector_margin",
+                          "pose_noise_xy", "wheel_noise")
+    assert phys.specs[0].choices == ("fixed", "until_state_change")
+    # 16 actions: the speeds are the thesis robot's published ones, not searched
+    assert not {"slow_speed", "fast_speed"} & set(phys.names)
+    # an 8-action fast robot on 0.7 m cells: its one speed is searched, and the drive
+    # times reach two cells at the slowest speed of the range (0.22 m/s)
+    fast8 = default_space(np.arange(8, 16), "physics", cell_size=0.7,
+                          speed_fields=("fast_speed",))
+    specs = {p.name: p for p in fast8.specs}
+    assert "fast_speed" in specs
+    assert specs["max_drive_time"].high == pytest.approx(2 * 0.7 / 0.22)
+    assert specs["drive_time"].high == pytest.approx(2 * 0.7 / 0.22)
+    assert specs["pose_noise_xy"].high == pytest.approx(0.25 * 0.7)
     kin = default_space(np.arange(8), "kinematic")
     assert kin.names == ("drive_time", "distance_noise", "heading_noise")
+
+
+def test_a_categorical_field_round_trips_and_reads_from_toml(tmp_path: Path) -> None:
+    spec = ParamSpec("mode", choices=("fixed", "until_state_change"))
+    assert spec.value(0.0) == "fixed" and spec.value(0.49) == "fixed"
+    assert spec.value(0.5) == "until_state_change" and spec.value(1.0) == "until_state_change"
+    assert spec.value(spec.unit("until_state_change")) == "until_state_change"
+    path = tmp_path / "space.toml"
+    path.write_text('[parameters.mode]\nchoices = ["fixed", "until_state_change"]\n'
+                    "[parameters.max_drive_time]\nlow = 1.0\nhigh = 4.0\n")
+    space = load_space(path)
+    p = space.apply(PrimitiveParams(), np.array([0.9, 0.5]))
+    assert p.mode == "until_state_change" and p.max_drive_time == pytest.approx(2.5)
+    with pytest.raises(ConfigError, match=r"parameters\.mode\.choices"):
+        ParamSpec("mode", choices=("fixed",))
+    with pytest.raises(ConfigError, match="not a number"):
+        ParameterSpace((ParamSpec("mode", 0.0, 1.0),)).check_fields(PrimitiveParams())
