@@ -36,9 +36,12 @@ BURGER_W_MAX = 2.84  # rad/s
 class RobotSpec:
     """Geometry and limits of a differential-drive robot, read from its URDF.
 
-    Lengths in metres, masses in kg, torques in N m, speeds in m/s, rad/s.
-    ``footprint`` is ``(x_min, x_max, y_min, y_max)`` of the collision outline in the base
-    frame (origin on the floor under the wheel-axis midpoint, x forward, y left);
+    Lengths in metres, masses in kg, torques in N m, speeds in m/s, rad/s. Positions are
+    in the URDF's root frame ``root_link`` (``base_footprint``: origin on the floor under
+    the wheel-axis midpoint, x forward, y left, z up), the frame of the robot's pose:
+    ``lidar_offset`` is the scan frame's origin (x, y, z) there, ``base_link_offset`` the
+    origin of ``base_link`` (the link carrying the chassis and the wheels) there.
+    ``footprint`` is ``(x_min, x_max, y_min, y_max)`` of the collision outline;
     ``swept_radius`` is the largest distance of that outline from the origin (the circle it
     sweeps when turning in place).
     """
@@ -56,6 +59,9 @@ class RobotSpec:
     footprint: tuple[float, float, float, float]
     swept_radius: float
     total_mass: float
+    root_link: str = "base_footprint"
+    base_link: str = "base_link"
+    base_link_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     v_max: float = BURGER_V_MAX
     w_max: float = BURGER_W_MAX
 
@@ -148,6 +154,28 @@ def _parse_urdf(path: Path) -> SimpleNamespace:
     return SimpleNamespace(name=root.get("name"), joints=joints, links=links)
 
 
+def _frames(robot: SimpleNamespace, path: Path) -> tuple[str, dict[str, NDArray[np.float64]]]:
+    """The root link's name and every link's 4x4 pose in the root frame (joint origins
+    composed down the tree)."""
+    children = {j.child for j in robot.joints}
+    roots = [link.name for link in robot.links if link.name not in children]
+    if len(roots) != 1:
+        raise ConfigError(f"the links must form one tree, found roots {roots}", path=path,
+                          key="robot/link")
+    poses = {roots[0]: np.eye(4)}
+    pending = list(robot.joints)
+    while pending:
+        ready = [j for j in pending if j.parent in poses]
+        if not ready:
+            raise ConfigError(
+                f"joint {pending[0].name!r} hangs from an unknown or cyclic link "
+                f"{pending[0].parent!r}", path=path, key=f"joint[@name={pending[0].name!r}]")
+        for j in ready:
+            poses[j.child] = poses[j.parent] @ j.origin
+            pending.remove(j)
+    return roots[0], poses
+
+
 def load_robot_spec(
     name_or_path: str | Path = "turtlebot3_burger",
     *,
@@ -155,9 +183,14 @@ def load_robot_spec(
     right_wheel_joint: str = "wheel_right_joint",
     scan_joint: str = "scan_joint",
 ) -> RobotSpec:
-    """Read a :class:`RobotSpec` from a built-in robot name or a ``.urdf`` path."""
+    """Read a :class:`RobotSpec` from a built-in robot name or a ``.urdf`` path.
+
+    Positions are in the root link's frame (``base_footprint``: on the floor under the
+    wheel-axis midpoint), whatever the links between it and the wheels or the scanner.
+    """
     path = resolve("robots", name_or_path, ".urdf")
     robot = _parse_urdf(path)
+    root, frames = _frames(robot, path)
 
     jl = _joint(robot, left_wheel_joint, path)
     jr = _joint(robot, right_wheel_joint, path)
@@ -170,8 +203,9 @@ def load_robot_spec(
         )
     wheel_radius = float(cylinders[0].radius)
     wheel_width = float(cylinders[0].length)
-    yl, yr = float(jl.origin[1, 3]), float(jr.origin[1, 3])
-    separation = abs(yl - yr)
+    # wheel centres (x, y) in the root frame
+    wl, wr = (frames[j.child][:2, 3] for j in (jl, jr))
+    separation = abs(float(wl[1] - wr[1]))
     if separation <= 0:
         raise ConfigError("wheel joints coincide in y", path=path, key=left_wheel_joint)
     for j in (jl, jr):
@@ -182,34 +216,34 @@ def load_robot_spec(
     speed = float(min(jl.limit.velocity, jr.limit.velocity))
 
     js = _joint(robot, scan_joint, path)
-    lidar_offset = tuple(float(v) for v in js.origin[:3, 3])
+    lidar_offset = tuple(float(v) for v in frames[js.child][:3, 3])
+    base_link_offset = tuple(float(v) for v in frames[jl.parent][:3, 3])
 
-    # Footprint: base collision boxes (in the base frame) and the wheel tyres.
-    xs: list[float] = []
-    ys: list[float] = []
+    # Footprint: the collision boxes of the wheels' parent link and the wheel tyres, in the
+    # root frame (the parent's frame may be offset from it, never rotated in yaw here).
     base = _link(robot, jl.parent, path)
+    boxes = []
     for col in base.collisions:
         if col.geometry.box is not None:
             sx, sy, _ = col.geometry.box.size
-            ox, oy = col.origin[0, 3], col.origin[1, 3]
-            xs += [ox - sx / 2, ox + sx / 2]
-            ys += [oy - sy / 2, oy + sy / 2]
-    for j in (jl, jr):
-        xs += [j.origin[0, 3] - wheel_radius, j.origin[0, 3] + wheel_radius]
-        ys += [j.origin[1, 3] - wheel_width / 2, j.origin[1, 3] + wheel_width / 2]
+            centre = (frames[base.name] @ col.origin)[:2, 3]
+            boxes.append((float(centre[0]), float(centre[1]), sx, sy))
+    wheels = [(float(w[0]), float(w[1])) for w in (wl, wr)]
+    xs: list[float] = []
+    ys: list[float] = []
+    for ox, oy, sx, sy in boxes:
+        xs += [ox - sx / 2, ox + sx / 2]
+        ys += [oy - sy / 2, oy + sy / 2]
+    for jx, jy in wheels:
+        xs += [jx - wheel_radius, jx + wheel_radius]
+        ys += [jy - wheel_width / 2, jy + wheel_width / 2]
     footprint = (min(xs), max(xs), min(ys), max(ys))
     # Swept radius from the actual outline pieces (the corner of the bounding box would
     # overestimate: the wheels do not reach the rear corners).
-    corners = []
-    for col in base.collisions:
-        if col.geometry.box is not None:
-            sx, sy, _ = col.geometry.box.size
-            ox, oy = col.origin[0, 3], col.origin[1, 3]
-            corners += [(ox + a * sx / 2, oy + b * sy / 2) for a in (-1, 1) for b in (-1, 1)]
-    for j in (jl, jr):
-        jx, jy = j.origin[0, 3], j.origin[1, 3]
-        corners += [(jx + a * wheel_radius, jy + b * wheel_width / 2)
-                    for a in (-1, 1) for b in (-1, 1)]
+    corners = [(ox + a * sx / 2, oy + b * sy / 2)
+               for ox, oy, sx, sy in boxes for a in (-1, 1) for b in (-1, 1)]
+    corners += [(jx + a * wheel_radius, jy + b * wheel_width / 2)
+                for jx, jy in wheels for a in (-1, 1) for b in (-1, 1)]
     swept = max(math.hypot(x, y) for x, y in corners)
 
     mass = sum(float(link.inertial.mass) for link in robot.links if link.inertial is not None)
@@ -227,6 +261,9 @@ def load_robot_spec(
         footprint=footprint,
         swept_radius=swept,
         total_mass=mass,
+        root_link=root,
+        base_link=base.name,
+        base_link_offset=base_link_offset,  # type: ignore[arg-type]
     )
 
 

@@ -1,4 +1,9 @@
-"""Fold fixed-joint leaf links (sensor housings) into their parents before PyBullet loads a URDF.
+"""Fold fixed-joint links into their parents before PyBullet loads a URDF.
+
+Two kinds are folded: leaf links (sensor housings, ROS frames such as ``imu_link``) and the
+child of a bare root frame (REP-105's ``base_footprint`` with ``base_link`` under it, as in
+the ROBOTIS TurtleBot3 description): the multibody's base is then the root frame, on the
+floor, carrying the chassis, and the wheels are its only links.
 
 Every link of a PyBullet multibody costs solver time each step even when welded by a fixed
 joint: folding the LIDAR housing of the TurtleBot3 into the base makes a step about 9 %
@@ -10,8 +15,8 @@ takes most of the load off the caster.
 The merge here works on the XML, so Bullet's ``<contact>`` extension elements survive; it
 moves the child's ``<visual>`` and ``<collision>`` elements to the parent (origins composed
 with the joint origin) and combines the inertials exactly (mass-weighted centre of mass,
-parallel-axis theorem). A merged child's own ``<contact>`` friction would be lost, so links
-carrying one are kept. The source URDF stays the single source of truth: geometry is read
+parallel-axis theorem). A leaf's own ``<contact>`` friction would be lost in a parent with
+shapes of its own, so such leaves are kept; a bare parent takes its child's ``<contact>``. The source URDF stays the single source of truth: geometry is read
 from it (yourdfpy) and the merged copy is derived at load time.
 """
 
@@ -84,19 +89,39 @@ def _combine(parts: list[tuple[float, NDArray[np.float64], NDArray[np.float64]]]
     return mass, com, tensor
 
 
+def _bare(link: ET.Element) -> bool:
+    """A link that is only a frame: no inertial, visual, collision or contact element."""
+    return all(link.find(tag) is None for tag in ("inertial", "visual", "collision", "contact"))
+
+
+def _foldable(joint: ET.Element, links: dict[str, ET.Element],
+              parents: set[str | None]) -> bool:
+    """A fixed joint whose child can be folded into its parent: a leaf without its own
+    ``<contact>`` friction, or any child of a bare parent (a ROS root frame such as
+    ``base_footprint``: the child's contents, friction included, move up unchanged)."""
+    if joint.get("type") != "fixed":
+        return False
+    child = links[joint.find("child").get("link")]
+    if _bare(links[joint.find("parent").get("link")]):
+        return True
+    return child.get("name") not in parents and child.find("contact") is None
+
+
 def merge_fixed_leaf_links(xml_text: str) -> str:
-    """Return URDF text with fixed-joint leaf links folded into their parents."""
+    """Return URDF text with fixed-joint links folded into their parents (leaves, and the
+    child of a bare root), until none is left."""
     root = ET.fromstring(xml_text)
     links = {link.get("name"): link for link in root.findall("link")}
-    joints = root.findall("joint")
-    has_children = {j.find("parent").get("link") for j in joints}
-    for joint in joints:
+    while True:
+        joints = root.findall("joint")
+        parents = {j.find("parent").get("link") for j in joints}
+        joint = next((j for j in joints if _foldable(j, links, parents)), None)
+        if joint is None:
+            return ET.tostring(root, encoding="unicode")
         child_name = joint.find("child").get("link")
-        child = links[child_name]
-        if (joint.get("type") != "fixed" or child_name in has_children
-                or child.find("contact") is not None):
-            continue
-        parent = links[joint.find("parent").get("link")]
+        child = links.pop(child_name)
+        parent_name = joint.find("parent").get("link")
+        parent = links[parent_name]
         j_xyz, j_rot = _origin(joint)
         for tag in ("visual", "collision"):
             for elem in child.findall(tag):
@@ -104,6 +129,14 @@ def merge_fixed_leaf_links(xml_text: str) -> str:
                 _set_origin(elem, j_xyz + j_rot @ e_xyz, j_rot @ e_rot)
                 child.remove(elem)
                 parent.append(elem)
+        contact = child.find("contact")
+        if contact is not None:  # only when the parent is bare (see _foldable)
+            parent.append(contact)
+        for grandchild in joints:  # the child's own joints now start at the parent
+            if grandchild.find("parent").get("link") == child_name:
+                g_xyz, g_rot = _origin(grandchild)
+                _set_origin(grandchild, j_xyz + j_rot @ g_xyz, j_rot @ g_rot)
+                grandchild.find("parent").set("link", parent_name)
         c_in, p_in = child.find("inertial"), parent.find("inertial")
         if c_in is not None:
             m, c, inertia = _inertia(c_in)
@@ -120,7 +153,6 @@ def merge_fixed_leaf_links(xml_text: str) -> str:
                           iyz=f"{tensor[1, 2]:.10g}", izz=f"{tensor[2, 2]:.10g}")
         root.remove(joint)
         root.remove(child)
-    return ET.tostring(root, encoding="unicode")
 
 
 def merged_urdf_path(source: str | Path) -> Path:

@@ -1,4 +1,8 @@
-"""URDF frames for ROS tools (base_footprint, caster_back_link, imu_link) without physics."""
+"""URDF frames for ROS tools (base_footprint, caster_back_link, imu_link) without physics.
+
+base_footprint is the tree's root, base_link 0.010 m above it (ROBOTIS's base_joint); the
+leaf frames hang from base_link.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +13,7 @@ import numpy as np
 from simlab.physics.robot import load_robot_spec
 from simlab.physics.urdf_merge import merge_fixed_leaf_links
 
-FRAMES = {"base_footprint": (0.0, 0.0, 0.0), "caster_back_link": (-0.081, 0.0, 0.005),
-          "imu_link": (-0.032, 0.0, 0.068)}
+FRAMES = {"caster_back_link": (-0.081, 0.0, -0.005), "imu_link": (-0.032, 0.0, 0.058)}
 
 
 def _text() -> str:
@@ -24,7 +27,10 @@ def test_ros_frames_hang_from_base_link_as_in_the_turtlebot3_description() -> No
 
     robot = yourdfpy.URDF.load(str(load_robot_spec().urdf_path), load_meshes=False)
     links = {link.name for link in robot.robot.links}
-    assert {"base_link", "base_scan", *FRAMES} <= links
+    assert {"base_footprint", "base_link", "base_scan", *FRAMES} <= links
+    root = next(j for j in robot.robot.joints if j.child == "base_link")
+    assert root.parent == "base_footprint" and root.type == "fixed"
+    np.testing.assert_allclose(root.origin[:3, 3], (0.0, 0.0, 0.010))
     for name, xyz in FRAMES.items():
         joint = next(j for j in robot.robot.joints if j.child == name)
         assert joint.parent == "base_link" and joint.type == "fixed"
