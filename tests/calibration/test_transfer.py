@@ -376,7 +376,8 @@ def test_untried_rule_mask_plans_the_twin_on_the_real_robots_tried_pairs() -> No
     for s in range(4):
         P[s, 0, max(s - 1, 0)] = 1.0
         P[s, 1, min(s + 1, 3)] = 1.0
-        P[s, 2, [s, min(s + 1, 3)]] += 0.5
+        P[s, 2, s] += 0.5
+        P[s, 2, min(s + 1, 3)] += 0.5
     allowed = np.ones((4, 3), dtype=bool)
     allowed[1, 1] = False
     real = TransferModel(T=P, allowed=allowed, name="real")
