@@ -310,8 +310,9 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
         grid = read_map(cfg.map)
     else:
         grid = arena_map(arena_cfg, cfg.resolution)
+    robot = load_robot_spec()
     scan_arr, geom, offset = (_scans(arena_cfg, rec["pose"]) if cfg.scans
-                              else (None, None, (-0.032, 0.0, 0.182)))
+                              else (None, None, tuple(float(v) for v in robot.lidar_offset)))
     goals = tuple((g.name, float(g.x), float(g.y), float(g.radius)) for g in arena_cfg.goals)
     scene = SceneMarkers(centres=rec["centres"], bounds=tuple(arena_cfg.bounds), goals=goals)
     traj = BagTrajectory(t=rec["t"], pose=rec["pose"], odom=rec["odom"], scans=scan_arr,
@@ -320,7 +321,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
                          blocked=rec["blocked"], duration=rec["duration"],
                          action_set=rec["action_set"], pose_source=rec["pose_source"],
                          map=grid, scan_offset=offset,
-                         base_offset=urdf_base_offset(load_robot_spec().urdf_path),
+                         base_offset=urdf_base_offset(robot.urdf_path),
                          scene=scene, custom=rec["custom"])
     path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)

@@ -84,11 +84,12 @@ def _decisions_from_actions(t: np.ndarray, xy: np.ndarray, yaw: np.ndarray,
     from simlab.data.poselog import interval_labels
 
     if np.any((actions < 0) | (actions >= n_actions)):
+        sixteen = n_actions == 8 and actions.min() >= 0 and actions.max() < 16
         raise ConfigError(f"action topic has indices outside 0..{n_actions - 1} (min "
                           f"{actions.min()}, max {actions.max()})", key="actions",
-                          fix="give the robot's action set with --n-actions 16 and "
-                              "--convention" if n_actions == 8 else
-                              "check the action topic (--action-topic)")
+                          fix="the robot has 16 actions: pass --n-actions 16 and its "
+                              "--convention" if sixteen else
+                              "check that --action-topic carries action indices")
     keep = action_t >= t[0]
     actions, action_t = actions[keep], action_t[keep]
     blocked = None if blocked is None else blocked[keep]

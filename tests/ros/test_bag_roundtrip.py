@@ -222,3 +222,55 @@ def test_the_bag_shows_cells_goals_and_a_human(walks, tmp_path: Path) -> None:
         hs = [ts.deserialize_cdr(raw, c.msgtype) for c, _, raw in r.messages()
               if c.topic == "/simlab/human"]
     assert [m.markers[0].pose.position.y for m in hs] == [0.5, 0.6]
+
+
+_URDF = """<robot name="r">
+  <link name="{root}"/><link name="{leaf}"/><link name="base_scan"/>
+  <joint name="j" type="fixed"><parent link="{root}"/><child link="{leaf}"/>
+    <origin xyz="{xyz}" rpy="0 0 0"/></joint>
+  <joint name="s" type="fixed"><parent link="base_link"/><child link="base_scan"/>
+    <origin xyz="-0.032 0 0.172"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize(("root", "leaf", "xyz", "expected"), [
+    ("base_footprint", "base_link", "0 0 0.010", (0.0, 0.0, 0.010)),  # ROBOTIS' tree
+    ("base_link", "base_footprint", "0 0 -0.010", (0.0, 0.0, 0.010)),  # the same, inverted
+    ("base_link", "base_footprint", "0 0 0", (0.0, 0.0, 0.0)),
+])
+def test_tf_static_base_link_offset_is_the_urdf_joint_either_way(
+        root: str, leaf: str, xyz: str, expected: tuple, tmp_path: Path) -> None:
+    from simlab.ros.export import urdf_base_offset
+
+    urdf = tmp_path / "r.urdf"
+    urdf.write_text(_URDF.format(root=root, leaf=leaf, xyz=xyz))
+    assert urdf_base_offset(urdf) == pytest.approx(expected)
+
+
+def test_exported_frames_match_the_robot_urdf(walks, tmp_path: Path) -> None:
+    """The bag's tf tree is map -> odom -> base_footprint -> base_link -> base_scan, with
+    base_footprint -> base_link the URDF's joint between them and base_scan the LIDAR's
+    mount, so robot_state_publisher and the bag agree on every frame."""
+    import xml.etree.ElementTree as ET
+
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    from simlab.physics.robot import load_robot_spec
+    from simlab.ros.export import export_bag, urdf_base_offset
+
+    export_bag(walks["truth"], tmp_path / "bag", scans=False)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    static = {}
+    with Reader(tmp_path / "bag") as r:
+        for c, _, raw in r.messages():
+            if c.topic == "/tf_static":
+                for tr in ts.deserialize_cdr(raw, c.msgtype).transforms:
+                    v = tr.transform.translation
+                    static[(tr.header.frame_id, tr.child_frame_id)] = (v.x, v.y, v.z)
+    assert set(static) == {("base_footprint", "base_link"), ("base_link", "base_scan")}
+    urdf = load_robot_spec().urdf_path
+    assert static["base_footprint", "base_link"] == pytest.approx(urdf_base_offset(urdf))
+    assert static["base_link", "base_scan"] == pytest.approx(load_robot_spec().lidar_offset)
+    links = {link.get("name") for link in ET.parse(urdf).getroot().findall("link")}
+    assert {"base_footprint", "base_link", "base_scan"} <= links
