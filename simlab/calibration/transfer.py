@@ -68,6 +68,7 @@ __all__ = [
     "QTableTwin",
     "TransferConfig",
     "TransferFiles",
+    "TransferFloor",
     "TransferModel",
     "TransferResult",
     "TwinScore",
@@ -79,6 +80,7 @@ __all__ = [
     "real_optimal_actions",
     "render_transfer_png",
     "transfer_command",
+    "transfer_floor",
     "transfer_markdown",
     "transfer_report",
     "twin_columns",
@@ -379,6 +381,8 @@ class TransferModel:
     visits: NDArray[np.int64] | None = None
     centres: NDArray[np.float64] | None = None
     goals: dict[str, NDArray[np.bool_]] = field(default_factory=dict)
+    counts: NDArray[np.int64] | None = None
+    """(S, A, S) the counts T was estimated from, if known (the sampling floor needs them)."""
 
     def __post_init__(self) -> None:
         from simlab.agents.planning import validate_mdp
@@ -392,6 +396,9 @@ class TransferModel:
         if self.centres is not None and np.shape(self.centres) != (S, 2):
             raise ConfigError(f"expected shape ({S}, 2), got {np.shape(self.centres)}",
                               path=self.name, key="centres")
+        if self.counts is not None and np.shape(self.counts) != (S, A, S):
+            raise ConfigError(f"expected shape ({S}, {A}, {S}), got {np.shape(self.counts)}",
+                              path=self.name, key="counts")
         if self.action_set is not None and self.action_set.n_actions != A:
             raise ConfigError(f"action_set has {self.action_set.n_actions} actions, T has {A}",
                               path=self.name, key="action_set")
@@ -414,7 +421,7 @@ class TransferModel:
         c = np.asarray(counts)
         T, visited = transition_matrix(c)
         return cls(T=T, allowed=visited, name=name, action_set=action_set,
-                   visits=c.sum(axis=(1, 2)).astype(np.int64),
+                   visits=c.sum(axis=(1, 2)).astype(np.int64), counts=c.astype(np.int64),
                    centres=None if centres is None else np.asarray(centres, dtype=np.float64))
 
     @classmethod
@@ -437,6 +444,7 @@ class TransferModel:
                      for n, m in zip(mdp.goal_names, mdp.goal_masks, strict=True)}
         return cls(T=T, allowed=allowed, name=name or str(mdp.source or "mdp"),
                    action_set=mdp.action_set, visits=visits,
+                   counts=None if mdp.counts is None else np.asarray(mdp.counts, np.int64),
                    centres=None if mdp.centres is None else np.asarray(mdp.centres),
                    goals=goals)
 
@@ -583,6 +591,7 @@ class GoalTransfer:
     optimum: NDArray[np.float64]
     optimum_mean: float
     twins: tuple[TwinScore, ...]
+    floor: TransferFloor | None = None
 
     @property
     def means(self) -> NDArray[np.float64]:
@@ -639,8 +648,12 @@ class TransferResult:
             mean = (f"mean {_steps(s['mean'])} steps" if math.isfinite(s["mean"]) else
                     f"{never} of {len(g.twins)} twin(s) never arrive from some start, best "
                     f"{_steps(s['best'])} steps")
-            parts.append(f"{label}: {mean}, worst {_steps(s['worst'])}, real optimum "
-                         f"{_steps(g.optimum_mean)} ({_pct(s['excess'])})")
+            part = (f"{label}: {mean}, worst {_steps(s['worst'])}, real optimum "
+                    f"{_steps(g.optimum_mean)} ({_pct(s['excess'])})")
+            if g.floor is not None:
+                part += (f"; a perfect twin would score {_pct(g.floor.median - 1.0)} (95 %: "
+                         f"{_pct(g.floor.low - 1.0)} to {_pct(g.floor.high - 1.0)})")
+            parts.append(part)
         return "; ".join(parts)
 
 
@@ -673,6 +686,7 @@ def _goal_json(g: GoalTransfer) -> dict[str, Any]:
         "optimum_mean": _num(g.optimum_mean),
         "optimum": _floats(g.optimum),
         "across_twins": {k: _num(v) for k, v in s.items()},
+        "perfect_twin_floor": None if g.floor is None else g.floor.to_json(),
         "twins": [{
             "name": t.name, "mean_steps": _num(t.mean_steps), "ratio": _num(t.ratio),
             "never_share": t.never_share,
@@ -751,6 +765,8 @@ def transfer_report(
     *,
     weights: str = "uniform",
     untried: str = "stay",
+    n_boot: int = 0,
+    rng: np.random.Generator | None = None,
 ) -> TransferResult:
     """Score each twin's policy on the real model, for each goal.
 
@@ -772,6 +788,8 @@ def transfer_report(
             docstring). ``mask``: the twin's policy is chosen among the pairs the real
             robot tried (a twin that knows the real coverage); the strict score is then
             no longer what the twin alone would do.
+        n_boot: resamples of :func:`transfer_floor` (0: no floor); needs ``real.counts``.
+        rng: the Generator of those resamples (required when ``n_boot > 0``).
 
     Returns:
         A :class:`TransferResult`; steps in decisions (actions), ``inf`` = never arrives.
@@ -789,6 +807,9 @@ def transfer_report(
     if untried not in UNTRIED_RULES:
         raise ConfigError(f"expected stay or mask, got {untried!r}", key="untried")
     restrict = real.allowed if untried == "mask" else None
+    if n_boot and rng is None:
+        raise ConfigError("the sampling floor needs a numpy Generator", key="rng",
+                          fix="pass rng=np.random.default_rng(seed), or n_boot=0")
     S, A = real.n_states, real.n_actions
     cols = []
     for t in twins:
@@ -826,13 +847,90 @@ def transfer_report(
                                     untried=~g & ~real.allowed[np.arange(S), pi],
                                     mean_steps=mean,
                                     never_share=never, ratio=ratio))
+        floor = None
+        if n_boot and real.counts is not None and st.size:
+            floor = transfer_floor(real, g, st, w, n_boot=n_boot, rng=rng)  # type: ignore[arg-type]
         out.append(GoalTransfer(name=str(gname), goal=g, starts=st, weights=w,
                                 unreachable_starts=unreachable, optimum=V,
-                                optimum_mean=opt_mean, twins=tuple(scores)))
+                                optimum_mean=opt_mean, twins=tuple(scores), floor=floor))
     return TransferResult(goals=tuple(out), real_name=real.name,
                           twin_names=tuple(t.name for t in twins),
                           action_set=real.action_set, weighting=weights,
                           centres=real.centres, untried=untried)
+
+
+@dataclass(frozen=True)
+class TransferFloor:
+    """What a perfect twin scores against a real model estimated from this much data.
+
+    ``ratios`` (n_boot,) mean steps of the perfect twin's policy over the resampled real
+    optimum (inf: it never arrives from some start in that resample); ``median``, ``low``,
+    ``high`` their 50, 2.5 and 97.5 % quantiles.
+    """
+
+    ratios: NDArray[np.float64]
+    median: float
+    low: float
+    high: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {"n_boot": int(self.ratios.size), "ratio_median": _num(self.median),
+                "ratio_low_2.5": _num(self.low), "ratio_high_97.5": _num(self.high),
+                "never_share": float(np.mean(~np.isfinite(self.ratios)))}
+
+
+def transfer_floor(real: TransferModel, goal: ArrayLike, starts: ArrayLike,
+                   weights: ArrayLike, *, n_boot: int, rng: np.random.Generator
+                   ) -> TransferFloor:
+    """The ratio a perfect twin scores, by parametric bootstrap of the real counts.
+
+    The optimum of an estimated model is biased low: its plan exploits the transitions that
+    were lucky in the sample (the optimizer's curse, Smith & Winkler 2006, Management
+    Science 52(3)), so even a twin equal to the true robot scores above the "real optimum".
+    How much depends on the number of real transitions per pair. Each resample draws
+    ``counts*(s, a, .) ~ Multinomial(n(s, a), T(s, a, .))`` (Efron & Tibshirani 1993, ch. 6),
+    then scores the real optimum's policy (standing for the true robot's plan) on the
+    resampled model against that model's own optimum: mean steps over ``starts`` with
+    ``weights`` (starts the resample cannot reach are left out of that resample). A
+    resample never holds a transition the real data missed, so with few real transitions per
+    pair the gap it finds is rather a lower bound of the true one.
+
+    Args:
+        real: the real model with its ``counts`` (S, A, S).
+        goal: (S,) bool or goal state ids.
+        starts: (n,) start states; weights: (n,) their weights.
+        n_boot: resamples (>= 1); rng: their Generator.
+    """
+    from simlab.data.estimate import transition_matrix
+
+    if real.counts is None:
+        raise ConfigError("the real model has no counts", path=real.name, key="counts",
+                          fix="give the real count file or an mdp.npz with counts")
+    S = real.n_states
+    g = goal_mask(goal, S)
+    st = np.asarray(starts, dtype=np.int64)
+    w = np.asarray(weights, dtype=np.float64)
+    pi = _solve(real.T, g, real.allowed)[2]
+    n_sa = real.counts.sum(axis=2)
+    ratios = np.empty(int(n_boot))
+    for b in range(int(n_boot)):
+        T, visited = transition_matrix(rng.multinomial(n_sa, real.T / real.T.sum(axis=2,
+                                                                                keepdims=True)))
+        V = _solve(T, g, visited)[0]
+        h = _evaluate_policy(T, pi, g, visited)
+        keep = np.isfinite(V[st]) & (w > 0)
+        if not keep.any():
+            ratios[b] = math.nan
+            continue
+        wk = w[keep] / w[keep].sum()
+        opt = float(np.sum(V[st][keep] * wk))
+        hk = h[st][keep]
+        ratios[b] = math.inf if not np.all(np.isfinite(hk)) else float(np.sum(hk * wk)) / opt
+    r = ratios[~np.isnan(ratios)]
+    if r.size == 0:
+        return TransferFloor(ratios=ratios, median=math.nan, low=math.nan, high=math.nan)
+    q = np.quantile(r, [0.5, 0.025, 0.975], method="inverted_cdf")
+    return TransferFloor(ratios=ratios, median=float(q[0]), low=float(q[1]), high=float(q[2]))
 
 
 # --------------------------------------------------------------------------------------
@@ -875,6 +973,16 @@ def transfer_markdown(result: TransferResult) -> str:
                   f"{_steps(s['worst'])}, best {_steps(s['best'])}, spread (std) "
                   f"{_steps(s['spread'])} steps; mean over the optimum "
                   f"{_pct(s['excess'])}.\n")
+        if g.floor is not None:
+            f = g.floor
+            out.write(f"\nThe real optimum of an estimated model is biased low, so even a "
+                      "perfect twin scores above it. A perfect twin (the real robot's own "
+                      "plan) scored on real models re-estimated from the same number of "
+                      f"transitions ({f.ratios.size} resamples) is {_pct(f.median - 1.0)} "
+                      f"above their optimum (95 %: {_pct(f.low - 1.0)} to "
+                      f"{_pct(f.high - 1.0)}). The resamples never hold a transition the "
+                      "real data missed, so with few transitions per pair this gap is "
+                      "rather a lower bound.\n")
     out.write("\n![transfer](transfer.png)\n")
     return out.getvalue()
 
@@ -1124,6 +1232,9 @@ class TransferConfig(ActionSetOptions):
         "stay", "a twin action the real robot never tried in that state: stay = it stays "
         "put there (never arrives); mask = choose the twin's policy among the tried ones",
         choices=tuple(UNTRIED_RULES))
+    n_boot: int = option(200, "resamples of the perfect-twin floor (0: none; needs the "
+                         "real counts)")
+    seed: int = option(0, "seed of those resamples")
     plot: bool = option(True, "the figure transfer.png (--no-plot skips it)")
     overwrite: bool = option(False, "replace the outputs of an earlier `simlab transfer`")
 
@@ -1140,6 +1251,10 @@ class TransferConfig(ActionSetOptions):
                               "mdp.npz records its own action set", key="n_actions",
                               fix="drop them")
         self.make_action_set(16)
+        from simlab import validation
+
+        validation.whole(self.n_boot, "n_boot", minimum=0)
+        validation.whole(self.seed, "seed", minimum=0)
 
 
 @dataclass(frozen=True)
@@ -1253,7 +1368,8 @@ def transfer_command(cfg: TransferConfig) -> TransferFiles:
     goals = _goals(cfg, real, twins)
     try:
         result = transfer_report(real, twins, goals, cfg.start_states, weights=cfg.weights,
-                                 untried=cfg.untried)
+                                 untried=cfg.untried, n_boot=cfg.n_boot,
+                                 rng=np.random.default_rng(cfg.seed))
     except ConfigError as exc:
         if exc.path is not None or exc.key not in ("goal_states", "start_states"):
             raise

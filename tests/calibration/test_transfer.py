@@ -395,3 +395,34 @@ def test_untried_rule_mask_plans_the_twin_on_the_real_robots_tried_pairs() -> No
     np.testing.assert_allclose(m.regret, 0.0)
     with pytest.raises(ConfigError, match="untried"):
         transfer_report(real, [twin], {"end": [3]}, untried="ignore")
+
+
+def test_perfect_twin_floor() -> None:
+    from simlab.calibration.transfer import transfer_floor
+
+    rng = np.random.default_rng(11)
+    counts = lattice_counts(CCW8, n=20, success=0.6)
+    noisy = counts.copy()
+    noisy[:, :, :] = rng.multinomial(20, counts / 20.0)  # 20 transitions per pair
+    real = TransferModel.from_counts(noisy, action_set=CCW8)
+    starts, w = np.arange(8), np.full(8, 1 / 8)
+    a = transfer_floor(real, [8], starts, w, n_boot=40, rng=np.random.default_rng(1))
+    b = transfer_floor(real, [8], starts, w, n_boot=40, rng=np.random.default_rng(1))
+    np.testing.assert_array_equal(a.ratios, b.ratios)  # deterministic by seed
+    # each resample's optimum is no worse than the real plan on it: ratios >= 1
+    assert np.all(a.ratios[np.isfinite(a.ratios)] >= 1.0 - 1e-12)
+    assert a.low <= a.median <= a.high
+    # deterministic moves: every resample is the model itself, the floor is exactly 1
+    sure = TransferModel.from_counts(lattice_counts(CCW8, success=1.0), action_set=CCW8)
+    f = transfer_floor(sure, [8], starts, w, n_boot=5, rng=np.random.default_rng(0))
+    assert f.ratios.tolist() == [1.0] * 5
+    # with a million transitions per pair the bias vanishes
+    big = TransferModel.from_counts(lattice_counts(CCW8, n=10**6, success=0.6),
+                                    action_set=CCW8)
+    f = transfer_floor(big, [8], starts, w, n_boot=10, rng=np.random.default_rng(0))
+    assert f.high < 1.001
+    res = transfer_report(real, [real], {"corner": [8]}, n_boot=10,
+                          rng=np.random.default_rng(1))
+    assert res.goals[0].floor is not None and "perfect twin" in res.summary_line()
+    with pytest.raises(ConfigError, match="Generator"):
+        transfer_report(real, [real], {"corner": [8]}, n_boot=10)
