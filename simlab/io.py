@@ -39,7 +39,10 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb", *,
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     where = path.parent if tmp_dir is None else Path(tmp_dir)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=where)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=where)
+    except OSError as exc:  # a read-only or full file system: name the output, not the tmp
+        raise _naming(exc, path, {str(exc.filename)}) from exc
     tmp = Path(tmp_name)
     try:
         os.fchmod(fd, 0o666 & ~_UMASK)
@@ -49,10 +52,23 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb", *,
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise _naming(exc, path, {str(tmp)}) from exc
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+def _naming(exc: OSError, path: Path, ours: set[str]) -> OSError:
+    """``exc`` naming ``path`` when it names no file (a full disk met by ``write`` or
+    ``fsync``) or one of simlab's temporary names ``ours``: the user's message then says
+    which output could not be written. Same class and errno; ``exc`` itself otherwise."""
+    if exc.filename is not None and str(exc.filename) not in ours:
+        return exc
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
@@ -238,8 +254,22 @@ def output_transaction(out: str | os.PathLike[str], finals: Any = (), *, overwri
                 logging.getLogger("simlab.io").info("%s: %d file(s) written", out, len(written))
             finally:
                 shutil.rmtree(staging, ignore_errors=True)
-    except BaseException:
+    except BaseException as exc:
         if created:
             with contextlib.suppress(OSError):
                 out.rmdir()  # only if empty: a failed first run must not block the rerun
+        if isinstance(exc, OSError) and exc.filename is not None \
+                and STAGING_PREFIX in str(exc.filename):
+            raise _unstaged(exc, out) from exc
         raise
+
+
+def _unstaged(exc: OSError, out: Path) -> OSError:
+    """``exc`` naming the final output instead of its staged copy
+    (``out/.simlab-staging-x/q_N.npz`` -> ``out/q_N.npz``): messages name the user's
+    files, never simlab's hidden ones."""
+    name = Path(str(exc.filename))
+    parts = name.parts
+    k = next(i for i, p in enumerate(parts) if p.startswith(STAGING_PREFIX))
+    final = out.joinpath(*parts[k + 1:]) if k + 1 < len(parts) else out
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(final))

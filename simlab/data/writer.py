@@ -30,6 +30,7 @@ midway leaves a directory no reader accepts rather than a mixture of two dataset
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -316,21 +317,39 @@ def write_dataset(
     manifest["provenance"] = dict(info.provenance)
     manifest["writer"] = "simlab.data.writer"
     out = Path(out)
+    created = not out.exists()
     with exclusive_directory(out, what="dataset directory"):
         _clear(out, overwrite)
-        for w, walk in enumerate(walks):
-            n = len(walk)
-            starts = range(0, n, int(part_size)) if n else []
-            for p, start in enumerate(starts):
-                rows = slice(start, min(n, start + int(part_size)))
-                table = _part_table(walk, rows, w, p, states[w], info.pose_source, schema)
-                entry = write_part(out, w, p, table, disc.content_hash())
-                last = rows.stop - 1
-                entry.update(t_end=float(walk.t[last] + walk.duration[last]),
-                             pose_end=[float(v) for v in walk.pose_next[last]],
-                             final=rows.stop == n)
-                manifest["parts"].append(entry)
-        manifest["complete"] = True
-        manifest = _jsonable(manifest)
-        write_manifest(out, manifest)
-    return WriteResult(out=out, manifest=manifest, rows=sum(len(w) for w in walks))
+        try:
+            written = _write_walks(out, walks, states, info, schema, manifest, part_size, disc)
+        except BaseException:  # a full disk, Ctrl-C: remove this run's parts, so the rerun
+            for entry in manifest["parts"]:  # meets an empty directory, not "not empty"
+                (out / entry["file"]).unlink(missing_ok=True)
+            for d in (out / PARTS_DIR, *((out,) if created else ())):
+                with contextlib.suppress(OSError):
+                    d.rmdir()  # only when empty
+            raise
+    return WriteResult(out=out, manifest=written, rows=sum(len(w) for w in walks))
+
+
+def _write_walks(out: Path, walks: list[TransitionArrays], states: list[Any],
+                 info: DatasetInfo, schema: pa.Schema, manifest: dict[str, Any],
+                 part_size: int, disc: Any) -> dict[str, Any]:
+    """The parts of every walk, then the manifest (its ``parts`` filled in as written);
+    returns the manifest as written."""
+    for w, walk in enumerate(walks):
+        n = len(walk)
+        starts = range(0, n, int(part_size)) if n else []
+        for p, start in enumerate(starts):
+            rows = slice(start, min(n, start + int(part_size)))
+            table = _part_table(walk, rows, w, p, states[w], info.pose_source, schema)
+            entry = write_part(out, w, p, table, disc.content_hash())
+            last = rows.stop - 1
+            entry.update(t_end=float(walk.t[last] + walk.duration[last]),
+                         pose_end=[float(v) for v in walk.pose_next[last]],
+                         final=rows.stop == n)
+            manifest["parts"].append(entry)
+    manifest["complete"] = True
+    written = _jsonable(manifest)
+    write_manifest(out, written)
+    return written

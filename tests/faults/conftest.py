@@ -9,6 +9,7 @@ that every file that existed before the command is byte-identical afterwards.
 from __future__ import annotations
 
 import hashlib
+import math
 import shutil
 import sys
 from dataclasses import dataclass
@@ -30,6 +31,37 @@ class Inputs:
     qtables: Path         # `simlab train` output (3 episodes, 1 run, no plots)
     counts: Path          # a valid counts CSV
     map_yaml: Path        # map of the table (from its geometry)
+    log: Path             # pose log 't x y yaw' of 8 decisions on the table (2 Hz)
+
+
+def pose_log_lines(cells: bool = False) -> list[str]:
+    """A 2 Hz pose log on the table: 8 decisions, each a quarter turn in place (1 s) then
+    a 0.2 m drive at 0.1 m/s (2 s), then a 1 s pause; a square walked twice from (-0.2,
+    -0.2). ``cells``: add the columns ``cell n_cells`` of the 25-state lattice."""
+    lattice = _lattice(0.6)
+    t, x, y, yaw = 0.0, -0.2, -0.2, 0.0
+    rows = [(t, x, y, yaw)]
+    for k in range(8):
+        target = (k + 1) * math.pi / 2
+        for f in (0.5, 1.0):  # the turn
+            t += 0.5
+            rows.append((t, x, y, yaw + f * (target - yaw)))
+        yaw = target
+        for _ in range(4):  # the drive
+            t += 0.5
+            x, y = x + 0.05 * math.cos(yaw), y + 0.05 * math.sin(yaw)
+            rows.append((t, x, y, yaw))
+        for _ in range(2):  # the pause
+            t += 0.5
+            rows.append((t, x, y, yaw))
+    out = []
+    for t, x, y, a in rows:
+        a = math.atan2(math.sin(a), math.cos(a))
+        line = f"{t:.1f} {x:.4f} {y:.4f} {a:.4f}"
+        if cells:
+            line += f" {int(lattice.state_of(np.array([[x, y]]))[0])} 25"
+        out.append(line)
+    return out
 
 
 def _lattice(half: float) -> Discretizer:
@@ -59,9 +91,10 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> Inputs:
     from discretize.mapio import write_map
 
     write_map(root / "map" / "map.yaml", arena_map(load_arena("table"), 0.02))
+    (root / "log.txt").write_text("# t x y yaw\n" + "\n".join(pose_log_lines()) + "\n")
     return Inputs(root=root, states=states, other_states=other, dataset=root / "data",
                   mdp=root / "mdp.npz", qtables=root / "q", counts=counts,
-                  map_yaml=root / "map" / "map.yaml")
+                  map_yaml=root / "map" / "map.yaml", log=root / "log.txt")
 
 
 def tree_hashes(root: Path) -> dict[str, str]:

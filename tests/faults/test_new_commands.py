@@ -122,3 +122,26 @@ def test_train_reads_param_from_an_options_file_like_the_command_line(work: Path
     assert res.code == 0, res.stderr
     summary = json.loads((work / "t" / "summary.json").read_text())
     assert summary["config"]["tau"] == 0.25
+
+
+def test_import_log_on_a_full_disk_leaves_no_parts_and_the_rerun_works(
+        work: Path, capsys, monkeypatch) -> None:
+    argv = f"import-log {work}/log.txt --states {work}/states.json --out {work}/il".split()
+    (work / "il").mkdir()  # the user's empty folder stays, and stays empty
+    real = os.fsync
+    calls = {"n": 0}
+
+    def full_at_second(fd: int) -> None:
+        calls["n"] += 1
+        if calls["n"] >= 2:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", full_at_second)
+    # the log's 8 decisions in parts of 10 rows: one part, then the manifest fails
+    assert_refused(run_cli(argv, capsys), "no space left")
+    monkeypatch.setattr(os, "fsync", real)
+    assert list((work / "il").iterdir()) == []
+    res = run_cli(argv, capsys)
+    assert res.code == 0, res.stderr
+    assert (work / "il" / "_manifest.json").is_file()

@@ -29,6 +29,7 @@ COMMANDS = {
     "collect": "collect --states {w}/states.json --transitions 50 --simulator kinematic "
                "--out {w}/new --no-progress",
     "arena-from-map": "arena-from-map {w}/map/map.yaml --out {w}/a.toml --start 0,0,0",
+    "import-log": "import-log {w}/log.txt --states {w}/states.json --out {w}/il",
     "visitlab-train": "visitlab train --task nav --trials 5 --seeds 1 --out {w}/v "
                       "--no-progress",
 }
@@ -75,6 +76,9 @@ def test_write_failure_is_one_line_and_leaves_everything_as_it_was(
         assert nth > 1
         return
     assert_refused(res, ERRORS[err])
+    line = res.error_lines[0]
+    assert str(work) in line, line  # the output that could not be written
+    assert ".simlab-staging-" not in line and ".tmp" not in line, line  # never our hidden names
     after = tree_hashes(work)
     assert {k: after.get(k) for k in before} == before  # nothing that existed changed
     if command == "collect":
