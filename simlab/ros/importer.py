@@ -78,8 +78,11 @@ def _decisions_from_actions(t: np.ndarray, xy: np.ndarray, yaw: np.ndarray,
 
     With the recorded ``duration`` (k,) s, a decision ends at the sample stamped ``start +
     duration`` (to 1 us; else at the next decision's start) and keeps that duration; with
-    the recorded ``blocked`` (k,) that flag is kept. Without them the decision ends where
-    the next one starts and is blocked when none of its intervals is a ``move``.
+    the recorded ``blocked`` (k,) that flag is kept. Without them the decision ends at the
+    sample after its last motion (a ``move`` or ``turn`` interval of the pose-log
+    labelling, the rule of :func:`~simlab.data.poselog.segment_decisions`: the idle wait
+    for the next decision is not part of its duration; one sample when it has no motion),
+    and is blocked when none of its intervals up to the next decision is a ``move``.
     """
     from simlab.data.poselog import interval_labels
 
@@ -107,13 +110,20 @@ def _decisions_from_actions(t: np.ndarray, xy: np.ndarray, yaw: np.ndarray,
     # as a motionless decision of zero duration)
     ok = end > start if duration is None else (end > start) | (duration == 0)
     start, end, actions = start[ok], end[ok], actions[ok]
+    labels = interval_labels(t, xy, yaw, segment)
     if blocked is None:
-        moving = interval_labels(t, xy, yaw, segment) == 2
-        cum = np.concatenate([[0], np.cumsum(moving)])
+        cum = np.concatenate([[0], np.cumsum(labels == 2)])
         blocked = (cum[end] - cum[start]) == 0
     else:
         blocked = blocked[ok]
-    duration = t[end] - t[start] if duration is None else duration[ok]
+    if duration is None:
+        active = np.flatnonzero(labels != 0)  # interval i joins samples i and i + 1
+        pos = np.searchsorted(active, end, side="left") - 1
+        last = np.where(pos >= 0, active[np.clip(pos, 0, None)] if len(active) else -1, -1)
+        end = np.where(last >= start, last + 1, np.minimum(start + 1, end))
+        duration = t[end] - t[start]
+    else:
+        duration = duration[ok]
     return start, end, blocked, actions, duration
 
 

@@ -274,3 +274,26 @@ def test_exported_frames_match_the_robot_urdf(walks, tmp_path: Path) -> None:
     assert static["base_link", "base_scan"] == pytest.approx(load_robot_spec().lidar_offset)
     links = {link.get("name") for link in ET.parse(urdf).getroot().findall("link")}
     assert {"base_footprint", "base_link", "base_scan"} <= links
+
+
+def test_a_foreign_bags_decisions_end_with_their_motion_not_at_the_next_action(
+        tmp_path: Path) -> None:
+    """A robot's bag with an action topic only (no recorded durations), poses at 10 Hz:
+    decision 0 turns 1 s (pi/2) then drives 1 s at 0.2 m/s, then waits 3 s; decision 1
+    drives 1 s and waits 2 s; decision 2 does nothing (blocked, no turn). Durations are the
+    motion's (2 s, 1 s, one sample), not the 5 s and 3 s between the actions."""
+    from simlab.ros.importer import import_bag
+
+    t = np.round(np.arange(0, 10.0, 0.1), 6)
+    yaw = np.clip(t, 0, 1) * np.pi / 2
+    y = 0.2 * np.clip(t - 1, 0, 1) + 0.2 * np.clip(t - 5, 0, 1)
+    pose = np.column_stack([np.zeros_like(t), y, yaw])
+    bag = write_bag(tmp_path / "b", BagTrajectory(
+        t=t, pose=pose, actions=np.array([2, 2, 0]), action_t=np.array([0.0, 5.0, 8.0])))
+    centres = np.array([[0.0, 0.0], [0.0, 0.4], [1.0, 0.0]])
+    res = import_bag(bag, states=Discretizer(centres=centres), out=tmp_path / "ds",
+                     n_actions=8, convention="ccw-east")
+    ds = open_dataset(tmp_path / "ds")
+    np.testing.assert_allclose(ds.column("duration"), [2.0, 1.0, 0.1], atol=1e-9)
+    np.testing.assert_allclose(ds.column("y_next"), [0.2, 0.4, 0.4], atol=1e-9)
+    assert ds.column("blocked").tolist() == [False, False, True] and res.blocked == 1
