@@ -69,14 +69,54 @@ def exit_with_parent(parent_pid: int, interval: float = PARENT_POLL_SECONDS) -> 
                      name="simlab-parent-watchdog").start()
 
 
+#: True in a worker process while it runs a job (see :func:`_init_worker`).
+_BUSY = False
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    if _BUSY:
+        raise KeyboardInterrupt
+
+
+def _init_worker(parent_pid: int) -> None:
+    """Initializer of every :func:`worker_pool` process: :func:`exit_with_parent`, and Ctrl-C
+    handled as the driver needs it.
+
+    Ctrl-C in a terminal sends SIGINT to the whole process group, workers included. A worker
+    waiting for its next job would die of it with a ``KeyboardInterrupt`` traceback printed
+    by :mod:`multiprocessing`, on the user's terminal, beside the driver's one-line
+    ``interrupted``. So SIGINT is ignored while the worker is idle (the driver, interrupted
+    too, shuts the pool down and the worker exits on the pool's stop message) and is a
+    ``KeyboardInterrupt`` inside a job (it stops the job at once; the pool hands it back to
+    the driver as the job's exception)."""
+    import signal
+
+    exit_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, _on_sigint)
+
+
+def _run_job(fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:
+    """``fn(*args, **kwargs)`` in a worker, marked busy for :func:`_on_sigint`."""
+    global _BUSY
+    _BUSY = True
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        _BUSY = False
+
+
 class WorkerPool(cf.ProcessPoolExecutor):
     """The executor :func:`worker_pool` returns: a ``ProcessPoolExecutor`` that says how many
     processes it has (:attr:`processes`), for callers that feed it one job per process
-    (``simlab train``'s goals) instead of reading the executor's private count."""
+    (``simlab train``'s goals) instead of reading the executor's private count. Its jobs
+    stop on Ctrl-C and its idle workers ignore it (:func:`_init_worker`)."""
 
     def __init__(self, processes: int, **kwargs: Any) -> None:
         super().__init__(max_workers=processes, **kwargs)
         self.processes = int(processes)
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future[Any]:
+        return super().submit(_run_job, fn, *args, **kwargs)
 
 
 def worker_pool(processes: int) -> WorkerPool:
@@ -86,7 +126,7 @@ def worker_pool(processes: int) -> WorkerPool:
     import multiprocessing
 
     return WorkerPool(processes, mp_context=multiprocessing.get_context("spawn"),
-                      initializer=exit_with_parent, initargs=(os.getpid(),))
+                      initializer=_init_worker, initargs=(os.getpid(),))
 
 
 def spawn_worker() -> WorkerPool:

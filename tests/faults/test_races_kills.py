@@ -213,3 +213,31 @@ def test_internal_errors_are_one_line_exit_1(monkeypatch, capsys) -> None:
     monkeypatch.setattr(cli_train, "run", bug)
     res = run_cli(["train", "--mdp", "x.npz", "--out", "y"], capsys)
     assert_refused(res, "internal error", "TypeError", code=1)
+
+
+_CTRL_C_IN_A_TERMINAL = """
+import os, signal, sys, time
+from simlab.parallel import worker_pool
+
+pool = worker_pool(2)
+list(pool.map(time.sleep, [0.5, 0.5]))  # both workers started, now idle
+busy = pool.submit(time.sleep, 60)       # one works, the other waits for a job
+time.sleep(1.0)
+try:
+    os.killpg(os.getpgrp(), signal.SIGINT)  # what a terminal does: the whole group
+    time.sleep(60)
+except KeyboardInterrupt:
+    pool.shutdown(wait=True, cancel_futures=True)
+    print("busy job:", type(busy.exception()).__name__)
+    sys.exit(130)
+"""
+
+
+def test_ctrl_c_in_a_terminal_stops_jobs_and_idle_workers_print_nothing() -> None:
+    res = subprocess.run([sys.executable, "-c", _CTRL_C_IN_A_TERMINAL], capture_output=True,
+                         text=True, timeout=120, start_new_session=True,  # a hang guard
+                         preexec_fn=_default_sigint,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert res.returncode == 130, (res.returncode, res.stderr)
+    assert "Traceback" not in res.stderr and "KeyboardInterrupt" not in res.stderr, res.stderr
+    assert "busy job: KeyboardInterrupt" in res.stdout  # the job stopped, not waited for
