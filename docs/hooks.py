@@ -1,0 +1,71 @@
+"""MkDocs hooks of the documentation site (``mkdocs.yml``: ``hooks``).
+
+* A page line ``<!-- simlab:NAME -->`` is replaced by the page generated from the code
+  (``commands``, ``envs``, ``dataset``; :mod:`simlab_docs`).
+* Every ``simlab ...`` line of a code block must name a real subcommand and real options:
+  otherwise a warning, which ``mkdocs build --strict`` turns into a failed build.
+* The guide's figures are made by the commands it shows (:data:`simlab_docs.FIGURES`),
+  in a scratch folder, at every build, and served under ``figures/``.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import simlab_docs  # noqa: E402  (beside this file)
+
+log = logging.getLogger("mkdocs.plugins.simlab")
+
+_GENERATED = {
+    "commands": simlab_docs.commands_markdown,
+    "envs": simlab_docs.envs_markdown,
+    "dataset": simlab_docs.dataset_markdown,
+}
+_state: dict[str, Any] = {}
+
+
+def on_pre_build(config: Any) -> None:
+    _state["commands"] = simlab_docs.command_parsers()
+    scratch = tempfile.TemporaryDirectory(prefix="simlab-docs-")
+    _state["scratch"] = scratch
+    start = time.perf_counter()
+    _state["figures"] = simlab_docs.make_figures(Path(scratch.name))
+    log.info("simlab: figures made by their commands in %.1f s", time.perf_counter() - start)
+
+
+def on_files(files: Any, config: Any) -> Any:
+    from mkdocs.structure.files import File
+
+    for name, path in _state.get("figures", {}).items():
+        if name.endswith(".txt"):
+            continue
+        files.append(File.generated(config, f"figures/{name}", abs_src_path=str(path)))
+    return files
+
+
+def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    for name, make in _GENERATED.items():
+        marker = f"<!-- simlab:{name} -->"
+        if marker in markdown:
+            markdown = markdown.replace(marker, make())
+    for name, path in _state.get("figures", {}).items():
+        marker = f"<!-- simlab:figure:{name} -->"
+        if marker in markdown:
+            markdown = markdown.replace(marker, "```text\n" + path.read_text().rstrip()
+                                        + "\n```")
+    for problem in simlab_docs.check_command_lines(markdown, _state.get("commands")):
+        log.warning("%s: %s", page.file.src_uri, problem)
+    return markdown
+
+
+def on_post_build(config: Any) -> None:
+    scratch = _state.pop("scratch", None)
+    if scratch is not None:
+        scratch.cleanup()
