@@ -19,7 +19,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import simlab_docs  # noqa: E402  (beside this file)
+import simlab_docs  # beside this file (sys.path above)
 
 log = logging.getLogger("mkdocs.plugins.simlab")
 
