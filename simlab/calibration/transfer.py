@@ -1038,12 +1038,22 @@ def _draw_map(ax: Any, g: GoalTransfer, t: TwinScore, centres: NDArray[np.float6
     if nan.any():
         ax.scatter(xy[nan, 0], xy[nan, 1], marker=".", s=40, color="0.5", zorder=3,
                    label="goal out of real reach")
+    untried = t.untried & ~g.goal
+    if untried.any():
+        ax.scatter(xy[untried, 0], xy[untried, 1], marker="s", s=200, facecolors="none",
+                   edgecolors="tab:red", linewidths=1.5, zorder=4,
+                   label="action the real robot never tried")
+    if t.disagree.any():
+        ax.scatter([], [], s=90, facecolors="none", edgecolors="black", linewidths=1.8,
+                   label="not a real-optimal action")
     ax.scatter(xy[g.goal, 0], xy[g.goal, 1], marker="*", s=220, color="gold",
                edgecolors="black", zorder=5, label="goal")
     for s in range(S):
         ax.annotate(str(s), xy[s], xytext=(3, 3), textcoords="offset points", fontsize=6)
-    ax.set_title(f"{_short(t.name)}: {_steps(t.mean_steps)} steps ({int(t.disagree.sum())} "
-                 "disagree)", fontsize=8)
+    score = (f"{_steps(t.mean_steps)} steps" if math.isfinite(t.mean_steps) else
+             f"never arrives from {100 * t.never_share:.0f} % of the starts")
+    ax.set_title(f"{_short(t.name)}: {score}, {int(t.disagree.sum())} states disagree",
+                 fontsize=8)
     from matplotlib.cm import ScalarMappable
 
     return ScalarMappable(norm=norm, cmap=cmap)
@@ -1062,6 +1072,10 @@ def _draw_bars(ax: Any, g: GoalTransfer) -> None:
                hatch="//", label="never arrives")
     if math.isfinite(g.optimum_mean):
         ax.axhline(g.optimum_mean, color="k", ls="--", label="real optimum")
+        f = g.floor
+        if f is not None and math.isfinite(f.low) and math.isfinite(f.high):
+            ax.axhspan(g.optimum_mean * f.low, g.optimum_mean * f.high, color="0.85",
+                       zorder=0, label="a perfect twin (95 %)")
     ax.set_xticks(x)
     ax.set_xticklabels([_short(t.name) for t in g.twins], rotation=45, ha="right", fontsize=7)
     ax.set_ylabel("expected steps to the goal (real)")
@@ -1083,25 +1097,36 @@ def render_transfer_png(result: TransferResult, *, grid: Any = None, disc: Any =
     from matplotlib.figure import Figure
 
     centres = result.centres if disc is None else np.asarray(disc.centres)
-    rows = len(result.goals)
-    cols = max(len(_panels(g)) for g in result.goals) + 1
-    fig = Figure(figsize=(4.6 * cols, 3.9 * rows), layout="constrained")
-    axes = np.atleast_2d(fig.subplots(rows, cols, squeeze=False))
-    for r, g in enumerate(result.goals):
+    # a long lab (a corridor, or states in a line without centres) gets one map per row
+    wide = True
+    if centres is not None:
+        span = np.ptp(np.asarray(centres), axis=0)
+        wide = bool(span[0] > 2.0 * max(span[1], 1e-9))
+    n_maps = max(len(_panels(g)) for g in result.goals)
+    if wide:
+        per_goal = n_maps + 1
+        fig = Figure(figsize=(10.0, 3.0 * per_goal * len(result.goals)), layout="constrained")
+        grid_axes = fig.subplots(per_goal * len(result.goals), 1, squeeze=False)[:, 0]
+        slots = [(list(grid_axes[i * per_goal: i * per_goal + n_maps]),
+                  grid_axes[i * per_goal + n_maps]) for i in range(len(result.goals))]
+    else:
+        fig = Figure(figsize=(4.6 * (n_maps + 1), 4.2 * len(result.goals)),
+                     layout="constrained")
+        grid_axes = fig.subplots(len(result.goals), n_maps + 1, squeeze=False)
+        slots = [(list(row[:n_maps]), row[n_maps]) for row in grid_axes]
+    for g, (map_axes, bar_ax) in zip(result.goals, slots, strict=True):
         panels = _panels(g)
         ex = np.concatenate([t.excess[np.isfinite(t.excess)] for t in g.twins])
         vmax = max(1.0, float(ex.max()) if ex.size else 1.0)
-        mappable = None
-        for c in range(cols - 1):
-            if c < len(panels):
-                mappable = _draw_map(axes[r, c], g, panels[c], centres, vmax, grid, disc)
-            else:
-                axes[r, c].axis("off")
-        if mappable is not None:
-            cbar = fig.colorbar(mappable, ax=axes[r, cols - 2], fraction=0.05)
-            cbar.set_label("excess steps over the real optimum")
-        axes[r, 0].legend(fontsize=6, loc="best")
-        _draw_bars(axes[r, cols - 1], g)
+        for ax, t in zip(map_axes, panels, strict=False):
+            mappable = _draw_map(ax, g, t, centres, vmax, grid, disc)
+            cbar = fig.colorbar(mappable, ax=ax, fraction=0.04)
+            cbar.set_label("excess steps", fontsize=7)
+            ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(0.0, -0.18 if wide
+                                                                   else -0.12), ncols=3)
+        for ax in map_axes[len(panels):]:
+            ax.axis("off")
+        _draw_bars(bar_ax, g)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()

@@ -329,12 +329,17 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def test_cli_end_to_end(files, tmp_path, capsys) -> None:
+    from discretize.mapio import write_map
     from simlab.cli import main
+    from simlab.localization.maps import arena_map
+    from simlab.physics.arena import load_arena
 
+    map_yaml = tmp_path / "map" / "map.yaml"
+    write_map(map_yaml, arena_map(load_arena("table"), 0.02))
     out = tmp_path / "out"
     argv = ["transfer", "--real", str(files["real"]), "--sim", str(files["twin0"]),
             str(files["twin1"]), str(files["q"]), "--goal-states", "8", "--states",
-            str(files["states"]), "--out", str(out)]
+            str(files["states"]), "--map", str(map_yaml), "--n-boot", "20", "--out", str(out)]
     assert main(argv) == 0
     line_out = capsys.readouterr().out.splitlines()[0]
     assert line_out.startswith("twin policy: mean ") and "real optimum 2.03" in line_out
@@ -348,6 +353,9 @@ def test_cli_end_to_end(files, tmp_path, capsys) -> None:
     assert g["optimum_mean"] == pytest.approx((5 * 2.5 + 3 * 1.25) / 8)
     assert [t["mean_steps"] for t in g["twins"]] == pytest.approx([g["optimum_mean"]] * 3)
     assert (out / "transfer.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # 10 transitions per pair of which 8 move: the perfect twin's floor is at least 1
+    assert 1.0 <= g["perfect_twin_floor"]["ratio_median"] <= g["perfect_twin_floor"][
+        "ratio_high_97.5"]
     assert "| twin | mean steps |" in (out / "transfer.md").read_text()
     # again with --overwrite: replaces its own outputs; same numbers (deterministic)
     assert main([*argv, "--overwrite", "--no-plot"]) == 0
