@@ -28,7 +28,8 @@ Decisions:
   ``allowed`` mask), and a twin policy that chooses it is scored as **staying put** there
   (the self-loop ``simlab estimate`` also writes for an unvisited row): from any state whose
   walk reaches that state the policy never arrives, ``inf`` steps. The number of such states
-  is reported per twin (``untried``).
+  is reported per twin (``untried``). The rule ``untried="mask"`` instead chooses the twin's
+  policy among the pairs the real robot tried (a twin that knows the real coverage).
 * **Ties.** Among actions whose expected steps are equal within ``1e-9`` (relative), the
   lowest action index; a state with no way to the goal takes its lowest allowed action.
 * **Action sets.** Twin and real model must hold the same primitives. A twin of simlab's 16
@@ -40,9 +41,14 @@ Decisions:
   ``unreachable_starts``): no policy can be scored there. Mean steps over the starts are
   uniform or weighted by the real visits of each start state (``weights``); a mean over
   starts of which one never arrives is ``inf`` ("never" in the reports).
+* **A floor for the score.** The optimum of an estimated real model is biased low (its plan
+  exploits lucky samples), so even a perfect twin scores above it; :func:`transfer_floor`
+  estimates by how much at the real data's sample size, and the reports print it beside the
+  twins' scores.
 * **Goals** (command): ``--goal-states 18,34`` is one goal made of those states (named
   ``s18+34``, as ``simlab train --goal-states``); without it, the goals recorded in the real
-  ``mdp.npz``, else those of the twins' Q-tables; none of them is an error.
+  ``mdp.npz``, else those of the first twin (its Q-tables' goals, or its ``mdp.npz``'s);
+  none of them is an error.
 """
 
 from __future__ import annotations
@@ -1363,10 +1369,12 @@ def _goals(cfg: TransferConfig, real: TransferModel,
         return {state_goal_name(cfg.goal_states): np.array(cfg.goal_states)}
     if real.goals:
         return dict(real.goals)
-    for t in twins:
-        if isinstance(t, QTableTwin):
-            return {tab.name: tab.goal for tab in t.tables}
-    raise ConfigError("no goal: the real model records none and no twin is a Q-table",
+    first = twins[0]
+    if isinstance(first, QTableTwin):
+        return {tab.name: tab.goal for tab in first.tables}
+    if first.goals:
+        return dict(first.goals)
+    raise ConfigError("no goal: neither the real model nor the first twin records one",
                       path=cfg.real, key="goal_states", fix="give --goal-states, e.g. 18,34")
 
 
