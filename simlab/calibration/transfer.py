@@ -1176,12 +1176,11 @@ def load_qtable_twin(path: str | os.PathLike[str]) -> QTableTwin:
             raise ConfigError("no goal_mask (S,) array: the goal it was trained for is "
                               "unknown", path=f, key="goal_mask",
                               fix="use a Q-table written by simlab train")
-        valid = arrays.get("valid")
-        if valid is not None and (valid.shape != (S, A) or meta.get("unvisited") == "self-loop"):
-            valid = None if meta.get("unvisited") == "self-loop" else valid
-            if valid is not None:
-                raise ConfigError(f"expected shape ({S}, {A}), got {valid.shape}", path=f,
-                                  key="valid")
+        # under the self-loop rule an untried pair was a modelled stay, choosable in training
+        valid = None if meta.get("unvisited") == "self-loop" else arrays.get("valid")
+        if valid is not None and valid.shape != (S, A):
+            raise ConfigError(f"expected shape ({S}, {A}), got {valid.shape}", path=f,
+                              key="valid")
         greedy = arrays.get("greedy")
         if greedy is not None and (greedy.shape != (S,) or not np.issubdtype(greedy.dtype,
                                                                              np.integer)
