@@ -9,13 +9,21 @@ rate for the arena (``stepSimulation`` of the robot driving a circle, as
 * the simulated seconds it stepped: the map's ``exploration.json`` ``sim_seconds``; the
   dataset's ``duration`` column; the replay's ``stepped_seconds`` of the learned run and
   of the random baseline (``replay.json``); 0 for the stages without physics;
-* its physics floor = stepped seconds / bare rate (x real time) / usable cores (the
-  stage can use at most ``min(cores, independent worlds)`` of them: the map has one
-  world, the dataset ``workers``, the replay two). The bare rate is the one measured right
-  before and right after the stage (their mean), not once for the run: on a shared VM the
-  machine's own speed drifts by 1.5x from minute to minute, and a stage must be compared
-  with the machine it ran on;
-* wall / floor;
+* the LIDAR beams it cast, by ray length (every ``Lidar.scan`` of this process and of its
+  worker processes is tallied: a ``sitecustomize`` on the workers' ``PYTHONPATH`` wraps it
+  in each ``spawn`` child and writes the counts to a folder);
+* its physics floor, twice: stepping only = stepped seconds / bare stepping rate (x real
+  time) / usable cores, and with sensors = (stepped seconds / bare stepping rate + beams
+  cast x bare seconds per beam) / usable cores. A stage can use at most
+  ``min(cores, independent worlds)`` cores: the map has one world, the dataset
+  ``workers``, the replay two. The bare ray cost per beam is that of one ``rayTestBatch``
+  of a full scan from the arena's start pose, measured at several ray lengths and
+  interpolated at the stage's (a ray costs by the distance it travels before its hit:
+  0.8 us for a 0.4 m ray, 2 us for a full 3.5 m one in the table arena). Both bare rates
+  are the ones measured right before and right after the stage (their mean), not once for
+  the run: on a shared VM the machine's own speed drifts by 1.5x from minute to minute,
+  and a stage must be compared with the machine it ran on;
+* wall / floor for both floors;
 * its CPU seconds (this process and its worker processes) and CPU / physics, where
   physics = stepped seconds / the bare rate per CPU second: the share of the stage's
   work that is not stepping, which a loaded machine does not inflate (wall time it does).
@@ -25,8 +33,8 @@ in worker processes are not seen) is printed separately, as is the load average 
 and after (the machine may be shared: compare runs made one after the other).
 
 Then the lower bounds no schedule of this run's work can beat on this machine: all its CPU
-seconds / cores, and every physics stage exactly at its floor plus the stages without
-physics as measured (and the same at 1.3x every floor). ``--before SECONDS`` (the old
+seconds / cores, and every physics stage exactly at its floor (stepping only, and with
+sensors) plus the stages without physics as measured (and the same at 1.3x every floor). ``--before SECONDS`` (the old
 code's wall time, measured one after the other) prints this run / before and the bounds in
 the same unit, so a target such as "0.5 x before" can be checked against what the work
 itself allows.
@@ -73,6 +81,121 @@ def bare_rate(arena: str, seconds: float, repeats: int = 3) -> tuple[float, floa
             best = max(best, seconds / (time.perf_counter() - t))
             best_cpu = max(best_cpu, seconds / max(time.process_time() - c, 1e-9))
     return best, best_cpu
+
+
+#: Ray lengths (m) at which the bare ray cost is measured (the LDS-01 reach last).
+RAY_REACHES = (0.25, 0.5, 1.0, 2.0, 3.5)
+
+
+def bare_rays(arena: str, scans: int = 100, repeats: int = 3) -> dict[float, float]:
+    """Best wall seconds per beam of a bare full-scan ``rayTestBatch`` from the arena's
+    start pose, per ray length of :data:`RAY_REACHES` (the beams' start and end points are
+    computed once, as the LIDAR does per scan)."""
+    import numpy as np
+
+    from simlab.physics.world import World
+
+    out: dict[float, float] = {}
+    with World(arena) as world:
+        lidar = world.lidar
+        spec = lidar.spec
+        a = spec.angles
+        dirs = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
+        origin = np.array([*world.pose()[:2], lidar.offset[2]])
+        batch = world.client.rayTestBatch
+        for reach in RAY_REACHES:
+            starts = origin + spec.range_min * dirs
+            ends = origin + min(reach, spec.range_max) * dirs
+            best = float("inf")
+            for _ in range(repeats):
+                t = time.perf_counter()
+                for _ in range(scans):
+                    batch(starts, ends)
+                best = min(best, (time.perf_counter() - t) / (scans * len(a)))
+            out[reach] = best
+    return out
+
+
+def ray_seconds(costs: dict[float, float], beams: dict[str, int]) -> float:
+    """Bare wall seconds of the tallied ``beams`` (ray length -> count), the cost per beam
+    interpolated linearly in ray length between the measured ones."""
+    import numpy as np
+
+    xs = sorted(costs)
+    return sum(n * float(np.interp(float(reach), xs, [costs[x] for x in xs]))
+               for reach, n in beams.items())
+
+
+#: Installed in this process and, through ``sitecustomize``, in every worker it spawns:
+#: wraps ``Lidar.scan`` to count the beams cast by ray length and writes the counts of the
+#: process to ``<tally folder>/<pid>.json`` every 16 scans and at exit (at most 15 scans
+#: of a process that is still running are not yet seen).
+TALLY_CODE = """
+def _simlab_ray_tally(folder):
+    import atexit, json, os
+    from simlab.physics.lidar import Lidar
+
+    counts, calls = {}, [0]
+    path = os.path.join(folder, f"{os.getpid()}.json")
+    original = Lidar.scan
+
+    def flush():
+        tmp = path + ".tmp"
+        try:
+            with open(tmp, "w") as f:
+                json.dump(counts, f)
+            os.replace(tmp, path)
+        except OSError:  # the benchmark is over and its folder gone
+            pass
+
+    def scan(self, link_pos, link_rot, pose, rng, stamp=0.0, beams=None, reach=None):
+        spec = self.spec
+        far = spec.range_max if reach is None else min(float(reach), spec.range_max)
+        key = f"{far:.3f}"
+        counts[key] = counts.get(key, 0) + (spec.n_beams if beams is None else len(beams))
+        calls[0] += 1
+        if calls[0] % 16 == 0:
+            flush()
+        return original(self, link_pos, link_rot, pose, rng, stamp, beams, reach)
+
+    Lidar.scan = scan
+    atexit.register(flush)
+    return flush
+
+
+import os as _os
+if _os.environ.get("SIMLAB_BENCH_RAY_TALLY"):
+    _simlab_flush = _simlab_ray_tally(_os.environ["SIMLAB_BENCH_RAY_TALLY"])
+"""
+
+
+def start_ray_tally(work: Path) -> tuple[Path, Any]:
+    """Tally the beams of this process and of the processes it starts from now on (see
+    :data:`TALLY_CODE`); returns the folder of the counts and this process's flush."""
+    folder = work / "rays"
+    folder.mkdir()
+    site = work / "site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text(TALLY_CODE)
+    os.environ["SIMLAB_BENCH_RAY_TALLY"] = str(folder)
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
+    namespace: dict[str, Any] = {"__name__": "tally"}
+    exec(compile(TALLY_CODE, "sitecustomize", "exec"), namespace)
+    return folder, namespace["_simlab_flush"]
+
+
+def tallied_beams(folder: Path) -> dict[str, int]:
+    """Beams counted so far by every process (ray length in m, as text -> count)."""
+    total: dict[str, int] = {}
+    for f in folder.glob("*.json"):
+        try:
+            counts = json.loads(f.read_text())
+        except (OSError, ValueError):  # being replaced right now: its next flush counts
+            continue
+        for k, n in counts.items():
+            total[k] = total.get(k, 0) + int(n)
+    return total
 
 
 def usable_cores() -> int:
@@ -153,11 +276,12 @@ def _cpu() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime + _live_children_cpu()
 
 
-def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, tuple[float, float]]
-                ) -> None:
+def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, Any],
+                beams: dict[str, dict[str, int]], tally: Any) -> None:
     """Record each stage's CPU seconds (this process and its reaped children: the
-    dataset's and the replay's worker processes) and the bare rate ``probe()`` measured
-    right before and right after it is built (outside its wall time)."""
+    dataset's and the replay's worker processes), the beams it cast (``tally()``: the
+    counts of every process so far) and the bare rates ``probe()`` measured right before
+    and right after it is built (outside its wall time)."""
     try:
         from simlab.orchestration.stages import PhysicsChain
     except ModuleNotFoundError:  # the code before the orchestration package (A/B runs)
@@ -167,41 +291,49 @@ def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, tuple[float,
 
     def cached_stage(self: Any, stage: str, key: Any, build: Any) -> Any:
         def timed(d: Path) -> Any:
-            c = _cpu()
+            c, b = _cpu(), tally()
             try:
                 return build(d)
             finally:
                 cpu[stage] = cpu.get(stage, 0.0) + _cpu() - c
+                after = tally()
+                mine = beams.setdefault(stage, {})
+                for k, n in after.items():
+                    mine[k] = mine.get(k, 0) + n - b.get(k, 0)
 
         first = stage not in rates
         before = probe() if first else None
         result = original(self, stage, key, timed)
         if first:
-            rates[stage] = (before, probe()) if result.built else (0.0, 0.0)
+            rates[stage] = (before, probe()) if result.built else None
         return result
 
     PhysicsChain.cached_stage = cached_stage  # type: ignore[method-assign]
 
 
-def print_bounds(total: float, cpu_run: float, cores: int, floors: float, others: float,
-                 before: float | None) -> None:
+def print_bounds(total: float, cpu_run: float, cores: int, floors: tuple[float, float],
+                 others: float, before: float | None) -> None:
     """What no schedule of this run's work can beat on this machine, and the issue's
     targets against it (``before``: the old code's wall time, measured one after the other).
 
     * CPU bound: all the run's CPU seconds (every process; probes excluded) / cores;
-    * floor bound: every physics stage exactly at its physics floor, plus the wall time of
-      the stages without physics and of the report, as measured (``others``);
-    * the same with every physics stage at the allowed 1.3x its floor.
+    * floor bounds: every physics stage exactly at its floor (stepping only; with sensors),
+      plus the wall time of the stages without physics and of the report, as measured
+      (``others``);
+    * the same with every physics stage at the allowed 1.3x its floor with sensors.
     """
+    step, sensed = floors
     print(f"lower bounds: all CPU {cpu_run:.1f} s / {cores} cores = {cpu_run / cores:.1f} s; "
-          f"physics floors {floors:.1f} s + stages without physics and report {others:.1f} s "
-          f"= {floors + others:.1f} s; at 1.3x every floor {1.3 * floors + others:.1f} s; "
-          f"this run {total:.1f} s")
+          f"floors stepping only {step:.1f} s / with sensors {sensed:.1f} s + stages without "
+          f"physics and report {others:.1f} s = {step + others:.1f} s / "
+          f"{sensed + others:.1f} s; at 1.3x every floor with sensors "
+          f"{1.3 * sensed + others:.1f} s; this run {total:.1f} s")
     if before:
         print(f"before {before:.1f} s: this run / before = {total / before:.2f}; a target of "
-              f"0.5 x before = {0.5 * before:.1f} s against the bounds above: CPU "
-              f"{cpu_run / cores / before:.2f}, floors {(floors + others) / before:.2f}, "
-              f"1.3x floors {(1.3 * floors + others) / before:.2f} (x before)")
+              f"0.6 x before = {0.6 * before:.1f} s against the bounds above: CPU "
+              f"{cpu_run / cores / before:.2f}, floors with sensors "
+              f"{(sensed + others) / before:.2f}, 1.3x floors {(1.3 * sensed + others) / before:.2f}"
+              f" (x before)")
 
 
 def main() -> None:
@@ -230,19 +362,28 @@ def main() -> None:
     rates: dict[str, Any] = {}
     probing = [0.0, 0.0]  # wall, CPU seconds of the probes
 
-    def probe() -> tuple[float, float]:
+    def probe() -> tuple[float, float, dict[float, float]]:
+        """(bare stepping x real time per wall second, per CPU second; seconds per beam by
+        ray length)."""
         t, c = time.perf_counter(), time.process_time()
         try:
-            return bare_rate(args.arena, args.bare_seconds)
+            return (*bare_rate(args.arena, args.bare_seconds), bare_rays(args.arena))
         finally:
             probing[0] += time.perf_counter() - t
             probing[1] += time.process_time() - c
 
     run_rates = [probe()]
+    beams: dict[str, dict[str, int]] = {}
     with tempfile.TemporaryDirectory() as tmp:
+        folder, flush = start_ray_tally(Path(tmp))
+
+        def tally() -> dict[str, int]:
+            flush()
+            return tallied_beams(folder)
+
         out = Path(args.out) if args.out else Path(tmp) / "run"
         t0 = time.perf_counter()
-        _instrument(cpu, probe, rates)
+        _instrument(cpu, probe, rates, beams, tally)
         lines: list[str] = []
 
         def log(msg: str) -> None:
@@ -268,40 +409,62 @@ def main() -> None:
     load1 = os.getloadavg()
     print("pipeline log (time since start, bare-rate probes included):")
     print("\n".join(lines))
-    every = run_rates + [r for pair in rates.values() for r in pair if r]
+    every = run_rates + [r for pair in rates.values() if pair for r in pair]
     lo, hi = min(r[0] for r in every), max(r[0] for r in every)
+    full = max(RAY_REACHES)
+    ray_lo = min(r[2][full] for r in every) * 1e6
+    ray_hi = max(r[2][full] for r in every) * 1e6
     print(f"machine: {cores} usable cores, load average {load0[0]:.2f} before / "
           f"{load1[0]:.2f} after; bare stepSimulation ({args.arena}, circle, best of 3 x "
-          f"{args.bare_seconds:g} s per probe): {lo:.0f}x to {hi:.0f}x real time over the "
-          f"{len(every)} probes of this run")
+          f"{args.bare_seconds:g} s per probe): {lo:.0f}x to {hi:.0f}x real time; bare "
+          f"rayTestBatch of a full scan ({full:g} m rays, best of 3 x 100 scans): "
+          f"{ray_lo:.2f} to {ray_hi:.2f} us per beam; over the {len(every)} probes of this run")
     print(f"budget: {'--quick ' + json.dumps(QUICK) if args.quick else 'defaults'}")
-    print(f"{'stage':<8} {'wall s':>8} {'stepped s':>10} {'worlds':>6} {'bare x':>7} "
-          f"{'floor s':>8} {'wall/floor':>10} {'CPU s':>8} {'CPU/physics':>11}")
-    floor_total = cpu_total = other_wall = 0.0
+    print(f"{'stage':<8} {'wall s':>7} {'stepped s':>9} {'beams M':>7} {'worlds':>6} "
+          f"{'bare x':>6} {'floor s':>7} {'+rays s':>7} {'wall/floor':>10} "
+          f"{'wall/floor+rays':>15} {'CPU s':>7} {'CPU/physics+rays':>16}")
+    floor_total = sensed_total = cpu_total = other_wall = 0.0
+    ratios: list[str] = []
     for name, r in rec["stages"].items():
         sec, worlds = stepped.get(name, (0.0, 1))
         wall = float(r["wall_seconds"])
         pair = rates.get(name) or (run_rates[0], run_rates[-1])
-        rate = (pair[0][0] + pair[1][0]) / 2 if pair[0] else run_rates[0][0]
-        cpu_rate = (pair[0][1] + pair[1][1]) / 2 if pair[0] else run_rates[0][1]
-        floor = sec / rate / min(cores, worlds) if sec else 0.0
+        rate = (pair[0][0] + pair[1][0]) / 2
+        cpu_rate = (pair[0][1] + pair[1][1]) / 2
+        ray_cost = {k: (pair[0][2][k] + pair[1][2][k]) / 2 for k in pair[0][2]}
+        cast = beams.get(name, {})
+        n_beams = sum(cast.values())
+        rays = ray_seconds(ray_cost, cast)
+        usable = min(cores, worlds)
+        floor = sec / rate / usable if sec else 0.0
+        sensed = (sec / rate + rays) / usable if sec or rays else 0.0
         floor_total += floor
-        other_wall += 0.0 if sec else wall
+        sensed_total += sensed
+        other_wall += 0.0 if sensed else wall
         ratio = f"{wall / floor:10.2f}" if floor else f"{'-':>10}"
+        sratio = f"{wall / sensed:15.2f}" if sensed else f"{'-':>15}"
+        if sensed:
+            ratios.append(f"{name} {wall / sensed:.2f}")
         c = cpu.get(name, float("nan"))
         cpu_total += c
-        cratio = f"{c / (sec / cpu_rate):11.2f}" if sec else f"{'-':>11}"
-        shown = f"{rate:7.0f}" if sec else f"{'-':>7}"
-        print(f"{name:<8} {wall:8.1f} {sec:10.0f} {worlds:6d} {shown} {floor:8.1f} {ratio} "
-              f"{c:8.1f} {cratio}")
+        # CPU over the stage's work at the bare rates (rays: wall seconds per beam of a
+        # lone process, i.e. CPU seconds)
+        work = sec / cpu_rate + rays
+        cratio = f"{c / work:16.2f}" if sensed else f"{'-':>16}"
+        shown = f"{rate:6.0f}" if sec else f"{'-':>6}"
+        print(f"{name:<8} {wall:7.1f} {sec:9.0f} {n_beams / 1e6:7.2f} {worlds:6d} {shown} "
+              f"{floor:7.1f} {sensed:7.1f} {ratio} {sratio} {c:7.1f} {cratio}")
     stages_wall = sum(float(r["wall_seconds"]) for r in rec["stages"].values())
-    print(f"{'stages':<8} {stages_wall:8.1f} {'':>10} {'':>6} {'':>7} {floor_total:8.1f} "
-          f"{stages_wall / floor_total:10.2f} {cpu_total:8.1f}")
+    print(f"{'stages':<8} {stages_wall:7.1f} {'':>9} {'':>7} {'':>6} {'':>6} "
+          f"{floor_total:7.1f} {sensed_total:7.1f} {stages_wall / floor_total:10.2f} "
+          f"{stages_wall / sensed_total:15.2f} {cpu_total:7.1f}")
+    others = other_wall + total - stages_wall
+    print(f"ratios: whole / floors with sensors + non-physics = "
+          f"{total / (sensed_total + others):.2f}; stage wall / floor with sensors: "
+          f"{', '.join(ratios)}; whole / stepping floor = {total / floor_total:.2f}")
     print(f"pipeline: done in {total:.1f} s without the {probing[0]:.1f} s of probes "
-          f"(stages + report {total - stages_wall:.1f} s); whole / physics floor = "
-          f"{total / floor_total:.2f}")
-    print_bounds(total, cpu_run, cores, floor_total, other_wall + total - stages_wall,
-                 args.before)
+          f"(stages + report {total - stages_wall:.1f} s)")
+    print_bounds(total, cpu_run, cores, (floor_total, sensed_total), others, args.before)
     try:
         from simlab.replay.scheduling import shares_per_session
 
