@@ -8,8 +8,13 @@ format has no place for; they are fields of :class:`RobotSpec`.
 
 Modelling choices (see robots/turtlebot3_burger.urdf): the wheels collide as spheres of
 the wheel radius (on a flat floor they roll exactly like the tyre, with one stable contact
-point), the ball caster is a frictionless sphere, and the wheels are driven by PyBullet
-velocity motors whose maximum force is the URDF joint ``effort`` (a torque, N m).
+point) with lateral but no spinning friction, the ball caster is a frictionless sphere,
+and the wheels are driven by PyBullet velocity motors whose maximum force is the URDF
+joint ``effort`` (a torque, N m).
+
+Frames: the URDF's root is ``base_footprint`` (on the floor under the wheel-axis midpoint,
+REP-105, as in the ROBOTIS TurtleBot3 description) with ``base_link`` 0.010 m above it;
+every position of :class:`RobotSpec` is in the root frame, the frame of the robot's pose.
 """
 
 from __future__ import annotations

@@ -6,12 +6,20 @@ arenas in one process never share state. Library code never touches the global
 
 Physics settings (chosen for speed, fidelity checked by tests/physics):
 
-* 200 Hz fixed time step, 5 solver iterations. A step costs about 13 us whatever the
+* 200 Hz fixed time step, 5 solver iterations. A step costs about the same whatever the
   rate, so the rate sets the speed; measured on the random primitive walk (quiet 2-core
   machine): 240 Hz 322x real time, 200 Hz 387x, 160 Hz 329x (contacts get costlier),
   120 Hz 445x but primitive headings off by up to 3.5 degrees and distances by +14 %.
-  At 200 Hz commanded speeds and yaw rates are reproduced within 1 % and primitive
-  headings within 0.7 degrees (tests/physics);
+  At 200 Hz commanded speeds and yaw rates are reproduced within 1.3 % and primitive
+  headings within 0.3 degrees (tests/physics);
+* the contact model is the cheapest of those measured that keeps those figures
+  (benchmarks/contact_model.py, 2026-11-26, 2-core VM): a bare step of the robot on the
+  table costs ~15 us of CPU, of which ~8 us remain with the floor filtered out; the rest
+  is the three floor contacts (two wheel spheres, the caster), each one normal and two
+  friction rows in Bullet's Featherstone solver, set up at every step. Wheel spinning
+  friction (one more row per wheel) is left out: 0.9x the step. Pyramid instead of cone
+  friction (0.92x) and 3-4 solver iterations (0.88x with it) move primitives sideways past
+  5 mm; leaving out the LIDAR housing's collision only helps against walls (0.93x there);
 * deterministic overlapping pairs, so the same commands give bit-identical trajectories;
 * :meth:`World.reset` rebuilds the whole simulation, so the state after a reset depends
   only on the reset pose (no contact caches survive): a data collection can be resumed at
