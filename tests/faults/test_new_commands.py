@@ -68,6 +68,14 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
     # ---- model files
     ("train-mdp-nan-counts", _nan_counts, "train --mdp {w}/nan.npz --episodes 2 --runs 1 "
      "--out {w}/t --no-progress", ("nan.npz", "counts", "simlab estimate")),
+    # ---- social-pipeline: bad options and outputs in the way, before any work
+    ("social-pipeline-arena-missing", NO, "social-pipeline --arena {w}/nope.toml --out {w}/sp",
+     ("nope.toml",)),
+    ("social-pipeline-seed-negative", NO, "social-pipeline --seed -2 --out {w}/sp", ("seed",)),
+    ("social-pipeline-out-is-file", _write("sp", "mine"), "social-pipeline --out {w}/sp",
+     ("sp", "not a directory")),
+    ("social-pipeline-outputs-exist", _write("sp/summary.json", "{}"),
+     "social-pipeline --out {w}/sp", ("summary.json", "--overwrite")),
     # ---- options files: long option names work as keys (train's repeatable --param)
     ("train-param-in-config-bad", _write("c.toml", 'param = ["tau"]\n'),
      "train --mdp {w}/mdp.npz --config {w}/c.toml --episodes 2 --runs 1 --out {w}/t "
@@ -145,3 +153,28 @@ def test_import_log_on_a_full_disk_leaves_no_parts_and_the_rerun_works(
     res = run_cli(argv, capsys)
     assert res.code == 0, res.stderr
     assert (work / "il" / "_manifest.json").is_file()
+
+
+@pytest.mark.parametrize("nth", [1, 3])
+def test_social_pipeline_on_a_full_disk_names_the_file_and_keeps_the_old_outputs(
+        nth: int, work: Path, capsys, monkeypatch) -> None:
+    argv = (f"social-pipeline --out {work}/sp --hours 0.002 --runs 1 --trials 200 "
+            "--gif-decisions 2 --overwrite").split()
+    (work / "sp").mkdir()
+    (work / "sp" / "summary.json").write_text("{}")  # the previous run's, to be kept
+    before = tree_hashes(work)
+    real = os.fsync
+    calls = {"n": 0}
+
+    def full(fd: int) -> None:
+        calls["n"] += 1
+        if calls["n"] >= nth:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", full)
+    res = run_cli(argv, capsys)
+    monkeypatch.setattr(os, "fsync", real)
+    assert_refused(res, "no space left", f"{work}/sp/")
+    assert tree_hashes(work) == before
+    assert [p.name for p in (work / "sp").iterdir()] == ["summary.json"]
