@@ -183,7 +183,7 @@ def _command_lines(markdown: str) -> Iterator[str]:
             line = line.split(" #", 1)[0].strip()
             line = re.sub(r"^(?:\$\s*)?(?:pip install \S+ && )?", "", line)
             if line.startswith("simlab ") and not line.startswith("simlab."):
-                yield line
+                yield " ".join(line.split())
 
 
 def check_command_lines(markdown: str, commands: list[ParsedCommand] | None = None
