@@ -22,6 +22,8 @@ topic                  type                                  content
                                                              in range, ``-inf`` too close
 ``/map``               ``nav_msgs/msg/OccupancyGrid``        the map, once, latched (row 0 =
                                                              bottom)
+``/simlab/true_pose``  ``geometry_msgs/msg/PoseStamped``      the simulator's true pose when
+                                                             the map pose is an estimate
 ``/simlab/state``      ``std_msgs/msg/Int32``                Markov state per sample
 ``/simlab/goal``       ``std_msgs/msg/String``               current goal name per sample
 ``/simlab/action``     ``std_msgs/msg/Int32``                action index at decision starts
@@ -72,6 +74,7 @@ TOPICS = {
     "scan": "/scan", "map": "/map", "state": "/simlab/state", "goal": "/simlab/goal",
     "action": "/simlab/action", "blocked": "/simlab/blocked", "duration": "/simlab/duration",
     "cells": "/simlab/cells", "goals": "/simlab/goals", "human": "/simlab/human",
+    "true_pose": "/simlab/true_pose",
 }
 _TYPES = {
     "/tf_static": "tf2_msgs/msg/TFMessage", "/tf": "tf2_msgs/msg/TFMessage",
@@ -83,6 +86,7 @@ _TYPES = {
     "/simlab/cells": "visualization_msgs/msg/MarkerArray",
     "/simlab/goals": "visualization_msgs/msg/MarkerArray",
     "/simlab/human": "visualization_msgs/msg/MarkerArray",
+    "/simlab/true_pose": "geometry_msgs/msg/PoseStamped",
 }
 #: Topics published once and latched: ``static_transform_broadcaster`` and ``map_server``
 #: offer them transient-local (REP-105 tooling; ROS 2 docs "About Quality of Service
@@ -122,7 +126,9 @@ class BagTrajectory:
     ``map`` an :class:`~discretize.gridmap.OccupancyMap` (None: no /map);
     ``scan_offset`` (x, y, z) m of base_scan in base_link; ``base_offset`` (x, y, z) m of
     base_link in base_footprint; ``scene`` the cells and goals to draw; ``human`` (n, 3)
-    map-frame pose of a human (None: no human); ``custom`` further ``custom_data`` entries
+    map-frame pose of a human (None: no human); ``truth`` (n, 3) the true map-frame pose
+    when ``pose`` is an estimate (a particle filter's; None: ``pose`` is the truth or
+    unknown); ``custom`` further ``custom_data`` entries
     of the bag's metadata (written as given; read back: every entry).
     """
 
@@ -144,6 +150,7 @@ class BagTrajectory:
     base_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     scene: SceneMarkers | None = None
     human: NDArray[np.float64] | None = None
+    truth: NDArray[np.float64] | None = None
     custom: dict[str, str] | None = None
 
 
@@ -412,7 +419,7 @@ def _check(traj: BagTrajectory) -> int:
     n = len(t)
     if n == 0 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0:
         raise ConfigError("sample times must be >= 0 and strictly increasing", key="t")
-    for name in ("pose", "odom", "human"):
+    for name in ("pose", "odom", "human", "truth"):
         a = getattr(traj, name)
         if a is not None and np.shape(a) != (n, 3):
             raise ConfigError(f"expected shape ({n}, 3), got {np.shape(a)}", key=name)
@@ -631,6 +638,9 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                 put("/simlab/goal", ns, ts.types["std_msgs/msg/String"](data=str(traj.goal[i])))
             if traj.human is not None:
                 put("/simlab/human", ns, m.human(ns, traj.human[i]))
+            if traj.truth is not None:
+                put("/simlab/true_pose", ns, ts.types["geometry_msgs/msg/PoseStamped"](
+                    header=m.header(ns, "map"), pose=m.pose(*traj.truth[i])))
         if traj.actions is not None:
             types = ts.types
             for k, (a, ta) in enumerate(zip(traj.actions, traj.action_t, strict=True)):
@@ -690,6 +700,7 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
                                 f"(topics: {', '.join(sorted(names)) or 'none'}; give one "
                                 f"of them with --pose-topic)")
             wanted = {pose_topic, "/odom", "/map", "/simlab/state", "/simlab/goal",
+                      "/simlab/true_pose",
                       scan_topic, action_topic, "/simlab/blocked", "/simlab/duration",
                       "/tf_static"} & names
             if action_topic is None:
@@ -762,6 +773,8 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
         return None if any(v is None for v in out) else out
 
     odom = None if pose_topic == "/odom" else aligned("/odom", _pose_of)
+    truth = None if pose_topic == "/simlab/true_pose" else aligned("/simlab/true_pose",
+                                                                   _pose_of)
     scans = aligned(scan_topic, lambda m: np.asarray(m.ranges, dtype=np.float32))
     geometry = ScanGeometry()
     if scans is not None:
@@ -801,7 +814,8 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),
         goal=None if goal is None else np.array(goal), actions=actions, action_t=action_t,
-        blocked=blocked, duration=duration, map=grid, scan_offset=offset, base_offset=base)
+        blocked=blocked, duration=duration, map=grid, scan_offset=offset, base_offset=base,
+        truth=None if truth is None else np.array(truth, dtype=np.float64))
 
 
 def _grid_of(msg: Any) -> Any:

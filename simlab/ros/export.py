@@ -6,14 +6,15 @@ Sources (the directory decides):
   worker's walk (``worker``, default 0). Samples at each transition's start ``t`` (pose
   before, state ``s``) and end ``t + duration`` (pose after, ``s_next``; dropped when it
   coincides with the next start); ``/simlab/action`` carries ``a`` at each start. The
-  map-frame pose (``/amcl_pose``, ``map -> base_footprint``) is the ground truth when the
-  dataset has ``*_true`` columns, else the pose source; ``/odom`` is the pose source for
-  ``odometry`` datasets, else equal to the map pose (``map -> odom`` identity).
+  map-frame pose (``/amcl_pose``, ``map -> base_footprint``) is the pose source's, as a
+  robot's localizer publishes it, with the truth on ``/simlab/true_pose`` (``mcl``); an
+  ``odometry`` dataset has the truth there and its odometry on ``/odom``; otherwise
+  ``/odom`` equals the map pose (``map -> odom`` identity).
 * a **replay** (``replay.json`` and ``transitions.parquet``, written by ``simlab replay``):
   the true poses, believed states, actions and the goal per sample (``/simlab/goal``);
   odometry at the transitions' ends only, so ``/odom`` equals the map pose.
 
-``/scan`` is **cast again** at every sample pose in the source's arena (noise-free, the
+``/scan`` is **cast again** at every sample's true pose in the source's arena (noise-free, the
 LIDAR of :mod:`simlab.physics.lidar`): neither source stores scans. ``/map`` is the arena
 rasterized at ``resolution`` (0 free, 100 occupied), or a map_server map given as ``map``.
 
@@ -89,21 +90,29 @@ def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
                           f"{sorted(set(w.tolist()))})", path=path, key="worker",
                           fix="choose one of the workers listed")
     tab = tab.filter(w == worker)
-    names = tab.column_names
-    truth = "x_true" in names
-    before = _cols(tab, ["x_true", "y_true", "yaw_true"] if truth else ["x", "y", "yaw"])
-    after = _cols(tab, ["x_next_true", "y_next_true", "yaw_next_true"] if truth
-                  else ["x_next", "y_next", "yaw_next"])
-    t, dur = tab.column("t").to_numpy(), tab.column("duration").to_numpy()
-    tt, pose, state, _ = _samples(t, dur, before, after, tab.column("s").to_numpy(),
-                                  tab.column("s_next").to_numpy())
-    odom = None
+    has_truth = "x_true" in tab.column_names
     pose_source = ds.manifest.get("pose_source")
-    if pose_source == "odometry":
-        src_b, src_a = _cols(tab, ["x", "y", "yaw"]), _cols(tab, ["x_next", "y_next", "yaw_next"])
-        odom = _samples(t, dur, src_b, src_a, np.zeros(len(t)), np.zeros(len(t)))[1]
+    t, dur = tab.column("t").to_numpy(), tab.column("duration").to_numpy()
+    zeros = np.zeros(len(t))
+
+    def poses(before: list[str], after: list[str]) -> np.ndarray:
+        return _samples(t, dur, _cols(tab, before), _cols(tab, after), zeros, zeros)[1]
+
+    source = poses(["x", "y", "yaw"], ["x_next", "y_next", "yaw_next"])
+    true = poses(["x_true", "y_true", "yaw_true"],
+                 ["x_next_true", "y_next_true", "yaw_next_true"]) if has_truth else None
+    tt, _, state, _ = _samples(t, dur, _cols(tab, ["x", "y", "yaw"]),
+                               _cols(tab, ["x_next", "y_next", "yaw_next"]),
+                               tab.column("s").to_numpy(), tab.column("s_next").to_numpy())
+    # the map pose: the localizer's estimate (mcl) with the truth beside it, or the truth
+    # with the wheel odometry in the odom frame (odometry), or the pose source itself
+    pose, odom, truth = source, None, None
+    if has_truth and pose_source == "odometry":
+        pose, odom = true, source
+    elif has_truth:
+        truth = true
     centres = (ds.manifest.get("discretizer") or {}).get("centres")
-    return {"t": tt, "pose": pose, "odom": odom, "state": state, "goal": None,
+    return {"t": tt, "pose": pose, "odom": odom, "truth": truth, "state": state, "goal": None,
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
             "blocked": tab.column("blocked").to_numpy().astype(bool), "duration": dur,
             "action_set": None if ds.action_set is None else ds.action_set.to_json(), "pose_source": pose_source,
@@ -129,7 +138,8 @@ def _from_replay(path: Path) -> dict[str, Any]:
     goals = np.asarray(tab.column("goal").to_pylist(), dtype=str)
     blocked = (tab.column("blocked").to_numpy().astype(bool) if "blocked" in tab.column_names
                else None)
-    return {"t": tt, "pose": pose, "odom": None, "state": state, "goal": goals[idx],
+    return {"t": tt, "pose": pose, "odom": None, "truth": None, "state": state,
+            "goal": goals[idx],
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
             "blocked": blocked, "duration": dur, "action_set": summary.get("action_set"),
             "pose_source": "truth", "centres": _replay_centres(summary), "custom": None,
@@ -311,11 +321,13 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
     else:
         grid = arena_map(arena_cfg, cfg.resolution)
     robot = load_robot_spec()
-    scan_arr, geom, offset = (_scans(arena_cfg, rec["pose"]) if cfg.scans
+    where = rec["pose"] if rec["truth"] is None else rec["truth"]  # the robot's real place
+    scan_arr, geom, offset = (_scans(arena_cfg, where) if cfg.scans
                               else (None, None, tuple(float(v) for v in robot.lidar_offset)))
     goals = tuple((g.name, float(g.x), float(g.y), float(g.radius)) for g in arena_cfg.goals)
     scene = SceneMarkers(centres=rec["centres"], bounds=tuple(arena_cfg.bounds), goals=goals)
-    traj = BagTrajectory(t=rec["t"], pose=rec["pose"], odom=rec["odom"], scans=scan_arr,
+    traj = BagTrajectory(t=rec["t"], pose=rec["pose"], odom=rec["odom"], truth=rec["truth"],
+                         scans=scan_arr,
                          scan_geometry=geom or ScanGeometry(), state=rec["state"],
                          goal=rec["goal"], actions=rec["actions"], action_t=rec["action_t"],
                          blocked=rec["blocked"], duration=rec["duration"],

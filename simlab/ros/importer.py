@@ -17,8 +17,9 @@
   (``n_actions``/``convention`` then default to it, and a different one given is refused),
   each decision's ``blocked`` flag and ``duration`` (the motion without the decision
   latency), the time origin and the pose source (``truth``: the map pose; ``odometry``:
-  the ``/odom`` pose with the map pose as the truth), so that export then import gives
-  the dataset back column for column.
+  the ``/odom`` pose with the map pose as the truth; ``mcl``: the map pose with
+  ``/simlab/true_pose`` as the truth), so that export then import gives the dataset back
+  column for column.
 * **Scans** (optional ``/scan``) are not needed for the transitions; their number is
   recorded in the provenance.
 * **States**: nearest centre of the states file (the writer's rule). Written with
@@ -288,6 +289,8 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
         pose_source = "truth"
     elif pose_topic is None and traj.pose_source == "odometry" and traj.odom is not None:
         pose_source, pose, truth = "odometry", traj.odom, traj.pose
+    elif pose_topic is None and traj.pose_source == "mcl" and traj.truth is not None:
+        pose_source, truth = "mcl", traj.truth
     walk = TransitionArrays(t=t[start], a=actions, pose=pose[start], pose_next=pose[end],
                             blocked=blocked, duration=duration,
                             truth=None if truth is None else truth[start],
