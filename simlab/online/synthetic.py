@@ -1,7 +1,7 @@
 """A synthetic 38-state, 8-action count model in the ISIR ``transitionActions`` format.
 
 The published navigation model of Dromnelle et al. (2022, sec. 4.1) is not part of
-simlab; this stand-in has its *signature*: 38 states over a lab of corridors, the
+simlab; this stand-in has its *signature*: 38 states in two rooms joined by two doors and an open bottom row, the
 published state ids at the places the protocol uses them (start states 0 and 32, goal 18,
 new goal 34, passages 20 <-> 21 and 6 <-> 7 on the shortest routes from the starts to 18,
 with a longer detour left open when both close), 8 actions counter-clockwise from east
@@ -13,11 +13,11 @@ give. It exercises exactly the path a real file takes (``load_counts`` ->
 
 Layout (x right, y down; ``#`` a wall), cells numbered by :data:`ROLE` then row-major::
 
-    y=0  . . . . . . . . . .
-    y=1  . # . # . # # . # .
-    y=2  . . . . . . . . . .
-    y=3  . # # # . # # # # .
-    y=4  . . . . . . . . . .
+    y=0  # . . . # . . . #
+    y=1  . . . . . . . . .       doors of the wall x = 4 at y = 1 (6 <-> 7) and y = 3
+    y=2  . . # . # . # . .       (20 <-> 21); the bottom row stays open
+    y=3  . . . . . . . . .
+    y=4  . . . . . . . . #
 """
 
 from __future__ import annotations
@@ -29,18 +29,18 @@ import numpy as np
 __all__ = ["LAYOUT", "ROLE", "corridor_counts", "corridor_positions", "isir_document"]
 
 LAYOUT = (
-    "..........",
-    ".#.#.##.#.",
-    "..........",
-    ".###.####.",
-    "..........",
+    "#...#...#",
+    ".........",
+    "..#.#.#..",
+    ".........",
+    "........#",
 )
 
-#: State id -> (x, y) cell of the protocol's states: starts 0 (top-left) and 32
-#: (bottom-left), goal 18 (right end of the middle corridor), new goal 34 (bottom corridor),
-#: passages 6 <-> 7 (top corridor) and 20 <-> 21 (middle corridor) between x = 5 and x = 6.
-ROLE = {0: (0, 0), 32: (0, 4), 18: (9, 2), 34: (7, 4), 6: (5, 0), 7: (6, 0), 20: (5, 2),
-        21: (6, 2)}
+#: State id -> (x, y) cell of the protocol's states: starts 0 and 32 (left wall), goal 18
+#: (right room), new goal 34 (bottom, between the rooms), passages 6 <-> 7 and 20 <-> 21 (the
+#: doors of the wall x = 4 at y = 1 and y = 3; the bottom row y = 4 stays open, the detour).
+ROLE = {0: (0, 1), 32: (0, 4), 18: (7, 2), 34: (5, 4), 6: (3, 1), 7: (4, 1), 20: (3, 3),
+        21: (4, 3)}
 
 #: ccw-east headings: action k moves by (dx, dy) with y down (k = 2 is north, up).
 _MOVES = ((1, 0), (1, -1), (0, -1), (-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1))
