@@ -160,7 +160,7 @@ def _replay_centres(summary: dict[str, Any]) -> np.ndarray | None:
         return None
 
 
-def _scans(arena: Any, pose: np.ndarray) -> tuple[np.ndarray, Any, tuple[float, ...]]:
+def _scans(arena: Any, pose: np.ndarray) -> tuple[np.ndarray, Any]:
     """Noise-free scans ``(n, B)`` float32 at each pose; a beam that would hit a surface
     nearer than ``range_min`` reads ``-inf`` (REP-117 "too close"), one that hits nothing
     within ``range_max`` ``+inf``.
@@ -168,8 +168,8 @@ def _scans(arena: Any, pose: np.ndarray) -> tuple[np.ndarray, Any, tuple[float, 
     simlab's LIDAR starts its rays at ``range_min`` (it cannot see nearer, like the real
     sensor), so it reads +inf there; a second, short cast from the sensor centre to
     ``range_min`` tells "too close" from "nothing". The robot is placed upright at rest on
-    the floor (:meth:`World.set_pose`), so its base link frame is ``(x, y, 0)`` rotated by
-    yaw.
+    the floor (:meth:`World.set_pose`), so its ``base_footprint`` frame, in which the
+    LIDAR's mount is given, is ``(x, y, 0)`` rotated by yaw.
     """
     from simlab.physics.lidar import Lidar, LidarSpec
     from simlab.physics.world import World
@@ -191,34 +191,9 @@ def _scans(arena: Any, pose: np.ndarray) -> tuple[np.ndarray, Any, tuple[float, 
                          & (close.hit_ids != world.body))
             ranges = np.where(too_close, -np.inf, ranges)
             out[i] = ranges.astype(np.float32)
-        offset = tuple(float(v) for v in world.lidar.offset)
     geom = ScanGeometry(0.0, 2 * np.pi / spec.n_beams, spec.range_min, spec.range_max,
                         1.0 / spec.rate_hz)
-    return out, geom, offset
-
-
-def urdf_base_offset(urdf: str | os.PathLike[str]) -> tuple[float, float, float]:
-    """``(x, y, z)`` m of ``base_link`` in ``base_footprint``, from the URDF's fixed joint
-    between them (either direction; the ROBOTIS TurtleBot3 description has
-    ``base_footprint`` as the root), read by tag name. (0, 0, 0) when the URDF has no
-    ``base_footprint``."""
-    import xml.etree.ElementTree as ET
-
-    root = ET.parse(urdf).getroot()
-    for joint in root.findall("joint"):
-        parent = joint.find("parent")
-        child = joint.find("child")
-        if parent is None or child is None:
-            continue
-        pair = (parent.get("link"), child.get("link"))
-        if pair not in (("base_footprint", "base_link"), ("base_link", "base_footprint")):
-            continue
-        origin = joint.find("origin")
-        xyz = [0.0, 0.0, 0.0] if origin is None else [
-            float(v) for v in (origin.get("xyz") or "0 0 0").split()]
-        sign = 1.0 if pair[0] == "base_footprint" else -1.0
-        return (sign * xyz[0], sign * xyz[1], sign * xyz[2])
-    return (0.0, 0.0, 0.0)
+    return out, geom
 
 
 def arena_map(arena: Any, resolution: float = 0.02, margin: float = 0.1) -> Any:
@@ -269,7 +244,7 @@ class ExportBagConfig(CommandConfig):
     resolution: float = option(0.02, "pixel size of the rasterized arena map", metavar="M")
     scans: bool = option(True, "/scan cast at every sample pose (--no-scans leaves it out)")
     start_time: float = option(0.0, "ROS time of the source's t = 0 (s since the epoch, "
-                               "e.g. 1700000000; default 0)", metavar="S")
+                               "e.g. 1700000000)", metavar="S")
     overwrite: bool = option(False, "replace a bag that simlab export-bag wrote in --out")
 
     def validate(self) -> None:
@@ -320,10 +295,13 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
         grid = read_map(cfg.map)
     else:
         grid = arena_map(arena_cfg, cfg.resolution)
+    # tf_static: the URDF's joints as the robot spec reads them (positions in the root
+    # frame base_footprint; the tree base_footprint -> base_link -> base_scan)
     robot = load_robot_spec()
+    base = tuple(float(v) for v in robot.base_link_offset)
+    scan_in_base = tuple(float(s - b) for s, b in zip(robot.lidar_offset, base, strict=True))
     where = rec["pose"] if rec["truth"] is None else rec["truth"]  # the robot's real place
-    scan_arr, geom, offset = (_scans(arena_cfg, where) if cfg.scans
-                              else (None, None, tuple(float(v) for v in robot.lidar_offset)))
+    scan_arr, geom = _scans(arena_cfg, where) if cfg.scans else (None, None)
     goals = tuple((g.name, float(g.x), float(g.y), float(g.radius)) for g in arena_cfg.goals)
     scene = SceneMarkers(centres=rec["centres"], bounds=tuple(arena_cfg.bounds), goals=goals)
     traj = BagTrajectory(t=rec["t"], pose=rec["pose"], odom=rec["odom"], truth=rec["truth"],
@@ -332,8 +310,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
                          goal=rec["goal"], actions=rec["actions"], action_t=rec["action_t"],
                          blocked=rec["blocked"], duration=rec["duration"],
                          action_set=rec["action_set"], pose_source=rec["pose_source"],
-                         map=grid, scan_offset=offset,
-                         base_offset=urdf_base_offset(robot.urdf_path),
+                         map=grid, scan_offset=scan_in_base, base_offset=base,
                          scene=scene, custom=rec["custom"])
     path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)

@@ -121,11 +121,13 @@ def test_beams_nearer_than_range_min_are_minus_inf(tmp_path: Path) -> None:
     wall face, so the beams towards it are too close (< range_min = 0.12 m); beams away
     from the wall see far surfaces."""
     from simlab.physics.arena import load_arena
+    from simlab.physics.robot import load_robot_spec
     from simlab.ros.export import _scans
 
     arena = load_arena("table")
     pose = np.array([[0.0, 0.0, 0.0], [0.68, 0.0, 0.0]])
-    scans, geom, offset = _scans(arena, pose)
+    scans, geom = _scans(arena, pose)
+    offset = load_robot_spec().lidar_offset  # in base_footprint, the pose's frame
     assert not np.any(np.isneginf(scans[0]))  # in the middle, nothing is that close
     east = scans[1][[0, 1, 359]]  # beams 0, +-1 deg: straight at the wall
     assert np.all(np.isneginf(east)), east
@@ -232,40 +234,17 @@ def test_the_bag_shows_cells_goals_and_a_human(walks, tmp_path: Path) -> None:
     assert [m.markers[0].pose.position.y for m in hs] == [0.5, 0.6]
 
 
-_URDF = """<robot name="r">
-  <link name="{root}"/><link name="{leaf}"/><link name="base_scan"/>
-  <joint name="j" type="fixed"><parent link="{root}"/><child link="{leaf}"/>
-    <origin xyz="{xyz}" rpy="0 0 0"/></joint>
-  <joint name="s" type="fixed"><parent link="base_link"/><child link="base_scan"/>
-    <origin xyz="-0.032 0 0.172"/></joint>
-</robot>"""
-
-
-@pytest.mark.parametrize(("root", "leaf", "xyz", "expected"), [
-    ("base_footprint", "base_link", "0 0 0.010", (0.0, 0.0, 0.010)),  # ROBOTIS' tree
-    ("base_link", "base_footprint", "0 0 -0.010", (0.0, 0.0, 0.010)),  # the same, inverted
-    ("base_link", "base_footprint", "0 0 0", (0.0, 0.0, 0.0)),
-])
-def test_tf_static_base_link_offset_is_the_urdf_joint_either_way(
-        root: str, leaf: str, xyz: str, expected: tuple, tmp_path: Path) -> None:
-    from simlab.ros.export import urdf_base_offset
-
-    urdf = tmp_path / "r.urdf"
-    urdf.write_text(_URDF.format(root=root, leaf=leaf, xyz=xyz))
-    assert urdf_base_offset(urdf) == pytest.approx(expected)
-
-
 def test_exported_frames_match_the_robot_urdf(walks, tmp_path: Path) -> None:
-    """The bag's tf tree is map -> odom -> base_footprint -> base_link -> base_scan, with
-    base_footprint -> base_link the URDF's joint between them and base_scan the LIDAR's
-    mount, so robot_state_publisher and the bag agree on every frame."""
+    """The bag's tf tree is map -> odom -> base_footprint -> base_link -> base_scan, and its
+    static transforms are the URDF's joints (ROBOTIS's tree: base_footprint the root), so
+    robot_state_publisher and the bag agree on every frame."""
     import xml.etree.ElementTree as ET
 
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore
 
     from simlab.physics.robot import load_robot_spec
-    from simlab.ros.export import export_bag, urdf_base_offset
+    from simlab.ros.export import export_bag
 
     export_bag(walks["truth"], tmp_path / "bag", scans=False)
     ts = get_typestore(Stores.ROS2_HUMBLE)
@@ -274,15 +253,18 @@ def test_exported_frames_match_the_robot_urdf(walks, tmp_path: Path) -> None:
         for c, _, raw in r.messages():
             if c.topic == "/tf_static":
                 for tr in ts.deserialize_cdr(raw, c.msgtype).transforms:
-                    v = tr.transform.translation
+                    v, q = tr.transform.translation, tr.transform.rotation
+                    assert (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0)
                     static[(tr.header.frame_id, tr.child_frame_id)] = (v.x, v.y, v.z)
     assert set(static) == {("base_footprint", "base_link"), ("base_link", "base_scan")}
-    urdf = load_robot_spec().urdf_path
-    assert static["base_footprint", "base_link"] == pytest.approx(urdf_base_offset(urdf))
-    assert static["base_link", "base_scan"] == pytest.approx(load_robot_spec().lidar_offset)
-    links = {link.get("name") for link in ET.parse(urdf).getroot().findall("link")}
-    assert {"base_footprint", "base_link", "base_scan"} <= links
-
+    joints = {}
+    for joint in ET.parse(load_robot_spec().urdf_path).getroot().findall("joint"):
+        key = (joint.find("parent").get("link"), joint.find("child").get("link"))
+        origin = joint.find("origin")
+        joints[key] = tuple(float(v) for v in origin.get("xyz").split())
+        assert origin.get("rpy") in (None, "0 0 0")
+    for edge, xyz in static.items():
+        assert xyz == pytest.approx(joints[edge], abs=1e-12), edge
 
 def test_a_foreign_bags_decisions_end_with_their_motion_not_at_the_next_action(
         tmp_path: Path) -> None:
