@@ -1,26 +1,6 @@
-"""``simlab/TableSocial-v0``: the physics social task as a Gymnasium env (issue 18, 5).
+"""``simlab/TableSocial-v0``: the physics social task as a Gymnasium env.
 
-Card
-----
-* **Actions** ``Discrete(22)``: the 16 motion primitives, STAY, LOOK_H, HELLO, COME,
-  POINTING, GO_TO_HUMAN (:mod:`simlab.social.actions`).
-* **Observation** ``Discrete(2560)``: the social state (interaction level, distance class,
-  required direction, angle; :func:`simlab.social.walk.decode_social`).
-* **Reward** the social reward of :class:`~simlab.social.task.SocialTable`: 1.0 when the
-  engaged human (level 7) moved in the required direction, else 0.0.
-* **Episode** random robot and human poses (or ``options["robot_pose"]`` /
-  ``options["human_pose"]``); never terminates; truncated after ``max_steps`` decisions
-  when set (the registered id sets ``max_steps=None`` and ``max_episode_steps=40``, the
-  grid's social trial length, so Gymnasium's ``TimeLimit`` truncates).
-* **Seeding** ``reset(seed)`` seeds ``self.np_random``, which draws the task's seed
-  (:meth:`SocialTable.reset`); the same seed and actions give the same rollout.
-* **Copies** ``copy.deepcopy`` and ``pickle`` rebuild a fresh PyBullet world from the
-  configuration (as ``simlab/TableArena-v0``): the robot at rest at the copied pose, the
-  same human pose, engagement, required direction, clock, task and noise generators; the
-  copy's odometry (and any pose estimate, ``SocialConfig.pose_source``) restarts at that
-  pose.
-* **Info** ``level``, ``moved``, ``duration``, ``blocked``, ``time``, ``robot_pose``,
-  ``human_pose``.
+The env card is the docstring of :class:`TableSocialEnv` (``help(env.unwrapped)`` shows it).
 """
 
 from __future__ import annotations
@@ -38,7 +18,30 @@ from simlab.social.walk import N_SOCIAL_STATES
 
 
 class TableSocialEnv(gym.Env):
-    """The robot and a human on the table (see the module's env card)."""
+    """The robot and a human on the table: the social task of Visit the lab in physics.
+
+    * **Actions** ``Discrete(22)``: the 16 motion primitives, STAY, LOOK_H, HELLO, COME,
+      POINTING, GO_TO_HUMAN (:mod:`simlab.social.actions`).
+    * **Observation** ``Discrete(2560)``: the social state (interaction level, distance class,
+      required direction, angle; :func:`simlab.social.walk.decode_social`).
+    * **Reward** the social reward of :class:`~simlab.social.task.SocialTable`: 1.0 when the
+      engaged human (level 7) moved in the required direction, else 0.0.
+    * **Id** ``gym.make("simlab:simlab/TableSocial-v0")`` works in any process (spawned
+      vector-env workers too); the short id needs ``import simlab`` first.
+    * **Episode** random robot and human poses (or ``options["robot_pose"]`` /
+      ``options["human_pose"]``); never terminates; truncated after ``max_steps`` decisions
+      when set (the registered id sets ``max_steps=None`` and ``max_episode_steps=40``, the
+      grid's social trial length, so Gymnasium's ``TimeLimit`` truncates).
+    * **Seeding** ``reset(seed)`` seeds ``self.np_random``, which draws the task's seed
+      (:meth:`SocialTable.reset`); the same seed and actions give the same rollout.
+    * **Copies** ``copy.deepcopy`` and ``pickle`` rebuild a fresh PyBullet world from the
+      configuration (as ``simlab/TableArena-v0``): the robot at rest at the copied pose, the
+      same human pose, engagement, required direction, clock, task and noise generators; the
+      copy's odometry (and any pose estimate, ``SocialConfig.pose_source``) restarts at that
+      pose.
+    * **Info** ``level``, ``moved``, ``duration``, ``blocked``, ``time``, ``robot_pose``,
+      ``human_pose``.
+    """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 

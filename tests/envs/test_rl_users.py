@@ -4,6 +4,7 @@ Q-table recipe acting on tried actions only."""
 
 from __future__ import annotations
 
+import importlib
 import math
 import pydoc
 import re
@@ -18,8 +19,8 @@ from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the environments)
 from simlab.agents import greedy, save_q_table
-from simlab.envs.empirical_mdp import EmpiricalMDPEnv
-from simlab.envs.table_arena import TableArenaEnv, rep117_scan
+from simlab.envs import ENV_ENTRY_POINTS
+from simlab.envs.table_arena import rep117_scan
 from simlab.envs.table_states import TableArenaStatesEnv
 from simlab.errors import ConfigError
 
@@ -122,11 +123,15 @@ def test_spawned_vector_env_workers_find_the_prefixed_id() -> None:
     np.testing.assert_array_equal(rewards, srewards)
 
 
-@pytest.mark.parametrize("cls", [TableArenaEnv, TableArenaStatesEnv, EmpiricalMDPEnv])
-def test_help_on_the_unwrapped_env_shows_its_card(cls: type) -> None:
-    text = pydoc.render_doc(cls, renderer=pydoc.plaintext)
-    for field in ("**Observation**", "**Reward**", "**Episode**", "simlab:simlab/"):
-        assert field in text, (cls.__name__, field)
+@pytest.mark.parametrize("env_id", sorted(ENV_ENTRY_POINTS))
+def test_help_on_the_unwrapped_env_shows_its_card(env_id: str) -> None:
+    module, name = ENV_ENTRY_POINTS[env_id].split(":")
+    cls = getattr(importlib.import_module(module), name)
+    text = pydoc.render_doc(cls, renderer=pydoc.plaintext)  # what help(env.unwrapped) prints
+    for field in ("**Observation", "**Reward", "**Action"):
+        assert field in text, (env_id, field)
+    if not env_id.startswith("simlab/VisitLab"):  # the physics and empirical envs
+        assert f"simlab:{env_id}" in text and "**Episode**" in text
 
 
 def test_card_recipe_runs_the_masked_greedy_policy(tmp_path: Path) -> None:
