@@ -317,3 +317,21 @@ def test_a_second_writer_stops_at_once(wb: Path, capsys) -> None:
                        "--out", str(wb / "ds")], capsys)
     assert_refused(res, "another process", str(wb / "ds"))
     _unchanged(before, wb)
+
+
+@pytest.mark.parametrize("command", ["export-bag", "import-bag"])
+def test_a_read_only_output_is_one_line_naming_it(command: str, wb: Path, capsys,
+                                                  monkeypatch) -> None:
+    """The file system refuses the first directory the command creates (tests run as
+    root, which chmod cannot stop: the refusal is injected)."""
+    before = tree_hashes(wb)
+    monkeypatch.setattr(tempfile, "mkdtemp", _failing(errno.EROFS, 1, tempfile.mkdtemp))
+    out = wb / "out"
+    args = (["export-bag", str(wb / "data"), "--no-scans"] if command == "export-bag" else
+            ["import-bag", str(wb / "bag"), "--states", str(wb / "states.json")])
+    res = run_cli([*args, "--out", str(out)], capsys)
+    monkeypatch.undo()
+    assert_refused(res, "read-only", str(out))
+    assert ".simlab" not in res.stderr
+    _unchanged(before, wb)
+    assert not out.exists()
