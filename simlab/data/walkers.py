@@ -121,6 +121,9 @@ class PhysicsWalker:
             state_of = discretizer.state_of
             self._state_of = lambda xy: int(np.asarray(state_of(np.asarray(xy)[None, :2]))[0])
         self._pose_noise = bool(params.pose_noise_xy or params.pose_noise_yaw)
+        self._localized = (self._pose_noise and self._state_of is not None
+                           and pose_source == "truth"
+                           and getattr(params, "mode", "fixed") == "until_state_change")
         self._noise_rng: np.random.Generator | None = None
         self._last_pose: NDArray[np.float64] | None = None
         self.decision_latency = float(params.decision_latency)
@@ -145,6 +148,8 @@ class PhysicsWalker:
         self._last_pose = None
 
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
+        if self._localized:
+            return self._localized_step(action, rng)
         res = self.driver.execute(action, rng).result
         before, after = self.source.poses(res)
         if self._pose_noise:
@@ -159,6 +164,30 @@ class PhysicsWalker:
             after = self._noisy_pose(np.asarray(after, dtype=np.float64), self.params,
                                      self._noise_rng)
             self._last_pose = after
+        return self._outcome(res, before, after)
+
+    def _localized_step(self, action: int, rng: np.random.Generator) -> StepOutcome:
+        """A robot whose states come from its localization drives until its *localized*
+        state changes: from the state of its reading at the start, until the state of (true
+        position + the error of the reading that ends the move) differs; that reading is
+        the recorded end pose. (Truth pose source with pose noise and the
+        drive-until-state-change mode; the readings are drawn in the same order as
+        otherwise: a part's first reading, then each move's end reading.)"""
+        assert self._noise_rng is not None and self._state_of is not None
+        if self._last_pose is None:
+            self._last_pose = self._noisy_pose(self.world.pose(), self.params,
+                                               self._noise_rng)
+        before = self._last_pose
+        offset = self._noisy_pose(np.zeros(3), self.params, self._noise_rng)
+        state_of = self._state_of
+        self.driver.watch_state = lambda xy: state_of(np.asarray(xy)[:2] + offset[:2])
+        res = self.driver.execute(action, rng, start_state=state_of(before[:2])).result
+        after = np.asarray(res.pose_after, dtype=np.float64) + offset
+        after[2] = float(np.arctan2(np.sin(after[2]), np.cos(after[2])))
+        self._last_pose = after
+        return self._outcome(res, before, after)
+
+    def _outcome(self, res: Any, before: Any, after: Any) -> StepOutcome:
         return StepOutcome(
             blocked=bool(res.blocked),
             duration=float(res.duration),
