@@ -40,6 +40,7 @@ GMapping on the real robot): replace ``[floor]`` by::
     yaml = "lab/map.yaml"             # relative to the TOML file
     unknown_as_wall = false           # optional: unknown pixels become walls too
     occupied_min = 65                 # optional: occupancy (%) from which a pixel is a wall
+    flip_y = false                    # optional: the image is stored bottom row first
 
 The arena then keeps the map's frame (no centring): start pose, goals and obstacles are
 in map coordinates and used unchanged. Walls are extruded (``[walls] height``) from the
@@ -340,17 +341,18 @@ def _parse_map(c: _Checker, data: dict[str, Any], path: Path
     from discretize.gridmap import UNKNOWN
     from discretize.mapio import read_map, read_map_yaml
 
-    table = c.table(data, "map", {"yaml", "unknown_as_wall", "occupied_min"})
+    table = c.table(data, "map", {"yaml", "unknown_as_wall", "occupied_min", "flip_y"})
     yaml_path = path.parent / c.string(table, "map", "yaml")
     unknown_as_wall = validation.boolean(table.get("unknown_as_wall", False),
                                          "map.unknown_as_wall", path=c.path)
+    flip_y = validation.boolean(table.get("flip_y", False), "map.flip_y", path=c.path)
     occupied_min = c.number(table, "map", "occupied_min", default=65.0)
     if not 0 < occupied_min <= 100:
         raise c.fail("map.occupied_min", f"expected a percentage in (0, 100], got {occupied_min}")
     if not yaml_path.is_file():
         raise c.fail("map.yaml", f"map file {str(yaml_path)!r} not found",
                      fix="the path is relative to the arena TOML's directory")
-    grid = read_map(yaml_path)
+    grid = read_map(yaml_path, flip_y=flip_y)
     if abs(grid.origin[2]) > 1e-9:
         raise c.fail("map.yaml", f"the map's origin yaw is {grid.origin[2]} rad; only "
                      "unrotated maps (yaw 0) can be extruded", fix="re-save the map with yaw 0")

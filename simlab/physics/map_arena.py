@@ -104,16 +104,36 @@ class ArenaFromMapConfig(CommandConfig):
     start: Any | None = option(
         None, "start pose in map coordinates, yaw in degrees (default: the freest state "
         "centre or pixel, facing +y)", metavar="X,Y,YAW", parse=_start_pose)
+    start_state: int | None = option(
+        None, "start at this state's centre (needs --states; instead of --start), facing +y",
+        metavar="N")
     goal_radius: float = option(0.15, "radius of every goal circle in m")
     unknown_as_wall: bool = option(
         False, "extrude unknown pixels as walls too (default: only occupied)")
+    flip_y: bool = option(False, "flip the map image vertically (stored bottom row first); "
+                          "the arena records it")
     name: str | None = option(None, "arena name (default: the file's stem)")
     overwrite: bool = option(False, "replace an existing --out")
+
+    EXCLUSIVE = ("start", "start_state")
 
     def validate(self) -> None:
         validation.positive(self.goal_radius, "goal_radius")
         if self.start is not None:
             object.__setattr__(self, "start", _check_start(self.start))
+        if self.name is not None:
+            try:
+                self.name.encode("utf-8")
+            except UnicodeEncodeError:
+                raise ConfigError(f"not UTF-8 text: {self.name!r}", key="name",
+                                  fix="choose a name of plain text") from None
+        if self.start is not None and self.start_state is not None:
+            raise ConfigError("give either start or start_state", key="start_state")
+        if self.start_state is not None:
+            validation.whole(self.start_state, "start_state")
+            if self.states is None:
+                raise ConfigError("a start state needs the states file", key="start_state",
+                                  fix="add --states FILE (the centres the numbers refer to)")
 
 
 @command(ArenaFromMapConfig)
@@ -130,6 +150,10 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
     * ``start``: ``(x, y, yaw_degrees)`` in map coordinates; default: see module doc.
     * ``goal_radius``: radius (m) of every goal circle.
     * ``unknown_as_wall``: extrude unknown pixels too.
+    * ``start_state``: start at this state's centre (with ``states``), facing +y.
+    * ``flip_y``: flip the map image vertically (bottom row first, as some GMapping exports
+      store it); the arena's ``[map]`` records ``flip_y = true`` so that the arena, its
+      walls and the goals agree with the flipped map.
     * ``name``: arena name (default: the TOML's stem).
     * ``overwrite``: replace an existing ``out``.
 
@@ -140,7 +164,7 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
     out, map_yaml, states, start, goal_radius = (cfg.out, cfg.map_yaml, cfg.states, cfg.start,
                                                  cfg.goal_radius)
     ensure_new(out, overwrite=cfg.overwrite, what="arena file")
-    grid = read_map(map_yaml)
+    grid = read_map(map_yaml, flip_y=cfg.flip_y)
     clear = _clearance(grid.occupancy, grid.resolution)
     if clear.max() < START_CLEARANCE:
         raise ConfigError("no free pixel is far enough from the walls for the robot",
@@ -152,6 +176,21 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
         goals = [(f"s{i}", float(x), float(y)) for i, (x, y) in enumerate(centres)]
     else:
         goals = _auto_goals(grid, clear, goal_radius)
+    if start is not None:
+        h, w = grid.occupancy.shape
+        x0, y0 = grid.origin[0], grid.origin[1]
+        x1, y1 = x0 + w * grid.resolution, y0 + h * grid.resolution
+        if not (x0 <= start[0] <= x1 and y0 <= start[1] <= y1):
+            raise ConfigError(f"({start[0]:g}, {start[1]:g}) is outside the map (x {x0:.2f}.."
+                              f"{x1:.2f} m, y {y0:.2f}..{y1:.2f} m)", key="start",
+                              fix="give --start X,Y,YAW in the map's frame, in metres")
+    if cfg.start_state is not None:
+        if cfg.start_state >= len(centres):
+            raise ConfigError(f"expected a state in [0, {len(centres) - 1}] of the states "
+                              f"file, got {cfg.start_state}", key="start_state", path=states
+                              if isinstance(states, str | os.PathLike) else None)
+        cx, cy = centres[cfg.start_state]
+        start = (float(cx), float(cy), 90.0)
     if start is None:
         if states is not None:
             h = grid.occupancy.shape[0]
@@ -167,13 +206,15 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
             sx, sy = _pixel_xy(grid, int(r), int(cc))
         start = (sx, sy, 90.0)
     rel = os.path.relpath(map_yaml.resolve(), out.resolve().parent)
+    comment = " ".join(str(map_yaml).split())  # a comment is one line
     lines = [
-        f"# Arena built from the map {map_yaml} by `simlab arena-from-map`; map frame kept.",
-        f'name = "{cfg.name or out.stem}"',
+        f"# Arena built from the map {comment} by `simlab arena-from-map`; map frame kept.",
+        f"name = {toml_string(cfg.name or out.stem)}",
         "",
         "[map]",
-        f'yaml = "{Path(rel).as_posix()}"',
+        f"yaml = {toml_string(Path(rel).as_posix())}",
         f"unknown_as_wall = {'true' if cfg.unknown_as_wall else 'false'}",
+        *(["flip_y = true"] if cfg.flip_y else []),
         "",
         "[walls]",
         "height = 0.25",
@@ -183,14 +224,70 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
         f"pose = [{start[0]:.4f}, {start[1]:.4f}, {start[2]:.2f}]",
     ]
     for gname, gx, gy in goals:
-        lines += ["", "[[goals]]", f'name = "{gname}"', f"center = [{gx:.4f}, {gy:.4f}]",
-                  f"radius = {goal_radius}"]
+        lines += ["", "[[goals]]", f"name = {toml_string(gname)}",
+                  f"center = [{gx:.4f}, {gy:.4f}]", f"radius = {goal_radius}"]
     text = "\n".join(lines) + "\n"
-    tmp = out.with_name(f".{out.name}.check.toml")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        load_arena(tmp)  # validate with the real loader (paths relative to the same dir)
-    finally:
-        tmp.unlink(missing_ok=True)
+    _check_arena_text(text, cfg)
     atomic_write_text(out, text)
     return out
+
+
+def toml_string(text: str) -> str:
+    """``text`` as a TOML basic string: quotes, backslashes and the control characters
+    TOML forbids raw (U+0000-U+001F, U+007F; TOML 1.0, "String") escaped, the rest kept, so
+    a name holding ``"`` still gives a valid file."""
+    out = []
+    for ch in text:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _check_arena_text(text: str, cfg: ArenaFromMapConfig) -> None:
+    """Load ``text`` with the real arena loader before anything is written under ``out``.
+
+    The loader reads a file (the map path in it is relative to the file), so the text goes
+    to a hidden temporary file beside ``out``; its errors are reported against the user's
+    inputs, never that file: a goal from the states file, the start, or the map."""
+    import tempfile
+
+    out = Path(cfg.out)
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".check.toml",
+                                    dir=out.parent)
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror, str(out)) from exc
+    tmp = Path(name)
+    try:
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+        except OSError as exc:
+            raise type(exc)(exc.errno, exc.strerror, str(out)) from exc
+        try:
+            load_arena(tmp)
+        except ConfigError as exc:
+            raise _blame_inputs(exc, cfg) from None
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _blame_inputs(exc: ConfigError, cfg: ArenaFromMapConfig) -> ConfigError:
+    """An error of the generated arena, said of the input it came from."""
+    key = exc.key or ""
+    states = cfg.states if isinstance(cfg.states, str | os.PathLike) else None
+    if key.startswith("goals[") and cfg.states is not None:
+        i = key[len("goals["):].split("]", 1)[0]
+        return ConfigError(f"centre {i} (goal s{i}): {exc.problem}", path=states,
+                           key="centres", fix="use the states file made for this map "
+                           "(simlab discretize --map ...), or drop --states for 3 x 3 goals")
+    if key.startswith("start"):
+        given = "--start-state" if cfg.start_state is not None else "--start"
+        return ConfigError(f"the start pose: {exc.problem}", key=key,
+                           fix=f"choose another {given}, on the map's free space")
+    return ConfigError(f"{key + ': ' if key else ''}{exc.problem}", path=cfg.map_yaml,
+                       fix=exc.fix or "check the map (and --unknown-as-wall, --flip-y)")
