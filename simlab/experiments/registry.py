@@ -26,6 +26,7 @@ RUNNER_MODULES: dict[str, str] = {
     "physics": "simlab.experiments.physics",
     "social": "simlab.experiments.social",
     "visitlab": "simlab.experiments.visitlab",
+    "online": "simlab.online.experiments",
 }
 
 _REGISTRY: dict[str, RunnerFn] = {}

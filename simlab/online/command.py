@@ -222,9 +222,13 @@ class OnlineResult:
     seconds: float
 
 
-@command(OnlineConfig)
-def online(cfg: OnlineConfig) -> OnlineResult:
-    """Run every arm of ``cfg`` on its MDP and write the outputs (module docstring)."""
+@command(OnlineConfig, extras=("executor",))
+def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
+    """Run every arm of ``cfg`` on its MDP and write the outputs (module docstring).
+
+    ``executor`` (Python only): a :mod:`simlab.parallel` executor the runs go to (e.g. the
+    one of ``simlab reproduce``); default: one of ``backend`` / ``workers``, closed after.
+    """
     import contextlib
 
     from simlab.data.mdp import EmpiricalMDP, load_mdp
@@ -265,8 +269,12 @@ def online(cfg: OnlineConfig) -> OnlineResult:
         if out is not None:  # refuses existing outputs and takes the lock before the runs
             txn = stack.enter_context(output_transaction(out, finals.values(),
                                                          overwrite=cfg.overwrite))
-        with make_executor(cfg.backend, workers=cfg.workers, in_process_single=True) as ex:
-            results = ex.map(run_arm, jobs, desc="online runs", progress=cfg.progress)
+        if executor is not None:
+            results = executor.map(run_arm, jobs, desc="online runs", progress=cfg.progress)
+        else:
+            with make_executor(cfg.backend, workers=cfg.workers,
+                               in_process_single=True) as ex:
+                results = ex.map(run_arm, jobs, desc="online runs", progress=cfg.progress)
         logs = {name: results[j * cfg.seeds:(j + 1) * cfg.seeds]
                 for j, (name, _, _) in enumerate(arms)}
         from simlab.online.report import summarize, write_outputs
