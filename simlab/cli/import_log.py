@@ -27,6 +27,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"{res.samples} samples -> {res.decisions} decisions ({res.blocked} blocked), "
           f"{res.action_set.describe()}, states from the {res.state_source}")
     print("decisions per action: " + " ".join(str(int(n)) for n in per_action))
+    if res.before_state:
+        print(f"{res.before_state} decision(s) left out: they start or end before their "
+              "state existed (cell >= n_cells)")
     if cfg.map is not None:
         print(f"{res.off_map} pose samples off the map's free pixels")
     print(f"wrote {res.out}")

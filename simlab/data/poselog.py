@@ -11,6 +11,14 @@ optionally the robot's own state number ``cell`` and the number of states ``n_ce
 Every line has the same number of columns (4, 5 or 6). There is **no action column**: the
 actions are inferred from the motion (about 2 Hz is enough).
 
+``n_cells`` may grow along the log (0, 1, ..., 37, 38), as on a robot that builds its states
+while it moves (Chartouny et al. 2024 build the Voronoi states online); it never shrinks,
+and its last value is the log's number of states, the numbering of ``cell``. A sample whose
+``cell`` is not yet below its ``n_cells`` was logged **before its state existed** (its cell
+is a placeholder): with ``--use-cell-column`` the decisions that start or end at such a
+sample are left out of the dataset and counted in the summary (no state can be given to
+them); with the nearest centre of the states file every decision keeps its states.
+
 **Segmentation** (:func:`segment_decisions`, a pure function of arrays so that other
 importers, e.g. of ROS bags, reuse it). Each interval between two samples is labelled
 
@@ -69,7 +77,9 @@ class PoseLog:
         t: ``(N,)`` s, strictly increasing.
         xy: ``(N, 2)`` m. yaw: ``(N,)`` rad.
         cell: ``(N,)`` int64 state numbers of the log, or None.
-        n_cells: the log's number of states (None when absent; checked constant).
+        n_cells: the log's number of states: the last ``n_cells`` (None when absent).
+        n_cells_at: ``(N,)`` int64 number of states when each sample was logged
+            (non-decreasing), or None.
         path: the file.
     """
 
@@ -79,6 +89,19 @@ class PoseLog:
     cell: NDArray[np.int64] | None
     n_cells: int | None
     path: Path | None = None
+    n_cells_at: NDArray[np.int64] | None = None
+
+    def before_state(self) -> NDArray[np.bool_]:
+        """``(N,)`` True where the sample's cell did not exist yet (``cell >= n_cells`` of
+        its line); all False without the two columns."""
+        if self.cell is None or self.n_cells_at is None:
+            return np.zeros(len(self.t), dtype=bool)
+        return self.cell >= self.n_cells_at
+
+
+#: Largest magnitude of a log value: 1e9 (s, m, rad, cells). A pose 1,000,000 km away is a
+#: unit or parsing mistake, and beyond it the segmentation's squares overflow.
+MAX_LOG_VALUE = 1e9
 
 
 def _number(token: str, path: Path, lineno: int, column: str, whole: bool) -> float:
@@ -88,8 +111,13 @@ def _number(token: str, path: Path, lineno: int, column: str, whole: bool) -> fl
         value = math.nan
     if not math.isfinite(value) or (whole and not value.is_integer()):
         kind = "a whole number" if whole else "a finite number"
-        raise ConfigError(f"expected {kind}, got {token!r}", path=path,
+        shown = token if len(token) <= 30 else f"{token[:20]}... ({len(token)} characters)"
+        raise ConfigError(f"expected {kind}, got {shown!r}", path=path,
                           key=f"line {lineno}: {column}")
+    if abs(value) > MAX_LOG_VALUE:
+        raise ConfigError(f"{value:g} is beyond +-{MAX_LOG_VALUE:g}", path=path,
+                          key=f"line {lineno}: {column}",
+                          fix="times in s, positions in m, yaw in rad")
     return value
 
 
@@ -128,18 +156,27 @@ def read_pose_log(path: str | os.PathLike[str]) -> PoseLog:
         raise ConfigError(f"time does not increase at sample {back[0] + 2} ({t[back[0]]:g} -> "
                           f"{t[back[0] + 1]:g})", path=path, key="t")
     cell = data[:, 4].astype(np.int64) if width >= 5 else None  # type: ignore[operator]
-    n_cells = None
+    if cell is not None and cell.min() < 0:
+        raise ConfigError(f"negative cell {cell.min()} at sample {int(cell.argmin()) + 1}",
+                          path=path, key="cell", fix="cells are numbered from 0")
+    n_cells, n_cells_at = None, None
     if width == 6:
-        values = np.unique(data[:, 5])
-        if len(values) != 1:
-            raise ConfigError(f"n_cells changes within the log ({values[:4].tolist()})",
+        n_cells_at = data[:, 5].astype(np.int64)
+        down = np.flatnonzero(np.diff(n_cells_at) < 0)
+        if down.size:
+            k = int(down[0])
+            raise ConfigError(f"n_cells decreases at sample {k + 2} ({n_cells_at[k]} -> "
+                              f"{n_cells_at[k + 1]}); it may only grow as states are built",
                               path=path, key="n_cells")
-        n_cells = int(values[0])
-        if cell is not None and (cell.min() < 0 or cell.max() >= n_cells):
+        n_cells = int(n_cells_at[-1])
+        if n_cells < 1:
+            raise ConfigError("n_cells is 0 on every line: no state was ever built",
+                              path=path, key="n_cells")
+        if cell is not None and cell.max() >= n_cells:
             raise ConfigError(f"cell values {cell.min()}..{cell.max()} outside 0..{n_cells - 1}",
                               path=path, key="cell")
     return PoseLog(t=t, xy=data[:, 1:3].copy(), yaw=data[:, 3].copy(), cell=cell,
-                   n_cells=n_cells, path=path)
+                   n_cells=n_cells, path=path, n_cells_at=n_cells_at)
 
 
 @dataclass(frozen=True)
@@ -334,6 +371,9 @@ class ImportLogResult:
     action_set: ActionSet
     state_source: str
     off_map: int = 0
+    before_state: int = 0
+    """Decisions left out: they start or end at a sample logged before its state existed
+    (``--use-cell-column`` with a growing ``n_cells``)."""
 
 
 def _log_states(log: PoseLog, dec: Decisions, disc: Any, use_cell_column: bool
@@ -346,6 +386,11 @@ def _log_states(log: PoseLog, dec: Decisions, disc: Any, use_cell_column: bool
     if log.n_cells is not None and log.n_cells != int(disc.n_states):
         raise ConfigError(f"the log has {log.n_cells} cells, the states file "
                           f"{disc.n_states} states", path=log.path, key="n_cells")
+    if log.cell.max() >= int(disc.n_states):
+        k = int(log.cell.argmax())
+        raise ConfigError(f"cell {log.cell[k]} at sample {k + 1} is not a state of the states "
+                          f"file (0..{int(disc.n_states) - 1})", path=log.path, key="cell",
+                          fix="use the states file the robot numbered its cells with")
     return log.cell[dec.start], log.cell[dec.end], "cell column of the log"
 
 
@@ -364,6 +409,28 @@ def _check_poses(log: PoseLog, map_path: str | os.PathLike[str], flip_y: bool) -
                           fix=None if check.flip_suggested else
                           "poses must be in the map's frame, in metres")
     return int(check.bad.size)
+
+
+def _check_near_centres(log: PoseLog, centres: NDArray[np.float64]) -> None:
+    """Without a map, the states file is the only frame to check the poses against: more
+    than :data:`MAX_OFF_MAP_FRACTION` of the samples farther from every centre than twice the
+    widest gap between neighbouring centres (at least 1 m) means another frame or unit."""
+    from scipy.spatial import cKDTree
+
+    if len(centres) < 1:
+        return
+    tree = cKDTree(centres)
+    gap = float(tree.query(centres, k=2)[0][:, 1].max()) if len(centres) > 1 else 0.0
+    limit = max(1.0, 2.0 * gap)
+    dist = tree.query(log.xy)[0]
+    far = np.flatnonzero(dist > limit)
+    if far.size > MAX_OFF_MAP_FRACTION * len(log.xy):
+        k = int(far[0])
+        raise ConfigError(f"{far.size} of {len(log.xy)} pose samples are more than {limit:.2f} "
+                          f"m from every state centre (first: sample {k + 1} at "
+                          f"({log.xy[k, 0]:.6g}, {log.xy[k, 1]:.6g}), {dist[k]:.4g} m away)",
+                          path=log.path, key="poses", fix="poses and the states file must be "
+                          "in the same frame, in metres (--map checks them against the map)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -422,6 +489,19 @@ def import_log(cfg: ImportLogConfig) -> ImportLogResult:
                           "the thresholds)", path=plog.path, fix="check the units or lower "
                           "--move-speed / --turn-rate")
     off_map = 0 if cfg.map is None else _check_poses(plog, cfg.map, cfg.flip_y)
+    if cfg.map is None:
+        _check_near_centres(plog, np.asarray(disc.centres, dtype=np.float64))
+    before = 0
+    if cfg.use_cell_column:
+        early = plog.before_state()
+        keep = ~(early[dec.start] | early[dec.end])
+        before = int((~keep).sum())
+        if not keep.any():
+            raise ConfigError(f"all {len(dec)} decisions start or end before their state "
+                              "existed (cell >= n_cells on their lines)", path=plog.path,
+                              key="cell", fix="import without --use-cell-column (states "
+                              "from the nearest centre)")
+        dec = Decisions(**{f.name: getattr(dec, f.name)[keep] for f in fields(Decisions)})
     s, s2, source = _log_states(plog, dec, disc, cfg.use_cell_column)
     actions = decision_actions(dec, aset, segment)
     pose = np.column_stack([plog.xy, plog.yaw])
@@ -435,10 +515,11 @@ def import_log(cfg: ImportLogConfig) -> ImportLogResult:
                     "samples": len(plog.t), "state_source": source,
                     "map": None if cfg.map is None else str(cfg.map), "flip_y": cfg.flip_y,
                     "samples_off_free_map": off_map,
+                    "decisions_before_their_state": before,
                     "segmentation": asdict(segment)},
         arena={"name": Path(log).stem, "file": None, "bounds": None, "goals": []},
         parameters={"importer": "pose-log"})
     res = write_dataset(cfg.out, walk, info, overwrite=cfg.overwrite)
     return ImportLogResult(out=res.out, samples=len(plog.t), decisions=len(dec),
                            blocked=int(dec.blocked.sum()), actions=actions, action_set=aset,
-                           state_source=source, off_map=off_map)
+                           state_source=source, off_map=off_map, before_state=before)

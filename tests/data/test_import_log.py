@@ -124,11 +124,13 @@ def test_noise_below_thresholds_makes_no_decisions() -> None:
 
 
 def _write_log(path: Path, samples: np.ndarray, cells: np.ndarray | None = None,
-               n_cells: int | None = None) -> Path:
+               n_cells: int | np.ndarray | None = None) -> Path:
     lines = ["# t x y yaw cell n_cells", ""]
+    per_line = np.broadcast_to(np.asarray(n_cells if n_cells is not None else 0),
+                               (len(samples),))
     for k, (t, x, y, yaw) in enumerate(samples):
         extra = "" if cells is None else f" {cells[k]}" + ("" if n_cells is None
-                                                           else f" {n_cells}")
+                                                           else f" {per_line[k]}")
         lines.append(f"{t:.3f} {x:.4f} {y:.4f} {yaw:.4f}{extra}  # sample {k}")
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -180,6 +182,39 @@ def test_import_log_can_take_states_from_the_cell_column(tmp_path: Path) -> None
     assert not (tmp_path / "ds2").exists() and not (tmp_path / "ds3").exists()
 
 
+def test_a_growing_n_cells_leaves_out_the_decisions_before_their_state(tmp_path: Path
+                                                                        ) -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(6))
+    cells = Discretizer(centres=CENTRES).state_of(samples[:, 1:3])
+    # states are built as the robot goes: 0 at first, then the count grows by one every 4
+    # samples to the full 12 (cells numbered in the final set)
+    n_at = np.minimum(len(CENTRES), np.arange(len(samples)) // 4)
+    log = _write_log(tmp_path / "grow.log", samples, cells, n_at)
+    res = import_log(log, states=_centres_file(tmp_path / "c.txt"), out=tmp_path / "ds",
+                     use_cell_column=True)
+    dec = segment_decisions(samples[:, 0], samples[:, 1:3], samples[:, 3])
+    early = cells >= n_at
+    keep = ~(early[dec.start] | early[dec.end])
+    assert 0 < keep.sum() < len(dec)  # the case is a real one: some of each
+    assert res.decisions == int(keep.sum()) and res.before_state == int((~keep).sum())
+    ds = open_dataset(tmp_path / "ds")
+    assert ds.column("s").tolist() == cells[dec.start[keep]].tolist()
+    assert ds.column("s_next").tolist() == cells[dec.end[keep]].tolist()
+    assert ds.manifest["provenance"]["decisions_before_their_state"] == int((~keep).sum())
+    # with the nearest centre, every decision keeps its states
+    res = import_log(log, states=_centres_file(tmp_path / "c.txt"), out=tmp_path / "ds2")
+    assert res.decisions == len(dec) and res.before_state == 0
+
+
+def test_poses_far_from_every_centre_are_refused_without_a_map(tmp_path: Path) -> None:
+    samples, _ = _simulate(PLAN[:5], np.random.default_rng(7))
+    samples[:, 1:3] += 1000.0  # another frame: 1 km away
+    log = _write_log(tmp_path / "far.log", samples)
+    with pytest.raises(ConfigError, match=r"far\.log: poses: .* pose samples are more than"):
+        import_log(log, states=_centres_file(tmp_path / "c.txt"), out=tmp_path / "ds")
+    assert not (tmp_path / "ds").exists()
+
+
 @pytest.mark.parametrize(("text", "message"), [
     ("0 0 0 0\n1 0 0\n", "line 2: expected 4 columns"),
     ("0 0 0 0\n1 0 x 0\n", "line 2: y: expected a finite number, got 'x'"),
@@ -187,7 +222,10 @@ def test_import_log_can_take_states_from_the_cell_column(tmp_path: Path) -> None
     ("0 0 0\n", "line 1: expected 4 to 6 columns"),
     ("# only a comment\n0 0 0 0\n", "1 sample"),
     ("0 0 0 0\n0 1 0 0\n", "time does not increase at sample 2"),
-    ("0 0 0 0 3 4\n1 0 0 0 3 5\n", "n_cells changes"),
+    ("0 0 0 0 3 5\n1 0 0 0 3 4\n", r"n_cells decreases at sample 2 \(5 -> 4\)"),
+    ("0 0 0 0 0 0\n1 0 0 0 0 0\n", "no state was ever built"),
+    ("0 0 0 0 -1\n1 0 0 0 3\n", "negative cell -1 at sample 1"),
+    ("0 0 0 0\n1 2e12 0 0\n", "line 2: x: 2e\\+12 is beyond"),
     ("0 0 0 0 4 4\n1 0 0 0 3 4\n", r"cell values 3\.\.4 outside 0\.\.3"),
 ])
 def test_bad_logs_name_file_and_line(tmp_path: Path, text: str, message: str) -> None:
