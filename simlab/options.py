@@ -364,6 +364,8 @@ def _add_field(parser: argparse.ArgumentParser, f: dataclasses.Field, tp: Any) -
         kw.pop("metavar", None)
         if default is True:
             flag = "--no-" + (meta.get("flag") or f.name.replace("_", "-"))
+            if flag not in kw["help"]:  # the field's help says what "on" does
+                kw["help"] = f"turn off (on by default): {kw['help']}"
             parser.add_argument(flag, dest=f.name, action="store_false", **kw)
         else:
             parser.add_argument(_flag_name(f), dest=f.name, action="store_true", **kw)

@@ -67,6 +67,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"MDP-predicted: {c.predicted_rate_per_hour:.1f} /h"
               + (f" (measured/predicted = {ratio:.2f})" if ratio is not None else
                  " (measured/predicted: undefined, the MDP predicts no reward)"))
+    note = (getattr(s, "prediction", None) or {}).get("not_predicted")
+    if note:
+        print(f"MDP-predicted: none ({note})")
     loc = s.localization.get("mcl")
     if loc:
         a = loc["at_decisions"]

@@ -68,6 +68,9 @@ class ReplayConfig(CommandConfig):
     epsilon: float = option(0.0, "probability of a uniformly random action per decision")
     params: Any | None = option(None, "PrimitiveParams (default: those of the MDP's "
                                       "dataset)", cli=False)
+    primitives: Any | None = option(None, "the [primitives] TOML file params were read from "
+                                    "(recorded in replay.json; from Python without params, "
+                                    "params are read from it)", cli=False)
     mcl_params: Any | None = option(None, "MCLParams of the mcl pose source (default values)",
                                     cli=False)
     max_frames: int = option(150, "at most this many video frames")
@@ -93,6 +96,11 @@ class ReplayConfig(CommandConfig):
         v.probability(self.epsilon, "epsilon")
         v.whole(self.max_frames, "max_frames", minimum=1)
         v.executor(self.pool)
+        v.spelled_path(self.primitives, "primitives")
+        if self.primitives is not None and self.params is None:
+            from simlab.physics.motion import PrimitiveParams
+
+            object.__setattr__(self, "params", PrimitiveParams.from_toml(self.primitives))
         if self.qtables is None and self.policy == "greedy":
             raise ConfigError("a greedy replay needs Q-tables", key="qtables",
                               fix="pass --qtables DIR (the output of `simlab train`) or "

@@ -153,16 +153,30 @@ def _common_action_set(goal_names: tuple[str, ...], tables: list[Any], files: li
 
 
 def discover_mdp(qtables: QTables) -> str | None:
-    """The ``mdp.npz`` the Q-tables were trained on, from their metadata (if it exists)."""
+    """The ``mdp.npz`` the Q-tables were trained on, from their metadata: the path as
+    ``train`` was given it (from here, then from the Q-tables' directory), then the absolute
+    path ``train`` resolved it to (``mdp_resolved``; a replay run from another directory
+    than the training finds it so). When the Q-tables name an MDP that none of these
+    reaches, a warning says so (the prediction is then missing for a reason the user can
+    fix with ``--mdp``); None."""
+    named = []
     for meta, f in zip(qtables.metadata, qtables.files, strict=True):
         value = meta.get("mdp")
         if not isinstance(value, str) or not value:
             continue
-        path = Path(value)
-        if not path.is_absolute() and f is not None and not path.is_file():
-            path = Path(f).parent / path
-        if path.is_file():
-            return str(path)
+        named.append(value)
+        candidates = [Path(value)]
+        if not Path(value).is_absolute() and f is not None:
+            candidates.append(Path(f).parent / value)
+        resolved = meta.get("mdp_resolved")
+        if isinstance(resolved, str) and resolved:
+            candidates.append(Path(resolved))
+        for path in candidates:
+            if path.is_file():
+                return str(path)
+    if named:
+        warn(f"the Q-tables were trained on {named[0]}, which is not found from here: no "
+             "MDP-predicted rate (pass --mdp FILE to get it)")
     return None
 
 
@@ -290,7 +304,7 @@ def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, s
             warn("the MDP carries no record of the motion primitives it was estimated from "
                  "(no dataset manifest beside it); replaying with the default primitives — "
                  "pass the real robot's settings (--primitives FILE.toml) if they differ")
-        return (params if params is not None else PrimitiveParams()), "default"
+        return (params, "given") if params is not None else (PrimitiveParams(), "default")
     names = {f.name for f in fields(PrimitiveParams)}
     if params is None:
         try:

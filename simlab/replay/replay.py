@@ -279,6 +279,12 @@ def _prediction(cfg: ReplayConfig, inp: _Inputs, result: Any) -> dict[str, Any] 
     model, qt, valid = inp.model, inp.qt, inp.valid
     if model is None:
         return None
+    if cfg.return_to_start:
+        # The chain continues from the state where a goal was reached; driving back to the
+        # start (the episodic task, thesis go_back_initial_pose) restarts it elsewhere and
+        # spends robot time without transitions: no rate is predicted rather than a wrong one.
+        return {"mdp": model.source, "not_predicted": "the MDP's goal-switching chain does "
+                "not model the drive back to the start (--return-to-start)"}
     start_state = int(inp.disc.state_of(np.asarray(inp.arena.start[:2])))
     G, S = inp.goal_masks.shape
     measured_pace = result.seconds_per_transition
@@ -337,6 +343,7 @@ def _summarize(cfg: ReplayConfig, inp: _Inputs, plan: RunPlan, run: RunOutcome,
         return_to_start=bool(cfg.return_to_start), retry_blocked=bool(cfg.retry_blocked),
         escape_radius=float(cfg.escape_radius), epsilon=float(cfg.epsilon),
         primitive_params=asdict(inp.params), primitive_params_source=inp.params_source,
+        primitives_file=None if cfg.primitives is None else str(cfg.primitives),
         mcl_params=asdict(inp.mcl_params) if cfg.pose_source == "mcl" else None,
         schedule=Schedule(plan.split_baseline, plan.spec.remote_mcl),
         result=result, localization=localization_summary(run), random_baseline=base,

@@ -126,7 +126,9 @@ class ReplaySummary:
     Inputs: ``arena`` (name), ``arena_sha256``, ``states`` / ``qtables`` / ``map`` records,
     ``mdp`` and ``dataset`` sources, ``goal_names``, ``goal_states`` (goal -> state ids),
     ``action_set`` (its JSON record), ``masked_pairs``; settings: ``policy`` ...
-    ``mcl_params``, ``schedule``; results: ``result`` (:class:`RunStats`),
+    ``primitive_params`` with their ``primitive_params_source`` and ``primitives_file`` (the
+    ``--primitives`` TOML they were read from, None without one), ``mcl_params``,
+    ``schedule``; results: ``result`` (:class:`RunStats`),
     ``localization`` (error summaries per pose source), ``random_baseline``,
     ``prediction`` (per policy, :mod:`simlab.replay.prediction`), ``comparison``;
     ``files`` written (name -> path).
@@ -153,6 +155,7 @@ class ReplaySummary:
     epsilon: float
     primitive_params: dict[str, Any]
     primitive_params_source: str
+    primitives_file: str | None
     mcl_params: dict[str, Any] | None
     schedule: Schedule
     result: RunStats

@@ -789,7 +789,8 @@ def _write_outputs(job: _TrainJob, res: _Results, files: dict[str, Path],
         if m.valid is not None:
             arrays["valid"] = m.valid
         meta = {"agent": agent, "config": res.config, "goal": g, "goal_index": m.goal_index(g),
-                "mdp": source, "Q": "mean over runs of the final Q-tables",
+                "mdp": source, "mdp_resolved": None if source is None
+                else str(Path(source).resolve()), "Q": "mean over runs of the final Q-tables",
                 "simlab_version": simlab.__version__, **run_meta}  # fmt: skip
         save_q_table(files[f"q_{g}"], res.Qs[g], metadata=meta, arrays=arrays, overwrite=True)
 

@@ -186,3 +186,10 @@ def test_paths_exist_checks(tmp_path: Path) -> None:
         v.existing_file(tmp_path, "file")
     with pytest.raises(ConfigError, match="found a file"):
         v.existing_dir(tmp_path / "f.txt", "dir")
+
+
+def test_the_help_of_a_no_flag_says_it_turns_the_option_off() -> None:
+    parser = argparse.ArgumentParser()
+    DemoConfig.add_arguments(parser)
+    text = " ".join(parser.format_help().split())
+    assert "--no-plot turn off (on by default): write the plot" in text

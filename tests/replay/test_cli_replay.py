@@ -99,3 +99,23 @@ def test_cli_requires_states_and_out(tmp_path, capsys) -> None:
     assert code == 2 and len(err.splitlines()) == 1 and "--states" in err
     code = main(["replay", "--states", "s.json", "--random"])
     assert code == 2 and "--out" in capsys.readouterr().err
+
+
+def test_cli_replay_records_its_primitives_file_and_predicts_no_rate_when_driving_back(
+        chain, tmp_path, capsys) -> None:
+    from simlab.physics.motion import PrimitiveParams
+
+    prims = tmp_path / "robot.toml"
+    prims.write_text(PrimitiveParams().toml_text())
+    out = tmp_path / "out"
+    code = main(["replay", "--states", str(chain.states), "--qtables", str(chain.qtables),
+                 "--primitives", str(prims), "--return-to-start", "--hours", "0.02",
+                 "--baseline-hours", "0", "--out", str(out), "--no-progress"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / "replay.json").read_text())
+    assert summary["primitives_file"] == str(prims)
+    assert summary["primitive_params_source"] == "given"  # the chain's data record none
+    assert "not_predicted" in summary["prediction"] and "greedy" not in summary["prediction"]
+    assert "predicted_rate_per_hour" not in summary
+    assert "MDP-predicted: none" in printed and "measured/predicted" not in printed

@@ -121,3 +121,28 @@ def test_dataset_pace_is_read_from_the_estimate_summary(chain, tmp_path) -> None
     shutil.copy(chain.mdp, lone)  # without its summary: pace unknown
     assert load_model(lone, chain.discretizer, chain.goal_names,
                       chain.goal_masks).dataset_seconds_per_transition is None
+
+
+def _tables_naming(qdir, chain, meta: dict) -> None:
+    for g in chain.goal_names:
+        save_q_table(qdir / q_file_name(g), chain.Q[g], metadata={"goal": g, **meta})
+
+
+def test_the_mdp_is_found_from_another_directory_or_its_absence_is_said(
+        chain, tmp_path, monkeypatch) -> None:
+    # train was run in tmp_path/lab as `train --mdp mdp.npz --out q`: "mdp" is relative to
+    # that directory, which the replay (run from elsewhere) cannot know
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    shutil.copy(chain.mdp, lab / "mdp.npz")
+    _tables_naming(lab / "q", chain, {"mdp": "mdp.npz",
+                                      "mdp_resolved": str(lab / "mdp.npz")})
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    qt = load_qtables(lab / "q", chain.goal_names, 41)
+    assert discover_mdp(qt) == str(lab / "mdp.npz")
+    _tables_naming(tmp_path / "old", chain, {"mdp": "mdp.npz"})  # before mdp_resolved
+    qt = load_qtables(tmp_path / "old", chain.goal_names, 41)
+    with pytest.warns(UserWarning, match=r"trained on mdp\.npz, which is not found .* --mdp"):
+        assert discover_mdp(qt) is None
