@@ -168,11 +168,16 @@ class PhysicsWalker:
 
     def _localized_step(self, action: int, rng: np.random.Generator) -> StepOutcome:
         """A robot whose states come from its localization drives until its *localized*
-        state changes: from the state of its reading at the start, until the state of (true
-        position + the error of the reading that ends the move) differs; that reading is
-        the recorded end pose. (Truth pose source with pose noise and the
-        drive-until-state-change mode; the readings are drawn in the same order as
-        otherwise: a part's first reading, then each move's end reading.)"""
+        state changes (truth pose source with pose noise, drive-until-state-change mode).
+
+        Decision: the localization error is drawn anew at each decision and held during
+        the move; the move ends when the state of (true position + that error) leaves its
+        value at the start, and that reading is the recorded end pose. The recorded start
+        pose stays the previous move's end reading (a transition starts where the last
+        one's reading ended), so a jump of the estimate between two decisions shows as
+        noise of the recorded ``s``, as in a real robot's log. The readings are drawn in
+        the same order as the other walks' (a part's first reading, then each end reading).
+        """
         assert self._noise_rng is not None and self._state_of is not None
         if self._last_pose is None:
             self._last_pose = self._noisy_pose(self.world.pose(), self.params,
@@ -181,7 +186,7 @@ class PhysicsWalker:
         offset = self._noisy_pose(np.zeros(3), self.params, self._noise_rng)
         state_of = self._state_of
         self.driver.watch_state = lambda xy: state_of(np.asarray(xy)[:2] + offset[:2])
-        res = self.driver.execute(action, rng, start_state=state_of(before[:2])).result
+        res = self.driver.execute(action, rng).result
         after = np.asarray(res.pose_after, dtype=np.float64) + offset
         after[2] = float(np.arctan2(np.sin(after[2]), np.cos(after[2])))
         self._last_pose = after

@@ -93,16 +93,13 @@ class DecisionDriver:
         self.state = None if self._state_of is None else int(self._state_of(self.pose))
         return self.pose, self.state
 
-    def execute(self, action: int, noise_rng: np.random.Generator, *,
-                start_state: int | None = None) -> DecisionStep:
+    def execute(self, action: int, noise_rng: np.random.Generator) -> DecisionStep:
         """Run ``action``'s primitive with noise from ``noise_rng`` and move the believed
-        pose and state on. ``start_state``: the state an ``until_state_change`` move must
-        leave (default: the watched state of the start position)."""
+        pose and state on."""
         primitive = int(action if self.primitives is None else self.primitives[action])
         truth_before = self.world.pose()
-        extra = {} if start_state is None else {"start_state": int(start_state)}
         res = self._execute(self.world, primitive, noise_rng, self.params, on_scan=self.on_scan,
-                            scan_beams=self.scan_beams, state_of=self.watch_state, **extra)
+                            scan_beams=self.scan_beams, state_of=self.watch_state)
         after = self._pose_of(res)
         s_next = None if self._state_of is None else int(self._state_of(after))
         step = DecisionStep(action=int(action), result=res, truth_before=truth_before,

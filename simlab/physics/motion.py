@@ -516,7 +516,6 @@ def execute_primitive(
     scan_beams: NDArray[np.int64] | None = None,
     *,
     state_of: StateOf | None = None,
-    start_state: int | None = None,
 ) -> PrimitiveResult:
     """Run one primitive (rotate, check, drive, brake) in ``world``; see the module doc.
 
@@ -525,9 +524,7 @@ def execute_primitive(
     if given, with scans of the ``scan_beams`` beam indices (None: all 360).
     ``state_of(xy (2,)) -> int`` (the discretizer's state of a position, m) is required by
     ``mode = "until_state_change"``; it is applied to the true position at the control
-    ticks (a caller may fold a localization error into it, as the collection walker does).
-    The move ends when it differs from ``start_state`` (default: ``state_of`` of the start
-    position; a robot that believes itself in another state gives that one).
+    ticks (a stand-in for the localized pose the real robot checks).
     """
     p = params or PrimitiveParams()
     if p.mode == "until_state_change" and state_of is None:
@@ -562,8 +559,7 @@ def execute_primitive(
     if not blocked:
         until = None
         if p.mode == "until_state_change":
-            s0 = int(state_of(pose_before[:2])) if start_state is None \
-                else int(start_state)  # type: ignore[misc]
+            s0 = int(state_of(pose_before[:2]))  # type: ignore[misc]
 
             def until() -> str | None:
                 if int(state_of(world.pose()[:2])) != s0:  # type: ignore[misc]

@@ -3,33 +3,53 @@ changes (physics walker, drive-until-state-change mode with pose noise)."""
 
 from __future__ import annotations
 
-from pathlib import Path
+import itertools
 
 import numpy as np
 
-from simlab.data.collect import collect
-from simlab.data.dataset import read_dataset
+from simlab.data.walkers import PhysicsWalker
+from simlab.physics.inputs import load_arena_config, load_discretizer
 from simlab.physics.motion import PrimitiveParams
 
 
-def test_moves_end_when_the_reading_leaves_the_cell(tmp_path: Path,
-                                                     table_states_file: Path) -> None:
-    # 5 cm of localization error on ~0.2 m cells: a move that ended on the true position's
-    # state change would read its old cell again about a third of the time (the reading of
-    # a robot just past a boundary falls back across it); watching the reading, a move that
-    # is not blocked and not timed out always reads a new cell at its end.
+def test_a_move_ends_when_its_reading_leaves_the_state(table_states_file) -> None:
+    disc = load_discretizer(table_states_file)
     params = PrimitiveParams(mode="until_state_change", max_drive_time=3.0,
                              pose_noise_xy=0.05, decision_latency=1.0)
-    collect("table", table_states_file, out=tmp_path / "d", transitions=150, params=params,
-            seed=11, workers=1, progress=False)
-    t = read_dataset(tmp_path / "d")
-    s, s2 = t.column("s").to_numpy(), t.column("s_next").to_numpy()
-    blocked = t.column("blocked").to_numpy(zero_copy_only=False)
-    duration = t.column("duration").to_numpy()
-    moved = ~blocked
-    assert moved.sum() > 80
-    # the reading changed state on nearly every unblocked move; the few that did not are
-    # moves cut short by the detector re-run during the drive or the time limit
-    changed = np.mean(s[moved] != s2[moved])
-    assert changed > 0.85, changed
-    assert np.all(duration > 0)
+    walker = PhysicsWalker(load_arena_config("table"), params, "truth", {}, disc)
+    run = walker.driver._execute
+    reasons: list[str] = []
+
+    def spy(*args, **kwargs):  # why each move ended
+        res = run(*args, **kwargs)
+        reasons.append(res.stop_reason)
+        return res
+
+    walker.driver._execute = spy
+    rng = np.random.default_rng(4)
+    walker.reset(None, np.random.default_rng(5))
+    state = disc.state_of
+    ends, moved, readings = [], 0, []
+    try:
+        for a in rng.integers(0, 16, size=60):
+            out = walker.step(int(a), rng)
+            readings.append((out.pose_before, out.pose_after))
+            if reasons[-1] != "state_change":  # blocked, the detector mid-drive, time out
+                continue
+            moved += 1
+            # the error of the end reading, held during the move
+            offset = out.pose_after[:2] - out.truth_after[:2]
+            start = state((out.truth_before[:2] + offset)[None])[0]
+            end = state((out.truth_after[:2] + offset)[None])[0]
+            ends.append(start != end)
+    finally:
+        walker.close()
+    assert moved > 30
+    # every move that ended on a state change left its *localized* state (with 5 cm of
+    # error on ~0.2 m cells the true position often has not left its cell)
+    assert all(ends)
+    # the recorded end pose is that reading, and the next move starts from it
+    for (_, after), (before_next, _) in itertools.pairwise(readings):
+        np.testing.assert_array_equal(after, before_next)
+    errors = np.array([r[1][:2] for r in readings])
+    assert errors.std() > 0  # readings are noisy

@@ -1,0 +1,101 @@
+"""``simlab calibrate``: bad input refused before any simulation, nothing half-written, and
+``--overwrite`` replacing only calibrate's own files (kinematic simulator, tiny budgets)."""
+
+from __future__ import annotations
+
+import errno
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from discretize.voronoi import Discretizer
+from tests.faults.conftest import assert_refused, run_cli, tree_hashes
+
+FAST = ("--simulator kinematic --candidates 2 --hours-per-candidate 0.05 --confirm-top 1 "
+        "--confirm-seeds 1 --transfer-seeds 1 --confirm-hours 0.05 --n-boot 5 "
+        "--start-states none --workers 1 --no-progress")
+
+
+def _argv(work: Path, out: str = "cal", extra: str = "") -> list[str]:
+    return (f"calibrate --real {work}/counts.csv --states {work}/states.json --out "
+            f"{work}/{out} {FAST} {extra}").split()
+
+
+def test_calibrate_writes_its_files_and_overwrite_keeps_the_users(work: Path, capsys) -> None:
+    res = run_cli(_argv(work), capsys)
+    assert res.code == 0, res.stderr
+    (work / "cal" / "notes.txt").write_text("mine")
+    res = run_cli(_argv(work, extra="--overwrite"), capsys)
+    assert res.code == 0, res.stderr
+    assert (work / "cal" / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in (work / "cal").iterdir()) == [
+        "calibration.png", "notes.txt", "primitives.toml", "report.json", "report.md",
+        "transfer.png"]
+
+
+@pytest.mark.parametrize(("extra", "needles"), [
+    ("--start-states 3,99", ("start_states", "99")),
+    ("--goal-states 31", ("goal_states", "31")),
+    ("--goal-states x,y", ("goal_states",)),
+    ("--confirm-seeds 0", ("confirm_seeds",)),
+    ("--screen-share -1", ("screen_share",)),
+])
+def test_bad_options_are_refused_before_anything_runs(work: Path, capsys, extra: str,
+                                                      needles: tuple[str, ...]) -> None:
+    before = tree_hashes(work)
+    assert_refused(run_cli(_argv(work, extra=extra), capsys), *needles)
+    assert tree_hashes(work) == before and not (work / "cal").exists()
+
+
+def test_a_missing_real_file_and_a_states_mismatch_name_the_file(work: Path, capsys) -> None:
+    argv = _argv(work)
+    argv[2] = str(work / "nothing.csv")
+    assert_refused(run_cli(argv, capsys), "nothing.csv")
+    g = np.linspace(-0.5, 0.5, 3)
+    Discretizer(centres=np.array([(x, y) for y in g for x in g])).save(work / "s9.json")
+    argv = _argv(work)
+    argv[argv.index("--real") + 1] = str(work / "mdp.npz")
+    argv[argv.index("--states") + 1] = str(work / "s9.json")
+    assert_refused(run_cli(argv, capsys), "mdp.npz", "25 states", "9")
+    assert not (work / "cal").exists()
+
+
+def test_an_mdp_records_its_action_set_and_a_different_one_is_refused(work: Path,
+                                                                      capsys) -> None:
+    argv = _argv(work, extra="--n-actions 8 --convention ccw-east")
+    argv[argv.index("--real") + 1] = str(work / "mdp.npz")
+    assert_refused(run_cli(argv, capsys), "mdp.npz", "records 16 actions", "8 actions")
+
+
+def test_existing_outputs_are_refused_before_the_work(work: Path, capsys) -> None:
+    (work / "cal").mkdir()
+    (work / "cal" / "report.md").write_text("the previous report")
+    before = tree_hashes(work)
+    assert_refused(run_cli(_argv(work), capsys), "report.md", "--overwrite")
+    assert tree_hashes(work) == before
+    (work / "afile").write_text("x")
+    assert_refused(run_cli(_argv(work, out="afile"), capsys), "afile")
+
+
+@pytest.mark.parametrize("nth", [1, 3])
+def test_a_full_disk_keeps_the_previous_outputs_whole(work: Path, capsys, monkeypatch,
+                                                      nth: int) -> None:
+    assert run_cli(_argv(work), capsys).code == 0
+    before = tree_hashes(work)
+    real = os.fsync
+    calls = {"n": 0}
+
+    def full(fd: int) -> None:
+        calls["n"] += 1
+        if calls["n"] >= nth:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", full)
+    res = run_cli(_argv(work, extra="--overwrite --seed 4"), capsys)
+    monkeypatch.setattr(os, "fsync", real)
+    assert_refused(res, "no space left")
+    assert tree_hashes(work) == before
+    assert not [p for p in (work / "cal").iterdir() if p.name.startswith(".")]
