@@ -20,17 +20,18 @@ mean "none"):
   bootstrap (its value is 0: nothing follows); model-based agents pin the
   terminal state's Q row to 0 and planning treats its value as 0.
 
-Planning options of the paper's rules (issue 14; the thesis variant keeps them off).
-They implement the rules as issue 14 describes the published code; simlab runs no
-side-by-side comparison with that code, so no claim of identical curves is made:
+Planning options of the paper's rules (Chartouny et al. 2024, sec. 2-3, and the code
+published with it; the thesis variant, thesis 1.5-1.6, keeps them off). They implement the
+rules as read from that code; simlab runs no side-by-side comparison with it, so no claim
+of identical curves is made:
 
 * ``synchronous`` (rule 2) — :func:`plan` runs ``max_sweeps`` Jacobi sweeps over
   *all* (s, a): every backup reads the previous sweep's values. Thesis variant:
   Gauss-Seidel sweeps in place over the visited pairs only.
 * ``untried_uniform`` (rule 1) — a pair never tried keeps a uniform transition
   model over all states and reward 0, so a synchronous sweep values it at
-  ``gamma * mean(V)`` (optimistic exploration, the published code's rule as issue 14
-  reports it). Thesis
+  ``gamma * mean(V)`` (optimistic exploration, the rule of the code published with
+  Chartouny et al. 2024). Thesis
   variant: untried pairs keep their initial Q. Only used by synchronous sweeps.
 * ``freeze`` (rule 7, R-max) — a pair's model stops changing at its m-th visit.
   Thesis variant: counts keep accumulating after m visits.
@@ -321,7 +322,7 @@ def learner_learn(lr, s, a, r, s_next, episode, valid, terminal, t):
     The observer is always a Q-learner (:class:`Observer`), so its update is
     :func:`q_step`, not the whole of :func:`learn`: a second inlined copy of the
     model-based paths in every fused loop measured 10-20 % slower Q-learning on the
-    Visit-the-lab social task (issue 14), with the same results.
+    Visit-the-lab social task (thesis 2.1.2), with the same results.
     """
     ob = lr.observer
     if ob.Q.shape[0] > 0:

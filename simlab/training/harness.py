@@ -9,7 +9,8 @@ Seeding: ``seed`` (int or ``SeedSequence``) is spawned into one child per run;
 each run's child is spawned again into an env stream and an agent stream. Same
 seed, same results, bit for bit; runs are independent.
 
-Constraints (issue 12), keyword arguments of :func:`run_episodes`,
+Constraints (masked actions and the episodic task of :mod:`simlab.training.train`),
+keyword arguments of :func:`run_episodes`,
 :func:`train_runs` and :func:`evaluate_q`:
 
 * ``valid`` (S, A) bool, None = every action valid: agents draw only among the

@@ -1,4 +1,4 @@
-"""``simlab train``: train an agent on an empirical MDP for each goal area (SPEC A9).
+"""``simlab train``: train an agent on an empirical MDP for each goal area (thesis 4.5, Fig. 4.9).
 
 For every goal, ``runs`` independent agents learn for ``episodes`` episodes of
 ``horizon`` steps (reward 1 per step spent arriving in the goal area, start
@@ -22,7 +22,7 @@ state uniform unless ``start`` is given) on the fused njit path of
 * ``heatmap_<goal>.png`` and ``heatmaps.png`` (all goals, 3 x 3 for 9) — when the
   MDP file has ``centres``.
 
-Issue 12 (decisions where the issue was open):
+Decisions (where the thesis, 3.2.5 and 4.5, leaves the choice open):
 
 * **Unvisited (s, a)**: under the MDP's ``mask`` rule (the default; ``TrainTask.unvisited``
   overrides it) training passes ``valid = visited`` ((S, A) bool; a state with no visited
@@ -99,7 +99,7 @@ def _state_list(value: Any, key: str) -> tuple[int, ...] | None:
 
 @dataclasses.dataclass(frozen=True)
 class TrainTask:
-    """What the agent is asked to do (issue 12; see the module docstring).
+    """What the agent is asked to do (see the module docstring's decisions).
 
     Attributes:
         mode: ``per-step`` (default, +1 per step arriving in the goal) or ``episodic``
@@ -764,7 +764,7 @@ def _start_meta(start: Any) -> int | None:
 
 
 def _task_meta(m: Any, task: TrainTask, valid: np.ndarray | None) -> dict[str, Any]:
-    """The issue-12 metadata of every Q-table: action set, unvisited rule, task."""
+    """The task metadata of every Q-table: action set, unvisited rule, task."""
     return {
         "action_set": None if m.action_set is None else m.action_set.to_json(),
         "unvisited": m.unvisited,
