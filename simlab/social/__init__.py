@@ -1,4 +1,7 @@
-"""The social task in the physics arena (issue 18): a kinematic human beside the TurtleBot.
+"""The social task in the physics arena: a kinematic human beside the TurtleBot.
+
+The thesis's next stage (Future directions): the TurtleBot in a social task with a human
+drawn on the table's interactive screen; the social module is thesis 2.1.2's.
 
 * :mod:`simlab.social.human` — the projected human (pose, presets, random walk, following);
 * :mod:`simlab.social.perception` — fields, line of sight, distance classes, social index;

@@ -1,4 +1,4 @@
-"""The robot's social actions in physics (issue 18, part 1; thesis Table 2.1-2.3, 2.1.2).
+"""The robot's social actions in physics (thesis Table 2.1-2.3, 2.1.2).
 
 Action space of the physics social task, :class:`SocialAction` (22 actions):
 

@@ -1,4 +1,4 @@
-"""The combined Visit-the-lab architecture closed loop in physics (issue 18, item 4).
+"""The combined Visit-the-lab architecture closed loop in physics (thesis 3.1.1, Fig. 3.1).
 
 The grid's combined architecture (:mod:`simlab.visitlab.combined`) re-stated on the table
 with the robot in PyBullet and the kinematic human of :mod:`simlab.social`. Every decision:

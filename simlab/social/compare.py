@@ -1,4 +1,4 @@
-"""Social states in physics vs on the grid, side by side (issue 18, item 3).
+"""Social states in physics vs on the grid, side by side.
 
 Both models live on the same 2560 social states (:func:`simlab.social.walk.decode_social`)
 and the 22 physics social actions. The empirical one comes from the physics walk

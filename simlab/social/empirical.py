@@ -1,4 +1,4 @@
-"""The social module trained on the EMPIRICAL social MDP (issue 18, item 4), and the goal
+"""The social module trained on the EMPIRICAL social MDP (thesis 3.2.5's method), and the goal
 rate the MDPs predict.
 
 From a social random walk in physics (:mod:`simlab.social.walk`: 2560 observation states,
@@ -87,7 +87,7 @@ the same factors on closed-loop runs (the pipeline writes both side by side unde
 ``predicted_goals_per_hour.<policy>`` and ``.measured``).
 It need not be right; the pipeline sets it beside the measured rate.
 
-**What it takes** (issue 18, E2; seed 0, easy human, the closed loop's defaults: epsilon
+**What it takes** (seed 0, easy human, the closed loop's defaults: epsilon
 0.05, skip_idle; 3 runs x 0.25 simulated h each, seeds 0-2; walks of 2,000-decision
 segments, ``redraw_p`` 0.2, the first k segments of ``SeedSequence(0).spawn(8)`` so the
 budgets are nested; pooled pairs = visited (level, distance, angle, action) of 7,040)::

@@ -1,4 +1,4 @@
-"""A kinematic human on the table (issue 18, part 1; thesis 2.1.2, SPEC B3/B4).
+"""A kinematic human on the table (thesis 2.1.2 and Table 4.1).
 
 The human is a disc projected on the floor: a position ``(x, y)`` (m), a body orientation
 ``theta`` (rad, map frame) and, in :mod:`simlab.social.task`, an attention level. It has

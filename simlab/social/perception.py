@@ -1,9 +1,10 @@
-"""Social perception on the table from continuous poses (issue 18; SPEC B2, thesis 2.1.2).
+"""Social perception on the table from continuous poses (thesis 2.1.2 and Fig. 2.7).
 
 Inputs are the robot's pose ``(x, y, yaw)`` and the human's pose ``(x, y, theta)``
 (m, m, rad, map frame, angles counter-clockwise from +x). Outputs are the percepts the
 grid's social module uses (:mod:`simlab.visitlab.perception`), computed as in its
-paper-variant ``continuous=True`` path (issue 14, rule 3):
+paper-variant ``continuous=True`` path (the continuous bearing of the code published with
+Chartouny et al. 2024):
 
 * **bearing** — the continuous direction from one agent to the other (rad).
 * **H sees R** — the bearing human -> robot lies within the *inclusive* visual field

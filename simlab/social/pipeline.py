@@ -1,4 +1,4 @@
-"""The social pipeline (issue 18, item 4): train the social module on the grid (tabular)
+"""The social pipeline: train the social module on the grid (tabular)
 and/or on the empirical social MDP of a physics walk, run the combined architecture closed
 loop on the table against a random policy, write the results.
 
@@ -46,7 +46,7 @@ Measured (``social_pipeline(out=...)`` with the defaults: 3 runs x 0.5 h, easy h
 40,000 paper trials): combined 32 goals (15, 5, 12), random 4 (0, 2, 2), ratio 8.0;
 social reward per decision 0.168 in physics vs 0.50 per step on the grid.
 
-Measured with the empirical module (issue 18, E2; ``simlab social-pipeline --out DIR
+Measured with the empirical module (``simlab social-pipeline --out DIR
 --module both --workers 2 --runs 6 --hours 0.5 --seed S``, the default walk: 8,000
 least-tried decisions in 4 segments), goals per simulated hour, empirical / grid /
 random: seed 0: 31.6 (95 goals) / 20.3 (61) / 2.0 (6); seed 1: 25.0 (75) / 11.0 (33) /

@@ -1,4 +1,4 @@
-"""A small grid path planner for GO_TO_HUMAN's drive (issue 18).
+"""A small grid path planner for GO_TO_HUMAN's drive (thesis 2.1.3).
 
 The grid's GO_TO_HUMAN places the robot in front of the human; in physics the robot must
 drive there with its 8-direction primitives around the arena's obstacles and the human.

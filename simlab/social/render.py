@@ -1,5 +1,5 @@
 """Top-down pictures of the social task: the table, the robot and the human's disc with
-its visual and facing fields (issue 18); :func:`closed_loop_frame` draws one frame of the
+its visual and facing fields (thesis 2.1.2); :func:`closed_loop_frame` draws one frame of the
 closed loop's GIF (:func:`simlab.social.closedloop.write_closed_loop_gif`), what it draws
 given as one :class:`LoopFrame` (the run's :class:`LoopScene` and the frame's poses, level,
 goal, caption and trail).

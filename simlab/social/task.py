@@ -1,6 +1,7 @@
-"""The social task on the table: a TurtleBot and a kinematic human (issue 18, part 1).
+"""The social task on the table: a TurtleBot and a kinematic human (thesis, Future directions:
+a social task for the TurtleBot with a human drawn on the interactive screen).
 
-:class:`SocialTable` runs the grid's social module (thesis 2.1.2, paper Fig. 4; SPEC B3)
+:class:`SocialTable` runs the grid's social module (thesis 2.1.2, paper Fig. 4)
 with the robot in PyBullet and the human of :mod:`simlab.social.human`. One decision
 step, in the grid's order (``simlab.visitlab.dynamics.social_step``, thesis variant),
 re-stated here on continuous poses:
@@ -53,7 +54,7 @@ angle the robot believes separates its heading from the human's bearing. GO_TO_H
 drive and the primitives run on the true pose, as the navigation primitives do. With
 ``"truth"`` (default) nothing changes (bit for bit).
 
-**Paper rules 4-6** (issue 14; ``SocialConfig.rules = "paper"`` or one by one, as the
+**Paper rules 4-6** (the code published with Chartouny et al. 2024; ``SocialConfig.rules = "paper"`` or one by one, as the
 grid's paper variant, :mod:`simlab.visitlab.dynamics`):
 
 * ``gaze_before_move`` (rule 4): in 5 an engaged human's orientation aims at the

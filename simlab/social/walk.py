@@ -1,4 +1,4 @@
-"""The social random walk: an empirical social MDP's data, as a simlab dataset (issue 18, 3).
+"""The social random walk: an empirical social MDP's data, as a simlab dataset (thesis 3.2.5).
 
 :func:`social_walk` drives :class:`~simlab.social.task.SocialTable` with actions drawn
 by a behaviour policy over the 22 social actions (uniform, or least-tried: below) and
@@ -23,7 +23,7 @@ Decisions (the issue left them open):
   is the same whatever the number of segments, and the first ``k`` segments of a longer
   collection are a smaller one (nested budgets). Same seed, segments and budget -> the
   same dataset (content).
-* **Parallel segments** (issue 18, E2): :func:`social_walk` ``processes=N`` runs the
+* **Parallel segments**: :func:`social_walk` ``processes=N`` runs the
   segments as jobs of a :mod:`simlab.parallel` executor (the ``local`` process pool of
   ``simlab collect``, or ``ray``), each job on its own PyBullet world; results come back
   in segment order, so the data do not depend on ``processes`` (a test checks 1 vs 2).
