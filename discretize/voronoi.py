@@ -250,7 +250,7 @@ class Discretizer:
 
     def _nearest_one(self, x: float, y: float) -> int:
         """Nearest centre of one point by brute force in Python floats (~10x cheaper than a
-        cKDTree query for the ~40 centres of a table, issue 17). When the two nearest are
+        cKDTree query for the ~40 centres of a table). When the two nearest are
         equally far within rounding (on a cell boundary) the tree decides, so that ties
         break exactly as :meth:`state_of` always broke them."""
         best = second = math.inf

@@ -1,4 +1,5 @@
-"""Sim-to-real calibration of the primitive parameters (issue 12, item 7).
+"""Sim-to-real calibration of the primitive parameters: the physics twin
+made to move like the real robot whose transitions thesis 3.2.5 counted.
 
 * :mod:`simlab.calibration.metrics` — distances and summaries of transition tables
   (visit-weighted total variation, its bootstrap sampling floor, argmax agreement, ...);

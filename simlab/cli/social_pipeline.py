@@ -1,4 +1,4 @@
-"""``simlab social-pipeline``: the social task on the table, closed loop (issue 18)."""
+"""``simlab social-pipeline``: the social task on the table, closed loop (thesis 2.1.2, 3.1.1)."""
 
 from __future__ import annotations
 

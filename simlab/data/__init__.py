@@ -1,4 +1,4 @@
-"""Transition datasets and the empirical MDP (SPEC A7-A8, thesis 3.2.5 and 4.5).
+"""Transition datasets and the empirical MDP (thesis 1.5 eq. 1.13-1.14, 3.2.5 and 4.5).
 
 Layers, one per module:
 

@@ -1,4 +1,5 @@
-"""The empirical MDP: counts, T = n(s,a,s')/n(s,a), entropy, coverage (SPEC A8).
+"""The empirical MDP: counts, T = n(s,a,s')/n(s,a), entropy, coverage (thesis 3.2.5,
+Fig. 4.8).
 
 Thesis eq. 1.13: ``T(s, a, s') = n(s, a, s') / n(s, a)``. A pair (s, a) never tried
 has no estimate; the rule here makes it a **self-loop** (``T[s, a, s] = 1``) and flags
@@ -8,7 +9,7 @@ an untried action as "nothing happens" (agents that want optimism, e.g. R-max, u
 the reward of the physics task, r = 1 when s' lies in the goal area
 (:meth:`CountModel.rewards`; 0 for unvisited pairs).
 
-**Unvisited pairs for planners** (issue 12): the self-loop keeps T a distribution, but a
+**Unvisited pairs for planners**: the self-loop keeps T a distribution, but a
 planner must not read "never tried" as "a free stay". The rule stored in the model's
 metadata (``meta_json``: ``{"unvisited": "mask" | "self-loop", "action_set": {...}}``)
 says what consumers do with ``visited == False``: ``mask`` (the default) means training
@@ -27,7 +28,7 @@ has none), and the slow / fast means are the means of the 8 per-action values of
 actions 0-7 / 8-15. These are plug-in estimates: with few visits per pair they are
 biased low (no Miller-Madow correction), which is why coverage is reported with them.
 
-**Sparse path** (issue 18): a dense ``(S, A, S)`` table costs ``8 S A S`` bytes per array
+**Sparse path**: a dense ``(S, A, S)`` table costs ``8 S A S`` bytes per array
 (the social task's 2560 x 22 x 2560 peaked at 7.1 GB). When ``S * A * S`` exceeds
 :data:`SPARSE_CELLS` (or with ``storage="sparse"``) the counts are built from the logged
 triples only (:func:`sparse_count_model`, a :class:`SparseCountModel`: one CSR structure

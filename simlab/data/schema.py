@@ -20,7 +20,7 @@ checks each one that is installed)::
 
 (DuckDB before 2.0 does not list directories: ``read_parquet('DIR/parts/*.parquet')``.)
 
-Decision (issue 15): with the parts beside the manifest no single string served every
+Decision: with the parts beside the manifest no single string served every
 reader (Arrow does not expand globs, Polars refuses a directory holding ``_manifest.json``,
 DuckDB's ``FROM 'path'`` shorthand wants a file extension), hence the sub-directory; the
 manifest stays at ``DIR/_manifest.json``, where simlab looks for it. Rows come in file-name
@@ -74,7 +74,7 @@ FORMAT_VERSION = 1
 FORMAT_NAME = "simlab.transitions"
 #: File name of the manifest inside a dataset directory (see the module docstring).
 MANIFEST_NAME = "_manifest.json"
-#: Number of motion primitives (SPEC A4): index = speed * 8 + direction.
+#: Number of motion primitives (thesis 3.2: 8 directions x 2 speeds): index = speed * 8 + direction.
 N_ACTIONS = 16
 
 #: Every pose source a dataset may record: the simulator's three, and ``log`` for poses

@@ -54,7 +54,7 @@ from simlab.localization.sources import (  # noqa: F401 (the names stay importab
 )
 
 #: Number of motion primitives (= :data:`simlab.data.schema.N_ACTIONS`), taken from the action
-#: set so that a worker process does not import the schema's PyArrow (0.1 s; issue 17).
+#: set so that a worker process does not import the schema's PyArrow (0.1 s).
 N_ACTIONS = SIMLAB16.n_actions
 
 SIMULATORS = ("physics", "kinematic")

@@ -3,8 +3,8 @@
 Entry points are strings so that ``import simlab`` stays cheap: PyBullet, numba
 kernels and the like load only when ``gymnasium.make`` builds an environment.
 
-Gymnasium itself (0.1-0.4 s to import) is not imported by ``import simlab`` either
-(issue 17): :func:`register_when_imported` registers the environments at once if
+Gymnasium itself (0.1-0.4 s to import) is not imported by ``import simlab`` either:
+:func:`register_when_imported` registers the environments at once if
 Gymnasium is already imported, and otherwise the moment it is (a one-shot import hook),
 so ``import simlab; import gymnasium as gym; gym.make("simlab/...")`` works as before
 while the pipeline's worker processes, which never make an environment, skip it.

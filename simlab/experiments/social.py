@@ -1,4 +1,4 @@
-"""The social task in physics (issue 18): the combined architecture closed loop on the table.
+"""The social task in physics: the combined architecture closed loop on the table.
 
 Not a figure of the thesis: its conclusion names it as the next step ("have the Turtlebot
 deal with a social navigation problem"). The runner calls

@@ -146,7 +146,7 @@ def _low_variance_indices(weights: NDArray[np.float64], n: int, u: float) -> NDA
 @numba.njit(cache=True)
 def _resample_into(weights, u, particles, out):  # pragma: no cover - compiled
     """``out[:] = particles[_low_variance_indices(weights, len(out), u)]`` in one pass
-    (issue 17). The cumulative sum is numpy's (sequential); walking the sorted pointers
+    (no index array). The cumulative sum is numpy's (sequential); walking the sorted pointers
     along it finds what the binary search finds, because "cdf <= pointer" holds on a
     prefix only (the last entry is 1 > every pointer). A NaN or negative weight breaks
     that order, and the last pointer can round up to 1: then returns False (``out``
@@ -280,7 +280,7 @@ def _spread(p, weights):  # pragma: no cover - compiled
 @numba.njit(cache=True)
 def _weigh(particles, weights, ranges, angles, beams, offset, table, geometry, r2, max_angle,
            steps, out):  # pragma: no cover - compiled
-    """The compiled part of :meth:`ParticleFilter.update` in one call (issue 17: one
+    """The compiled part of :meth:`ParticleFilter.update` in one call (one
     dispatch instead of three, no glue between): scan log-likelihoods, reweighting into
     ``out``, mean-shift estimate. Returns (beams with a return, log normaliser, effective
     sample size, estimate); with no beam ``out`` is untouched and the rest is zeros."""
@@ -504,7 +504,7 @@ class ParticleFilter:
 
     def spread(self) -> tuple[float, float]:
         """``(position std (m), heading std (rad))`` of the particle cloud: the traces of
-        :meth:`covariance` by one compiled kernel (equal within float rounding, issue 17)."""
+        :meth:`covariance` by one compiled kernel (equal within float rounding)."""
         self._check_init()
         pos, yaw = _spread(self.particles, self.weights)
         return float(pos), float(yaw)

@@ -152,7 +152,7 @@ def _finite_beams(ranges: NDArray[np.float64], angles: NDArray[np.float64]
 @numba.njit(cache=True)
 def yaw_trig(particles):  # pragma: no cover - compiled
     """``(cos, sin)`` ``(N,)`` of the particles' yaws (libm's, as ``math.cos``), computed
-    once per update for the likelihood and the estimate (issue 17)."""
+    once per update for the likelihood and the estimate (computed once, not twice)."""
     n = particles.shape[0]
     cos_yaw = np.empty(n)
     sin_yaw = np.empty(n)
@@ -174,7 +174,7 @@ def _field_kernel(particles, ranges, cos_a, sin_a, off_x, off_y, table, ox, oy, 
 def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x, off_y, table,
                        ox, oy, cm, sm, inv_res, outside, out):  # pragma: no cover - compiled
     """The likelihood field of each particle, in two passes per particle: the beams' end
-    cells as floats (a loop the compiler vectorises: ~1.5x faster, issue 17), then the
+    cells as floats (a loop the compiler vectorises: ~1.5x faster), then the
     table look-ups. A float cell index compares as its integer does (NaN and overflow
     fall outside either way), so the sums are the same bits."""
     n = particles.shape[0]
@@ -215,7 +215,7 @@ def _field_kernel_trig(particles, cos_yaw, sin_yaw, ranges, cos_a, sin_a, off_x,
 def beam_log_likelihoods(particles, cos_yaw, sin_yaw, ranges, angles, beams, offset, table,
                          geometry, out):  # pragma: no cover - compiled
     """:func:`scan_log_likelihoods` of the beams ``beams`` of a scan, with no numpy glue
-    (issue 17): the beams with a return are picked, and their cos/sin taken, here, in the
+    (one compiled call per scan): the beams with a return are picked, and their cos/sin taken, here, in the
     order the numpy path keeps them. ``cos_yaw``, ``sin_yaw``: :func:`yaw_trig` of the
     particles. ``geometry`` is :attr:`LikelihoodField.geometry`.
     Returns the number of beams with a return; ``out`` is left untouched when it is 0."""

@@ -124,8 +124,8 @@ def odometry_delta(odom_prev: NDArray[np.float64], odom_now: NDArray[np.float64]
 
 @numba.njit(cache=True)
 def _move(p, noise, rot1, trans, rot2, sd_rot1, sd_trans, sd_rot2, out):  # pragma: no cover
-    """Each particle moved by its noisy (rot1, trans, rot2): the numpy formulas of issue 17's
-    reference (tests) element by element, one pass instead of ~12 temporaries. libm's cos
+    """Each particle moved by its noisy (rot1, trans, rot2): the numpy formulas of the
+    tests' reference element by element, one pass instead of ~12 temporaries. libm's cos
     and sin are numpy's on the x86-64 builds checked (tests compare on real data)."""
     two_pi = 2.0 * math.pi
     for i in range(p.shape[0]):

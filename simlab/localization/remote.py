@@ -1,4 +1,4 @@
-"""An :class:`~simlab.localization.tracker.MCLTracker` in a process of its own (issue 17).
+"""An :class:`~simlab.localization.tracker.MCLTracker` in a process of its own.
 
 In a closed-loop replay with the ``mcl`` pose source the particle filter costs about as
 much CPU as the physics it localizes. Within a motion primitive the robot steers by its

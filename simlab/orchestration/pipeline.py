@@ -180,7 +180,7 @@ def _run_pipeline(out: Path, s: PhysicsSettings, seed: int, progress: bool,
 
     # numba compiles the training and MCL kernels in a spare process while the map and the
     # walk run in physics; training then loads them from numba's cache, and the warmed
-    # process is lent to the training and the replay as their second core (issue 17)
+    # process is lent to the training and the replay as their second core
     with start_warmup(agent=s.agent, mcl=s.pose_source == "mcl") as warm:
         return _run_stages(out, chain, s, seed, say, warm, t_start)
 

@@ -1,4 +1,4 @@
-"""Numba compilation off the pipeline's critical path (issue 17).
+"""Numba compilation off the pipeline's critical path.
 
 Every numba kernel of the physics chain is ``@njit(cache=True)``: the first run on a
 machine compiles it (the value-iteration softmax training about 12 s on a quiet 2-core

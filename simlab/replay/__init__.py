@@ -1,4 +1,4 @@
-"""Closed-loop replay of learned Q-tables in physics (SPEC A9, thesis 4.5).
+"""Closed-loop replay of learned Q-tables in physics (thesis 4.5, Fig. 4.10).
 
 :mod:`~simlab.replay.replay` (``simlab replay``: inputs, runs, summary, outputs in order),
 :mod:`~simlab.replay.config` (:class:`~simlab.replay.config.ReplayConfig`, every option once),

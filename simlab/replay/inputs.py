@@ -3,7 +3,7 @@
 * **Q-tables**: one ``q_<goal>.npz`` per goal of the arena in a directory (the files
   ``simlab train`` writes; read with :func:`simlab.agents.storage.load_npz`), or a
   mapping ``goal -> Q``. Each must be ``(S, A)``: S the states of the discretizer, A the
-  actions of their **action set** (issue 12: ``action_set`` in the metadata; 16 simlab
+  actions of their **action set** (``action_set`` in the metadata; 16 simlab
   primitives for files without one; an 8-action table without one is refused). All goals
   must share one action set. A saved ``valid`` (S, A) mask (unvisited pairs) travels with
   them: the replay never executes a masked action. A goal without a file, a wrong shape,
@@ -34,7 +34,7 @@ from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.data.goals import is_state_goal
 from simlab.errors import ConfigError, warn
 
-#: Number of simlab motion primitives (SPEC A4).
+#: Number of simlab motion primitives (thesis 3.2: 8 directions x 2 speeds).
 N_ACTIONS = 16
 
 

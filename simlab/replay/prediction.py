@@ -124,7 +124,7 @@ def _stationary(P: NDArray[np.float64]) -> NDArray[np.float64]:
     Solves ``pi (P - I) = 0`` with the normalisation ``sum(pi) = 1`` replacing the last
     balance equation (one of them is redundant: the rows of ``P.T - I`` sum to zero) by one
     LU ``solve``: about 10x faster than the former least-squares fit of the overdetermined
-    system at a few hundred states, and equal to it within float rounding (~1e-15, issue 17).
+    system at a few hundred states, and equal to it within float rounding (~1e-15).
     """
     n = P.shape[0]
     M = P.T - np.eye(n)

@@ -1,4 +1,5 @@
-"""``simlab replay``: the learned policy driven in closed loop in physics (SPEC A9, thesis 4.5).
+"""``simlab replay``: the learned policy driven in closed loop in physics (thesis 4.5,
+Fig. 4.10).
 
 The question of the physics half: does a policy planned on the empirical matrix work
 when the robot drives it? The replay does what the thesis's TurtleBot did for three
@@ -52,7 +53,7 @@ Decisions where the thesis is silent:
   ``baseline_hours`` (default: the same duration) runs in a second world with its own
   seed stream and the truth pose source (a random policy ignores the pose; only the
   bookkeeping of rewards uses it).
-* **masked actions** (issue 12): the Q-tables' saved ``valid`` mask (or, for Q-tables
+* **masked actions**: the Q-tables' saved ``valid`` mask (or, for Q-tables
   without one and not trained with the ``self-loop`` rule, the MDP's) is never violated by
   the greedy choice, the blocked-retry fallback or the loop watchdog; only ``epsilon``
   exploration and the random baseline draw among all actions (as the prediction models).
@@ -62,7 +63,7 @@ Decisions where the thesis is silent:
   (found through ``mdp.json``); explicit ``params`` that differ raise ConfigError.
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
-* **scheduling** (issue 17; ``parallel=True`` on 2 or more usable cores, decided from the
+* **scheduling** (``parallel=True`` on 2 or more usable cores, decided from the
   core count, or from the idle cores where Linux shares the CPUs per session,
   :func:`schedule`): the random baseline runs in a ``spawn`` process while this one drives
   the learned policy (and then encodes the video), and the ``mcl`` filter runs in a
@@ -385,7 +386,7 @@ def _start_video(cfg: ReplayConfig, inp: _Inputs, files: dict[str, Path], run: R
                  pool: Any) -> Any:
     """The video rendered and encoded in ``pool``'s worker (the baseline's, idle once the
     baseline is in) while this process computes the prediction and writes the other files
-    (issue 17): a future of ``{kind: bytes}``, or None (no video, or no worker: :func:`_write`
+    at the same time: a future of ``{kind: bytes}``, or None (no video, or no worker: :func:`_write`
     renders it here). Same frames, same bytes (tested)."""
     if not cfg.video or pool is None:
         return None

@@ -1,4 +1,4 @@
-"""Where the replay's runs execute (issue 17): this process, a process for the random
+"""Where the replay's runs execute: this process, a process for the random
 baseline, a process for the ``mcl`` filter; and the progress bars.
 
 Results never depend on the choice: the worlds and seed streams are independent, so a
@@ -66,7 +66,7 @@ def schedule(parallel: bool, baseline: bool, mcl: bool,
     """``(baseline in a process, mcl filter in a process)`` for a replay on ``cores``
     usable CPUs (None: :func:`usable_cores`).
 
-    Decided from the core count (issue 17) wherever the scheduler shares the CPUs per
+    Decided from the core count wherever the scheduler shares the CPUs per
     process: with ``parallel`` and 2 cores the random baseline gets a process of its own
     (it talks to this one once, at the end, so on a busy machine it costs its start-up,
     ~1 s, and otherwise takes the CPU share of a second runnable process), and the filter

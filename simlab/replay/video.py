@@ -209,7 +209,7 @@ def gif_palette(stack: NDArray[np.uint8], keep: Sequence[tuple[int, int, int]] =
     ``keep`` colours exactly, the rest by median cut over ``samples`` evenly spaced frames
     (every second row and column).
 
-    Decision (issue 17): one palette for the whole GIF instead of PIL's adaptive quantisation
+    Decision: one palette for the whole GIF instead of PIL's adaptive quantisation
     of every frame (2.5 s of the 9 s video write at 146 frames): the frames share one arena
     and a few flat colours, so one palette shows the same picture; the flat colours are kept
     exact, the heat map's blends and anti-aliased edges move by a few levels at most.

@@ -116,7 +116,7 @@ def encode_video(kinds: tuple[str, ...], run: RunOutcome, arena: Any, disc: Any,
                  valid: Any = None) -> dict[str, bytes]:
     """:func:`write_video` into a temporary folder, returning the files' bytes per kind
     (``"gif"``, ``"mp4"``; a kind without frames is absent): the job a worker process
-    runs while the replay's own process writes its other outputs (issue 17); the bytes
+    runs while the replay's own process writes its other outputs; the bytes
     are those :func:`write_video` writes."""
     import tempfile
 
