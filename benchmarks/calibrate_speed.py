@@ -1,6 +1,6 @@
 """How long does `simlab calibrate` take, and how close does it get to the sampling floor?
 
-Issue 12's benchmark: a calibration on a map-built arena of ~40 m2 with ~40 states on 2
+The benchmark: a calibration on a map-built arena of ~40 m2 with ~40 states on 2
 cores. The default arena is ``map-lab``: a synthetic GMapping-like 8 x 5 m lab map written
 here, turned into an arena by ``arena_from_map`` and discretized into 40 Voronoi states;
 ``--arena table_obstacles`` (or any TOML, with ``--states``) runs another case.

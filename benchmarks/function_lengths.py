@@ -1,4 +1,4 @@
-"""The longest library functions: lines and parameter counts (issue 16's size table).
+"""The longest library functions: lines and parameter counts.
 
 Usage: ``python benchmarks/function_lengths.py [--top 15] [--root simlab] [PATH ...]``
 
@@ -6,7 +6,8 @@ Walks every ``*.py`` under ``--root`` (or the given files/directories) with :mod
 prints the ``--top`` longest functions and methods (nested ones included, each counted on
 its own lines ``lineno..end_lineno``, decorators excluded), with their parameter count
 (positional, keyword-only, ``*args``/``**kwargs``; ``self``/``cls`` not counted), and how
-many exceed 80 lines or 10 parameters (the issue's limits).
+many exceed 80 lines or 10 parameters (the house limits: a function past them wants splitting,
+or a record for parameters that travel together).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""CPU cost of a simulated second at other physics rates than the default 200 Hz (issue 17).
+"""CPU cost of a simulated second at other physics rates than the default 200 Hz.
 
 A lower rate takes fewer steps per simulated second, but the question is what the job pays:
 for each rate this prints, on one core, best of ``--repeats`` runs interleaved across the
@@ -13,7 +13,7 @@ rates (the machine's speed drifts from minute to minute):
 
 each with its ratio to the 200 Hz run. A step is not a fixed cost: on the shared 2-core VM
 (2026-11-26) it cost 18 us at 200 Hz and 26-41 us at 150 Hz and below, so fewer steps did
-not mean less CPU per simulated second (the figures of the runs are in issue 17's note).
+not mean less CPU per simulated second (rerun this script to see it on another machine).
 
     python benchmarks/physics_rate.py [--rates 250,200,180,150,120] [--primitives 400]
                                       [--repeats 3]

@@ -10,7 +10,7 @@
     (rotation, LIDAR cone scan, drive, brake), real-time factor over the *stepped*
     simulated time, and the same including the idle decision latency (dataset view);
 and the ratio b/a. Each figure is the best of ``--repeats`` runs (the machine is shared).
-Targets (issue 2): (b) >= 300x real time per core, b/a >= 0.85.
+Targets: (b) >= 300x real time per core, b/a >= 0.85.
 
     python benchmarks/physics_speed.py [--seconds 60] [--primitives 300] [--repeats 3]
 """

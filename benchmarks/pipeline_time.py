@@ -1,4 +1,4 @@
-"""Wall time of ``simlab pipeline`` per stage against its physics floor (issue 17).
+"""Wall time of ``simlab pipeline`` per stage against its physics floor.
 
 Runs :func:`simlab.commands.pipeline` on the defaults (``--quick``: a smaller budget) into
 a temporary folder and, in the same run, measures the machine's bare PyBullet stepping

@@ -1,4 +1,4 @@
-"""Social walk speed vs navigation walk speed, in the same run (issue 18 acceptance).
+"""Social walk speed vs navigation walk speed, in the same run.
 
 Both walks run headless on the ``table`` arena, one process, uniform random actions:
 

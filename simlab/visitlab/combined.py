@@ -1,4 +1,4 @@
-"""The combined Visit-the-lab architecture (SPEC B6, thesis 3.1.1 and Fig. 3.1).
+"""The combined Visit-the-lab architecture (thesis 3.1.1 and Fig. 3.1).
 
 Three trained modules act together in one world: the robot must get the human's
 attention and lead them to a goal room; when the human enters it, another room becomes

@@ -1,4 +1,4 @@
-"""Dynamics of the three Visit-the-lab modules as numba kernels (SPEC B1, B3, B5).
+"""Dynamics of the three Visit-the-lab modules as numba kernels (thesis 2.1.1-2.1.3).
 
 These functions are the single source of truth for the simulation: the Gymnasium
 envs (:mod:`simlab.visitlab.envs`) and the fused training loops

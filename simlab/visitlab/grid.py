@@ -1,4 +1,4 @@
-"""Grids and lab layouts, and the movement rule (SPEC B1, thesis 2.1.1).
+"""Grids and lab layouts, and the movement rule (thesis 2.1.1).
 
 A :class:`Layout` is a rectangular grid of cells (origin top-left, ``cell = row *
 width + col``) with walls lying *between* cells and a room label per cell:

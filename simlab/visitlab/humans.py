@@ -1,4 +1,5 @@
-"""Simulated humans (SPEC B4, thesis 2.1.2 and Table 4.1).
+"""Simulated humans (thesis 2.1.2 and Table 4.1; Chartouny et al.
+2024, humans H1-H3).
 
 A :class:`Human` is a frozen, validated set of behaviour probabilities; the
 kernels read it as a float64 array (:meth:`Human.to_array`). What each parameter

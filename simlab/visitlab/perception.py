@@ -1,4 +1,4 @@
-"""Social perception on the grid (SPEC B2, thesis 2.1.2 and Fig. 2.7).
+"""Social perception on the grid (thesis 2.1.2 and Fig. 2.7).
 
 Percepts of a robot R and a human H, each with a cell and a body orientation
 (a direction index 0-7, see :mod:`simlab.visitlab.actions`):
@@ -22,8 +22,8 @@ Percepts of a robot R and a human H, each with a cell and a body orientation
   4 H looks at R and R looks at H; 3 H sees R and R looks at H; 2 H looks at R;
   1 H sees R; 0 otherwise (first matching rule wins).
 
-The paper's rules (issue 14, as reported of the published code; not compared with
-it here), fields of :class:`Perception` switched on together by ``PAPER_PERCEPTION`` and settable one by one (the kernels read them from the same
+The paper's rules (Chartouny et al. 2024, sec. 2, as its published code applies them;
+not compared with that code here), fields of :class:`Perception` switched on together by ``PAPER_PERCEPTION`` and settable one by one (the kernels read them from the same
 array):
 
 * ``continuous`` (rule 3) — sees / looks at are decided on the *continuous* bearing

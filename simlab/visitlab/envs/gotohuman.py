@@ -30,7 +30,7 @@ from simlab.visitlab.render import Scene
 
 
 class GoToHumanEnv(VisitLabEnv):
-    """``simlab/VisitLab-GoToHuman-v0`` — reach the human's facing field (SPEC B5).
+    """``simlab/VisitLab-GoToHuman-v0`` — reach the human's facing field (thesis 2.1.3).
 
     **Description**
         The robot must get in front of a human: into the human's facing field, with

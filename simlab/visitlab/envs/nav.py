@@ -27,7 +27,7 @@ from simlab.visitlab.render import Scene
 
 
 class NavEnv(VisitLabEnv):
-    """``simlab/VisitLab-Nav-v0`` — navigation to a goal room (thesis 2.1.1, SPEC B1).
+    """``simlab/VisitLab-Nav-v0`` — navigation to a goal room (thesis 2.1.1).
 
     **Description**
         The robot moves on a grid of labelled rooms towards a goal room; the task is

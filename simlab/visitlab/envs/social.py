@@ -30,7 +30,8 @@ from simlab.visitlab.render import Scene
 
 
 class SocialEnv(VisitLabEnv):
-    """``simlab/VisitLab-Social-v0`` — get the human's attention and lead them (SPEC B3).
+    """``simlab/VisitLab-Social-v0`` — get the human's attention and lead them (thesis 2.1.2;
+    paper Fig. 4).
 
     **Description**
         A robot and a human on a grid. The robot must engage the human (looks,
@@ -66,7 +67,7 @@ class SocialEnv(VisitLabEnv):
         grid; ``paper`` — Chebyshev classes (the paper's), human H1, 20 steps, a
         140 x 140 grid and the paper rules 3-6 of
         :class:`~simlab.visitlab.perception.Perception` (continuous fields of view,
-        gaze, GO_TO_HUMAN, shared cells; as issue 14 describes the published code).
+        gaze, GO_TO_HUMAN, shared cells; as the code published with Chartouny et al. 2024 applies them).
         Both: no inner walls, human starting at the centre, ``redraw_p`` 0.2.
     """
 
