@@ -97,8 +97,15 @@ def read_toml(path: str | os.PathLike[str], *, what: str = "file",
     path = Path(path)
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
-    except (FileNotFoundError, IsADirectoryError):
-        raise ConfigError(f"{what} not found", path=path, key=key) from None
+    except FileNotFoundError:
+        raise ConfigError(f"{what} not found", path=path, key=key, fix="check the path") \
+            from None
+    except IsADirectoryError:
+        raise ConfigError(f"expected a {what}, found a directory", path=path, key=key,
+                          fix="give the TOML file inside it") from None
+    except NotADirectoryError:
+        raise ConfigError(f"{what} not found: a part of its path is a file", path=path,
+                          key=key, fix="check the path") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=path) from None
 

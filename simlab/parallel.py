@@ -155,12 +155,50 @@ def connect_ray(address: str | None = None) -> tuple[ModuleType, bool]:
         if ray.is_initialized():
             raise ConfigError(f"Ray is already initialized in this process; cannot connect "
                               f"to {address!r}", key="address", fix="omit --address to reuse it")
-        ray.init(address=address)
+        check_reachable(address)
+        try:
+            ray.init(address=address)
+        except (ConnectionError, TimeoutError, ValueError) as exc:
+            raise ConfigError(f"cannot connect to the Ray cluster at {address!r}: "
+                              f"{' '.join(str(exc).split())[:200]}", key="address",
+                              fix=_ADDRESS_FIX) from None
         return ray, True
     if not ray.is_initialized():
         ray.init(include_dashboard=False)
         return ray, True
     return ray, False
+
+
+#: Seconds :func:`check_reachable` waits for a Ray head to accept a connection.
+CONNECT_TIMEOUT = 5.0
+
+_ADDRESS_FIX = ("start the cluster first (ray start --head), check HOST:PORT (the head's GCS "
+                "port, 6379 by default; ray://HOST:10001 for Ray Client), or omit --address "
+                "for a local runtime")
+
+
+def check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Fail within ``timeout`` seconds when ``address`` (``HOST:PORT`` or
+    ``ray://HOST:PORT``) accepts no TCP connection: ``ray.init`` itself keeps retrying an
+    unreachable head for minutes. ``"auto"`` and ``"local"`` (found by Ray on this machine)
+    are left to Ray. A malformed address is a :class:`ConfigError` naming it."""
+    import socket
+
+    if address in ("auto", "local"):
+        return
+    rest = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = rest.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ConfigError(f"expected HOST:PORT, ray://HOST:PORT or auto, got {address!r}",
+                          key="address", fix=_ADDRESS_FIX)
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise ConfigError(f"no Ray cluster answers at {address!r} ({reason}, waited at most "
+                          f"{timeout:g} s)", key="address", fix=_ADDRESS_FIX) from None
 
 
 def check_address(backend: str, address: str | None) -> None:

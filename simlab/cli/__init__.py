@@ -90,7 +90,8 @@ _OS_FIXES: dict[int, str] = {
     errno.EACCES: "check the permissions or choose another path",
     errno.EPERM: "check the permissions or choose another path",
     errno.EEXIST: "choose another path, or remove the file in the way",
-    errno.ENOTDIR: "a parent of this path is a file: choose another path",
+    errno.ENOTDIR: "a directory was expected here, or in the path above it, and a file "
+                   "is in the way: choose another path",
     errno.EISDIR: "expected a file here, found a directory",
     errno.ENOENT: "check the path",
     errno.ENAMETOOLONG: "choose a shorter path",

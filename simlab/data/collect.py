@@ -487,6 +487,10 @@ def collect(cfg: CollectConfig) -> CollectResult:
     schema = transition_schema(cfg.pose_source)
     manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
                              starts)
+    if cfg.backend == "ray" and cfg.address is not None:  # before --out is touched
+        from simlab.parallel import check_reachable
+
+        check_reachable(cfg.address)
     # One run per directory: a second collect on the same --out stops here.
     with exclusive_directory(out, what="dataset directory"):
         manifest = _prepare_directory(out, manifest, cfg.resume)

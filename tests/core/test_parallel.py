@@ -75,3 +75,27 @@ def test_make_executor_choices_and_errors() -> None:
         LocalExecutor(0)
     with pytest.raises(ConfigError, match="workers"):
         make_executor("ray", workers=2)
+
+
+def test_an_unreachable_or_malformed_ray_address_is_refused_at_once() -> None:
+    import socket
+
+    import pytest
+
+    from simlab.errors import ConfigError
+    from simlab.parallel import check_reachable
+
+    with socket.socket() as free:  # a port nobody listens on: bound, then closed
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    with pytest.raises(ConfigError, match=rf"address: no Ray cluster answers at "
+                                          rf"'127\.0\.0\.1:{port}'.*ray start --head"):
+        check_reachable(f"127.0.0.1:{port}", timeout=2.0)
+    for bad in ("nowhere", "ray://host", "host:99999", ":6379"):
+        with pytest.raises(ConfigError, match="expected HOST:PORT"):
+            check_reachable(bad)
+    with socket.socket() as server:  # something listens: accepted
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        check_reachable(f"ray://127.0.0.1:{server.getsockname()[1]}", timeout=2.0)
+    check_reachable("auto")  # Ray's own lookup

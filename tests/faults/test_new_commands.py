@@ -76,6 +76,13 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      ("sp", "not a directory")),
     ("social-pipeline-outputs-exist", _write("sp/summary.json", "{}"),
      "social-pipeline --out {w}/sp", ("summary.json", "--overwrite")),
+    # ---- a Ray cluster that is not there: refused within seconds, not after minutes
+    ("collect-ray-address-refused", NO, "collect --states {w}/states.json --transitions 10 "
+     "--simulator kinematic --backend ray --address 127.0.0.1:1 --out {w}/o --no-progress",
+     ("address", "127.0.0.1:1", "ray start --head")),
+    # ---- a directory where a file belongs, a file where a directory belongs
+    ("drive-config-is-a-directory", NO, "drive --config {w}/q --steps 1 --no-progress",
+     ("q", "found a directory")),
     # ---- options files: long option names work as keys (train's repeatable --param)
     ("train-param-in-config-bad", _write("c.toml", 'param = ["tau"]\n'),
      "train --mdp {w}/mdp.npz --config {w}/c.toml --episodes 2 --runs 1 --out {w}/t "
