@@ -11,7 +11,7 @@ script collects the same simulated budget headlessly and prints:
 * peak resident memory of a worker process (``ru_maxrss`` read in the worker; target
   <= 300 MB) — with 1 worker this is the driver process itself;
 * estimation time (counts, T, entropy, coverage, npz, summary and plot) and the two
-  numbers of thesis Fig. 4.8 / the issue's acceptance: the fraction of (s, a) pairs
+  numbers of thesis Fig. 4.8: the fraction of (s, a) pairs
   visited and the mean entropy of slow vs fast actions.
 
 States: ``--states FILE`` (``simlab discretize`` output) or, by default, 41 Voronoi

@@ -313,7 +313,7 @@ def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, Any],
 
 def print_bounds(total: float, cpu_run: float, cores: int, floors: tuple[float, float],
                  others: float, before: float | None) -> None:
-    """What no schedule of this run's work can beat on this machine, and the issue's
+    """What no schedule of this run's work can beat on this machine, and the
     targets against it (``before``: the old code's wall time, measured one after the other).
 
     * CPU bound: all the run's CPU seconds (every process; probes excluded) / cores;

@@ -5,7 +5,7 @@ huge state count would otherwise end in a ``MemoryError`` (or the OOM killer) af
 minutes of work. Callers estimate the bytes their request needs from its shape and call
 :func:`check_memory` first; the refusal names the field and the figure.
 
-Decision (the issue left the limit open): the budget is half of the memory the kernel
+Decision: the budget is half of the memory the kernel
 reports as available (``MemAvailable`` in ``/proc/meminfo``, else the physical memory,
 else 8 GiB), overridable with the environment variable ``SIMLAB_MEMORY_LIMIT`` (bytes,
 or with a K/M/G/T suffix). A run is refused only when its dominant arrays alone exceed it,

@@ -1,4 +1,4 @@
-"""Agent library shared by the physics half and Visit-the-lab (SPEC C).
+"""Agent library shared by the physics half and Visit-the-lab (thesis 1.2-1.6).
 
 Layers, each its own module:
 

@@ -1,4 +1,4 @@
-"""Thin tabular agents built on the numba kernels (SPEC C).
+"""Thin tabular agents built on the numba kernels (thesis 1.2-1.6).
 
 Each agent owns a Q-table ``Q`` (S, A) float64, its hyper-parameters (a frozen
 config from :mod:`simlab.agents.config`) and a ``numpy.random.Generator``:

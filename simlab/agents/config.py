@@ -1,4 +1,4 @@
-"""Hyper-parameters of every agent: frozen, validated dataclasses (SPEC C).
+"""Hyper-parameters of every agent: frozen, validated dataclasses (thesis 1.3-1.6).
 
 Defaults are the thesis's (gamma 0.9, alpha 0.7, epsilon 0.05, tau 0.1); the
 paper's settings (alpha 0.5, R-max m=1 navigation / m=5 social, one VI sweep

@@ -4,7 +4,7 @@ All functions take count arrays of shape ``(S, A, S)`` (non-negative integers). 
 tables compared must have the same shape and the same meaning of ``a`` (the caller maps the
 simulator's primitives onto the real action set first).
 
-**Visit-weighted total variation** (the issue's headline number)::
+**Visit-weighted total variation** (the headline number)::
 
     D = sum_{(s,a) in C} n_real(s, a) * TV(s, a) / sum_{(s,a) in C} n_real(s, a)
     TV(s, a) = 1/2 * sum_s' |T_sim(s, a, s') - T_real(s, a, s')|

@@ -2,7 +2,7 @@
 
 The arena names the map (``[map] yaml``, relative to the TOML) and keeps its frame, so
 the real robot's poses, centres and goals are used unchanged (see
-:mod:`simlab.physics.arena`). Decisions where the issue left it open:
+:mod:`simlab.physics.arena`). Decisions:
 
 * start pose: ``start`` if given, else the state centre (with ``states``) or free pixel
   (without) farthest from any wall or unknown pixel, heading +y (UP);

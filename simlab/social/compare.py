@@ -7,7 +7,7 @@ tabular one from the same uniform random walk in the grid simulation of
 :mod:`simlab.visitlab` (:func:`grid_walk`, physics action ``a`` played as the grid action
 ``GRID_ACTION[a]``, :mod:`simlab.social.actions`).
 
-Decisions (the issue left them open):
+Decisions:
 
 * **Sparse.** A dense ``2560 x 22 x 2560`` table is 1.2 GB; the comparison works on the
   visited ``(s, a)`` pairs only (:class:`SparseModel`), with the estimator's rules:

@@ -10,7 +10,7 @@ and whether a primitive was blocked. :func:`write_social_dataset` writes it thro
 public writer :func:`simlab.data.writer.write_dataset`, so ``simlab estimate``, the entropy
 and the coverage read it like any navigation dataset.
 
-Decisions (the issue left them open):
+Decisions:
 
 * **Episodes.** The walk restarts (new random robot and human poses, new required
   direction) every ``episode_steps`` decisions (default 40, the grid's social trial

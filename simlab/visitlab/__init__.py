@@ -1,4 +1,4 @@
-"""Visit the lab: the tabular human-robot interaction simulation (SPEC B, thesis ch. 2).
+"""Visit the lab: the tabular human-robot interaction simulation (thesis ch. 2).
 
 A robot must get a simulated human's attention and lead them to goal rooms. Layers:
 
