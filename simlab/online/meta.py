@@ -243,10 +243,11 @@ def learn(ag, s, a, r, s_next):
 def make_expert(config: Any, n_states: int, n_actions: int) -> core.Learner:
     """A fresh expert (:class:`simlab.agents.core.Learner`) of an agent ``config``
     (:mod:`simlab.agents.config`): Q at the config's initial value (R-max: optimistic),
-    an empty count model for model-based kinds. Periodic planning is switched off
+    an empty count model for model-based kinds (a window model for the sliding-window
+    agent). Periodic planning is switched off
     (``plan_every = 0``): an expert plans when the meta-controller picks it."""
-    from simlab.agents.config import PassiveObserverConfig
-    from simlab.agents.kernels import count_model_new, rmax_q_init
+    from simlab.agents.config import PassiveObserverConfig, SlidingWindowConfig
+    from simlab.agents.kernels import count_model_new, rmax_q_init, window_model_new
     from simlab.errors import ConfigError
 
     if isinstance(config, PassiveObserverConfig):
@@ -260,6 +261,9 @@ def make_expert(config: Any, n_states: int, n_actions: int) -> core.Learner:
         Q = np.full((n_states, n_actions), float(config.initial_value))
     if p.kind == core.KIND_MF:
         model = core.NO_MODEL
+    elif isinstance(config, SlidingWindowConfig):
+        model = window_model_new(n_states, n_actions, int(config.window),
+                                 max(1, min(int(config.capacity), n_states * n_actions)))
     else:
         model = count_model_new(n_states, n_actions, int(config.capacity))
     return core.Learner(Q, model, p, core.Observer(core.NO_OBSERVER_Q, p, -1))
