@@ -1,4 +1,4 @@
-"""``simlab collect``: the epsilon = 1 random-walk transition dataset (SPEC A7).
+"""``simlab collect``: the epsilon = 1 random-walk transition dataset (thesis 3.2.4-3.2.5).
 
 The thesis (3.2.5) let the real robot walk for about 10 hours with uniformly random
 actions and logged 8,448 transitions. :func:`collect` does the same headlessly in
