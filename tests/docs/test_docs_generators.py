@@ -68,7 +68,7 @@ def test_a_renamed_option_changes_the_page_and_fails_the_examples() -> None:
 def test_examples_of_the_pages_name_real_commands_and_options(commands) -> None:
     pages = sorted((ROOT / "docs" / "pages").rglob("*.md"))
     assert len(pages) >= 8
-    for page in pages:
+    for page in [*pages, ROOT / "README.md"]:
         assert simlab_docs.check_command_lines(page.read_text(), commands) == [], page
     bad = ("```bash\nsimlab drivee --x\nsimlab visitlab train --task nav \\\n"
            "    --trialz 3\n# simlab drive --not-checked (a comment)\n```\n")
