@@ -29,7 +29,9 @@ Writing is one transaction: the id is validated (Minari's id syntax, an existing
 refused unless ``overwrite``) before anything is written; the dataset is built under a
 temporary datasets root beside Minari's (``MINARI_DATASETS_PATH`` pointed there for the
 duration of the call, so the export is not thread-safe) and renamed into place, so a
-failure never leaves a partial dataset that would break ``minari list local``.
+failure never leaves a partial dataset that would break ``minari list local``. A killed
+export (SIGKILL) leaves its hidden staging root; the next export removes it (one no live
+export holds the lock of).
 
 The options of :func:`export_minari` (``simlab export-minari``) are the fields of
 :class:`ExportMinariConfig`.
@@ -300,13 +302,18 @@ def _description(m: dict[str, Any], goal: str | None) -> str:
 def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str, Any]) -> None:
     """Create the Minari dataset in a temporary datasets root beside Minari's and move it
     into place only once it is complete (an existing one is replaced only then)."""
+    import fcntl
+
     import minari
     from minari.namespace import create_namespace, list_local_namespaces
     from minari.storage import get_dataset_path
 
     namespace, _, _ = check_dataset_id(dataset_id)
     root = get_dataset_path()  # Minari's datasets root (created if missing)
-    tmp_root = Path(tempfile.mkdtemp(prefix=f".{root.name}.simlab-", dir=root.parent))
+    _remove_dead_staging(root)
+    tmp_root = Path(tempfile.mkdtemp(prefix=f".{root.name}{STAGING_INFIX}", dir=root.parent))
+    alive = os.open(tmp_root, os.O_RDONLY | os.O_DIRECTORY)
+    fcntl.flock(alive, fcntl.LOCK_EX)  # held while this export lives (see _remove_dead_staging)
     try:
         with warnings.catch_warnings(), _datasets_root(tmp_root):
             warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\..*")
@@ -322,3 +329,38 @@ def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str,
         os.replace(tmp_root / dataset_id, target)
     finally:
         shutil.rmtree(tmp_root, ignore_errors=True)
+        os.close(alive)
+
+
+#: Staging roots are ``.<datasets root name>.simlab-XXXX`` beside Minari's datasets root.
+STAGING_INFIX = ".simlab-"
+#: Seconds a staging root must be old before another export may remove it (an export that
+#: has created its root but not yet locked it is younger).
+STAGING_GRACE_SECONDS = 30.0
+
+
+def _remove_dead_staging(root: Path) -> list[Path]:
+    """Remove the staging roots beside ``root`` left by killed exports (SIGKILL, power cut):
+    the ones no live export holds the ``flock`` of and older than
+    :data:`STAGING_GRACE_SECONDS`. Returns those removed. A live export's root is locked,
+    so two exports never remove each other's."""
+    import fcntl
+    import time
+
+    removed = []
+    for stale in root.parent.glob(f".{root.name}{STAGING_INFIX}*"):
+        try:
+            if not stale.is_dir() or time.time() - stale.stat().st_mtime < STAGING_GRACE_SECONDS:
+                continue
+            fd = os.open(stale, os.O_RDONLY | os.O_DIRECTORY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            continue  # a live export
+        finally:
+            os.close(fd)
+        shutil.rmtree(stale, ignore_errors=True)
+        removed.append(stale)
+    return removed

@@ -241,3 +241,31 @@ def test_ctrl_c_in_a_terminal_stops_jobs_and_idle_workers_print_nothing() -> Non
     assert res.returncode == 130, (res.returncode, res.stderr)
     assert "Traceback" not in res.stderr and "KeyboardInterrupt" not in res.stderr, res.stderr
     assert "busy job: KeyboardInterrupt" in res.stdout  # the job stopped, not waited for
+
+
+def test_export_minari_removes_the_staging_a_killed_export_left(work: Path, capsys,
+                                                               monkeypatch) -> None:
+    import fcntl
+
+    pytest.importorskip("minari")
+    home = work / "minari"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(home))
+    old = time.time() - 3600
+    dirs = {}
+    for name in ("dead", "live", "young"):
+        d = work / f".minari{'.simlab-'}{name}"
+        (d / "simlab").mkdir(parents=True)
+        (d / "simlab" / "half.hdf5").write_bytes(b"\0" * 10)
+        if name != "young":
+            os.utime(d, (old, old))
+        dirs[name] = d
+    live = os.open(dirs["live"], os.O_RDONLY | os.O_DIRECTORY)
+    fcntl.flock(live, fcntl.LOCK_EX)  # another export, still running
+    try:
+        res = run_cli(f"export-minari {work}/data --id simlab/faults-v0".split(), capsys)
+    finally:
+        os.close(live)
+    assert res.code == 0, res.stderr
+    assert not dirs["dead"].exists()  # SIGKILLed: removed by this export
+    assert dirs["live"].exists() and dirs["young"].exists()  # maybe running: kept
+    assert (home / "simlab" / "faults-v0").is_dir()
