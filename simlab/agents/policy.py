@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from simlab.agents.npzfile import load_npz
 from simlab.errors import ConfigError
 
 __all__ = ["greedy", "masked_argmax", "qtable_mask"]
@@ -84,8 +85,6 @@ def greedy(
 
 
 def _greedy_of_file(path: Path) -> NDArray[np.int64]:
-    from simlab.agents.storage import load_npz
-
     arrays, meta = load_npz(path, ("Q",))
     Q = arrays["Q"]
     if Q.ndim != 2 or not np.issubdtype(Q.dtype, np.floating):

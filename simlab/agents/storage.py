@@ -1,6 +1,6 @@
 """Save and load Q-tables, models and agents without pickle.
 
-Files are ``.npz`` archives of plain numeric arrays plus one ``meta_json``
+Files are ``.npz`` archives (:mod:`simlab.agents.npzfile`) of plain numeric arrays plus one ``meta_json``
 array (a 0-d numpy unicode string holding JSON). They are written atomically
 (temporary name, then rename) and loaded with ``allow_pickle=False``.
 
@@ -19,9 +19,7 @@ array (a 0-d numpy unicode string holding JSON). They are written atomically
 
 from __future__ import annotations
 
-import json
 import os
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -37,10 +35,11 @@ from simlab.agents.agents import (
     TabularAgent,
 )
 from simlab.agents.config import config_to_dict
+from simlab.agents.npzfile import load_npz, write_npz
+from simlab.agents.policy import masked_argmax, qtable_mask
 from simlab.agents.sparse_model import CountModel
 from simlab.agents.window_model import WindowModel
 from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write, ensure_new
 
 __all__ = [
     "load_agent",
@@ -51,53 +50,6 @@ __all__ = [
     "save_model",
     "save_q_table",
 ]
-
-_FORMAT = "simlab-agents-1"
-
-
-def _write_npz(
-    path: str | os.PathLike[str], arrays: dict[str, Any], meta: dict[str, Any], overwrite: bool
-) -> Path:
-    path = ensure_new(path, overwrite=overwrite)
-    meta = {"format": _FORMAT, **meta}
-    payload = {k: np.asarray(v) for k, v in arrays.items()}
-    payload["meta_json"] = np.array(json.dumps(meta))
-    with atomic_write(path, "wb") as fh:
-        np.savez_compressed(fh, **payload)
-    return path
-
-
-def load_npz(
-    path: str | os.PathLike[str], required: tuple[str, ...] = ()
-) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """Read an npz without pickle: ``(arrays, meta)``; missing ``required`` arrays raise.
-
-    ``meta`` is the decoded ``meta_json`` (empty if absent). Raises
-    :class:`DataError` for unreadable files, :class:`ConfigError` naming the
-    missing arrays.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError("file not found", path=path)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise DataError(f"{path}: not a readable npz archive ({exc})") from exc
-    missing = [k for k in required if k not in arrays]
-    if missing:
-        raise ConfigError(
-            f"missing array(s) {', '.join(missing)}; found: {', '.join(sorted(arrays)) or 'none'}",
-            path=path,
-        )
-    meta: dict[str, Any] = {}
-    if "meta_json" in arrays:
-        try:
-            meta = json.loads(str(arrays.pop("meta_json")))
-        except json.JSONDecodeError as exc:
-            raise DataError(f"{path}: meta_json is not valid JSON ({exc})") from exc
-    return arrays, meta
-
 
 def save_q_table(
     path: str | os.PathLike[str],
@@ -114,8 +66,6 @@ def save_q_table(
     (S, A) bool when given (unless ``metadata["unvisited"]`` is ``"self-loop"``), so that a
     reader who never heard of the mask still acts on tried actions only.
     """
-    from simlab.agents.policy import masked_argmax, qtable_mask
-
     Q = np.asarray(Q, dtype=np.float64)
     if Q.ndim != 2:
         raise ConfigError(f"expected an (S, A) array, got shape {Q.shape}", key="Q")
@@ -125,7 +75,7 @@ def save_q_table(
                           key="arrays")
     meta = {"kind": "q_table", **(metadata or {})}
     greedy = masked_argmax(Q, qtable_mask(extra, meta))
-    return _write_npz(path, {"Q": Q, "greedy": greedy, **extra}, meta, overwrite)
+    return write_npz(path, {"Q": Q, "greedy": greedy, **extra}, meta, overwrite)
 
 
 def load_q_table(path: str | os.PathLike[str]) -> tuple[np.ndarray, dict[str, Any]]:
@@ -222,7 +172,7 @@ def save_model(
 ) -> Path:
     """Write a count or window model to ``path`` (npz, no pickle)."""
     arrays, meta = _model_arrays(model)
-    return _write_npz(path, arrays, {"kind": "model", **meta}, overwrite)
+    return write_npz(path, arrays, {"kind": "model", **meta}, overwrite)
 
 
 def load_model(path: str | os.PathLike[str]) -> CountModel | WindowModel:
@@ -268,7 +218,7 @@ def save_agent(
         arrays.update({f"model_{k}": v for k, v in m_arrays.items()})
         meta["model_meta"] = m_meta
         meta["steps"] = inner.steps
-    return _write_npz(path, arrays, meta, overwrite)
+    return write_npz(path, arrays, meta, overwrite)
 
 
 def load_agent(path: str | os.PathLike[str], rng: np.random.Generator) -> TabularAgent:
