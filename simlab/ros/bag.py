@@ -384,7 +384,10 @@ class _Msgs:
         """Each state's Voronoi cell (a closed line strip) and its number at its centre."""
         out = []
         centres = np.asarray(scene.centres, dtype=np.float64)
-        for i, poly in enumerate(voronoi_cells(centres, scene.bounds)):
+        bounds = scene.bounds
+        if bounds is None:
+            raise ValueError("cells need the scene's bounds")
+        for i, poly in enumerate(voronoi_cells(centres, bounds)):
             if len(poly):
                 out.append(self.marker(ns, "cells", i, "LINE_STRIP", scale=(0.01, 0, 0),
                                        color=_CELL_COLOR, points=np.vstack([poly, poly[:1]])))
@@ -643,7 +646,8 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                     header=m.header(ns, "map"), pose=m.pose(*traj.truth[i])))
         if traj.actions is not None:
             types = ts.types
-            for k, (a, ta) in enumerate(zip(traj.actions, traj.action_t, strict=True)):
+            action_t = np.asarray(traj.action_t, dtype=np.float64)  # _check: (k,)
+            for k, (a, ta) in enumerate(zip(traj.actions, action_t, strict=True)):
                 ns = round((t0 + float(ta)) * 1e9)
                 put("/simlab/action", ns, types["std_msgs/msg/Int32"](data=int(a)))
                 if traj.blocked is not None:
@@ -777,7 +781,7 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                                                                    _pose_of)
     scans = aligned(scan_topic, lambda m: np.asarray(m.ranges, dtype=np.float32))
     geometry = ScanGeometry()
-    if scans is not None:
+    if scans is not None and scan_topic is not None:
         s0 = topics[scan_topic][0][1]
         geometry = ScanGeometry(s0.angle_min, s0.angle_increment, s0.range_min, s0.range_max,
                                 s0.scan_time)
@@ -809,7 +813,7 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
             elif tr.child_frame_id == "base_link" and tr.header.frame_id == "base_footprint":
                 base = (v.x, v.y, v.z)
     return BagTrajectory(
-        t=(np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9, pose=pose,
+        t=((np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9).astype(np.float64), pose=pose,
         odom=None if odom is None else np.array(odom),
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),

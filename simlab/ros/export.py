@@ -106,16 +106,19 @@ def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
                                tab.column("s").to_numpy(), tab.column("s_next").to_numpy())
     # the map pose: the localizer's estimate (mcl) with the truth beside it, or the truth
     # with the wheel odometry in the odom frame (odometry), or the pose source itself
-    pose, odom, truth = source, None, None
-    if has_truth and pose_source == "odometry":
+    pose: np.ndarray = source
+    odom: np.ndarray | None = None
+    truth: np.ndarray | None = None
+    if true is not None and pose_source == "odometry":
         pose, odom = true, source
-    elif has_truth:
+    elif true is not None:
         truth = true
     centres = (ds.manifest.get("discretizer") or {}).get("centres")
     return {"t": tt, "pose": pose, "odom": odom, "truth": truth, "state": state, "goal": None,
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
             "blocked": tab.column("blocked").to_numpy().astype(bool), "duration": dur,
-            "action_set": None if ds.action_set is None else ds.action_set.to_json(), "pose_source": pose_source,
+            "action_set": None if ds.action_set is None else ds.action_set.to_json(),
+            "pose_source": pose_source,
             "centres": None if centres is None else np.asarray(centres, dtype=np.float64),
             "custom": {"simlab.part_size": str((ds.manifest.get("parameters") or {}).get(
                 "part_size", ""))},
@@ -123,7 +126,7 @@ def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
 
 
 def _from_replay(path: Path) -> dict[str, Any]:
-    import pyarrow.parquet as pq
+    import pyarrow.parquet as pq  # type: ignore[import-untyped]
 
     try:
         summary = json.loads((path / "replay.json").read_text(encoding="utf-8"))
@@ -298,19 +301,21 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
     # tf_static: the URDF's joints as the robot spec reads them (positions in the root
     # frame base_footprint; the tree base_footprint -> base_link -> base_scan)
     robot = load_robot_spec()
-    base = tuple(float(v) for v in robot.base_link_offset)
-    scan_in_base = tuple(float(s - b) for s, b in zip(robot.lidar_offset, base, strict=True))
+    bx, by, bz = (float(v) for v in robot.base_link_offset)
+    sx, sy, sz = (float(v) for v in robot.lidar_offset)
     where = rec["pose"] if rec["truth"] is None else rec["truth"]  # the robot's real place
     scan_arr, geom = _scans(arena_cfg, where) if cfg.scans else (None, None)
     goals = tuple((g.name, float(g.x), float(g.y), float(g.radius)) for g in arena_cfg.goals)
-    scene = SceneMarkers(centres=rec["centres"], bounds=tuple(arena_cfg.bounds), goals=goals)
+    x0, y0, x1, y1 = (float(v) for v in arena_cfg.bounds)
+    scene = SceneMarkers(centres=rec["centres"], bounds=(x0, y0, x1, y1), goals=goals)
     traj = BagTrajectory(t=rec["t"], pose=rec["pose"], odom=rec["odom"], truth=rec["truth"],
                          scans=scan_arr,
                          scan_geometry=geom or ScanGeometry(), state=rec["state"],
                          goal=rec["goal"], actions=rec["actions"], action_t=rec["action_t"],
                          blocked=rec["blocked"], duration=rec["duration"],
                          action_set=rec["action_set"], pose_source=rec["pose_source"],
-                         map=grid, scan_offset=scan_in_base, base_offset=base,
+                         map=grid, scan_offset=(sx - bx, sy - by, sz - bz),
+                         base_offset=(bx, by, bz),
                          scene=scene, custom=rec["custom"])
     path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)

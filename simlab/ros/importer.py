@@ -139,11 +139,13 @@ class ImportBagConfig(RobotActionOptions, SegmentOptions):
     states: Any = option(help="states: `simlab discretize` JSON or centres text (from Python "
                          "also a discretizer)")
     out: Path = option(help="dataset directory to write")
-    n_actions: int | None = option(None, "number of actions of the robot (default: the "
-                                   "bag's recorded action set, else 8)", choices=(8, 16))
-    convention: str | None = option(None, "direction numbering: simlab, ccw-east (the ISIR "
-                                    "robot's) or 8 comma-separated numbers (default: the "
-                                    "bag's, else ccw-east)")
+    # None = not given: the bag's recorded action set then applies
+    n_actions: int | None = option(  # type: ignore[assignment]
+        None, "number of actions of the robot (default: the bag's recorded action set, "
+        "else 8)", choices=(8, 16))
+    convention: str | None = option(  # type: ignore[assignment]
+        None, "direction numbering: simlab, ccw-east (the ISIR robot's) or 8 comma-separated "
+        "numbers (default: the bag's, else ccw-east)")
     pose_topic: str | None = option(None, "pose topic (default: /amcl_pose if present, else "
                                     "/odom)")
     action_topic: str | None = option(
@@ -230,13 +232,13 @@ def _write(out: Path, walk: Any, info: Any, overwrite: bool, part_size: int | No
     into ``out`` at the end; then the old dataset's parts that the new one does not list
     are removed. OS errors name ``out``, not the staging directory."""
     from simlab.data.schema import PARTS_DIR
-    from simlab.data.writer import write_dataset
+    from simlab.data.writer import DEFAULT_PART_SIZE, write_dataset
     from simlab.io import output_transaction
 
     try:
         with output_transaction(out, overwrite=overwrite, what="dataset") as txn:
-            result = write_dataset(txn.staging, walk, info, **(
-                {} if part_size is None else {"part_size": part_size}))
+            result = write_dataset(txn.staging, walk, info,
+                                   part_size=part_size or DEFAULT_PART_SIZE)
         listed = {Path(str(e.get("file", ""))).name for e in result.manifest.get("parts", [])}
         if (out / PARTS_DIR).is_dir():
             for old in (out / PARTS_DIR).iterdir():
@@ -268,7 +270,7 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
     traj = read_bag(bag, pose_topic=pose_topic, action_topic=action_topic)
     aset = cfg.make_action_set(traj.action_set)
     t, xy, yaw = traj.t, traj.pose[:, :2], traj.pose[:, 2]
-    if traj.actions is not None:
+    if traj.actions is not None and traj.action_t is not None:
         start, end, blocked, actions, duration = _decisions_from_actions(
             t, xy, yaw, traj.actions, traj.action_t, segment, aset.n_actions,
             traj.blocked, traj.duration)
