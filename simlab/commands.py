@@ -15,7 +15,7 @@ _FUNCTIONS: dict[str, str] = {
     "drive": "simlab.physics.drive:drive",
     "map": "simlab.orchestration.mapping:build_map",
     "arena_from_map": "simlab.physics.map_arena:arena_from_map",
-    "discretize": "discretize.voronoi:discretize_command",
+    "discretize": "discretize.command:discretize_command",
     "collect": "simlab.data.collect:collect",
     "import_log": "simlab.data.poselog:import_log",
     "estimate": "simlab.data.estimate:estimate",

@@ -1,6 +1,6 @@
 """``simlab discretize``: Voronoi states on an occupancy map (thesis Fig. 3.5).
 
-The options are the fields of :class:`discretize.voronoi.DiscretizeConfig`.
+The options are the fields of :class:`discretize.command.DiscretizeConfig`.
 """
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ HELP = "place Voronoi state centres on a map_server map and save them as JSON (a
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from discretize.voronoi import DiscretizeConfig
+    from discretize.command import DiscretizeConfig
 
     DiscretizeConfig.add_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from discretize.voronoi import DiscretizeConfig, discretize_command
+    from discretize.command import DiscretizeConfig, discretize_command
 
     result = discretize_command(DiscretizeConfig.from_args(args))
     disc = result.discretizer

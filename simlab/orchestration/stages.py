@@ -4,7 +4,7 @@
 need the same intermediate products: an occupancy map, Voronoi states, a random-walk
 dataset, the empirical MDP, the Q-tables trained on it and a closed-loop replay.
 :class:`PhysicsChain` builds each of them with the library function that owns the stage
-(:func:`simlab.orchestration.mapping.build_map`, :func:`discretize.voronoi.discretize_map`,
+(:func:`simlab.orchestration.mapping.build_map`, :func:`discretize.command.discretize_command`,
 :func:`simlab.data.collect.collect`, :func:`simlab.data.estimate.estimate`,
 :func:`simlab.training.train.train`, :func:`simlab.replay.replay.replay`) into
 ``<cache>/physics/<stage>-<key>/`` where ``key`` hashes the stage's settings, its parent
@@ -240,11 +240,11 @@ class PhysicsChain:
         parent = self.map()
 
         def build(d: Path) -> dict[str, Any]:
-            from discretize.voronoi import discretize_map
+            from discretize.command import discretize_command
 
-            res = discretize_map(parent.path / "map.yaml", d / "states.json",
-                                 states=self.s.states, png=d / "states.png",
-                                 progress=self.progress)
+            res = discretize_command(parent.path / "map.yaml", d / "states.json",
+                                     states=self.s.states, png=d / "states.png",
+                                     progress=self.progress)
             return {"n_states": int(res.discretizer.n_states),
                     "hash": res.discretizer.content_hash()}
 

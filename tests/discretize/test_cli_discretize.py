@@ -169,13 +169,14 @@ def test_help_shows_defaults_and_unknown_key_is_refused(tmp_path, map_yaml, caps
 
 
 def test_command_takes_the_config_or_its_fields(tmp_path, map_yaml):
-    from discretize.voronoi import DiscretizeConfig, discretize_command, discretize_map
+    from discretize.command import DiscretizeConfig, discretize_command
 
     a = discretize_command(DiscretizeConfig(map=map_yaml, out=tmp_path / "a.json", states=5,
                                             all_components=True, progress=False))
     b = discretize_command(map_yaml, tmp_path / "b.json", 5, all_components=True,
                            progress=False)
-    c = discretize_map(map_yaml, tmp_path / "c.json", 5, component="all", progress=False)
+    c = discretize_command(map_yaml, tmp_path / "c.json", states=5, all_components=True,
+                           progress=False)
     assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes() \
         == (tmp_path / "c.json").read_bytes()
     assert a.discretizer.n_states == b.discretizer.n_states == c.discretizer.n_states == 5

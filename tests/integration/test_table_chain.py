@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from discretize.voronoi import discretize_map
+from discretize.command import discretize_command
 from simlab.data.collect import collect
 from simlab.data.estimate import estimate
 from simlab.orchestration.mapping import build_map
@@ -28,7 +28,7 @@ pytestmark = pytest.mark.slow
 def table_chain(tmp_path_factory):
     root = tmp_path_factory.mktemp("table_chain")
     run = build_map("table", minutes=10, seed=1, out=root / "map", progress=False)
-    states = discretize_map(run.yaml_path, root / "states.json", states=41, progress=False)
+    states = discretize_command(run.yaml_path, root / "states.json", states=41, progress=False)
     data = collect("table", root / "states.json", out=root / "dataset", hours=10.0, seed=1,
                    workers=2, progress=False)
     mdp = estimate(root / "dataset", root / "mdp" / "mdp.npz", plot=False)
