@@ -101,75 +101,20 @@ def draw_states(
 ):
     """Draw the figure into matplotlib axes ``ax``; returns the colour-mapped image (or None).
 
-    ``crop`` limits the axes to the known part of the map (and the centres):
+    Layers, bottom to top: the map (free white, occupied black, unknown grey), the cells
+    (tinted by state, or by ``visits`` (S,) on a log scale) with their boundaries, the
+    eroded free space's border (``robot_radius`` m; None: not drawn) and the numbered
+    centres. ``crop`` limits the axes to the known part of the map (and the centres):
     :func:`known_bounds`.
     """
-    import matplotlib as mpl
-    from matplotlib.colors import Normalize
-
-    h, w = grid.shape
-    extent = (
-        grid.origin[0],
-        grid.origin[0] + w * grid.resolution,
-        grid.origin[1],
-        grid.origin[1] + h * grid.resolution,
-    )
-    base = np.full((h, w, 3), 0.78)
-    base[grid.free_mask()] = 1.0
-    base[grid.occupied_mask()] = 0.0
-    ax.imshow(base, extent=extent, interpolation="nearest", origin="upper")
-
-    free = grid.free_mask()
-    labels = disc.label_image(grid)
-    overlay = np.zeros((h, w, 4))
-    mappable = None
-    if visits is not None:
-        visits = np.asarray(visits)
-        if visits.shape != (disc.n_states,):
-            raise ValueError(f"visits: expected shape ({disc.n_states},), got {visits.shape}")
-        logv = np.log10(np.maximum(visits, 1).astype(np.float64))
-        vmax = max(1.0, float(logv.max()))
-        cmap = mpl.colormaps["viridis"]
-        norm = Normalize(vmin=0.0, vmax=vmax)
-        colours = cmap(norm(logv))
-        colours[visits == 0] = (0.85, 0.85, 0.85, 1.0)
-        colours[:, 3] = 0.75
-        overlay[free] = colours[labels[free]]
-        mappable = mpl.cm.ScalarMappable(norm=norm, cmap=cmap)
-    else:
-        palette = mpl.colormaps["tab20"](np.arange(20) % 20)
-        colours = palette[np.arange(disc.n_states) % 20].copy()
-        colours[:, 3] = 0.35
-        overlay[free] = colours[labels[free]]
-    # Cell boundaries: a pixel whose right or lower neighbour has another label.
-    edge = np.zeros((h, w), dtype=bool)
-    diff_x = (labels[:, 1:] != labels[:, :-1]) & free[:, 1:] & free[:, :-1]
-    diff_y = (labels[1:, :] != labels[:-1, :]) & free[1:, :] & free[:-1, :]
-    edge[:, 1:] |= diff_x
-    edge[1:, :] |= diff_y
-    overlay[edge] = (0.1, 0.1, 0.1, 0.9)
+    extent = _extent(grid)
+    ax.imshow(_map_image(grid), extent=extent, interpolation="nearest", origin="upper")
+    overlay, mappable = _cells_overlay(grid, disc, visits)
     ax.imshow(overlay, extent=extent, interpolation="nearest", origin="upper")
-
     if robot_radius is not None:
-        eroded = eroded_free_mask(grid, robot_radius).astype(float)
-        ys = grid.origin[1] + (h - np.arange(h) - 0.5) * grid.resolution
-        xs = grid.origin[0] + (np.arange(w) + 0.5) * grid.resolution
-        if 0 < eroded.sum() < eroded.size:
-            ax.contour(xs, ys, eroded, levels=[0.5], colors="tab:red", linewidths=0.8, linestyles="--")
-
+        _draw_eroded_border(ax, grid, robot_radius)
     pts = _local_xy(grid, disc.centres)
-    ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", markersize=3)
-    if numbers:
-        for k, (x, y) in enumerate(pts):
-            ax.annotate(
-                str(k),
-                (x, y),
-                xytext=(2, 2),
-                textcoords="offset points",
-                fontsize=7,
-                color="black",
-                fontweight="bold",
-            )
+    _draw_centres(ax, pts, numbers)
     if crop:
         x_min, x_max, y_min, y_max = known_bounds(grid, pts)
         ax.set_xlim(x_min, x_max)
@@ -178,6 +123,86 @@ def draw_states(
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal")
     return mappable
+
+
+def _extent(grid: OccupancyMap) -> tuple[float, float, float, float]:
+    """``(left, right, bottom, top)`` of the map image in metres (matplotlib's extent)."""
+    h, w = grid.shape
+    return (
+        grid.origin[0],
+        grid.origin[0] + w * grid.resolution,
+        grid.origin[1],
+        grid.origin[1] + h * grid.resolution,
+    )
+
+
+def _map_image(grid: OccupancyMap) -> np.ndarray:
+    """``(H, W, 3)`` RGB in [0, 1]: free 1.0, occupied 0.0, unknown 0.78."""
+    base = np.full((*grid.shape, 3), 0.78)
+    base[grid.free_mask()] = 1.0
+    base[grid.occupied_mask()] = 0.0
+    return base
+
+
+def _cell_colours(disc: Discretizer, visits: np.ndarray | None):
+    """``(S, 4)`` RGBA per state and the colour scale (None without visits): visits on a
+    log10 viridis scale (unvisited light grey), else a repeating 20-colour palette."""
+    import matplotlib as mpl
+    from matplotlib.colors import Normalize
+
+    if visits is None:
+        palette = mpl.colormaps["tab20"](np.arange(20) % 20)
+        colours = palette[np.arange(disc.n_states) % 20].copy()
+        colours[:, 3] = 0.35
+        return colours, None
+    visits = np.asarray(visits)
+    if visits.shape != (disc.n_states,):
+        raise ValueError(f"visits: expected shape ({disc.n_states},), got {visits.shape}")
+    logv = np.log10(np.maximum(visits, 1).astype(np.float64))
+    vmax = max(1.0, float(logv.max()))
+    cmap = mpl.colormaps["viridis"]
+    norm = Normalize(vmin=0.0, vmax=vmax)
+    colours = cmap(norm(logv))
+    colours[visits == 0] = (0.85, 0.85, 0.85, 1.0)
+    colours[:, 3] = 0.75
+    return colours, mpl.cm.ScalarMappable(norm=norm, cmap=cmap)
+
+
+def _cells_overlay(grid: OccupancyMap, disc: Discretizer, visits: np.ndarray | None):
+    """``(H, W, 4)`` RGBA of the free pixels in their state's colour, cell boundaries dark,
+    and the colour scale of :func:`_cell_colours`."""
+    free = grid.free_mask()
+    labels = disc.label_image(grid)
+    colours, mappable = _cell_colours(disc, visits)
+    overlay = np.zeros((*grid.shape, 4))
+    overlay[free] = colours[labels[free]]
+    # Cell boundaries: a pixel whose right or lower neighbour has another label.
+    edge = np.zeros(grid.shape, dtype=bool)
+    edge[:, 1:] |= (labels[:, 1:] != labels[:, :-1]) & free[:, 1:] & free[:, :-1]
+    edge[1:, :] |= (labels[1:, :] != labels[:-1, :]) & free[1:, :] & free[:-1, :]
+    overlay[edge] = (0.1, 0.1, 0.1, 0.9)
+    return overlay, mappable
+
+
+def _draw_eroded_border(ax, grid: OccupancyMap, robot_radius: float) -> None:
+    """The border of the free space eroded by ``robot_radius`` (m), dashed red (nothing
+    when the eroded space is empty or everything)."""
+    h, w = grid.shape
+    eroded = eroded_free_mask(grid, robot_radius).astype(float)
+    ys = grid.origin[1] + (h - np.arange(h) - 0.5) * grid.resolution
+    xs = grid.origin[0] + (np.arange(w) + 0.5) * grid.resolution
+    if 0 < eroded.sum() < eroded.size:
+        ax.contour(xs, ys, eroded, levels=[0.5], colors="tab:red", linewidths=0.8,
+                   linestyles="--")
+
+
+def _draw_centres(ax, pts: np.ndarray, numbers: bool) -> None:
+    """The centres ``pts`` (S, 2) in the axes' frame as red dots, numbered if asked."""
+    ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", markersize=3)
+    if numbers:
+        for k, (x, y) in enumerate(pts):
+            ax.annotate(str(k), (x, y), xytext=(2, 2), textcoords="offset points",
+                        fontsize=7, color="black", fontweight="bold")
 
 
 def render_states_png(
