@@ -18,6 +18,7 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,8 @@ from simlab.io import atomic_write_bytes
 
 __all__ = [
     "ARROW_DIRECTIONS",
+    "HeatmapScene",
+    "HeatmapStyle",
     "arrow_vectors",
     "bounds_from_centres",
     "figure_png",
@@ -144,67 +147,69 @@ def _draw_background(ax, background: Any) -> None:
               extent=(ox, ox + W * res, oy, oy + H * res), zorder=0)  # fmt: skip
 
 
-def plot_q_heatmap(
-    ax,
-    centres: np.ndarray,
-    Q: np.ndarray,
-    bounds: Sequence[float] | None = None,
-    goal_mask: np.ndarray | None = None,
-    *,
-    background: Any = None,
-    title: str | None = None,
-    cmap: str = "Blues",
-    vmin: float | None = None,
-    vmax: float | None = None,
-    resolution: float | None = None,
-    arrows: bool = True,
-    colorbar: bool = True,
-    action_set: ActionSet | None = None,
-    valid: np.ndarray | None = None,
-):
-    """Draw the heat map of ``Q`` (S, A) over the cells of ``centres`` (S, 2) on ``ax``.
+@dataclass(frozen=True, eq=False)
+class HeatmapScene:
+    """What every heat map of one arena shares (one goal's panel adds its Q and goal cells).
+
+    Attributes:
+        centres: (S, 2) state centres, metres.
+        bounds: ``(x_min, y_min, x_max, y_max)`` metres drawn (None:
+            :func:`bounds_from_centres`).
+        background: an occupancy map drawn underneath (``occupancy`` (H, W), ``resolution``
+            m/px, ``origin`` (x, y, yaw)), or None.
+        action_set: how to read an action as an arrow; None: simlab's 16 primitives for a
+            16-action Q, no arrows otherwise.
+        valid: (S, A) bool, the actions a state may take (untried ones are neither
+            coloured nor drawn as arrows); None: every action.
+        resolution: raster cell size, m/px (None: 400 px across the bounds).
+    """
+
+    centres: np.ndarray
+    bounds: Sequence[float] | None = None
+    background: Any = None
+    action_set: ActionSet | None = None
+    valid: np.ndarray | None = None
+    resolution: float | None = None
+
+
+@dataclass(frozen=True)
+class HeatmapStyle:
+    """How a heat map looks: the colour map and its range (None: the data's), the argmax
+    arrows and the panel's own colour bar (off when panels share one)."""
+
+    cmap: str = "Blues"
+    vmin: float | None = None
+    vmax: float | None = None
+    arrows: bool = True
+    colorbar: bool = True
+
+
+def plot_q_heatmap(ax, scene: HeatmapScene, Q: np.ndarray, goal_mask: np.ndarray | None = None,
+                   *, title: str | None = None, style: HeatmapStyle = HeatmapStyle()):
+    """Draw the heat map of ``Q`` (S, A) over the cells of ``scene.centres`` on ``ax``,
+    the cells of ``goal_mask`` (S,) bool outlined.
 
     Returns the ``AxesImage`` of the cells (for a shared colour bar).
     """
-    centres = np.asarray(centres, dtype=float)
+    centres = np.asarray(scene.centres, dtype=float)
     Q = np.asarray(Q, dtype=float)
     _check_inputs(centres, Q, goal_mask)
-    if action_set is None and Q.shape[1] == SIMLAB16.n_actions:
-        action_set = SIMLAB16
-    if action_set is not None and action_set.n_actions != Q.shape[1]:
-        raise ConfigError(f"Q has {Q.shape[1]} actions but the action set "
-                          f"{action_set.describe()}", key="action_set")
-    Qv = masked_q(Q, valid)
-    if bounds is None:
-        bounds = bounds_from_centres(centres)
+    action_set = _action_set(scene.action_set, Q)
+    Qv = masked_q(Q, scene.valid)
+    bounds = bounds_from_centres(centres) if scene.bounds is None else scene.bounds
     labels, extent = _cells(centres.tobytes(), len(centres), tuple(float(b) for b in bounds),
-                            resolution)
-    V = Qv.max(axis=1)
-    if background is not None:
-        _draw_background(ax, background)
-    img = ax.imshow(V[labels], cmap=cmap, origin="upper", extent=extent, vmin=vmin, vmax=vmax,
-                    alpha=0.85 if background is not None else 1.0, zorder=1,
+                            scene.resolution)
+    if scene.background is not None:
+        _draw_background(ax, scene.background)
+    img = ax.imshow(Qv.max(axis=1)[labels], cmap=style.cmap, origin="upper", extent=extent,
+                    vmin=style.vmin, vmax=style.vmax,
+                    alpha=0.85 if scene.background is not None else 1.0, zorder=1,
                     interpolation="nearest")  # fmt: skip
-    # cell borders: label changes between neighbouring pixels
-    edge = np.zeros(labels.shape, dtype=bool)
-    edge[:, 1:] |= labels[:, 1:] != labels[:, :-1]
-    edge[1:, :] |= labels[1:, :] != labels[:-1, :]
-    ax.imshow(np.ma.masked_where(~edge, edge), cmap="Greys", vmin=0, vmax=1, origin="upper",
-              extent=extent, alpha=0.35, zorder=2, interpolation="nearest")  # fmt: skip
+    _draw_cell_borders(ax, labels, extent)
     if goal_mask is not None and np.any(goal_mask):
-        inside = np.asarray(goal_mask, dtype=bool)[labels].astype(float)
-        xs = np.linspace(extent[0], extent[1], labels.shape[1])
-        ys = np.linspace(extent[3], extent[2], labels.shape[0])
-        ax.contour(xs, ys, inside, levels=[0.5], colors="crimson", linewidths=2, zorder=4)
-    if arrows and action_set is not None:
-        _, d = arrow_vectors(Qv, action_set)
-        learned = Qv.max(axis=1) > np.where(np.isfinite(Qv), Qv, np.inf).min(axis=1)
-        spacing = np.sqrt((extent[1] - extent[0]) * (extent[3] - extent[2]) / max(len(centres), 1))
-        d = d * spacing
-        sel = learned
-        ax.quiver(centres[sel, 0], centres[sel, 1], d[sel, 0], d[sel, 1], angles="xy",
-                  scale_units="xy", scale=1, color="darkorange", width=0.006, zorder=5,
-                  pivot="tail")  # fmt: skip
+        _draw_goal_outline(ax, labels, extent, goal_mask)
+    if style.arrows and action_set is not None:
+        _draw_arrows(ax, centres, Qv, action_set, extent)
     ax.plot(centres[:, 0], centres[:, 1], ".", color="0.2", ms=2, zorder=5)
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
@@ -213,9 +218,51 @@ def plot_q_heatmap(
     ax.set_ylabel("y (m)")
     if title:
         ax.set_title(title, fontsize=9)
-    if colorbar:
+    if style.colorbar:
         ax.figure.colorbar(img, ax=ax, fraction=0.046, pad=0.04, label="max_a Q(s, a)")
     return img
+
+
+def _action_set(action_set: ActionSet | None, Q: np.ndarray) -> ActionSet | None:
+    """The action set the arrows read: the given one (refused when its size is not Q's),
+    simlab's 16 primitives for a 16-action Q, else None (no arrows)."""
+    if action_set is None and Q.shape[1] == SIMLAB16.n_actions:
+        action_set = SIMLAB16
+    if action_set is not None and action_set.n_actions != Q.shape[1]:
+        raise ConfigError(f"Q has {Q.shape[1]} actions but the action set "
+                          f"{action_set.describe()}", key="action_set")
+    return action_set
+
+
+def _draw_cell_borders(ax, labels: np.ndarray, extent: tuple[float, ...]) -> None:
+    """Cell borders: the pixels whose right or lower neighbour has another label."""
+    edge = np.zeros(labels.shape, dtype=bool)
+    edge[:, 1:] |= labels[:, 1:] != labels[:, :-1]
+    edge[1:, :] |= labels[1:, :] != labels[:-1, :]
+    ax.imshow(np.ma.masked_where(~edge, edge), cmap="Greys", vmin=0, vmax=1, origin="upper",
+              extent=extent, alpha=0.35, zorder=2, interpolation="nearest")  # fmt: skip
+
+
+def _draw_goal_outline(ax, labels: np.ndarray, extent: tuple[float, ...],
+                       goal_mask: np.ndarray) -> None:
+    """The outline of the goal cells (``goal_mask`` (S,) bool), crimson."""
+    inside = np.asarray(goal_mask, dtype=bool)[labels].astype(float)
+    xs = np.linspace(extent[0], extent[1], labels.shape[1])
+    ys = np.linspace(extent[3], extent[2], labels.shape[0])
+    ax.contour(xs, ys, inside, levels=[0.5], colors="crimson", linewidths=2, zorder=4)
+
+
+def _draw_arrows(ax, centres: np.ndarray, Qv: np.ndarray, action_set: ActionSet,
+                 extent: tuple[float, ...]) -> None:
+    """The argmax arrow of every state whose (masked) row ``Qv`` is not constant, its
+    length in units of the mean cell spacing (:func:`arrow_vectors`)."""
+    _, d = arrow_vectors(Qv, action_set)
+    learned = Qv.max(axis=1) > np.where(np.isfinite(Qv), Qv, np.inf).min(axis=1)
+    spacing = np.sqrt((extent[1] - extent[0]) * (extent[3] - extent[2]) / max(len(centres), 1))
+    d = d * spacing
+    ax.quiver(centres[learned, 0], centres[learned, 1], d[learned, 0], d[learned, 1],
+              angles="xy", scale_units="xy", scale=1, color="darkorange", width=0.006,
+              zorder=5, pivot="tail")  # fmt: skip
 
 
 def figure_png(fig) -> bytes:
@@ -232,49 +279,35 @@ def figure_png(fig) -> bytes:
     return buf.getvalue()
 
 
-def render_q_heatmap(
-    centres: np.ndarray,
-    Q: np.ndarray,
-    bounds: Sequence[float] | None = None,
-    goal_mask: np.ndarray | None = None,
-    **kwargs: Any,
-) -> bytes:
-    """The PNG bytes of one heat map (:func:`plot_q_heatmap`'s keywords)."""
+def render_q_heatmap(scene: HeatmapScene, Q: np.ndarray, goal_mask: np.ndarray | None = None,
+                     *, title: str | None = None, style: HeatmapStyle = HeatmapStyle()
+                     ) -> bytes:
+    """The PNG bytes of one heat map (:func:`plot_q_heatmap`)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5.2, 4.6))
-    plot_q_heatmap(ax, centres, Q, bounds, goal_mask, **kwargs)
+    plot_q_heatmap(ax, scene, Q, goal_mask, title=title, style=style)
     fig.tight_layout()
     return figure_png(fig)
 
 
-def save_q_heatmap(
-    path: str | os.PathLike[str],
-    centres: np.ndarray,
-    Q: np.ndarray,
-    bounds: Sequence[float] | None = None,
-    goal_mask: np.ndarray | None = None,
-    **kwargs: Any,
-) -> None:
+def save_q_heatmap(path: str | os.PathLike[str], scene: HeatmapScene, Q: np.ndarray,
+                   goal_mask: np.ndarray | None = None, *, title: str | None = None) -> None:
     """Save one heat map as a PNG (atomic write; the caller checks overwrite)."""
-    atomic_write_bytes(path, render_q_heatmap(centres, Q, bounds, goal_mask, **kwargs))
+    atomic_write_bytes(path, render_q_heatmap(scene, Q, goal_mask, title=title))
 
 
 def save_heatmap_grid(
     path: str | os.PathLike[str],
-    centres: np.ndarray,
+    scene: HeatmapScene,
     Qs: Sequence[np.ndarray],
     goal_masks: Sequence[np.ndarray],
     names: Sequence[str],
-    bounds: Sequence[float] | None = None,
     *,
-    background: Any = None,
     suptitle: str | None = None,
-    action_set: ActionSet | None = None,
-    valid: np.ndarray | None = None,
 ) -> None:
     """Save one figure with a heat map per goal (3 columns; a 3 x 3 grid for 9 goals).
 
@@ -288,16 +321,15 @@ def save_heatmap_grid(
     n = len(Qs)
     if not (n == len(goal_masks) == len(names)) or n == 0:
         raise ConfigError("need one Q, goal mask and name per goal", key="Qs")
-    vmin = min(float(np.max(masked_q(Q, valid), axis=1).min()) for Q in Qs)
-    vmax = max(float(np.max(masked_q(Q, valid), axis=1).max()) for Q in Qs)
+    vmin = min(float(np.max(masked_q(Q, scene.valid), axis=1).min()) for Q in Qs)
+    vmax = max(float(np.max(masked_q(Q, scene.valid), axis=1).max()) for Q in Qs)
+    style = HeatmapStyle(vmin=vmin, vmax=vmax, colorbar=False)
     cols = min(3, n)
     rows = -(-n // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.4 * rows), squeeze=False)
     img = None
     for ax, Q, mask, name in zip(axes.flat, Qs, goal_masks, names, strict=False):
-        img = plot_q_heatmap(ax, centres, Q, bounds, mask, background=background, title=name,
-                             vmin=vmin, vmax=vmax, colorbar=False, action_set=action_set,
-                             valid=valid)  # fmt: skip
+        img = plot_q_heatmap(ax, scene, Q, mask, title=name, style=style)
         ax.set_xlabel("")
         ax.set_ylabel("")
     for ax in list(axes.flat)[n:]:

@@ -584,15 +584,15 @@ class _GoalWork:
     start: Any
     valid: Any
     gamma: float
-    heatmap: dict[str, Any] | None = None
-    """:func:`~simlab.training.heatmap.render_q_heatmap` keywords, None: no heat map."""
+    heatmap: Any = None
+    """The :class:`~simlab.training.heatmap.HeatmapScene` of the goals' heat maps, None: no
+    heat map."""
 
 
 def _goal_work(job: _TrainJob, heatmaps: bool = False) -> _GoalWork:
     cfg, m = job.cfg, job.m
     draw = heatmaps and "heatmaps" in job.files  # plots, centres and an output directory
-    heatmap = dict(centres=m.centres, bounds=job.plot_bounds, background=job.background,
-                   action_set=m.action_set, valid=m.valid) if draw else None
+    heatmap = _heatmap_scene(job) if draw else None
     return _GoalWork(agent=cfg.agent, params=cfg.params, episodes=cfg.episodes, runs=cfg.runs,
                      seed=cfg.seed, horizon=cfg.horizon, episodic=cfg.task.mode == "episodic",
                      m=m, start=job.start, valid=job.valid, gamma=job.gamma,
@@ -630,9 +630,8 @@ def _train_and_draw_goal(work: _GoalWork, g: str, on_run_done: Any = None
     if work.heatmap is not None:
         from simlab.training.heatmap import render_q_heatmap
 
-        kw = dict(work.heatmap)
-        png = render_q_heatmap(kw.pop("centres"), res.Q_runs.mean(axis=0), kw.pop("bounds"),
-                               work.m.goal_mask(g), title=f"{work.agent}: goal {g}", **kw)
+        png = render_q_heatmap(work.heatmap, res.Q_runs.mean(axis=0), work.m.goal_mask(g),
+                               title=f"{work.agent}: goal {g}")
     return res, evaluation, png
 
 
@@ -847,20 +846,28 @@ def _write_figures(job: _TrainJob, res: _Results, files: dict[str, Path], runs: 
         atomic_write_bytes(files["curves_png"], curves.result())
 
 
+def _heatmap_scene(job: _TrainJob) -> Any:
+    """What every goal's heat map shares: the MDP's centres, action set and valid actions,
+    the arena's bounds and map."""
+    from simlab.training.heatmap import HeatmapScene
+
+    m = job.m
+    return HeatmapScene(m.centres, job.plot_bounds, background=job.background,
+                        action_set=m.action_set, valid=m.valid)
+
+
 def _write_heatmaps(job: _TrainJob, res: _Results, files: dict[str, Path]) -> None:
     """The per-goal heat maps (drawn here unless ``res.pngs`` has them) and the grid."""
     from simlab.training.heatmap import save_heatmap_grid, save_q_heatmap
 
     m, names, agent = job.m, job.names, job.cfg.agent
+    scene = _heatmap_scene(job)
     masks = [m.goal_mask(g) for g in names]
     for g, mask in zip(names, masks, strict=True):
         if g in res.pngs:
             atomic_write_bytes(files[f"heatmap_{g}"], res.pngs[g])
             continue
-        save_q_heatmap(files[f"heatmap_{g}"], m.centres, res.Qs[g], job.plot_bounds, mask,
-                       background=job.background, title=f"{agent}: goal {g}",
-                       action_set=m.action_set, valid=m.valid)  # fmt: skip
-    save_heatmap_grid(files["heatmaps"], m.centres, [res.Qs[g] for g in names], masks, names,
-                      job.plot_bounds, background=job.background,
-                      suptitle=f"max_a Q(s, a) and argmax arrows, {agent}",
-                      action_set=m.action_set, valid=m.valid)  # fmt: skip
+        save_q_heatmap(files[f"heatmap_{g}"], scene, res.Qs[g], mask,
+                       title=f"{agent}: goal {g}")
+    save_heatmap_grid(files["heatmaps"], scene, [res.Qs[g] for g in names], masks, names,
+                      suptitle=f"max_a Q(s, a) and argmax arrows, {agent}")

@@ -139,7 +139,7 @@ def test_heat_map_colours_cells_by_max_q_and_draws_the_background():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from simlab.training.heatmap import plot_q_heatmap
+    from simlab.training.heatmap import HeatmapScene, plot_q_heatmap
 
     centres = np.array([[-0.5, -0.5], [0.5, -0.5], [0.0, 0.5]])
     Q = np.zeros((3, 16))
@@ -148,8 +148,8 @@ def test_heat_map_colours_cells_by_max_q_and_draws_the_background():
     occupancy = types.SimpleNamespace(occupancy=np.zeros((40, 40), np.int8), resolution=0.05,
                                       origin=(-1.0, -1.0, 0.0))  # fmt: skip
     fig, ax = plt.subplots()
-    img = plot_q_heatmap(ax, centres, Q, (-1, -1, 1, 1), np.array([False, True, False]),
-                         background=occupancy, resolution=0.02)  # fmt: skip
+    scene = HeatmapScene(centres, (-1, -1, 1, 1), background=occupancy, resolution=0.02)
+    img = plot_q_heatmap(ax, scene, Q, np.array([False, True, False]))
     labels, _ = rasterize_cells(centres, (-1, -1, 1, 1), 0.02)
     np.testing.assert_array_equal(img.get_array(), Q.max(1)[labels])
     assert ax.images[0].get_extent() == [-1.0, 1.0, -1.0, 1.0]  # the map, under the cells
@@ -204,7 +204,7 @@ def test_heat_map_arrows_follow_the_action_set_and_skip_masked_actions():
     from matplotlib.quiver import Quiver
 
     from simlab.actions import parse_action_set
-    from simlab.training.heatmap import plot_q_heatmap
+    from simlab.training.heatmap import HeatmapScene, plot_q_heatmap
 
     ccw = parse_action_set(8, "ccw-east")
     centres = np.array([[-0.5, -0.5], [0.5, -0.5], [0.0, 0.5]])
@@ -216,8 +216,8 @@ def test_heat_map_arrows_follow_the_action_set_and_skip_masked_actions():
     valid = np.ones((3, 8), dtype=bool)
     valid[2, 4] = False
     fig, ax = plt.subplots()
-    img = plot_q_heatmap(ax, centres, Q, (-1, -1, 1, 1), action_set=ccw, valid=valid,
-                         resolution=0.02)
+    img = plot_q_heatmap(ax, HeatmapScene(centres, (-1, -1, 1, 1), action_set=ccw,
+                                          valid=valid, resolution=0.02), Q)
     labels, _ = rasterize_cells(centres, (-1, -1, 1, 1), 0.02)
     np.testing.assert_array_equal(img.get_array(), np.array([2.0, 3.0, 1.0])[labels])
     (quiver,) = [c for c in ax.collections if isinstance(c, Quiver)]
@@ -227,10 +227,10 @@ def test_heat_map_arrows_follow_the_action_set_and_skip_masked_actions():
     plt.close(fig)
     # 8 actions without an action set: directions unknown, no arrows (not simlab's order).
     fig, ax = plt.subplots()
-    plot_q_heatmap(ax, centres, Q, (-1, -1, 1, 1), resolution=0.05)
+    plot_q_heatmap(ax, HeatmapScene(centres, (-1, -1, 1, 1), resolution=0.05), Q)
     assert not [c for c in ax.collections if isinstance(c, Quiver)]
     with pytest.raises(ConfigError, match="action set"):
-        plot_q_heatmap(ax, centres, np.zeros((3, 16)), action_set=ccw)
+        plot_q_heatmap(ax, HeatmapScene(centres, action_set=ccw), np.zeros((3, 16)))
     plt.close(fig)
 
 
