@@ -555,6 +555,11 @@ def estimate(cfg: EstimateConfig) -> EstimateResult:
         ensure_new(p, overwrite=cfg.overwrite)
     disc = None if cfg.states is None else load_discretizer(cfg.states)
     arena_cfg = None if cfg.arena is None else load_arena_config(cfg.arena)
+    if disc is not None and arena_cfg is not None:  # the goals are found through the centres
+        from simlab.statecheck import check_centres_in_arena
+
+        check_centres_in_arena(disc.centres, arena_cfg, source=str(cfg.states)
+                               if isinstance(cfg.states, str | os.PathLike) else None)
     src = _from_dataset(cfg, disc, arena_cfg) if cfg.dataset is not None else \
         _from_counts(cfg, disc, arena_cfg)
     mdp = _count_model(src, cfg.storage)

@@ -747,6 +747,21 @@ def _seed_curve(task: str, variant: str, env_kwargs: dict[str, Any], cfg: Any, t
     return run.returns, (run.q_observer if run.q_observer is not None else run.q)
 
 
+#: Wall seconds one compiled chunk of trials aims at: Ctrl-C (a Python signal handler) is
+#: seen only between chunks, and a progress bar moves once per chunk.
+CHUNK_SECONDS = 0.25
+
+
+def _next_chunk(done: int, seconds: float, most: int) -> int:
+    """Trials of the next chunk: as many as take about :data:`CHUNK_SECONDS` at the pace of
+    the last one (``done`` trials in ``seconds``), at most twice as many, at most ``most``.
+    The chunking changes no result: the kernels carry the random generators and the step
+    counter from chunk to chunk."""
+    if seconds <= 0:
+        return min(most, 2 * done)
+    return max(1, min(most, 2 * done, int(done * CHUNK_SECONDS / seconds)))
+
+
 def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
                                                            np.random.Generator], *,
              variant: str = "thesis", env_kwargs: dict[str, Any] | None = None,
@@ -781,13 +796,17 @@ def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
         target = lr.observer.Q if registry_observer else lr.Q
         target[...] = initial_q
     returns = np.zeros(trials, dtype=np.float64)
-    chunk = max(1, min(trials, 200_000 // env.max_steps))
-    t = 0
-    for lo in range(0, trials, chunk):
+    t, lo = 0, 0
+    most = max(1, 200_000 // env.max_steps)  # trials of the longest chunk
+    chunk = max(1, min(most, 2_000 // env.max_steps))
+    while lo < trials:
         hi = min(trials, lo + chunk)
+        start = time.perf_counter()
         t = runner.run(lr, gens, t, lo, returns[lo:hi])
         if on_chunk is not None:
             on_chunk(hi - lo)
+        chunk = _next_chunk(hi - lo, time.perf_counter() - start, most)
+        lo = hi
     has_observer = registry_observer or observer is not None
     kept = None
     if keep_model:

@@ -65,6 +65,9 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      "estimate --counts {w}/c.csv --out {w}/m.npz --no-plot", ("c.csv", "line 2", "5000")),
     ("counts-16-actions-read-as-8", NO, "estimate --counts {w}/counts.csv --n-actions 8 "
      "--out {w}/m.npz --no-plot", ("counts.csv", "--n-actions 16")),
+    ("estimate-counts-states-of-another-arena", NO, "estimate --counts {w}/counts.csv "
+     "--states {w}/other_states.json --arena table --out {w}/m.npz --no-plot",
+     ("other_states.json", "centres", "table")),
     # ---- model files
     ("train-mdp-nan-counts", _nan_counts, "train --mdp {w}/nan.npz --episodes 2 --runs 1 "
      "--out {w}/t --no-progress", ("nan.npz", "counts", "simlab estimate")),

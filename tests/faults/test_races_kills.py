@@ -269,3 +269,42 @@ def test_export_minari_removes_the_staging_a_killed_export_left(work: Path, caps
     assert not dirs["dead"].exists()  # SIGKILLed: removed by this export
     assert dirs["live"].exists() and dirs["young"].exists()  # maybe running: kept
     assert (home / "simlab" / "faults-v0").is_dir()
+
+
+def test_visitlab_sees_ctrl_c_between_short_chunks_that_change_no_result(monkeypatch) -> None:
+    import numpy as np
+
+    import simlab.visitlab.training as vt
+
+    # the next chunk takes about CHUNK_SECONDS at the last one's pace, grows at most 2x
+    assert vt._next_chunk(100, 1.0, 10_000) == int(100 * vt.CHUNK_SECONDS)
+    assert vt._next_chunk(100, 1e-6, 10_000) == 200
+    assert vt._next_chunk(100, 1e-6, 150) == 150 and vt._next_chunk(1, 60.0, 10) == 1
+
+    def curve() -> tuple:
+        r = vt.train("nav", "mb-egreedy", trials=300, seeds=1, seed=3, progress=False)
+        return r.returns.copy(), r.q.copy()
+
+    adaptive = curve()
+    monkeypatch.setattr(vt, "_next_chunk", lambda done, seconds, most: 7)
+    sevens = curve()
+    np.testing.assert_array_equal(adaptive[0], sevens[0])
+    np.testing.assert_array_equal(adaptive[1], sevens[1])
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_visitlab_is_130_and_leaves_no_output(work: Path) -> None:
+    proc = _simlab("visitlab", "train", "--task", "social", "--agent", "mb-egreedy",
+                   "--trials", "100000000", "--seeds", "1", "--out", str(work / "v"),
+                   "--no-progress", cwd=work)
+    _wait_for(lambda: (work / "v").exists(), "visitlab to start", limit=300.0)
+    time.sleep(2.0)  # inside the training loop
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=120)  # a hang guard, not a speed check
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError("simlab visitlab ignored Ctrl-C for 120 s") from None
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "interrupted" in err and "Traceback" not in err
+    assert not (work / "v").exists()
