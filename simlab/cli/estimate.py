@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
         f"{mdp.n_states} states x {mdp.n_actions} actions from {int(mdp.counts.sum())} "
         f"transitions; {mdp.coverage:.1%} of (s, a) visited"
     )
-    if mdp.n_actions == 16:
+    if mdp.n_actions == 16 and int(mdp.counts.sum()):
         line += (f"; mean entropy slow {mdp.slow_mean_entropy:.3f} bits, "
                  f"fast {mdp.fast_mean_entropy:.3f} bits")
     aset = result.summary["action_set"]

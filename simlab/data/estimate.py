@@ -766,5 +766,8 @@ def _write_outputs(cfg: EstimateConfig, mdp: CountModel | SparseCountModel, arra
                 title = (f"Mean entropy per action — slow {mdp.slow_mean_entropy:.2f} bits, "
                          f"fast {mdp.fast_mean_entropy:.2f} bits "
                          f"({summary['coverage']['fraction_visited']:.0%} of (s, a) visited)")
-            plot_entropy_per_action(mdp.mean_entropy, txn.path(plot_path), title=title)
+            means = ({"slow_mean": mdp.slow_mean_entropy, "fast_mean": mdp.fast_mean_entropy}
+                     if mdp.n_actions == 16 else {})  # NaN without data, and no warning
+            plot_entropy_per_action(mdp.mean_entropy, txn.path(plot_path), title=title,
+                                    **means)
         atomic_write_json(txn.path(summary_path), summary)
