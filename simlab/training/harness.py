@@ -1,17 +1,17 @@
 """Training harness: run agents for ``runs`` seeds x ``episodes`` on a dense tabular MDP.
 
-The MDP is ``T`` (S, A, S) (rows sum to 1) and a reward on arrival
-``reward_next`` (S,) — for the empirical navigation task, 1.0 in the goal area.
-Episodes last ``horizon`` steps and start in a state drawn from ``start`` (default
-uniform; an int fixes the start state).
+The task is one :class:`EpisodeTask`: the MDP ``T`` (S, A, S) (rows sum to 1), a reward
+on arrival ``reward_next`` (S,) — for the empirical navigation task, 1.0 in the goal
+area —, episodes of ``horizon`` steps starting in a state drawn from ``start`` (default
+uniform; an int fixes the start state), and the constraints below. Every run of every
+agent, and the evaluation, face the same task.
 
 Seeding: ``seed`` (int or ``SeedSequence``) is spawned into one child per run;
 each run's child is spawned again into an env stream and an agent stream. Same
 seed, same results, bit for bit; runs are independent.
 
 Constraints (masked actions and the episodic task of :mod:`simlab.training.train`),
-keyword arguments of :func:`run_episodes`,
-:func:`train_runs` and :func:`evaluate_q`:
+fields of the :class:`EpisodeTask`:
 
 * ``valid`` (S, A) bool, None = every action valid: agents draw only among the
   valid actions of a state and plan/bootstrap with maxima over valid actions (a
@@ -102,40 +102,58 @@ def _takeover_episode(agent: TabularAgent, n_episodes: int, takeover: int | None
     return int(takeover)
 
 
+@dataclass(frozen=True, eq=False)
+class EpisodeTask:
+    """What the agents face: an MDP, its reward, the episodes and the constraints (see the
+    module docstring).
+
+    Attributes:
+        T: (S, A, S) transition probabilities, rows summing to 1.
+        reward_next: (S,) reward for arriving in each state.
+        horizon: steps per episode (fewer when a terminal state is reached).
+        start: the start state (int), an (S,) start distribution, or None (uniform).
+        valid: (S, A) bool, the actions a state may take; None: every action.
+        terminal: (S,) bool, the states that end an episode; None: none does.
+    """
+
+    T: np.ndarray
+    reward_next: np.ndarray
+    horizon: int = 50
+    start: int | np.ndarray | None = None
+    valid: np.ndarray | None = None
+    terminal: np.ndarray | None = None
+
+
 def run_episodes(
     agent: TabularAgent,
-    T: np.ndarray,
-    reward_next: np.ndarray,
+    task: EpisodeTask,
     n_episodes: int,
     env_rng: np.random.Generator,
     *,
-    horizon: int = 50,
-    start: int | np.ndarray | None = None,
     fused_loop: bool = True,
     takeover_episode: int | None = None,
-    valid: np.ndarray | None = None,
-    terminal: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Train ``agent`` for ``n_episodes``; returns (n_episodes,) reward per episode.
+    """Train ``agent`` on ``task`` for ``n_episodes``; returns (n_episodes,) reward per
+    episode.
 
     A :class:`~simlab.agents.agents.PassiveObserverAgent` hands control to its
     observer at ``takeover_episode`` (default: its config's
     ``takeover_fraction`` of ``n_episodes``). ``fused_loop=False`` uses the
     agent's Python methods (slow, any agent); both paths draw the same numbers.
     """
-    T = np.asarray(T, dtype=np.float64)
-    reward_next = np.asarray(reward_next, dtype=np.float64)
+    T = np.asarray(task.T, dtype=np.float64)
+    reward_next = np.asarray(task.reward_next, dtype=np.float64)
     _check_task(T, reward_next)
     cdf = np.cumsum(T, axis=2)
-    start_cdf = np.cumsum(start_distribution(T.shape[0], start))
+    start_cdf = np.cumsum(start_distribution(T.shape[0], task.start))
     takeover = _takeover_episode(agent, n_episodes, takeover_episode)
     S, A = T.shape[:2]
-    agent.constrain(valid, terminal)
-    task = fused.MdpTask(cdf, reward_next, start_cdf, int(horizon), core.as_mask(valid, S, A),
-                         core.as_terminal(terminal, S))
+    agent.constrain(task.valid, task.terminal)
+    compiled = fused.MdpTask(cdf, reward_next, start_cdf, int(task.horizon),
+                             core.as_mask(task.valid, S, A), core.as_terminal(task.terminal, S))
     if fused_loop and isinstance(agent, _FUSABLE):
-        return _run_fused(agent, task, n_episodes, takeover, env_rng)
-    return _run_python(agent, task, n_episodes, takeover, env_rng)
+        return _run_fused(agent, compiled, n_episodes, takeover, env_rng)
+    return _run_python(agent, compiled, n_episodes, takeover, env_rng)
 
 
 _FUSABLE = (QLearningAgent, ModelBasedAgent, RMaxAgent, PassiveObserverAgent)
@@ -195,37 +213,29 @@ class GoalEvaluation:
     """(S, A) optimal Q of the true MDP (value iteration, same gamma)."""
 
 
-def evaluate_q(
-    T: np.ndarray,
-    reward_next: np.ndarray,
-    Q_runs: np.ndarray,
-    gamma: float,
-    horizon: int,
-    start: int | np.ndarray | None = None,
-    *,
-    valid: np.ndarray | None = None,
-    terminal: np.ndarray | None = None,
-) -> GoalEvaluation:
-    """Evaluate learned ``Q_runs`` (runs, S, A) against the optimum of the true MDP.
+def evaluate_q(task: EpisodeTask, Q_runs: np.ndarray, gamma: float) -> GoalEvaluation:
+    """Evaluate learned ``Q_runs`` (runs, S, A) against the optimum of ``task``'s true MDP
+    (expected ``task.horizon``-step returns from its start distribution).
 
-    ``valid`` / ``terminal``: see the module docstring (invalid actions are priced
-    out of the optimum with a reward of -1e9; greedy policies pick valid actions).
+    ``task.valid`` / ``task.terminal``: see the module docstring (invalid actions are
+    priced out of the optimum with a reward of -1e9; greedy policies pick valid actions).
     """
-    T = np.array(T, dtype=np.float64)
+    T = np.array(task.T, dtype=np.float64)
     S, A = T.shape[:2]
-    mask = core.as_mask(valid, S, A)
-    ends = core.as_terminal(terminal, S)
+    horizon = task.horizon
+    mask = core.as_mask(task.valid, S, A)
+    ends = core.as_terminal(task.terminal, S)
     if ends.size:
         T[ends] = 0.0
         for s in np.flatnonzero(ends):
             T[s, :, s] = 1.0
-    R = reward_on_arrival(T, reward_next)
+    R = reward_on_arrival(T, task.reward_next)
     if ends.size:
         R[ends] = 0.0
     if mask.size:
         mask = mask | ~mask.any(axis=1, keepdims=True)  # no valid action: all allowed
         R = np.where(mask, R, -1e9)
-    p0 = start_distribution(S, start)
+    p0 = start_distribution(S, task.start)
     Q_star, _, _ = value_iteration(T, R, gamma, tol=1e-10)
     optimal = expected_return(T, R, greedy_policy(Q_star), horizon, p0)
     bound = optimal_finite_horizon_return(T, R, horizon, p0)
@@ -257,33 +267,27 @@ class TrainingResult:
 
 
 def train_runs(
-    T: np.ndarray,
-    reward_next: np.ndarray,
+    task: EpisodeTask,
     agent: str = "vi-softmax",
     *,
     episodes: int = 2000,
     runs: int = 10,
     seed: int | np.random.SeedSequence = 0,
-    horizon: int = 50,
-    start: int | np.ndarray | None = None,
     overrides: dict[str, Any] | None = None,
     fused_loop: bool = True,
     on_run_done: Callable[[], None] | None = None,
-    valid: np.ndarray | None = None,
-    terminal: np.ndarray | None = None,
 ) -> TrainingResult:
-    """Train ``runs`` independent copies of ``agent`` for ``episodes`` each.
+    """Train ``runs`` independent copies of ``agent`` on ``task`` for ``episodes`` each.
 
     ``overrides`` change the registered preset's hyper-parameters
     (``{"tau": 0.05}``). ``on_run_done`` is called after each run (progress bars).
-    ``valid`` / ``terminal``: see the module docstring.
     """
+    horizon = task.horizon
     for name, value, low in (("episodes", episodes, 1), ("runs", runs, 1), ("horizon", horizon, 1)):
         if not (isinstance(value, int | np.integer) and value >= low):
             raise ConfigError(f"expected an integer >= {low}, got {value!r}", key=name)
-    T = np.asarray(T, dtype=np.float64)
-    reward_next = np.asarray(reward_next, dtype=np.float64)
-    _check_task(T, reward_next)
+    T = np.asarray(task.T, dtype=np.float64)
+    _check_task(T, np.asarray(task.reward_next, dtype=np.float64))
     S, A = T.shape[:2]
     cfg = agent_config(agent, overrides)
     root = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
@@ -293,11 +297,8 @@ def train_runs(
     for i, child in enumerate(root.spawn(runs)):
         env_seq, agent_seq = child.spawn(2)
         ag = make_agent(agent, S, A, np.random.default_rng(agent_seq), config=cfg)
-        rewards[i] = run_episodes(
-            ag, T, reward_next, episodes, np.random.default_rng(env_seq),
-            horizon=horizon, start=start, fused_loop=fused_loop, valid=valid,
-            terminal=terminal,
-        )  # fmt: skip
+        rewards[i] = run_episodes(ag, task, episodes, np.random.default_rng(env_seq),
+                                  fused_loop=fused_loop)
         Q_runs[i] = ag.Q
         if isinstance(ag, PassiveObserverAgent):
             actor_Q.append(ag.actor.Q.copy())

@@ -40,11 +40,8 @@ Decisions (where the thesis, 3.2.5 and 4.5, leaves the choice open):
   states are ``terminal`` for the harness; ``horizon`` caps an episode).
 * The MDP's ``action_set`` is copied into every Q-table's metadata.
 
-The harness calls that get ``valid=``/``terminal=`` (only when not None) are
-:func:`~simlab.training.harness.train_runs` and :func:`~simlab.training.harness.evaluate_q`,
-through :func:`_harness_kwargs`: a harness without these keywords (before the agent-core
-update) trains unmasked with a warning (the greedy outputs are still masked) and refuses
-the episodic task.
+The mask and the terminal goal states travel to the harness in its
+:class:`~simlab.training.harness.EpisodeTask` (None when there is nothing to mask or end).
 
 Seeding: goal ``g`` (its index in the file's goal list) uses
 ``SeedSequence(seed, spawn_key=(g,))``, so training one goal alone gives the same
@@ -55,7 +52,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import inspect
 import os
 import re
 import time
@@ -209,30 +205,6 @@ def _bounds(mdp: Any, bounds: Sequence[float] | None, arena: Any) -> tuple[float
         cfg = arena if hasattr(arena, "bounds") else load_arena(arena)
         return tuple(float(v) for v in cfg.bounds)
     return None if mdp.bounds is None else tuple(mdp.bounds)
-
-
-def _harness_kwargs(fn: Any, *, valid: np.ndarray | None,
-                    terminal: np.ndarray | None) -> dict[str, Any]:
-    """The ``valid=``/``terminal=`` keywords ``fn`` accepts (only those not None).
-
-    The adapter to the harness's masks and terminal states: a harness without ``terminal``
-    cannot run the episodic task (ConfigError); one without ``valid`` trains unmasked with
-    a warning.
-    """
-    accepted = inspect.signature(fn).parameters
-    kwargs: dict[str, Any] = {}
-    if terminal is not None:
-        if "terminal" not in accepted:
-            raise ConfigError(f"{fn.__name__} of this simlab cannot end episodes on arrival",
-                              key="task", fix="use --task per-step, or update simlab")
-        kwargs["terminal"] = terminal
-    if valid is not None:
-        if "valid" in accepted:
-            kwargs["valid"] = valid
-        else:
-            warn(f"{fn.__name__} of this simlab cannot mask actions: it ignores the "
-                 "unvisited-pair mask (the saved greedy policies still respect it)")
-    return kwargs
 
 
 def _apply_task(m: Any, task: TrainTask, start: int | None) -> tuple[Any, Any]:
@@ -602,22 +574,16 @@ def _goal_work(job: _TrainJob, heatmaps: bool = False) -> _GoalWork:
 def _train_goal(work: _GoalWork, g: str, on_run_done: Any = None) -> tuple[Any, Any]:
     """Train and evaluate goal ``g``: (training result, evaluation). Its seed depends on
     the goal's index only, so any process computes the same numbers."""
-    from simlab.training.harness import evaluate_q, train_runs
+    from simlab.training.harness import EpisodeTask, evaluate_q, train_runs
 
-    m, valid = work.m, work.valid
-    gi = m.goal_index(g)
-    reward = m.goal_reward(g)
-    terminal = m.goal_mask(g) if work.episodic else None
-    seq = np.random.SeedSequence(work.seed, spawn_key=(gi,))
-    res = train_runs(
-        m.T, reward, work.agent, episodes=work.episodes, runs=work.runs, seed=seq,
-        horizon=work.horizon, start=work.start, overrides=work.params,
-        on_run_done=on_run_done, **_harness_kwargs(train_runs, valid=valid, terminal=terminal),
-    )  # fmt: skip
+    m = work.m
+    task = EpisodeTask(m.T, m.goal_reward(g), horizon=work.horizon, start=work.start,
+                       valid=work.valid, terminal=m.goal_mask(g) if work.episodic else None)
+    seq = np.random.SeedSequence(work.seed, spawn_key=(m.goal_index(g),))
+    res = train_runs(task, work.agent, episodes=work.episodes, runs=work.runs, seed=seq,
+                     overrides=work.params, on_run_done=on_run_done)
     Q_mean = res.Q_runs.mean(axis=0)
-    evaluation = evaluate_q(m.T, reward, np.concatenate([res.Q_runs, Q_mean[None]]),
-                            work.gamma, work.horizon, work.start,
-                            **_harness_kwargs(evaluate_q, valid=valid, terminal=terminal))  # fmt: skip
+    evaluation = evaluate_q(task, np.concatenate([res.Q_runs, Q_mean[None]]), work.gamma)
     return res, evaluation
 
 

@@ -190,26 +190,26 @@ def test_sliding_window_model_adapts_to_a_change_the_count_model_averages_away()
 
 # --------------------------------------------------------------------------- passive observer
 def test_passive_observer_does_at_least_as_well_as_model_free_alone():
-    from simlab.training.harness import evaluate_q, run_episodes
+    from simlab.training.harness import EpisodeTask, evaluate_q, run_episodes
     from simlab.training.synthetic import synthetic_arena_mdp
 
     mdp = synthetic_arena_mdp(np.random.default_rng(0))
     episodes = 200  # 10,000 steps each
     for goal in ("g1", "g5"):
-        reward = mdp.goal_reward(goal)
+        task = EpisodeTask(mdp.T, mdp.goal_reward(goal))
         observer_q, alone_q = [], []
         for seed in range(10):
             agent_seq, env_seq = np.random.SeedSequence(seed).spawn(2)
             po = make_agent("passive-observer", 41, 16, np.random.default_rng(agent_seq))
-            run_episodes(po, mdp.T, reward, episodes, np.random.default_rng(env_seq))
+            run_episodes(po, task, episodes, np.random.default_rng(env_seq))
             assert po.controlling == "observer"  # it took over half-way
             # the same Q-learner (same hyper-parameters) learning on its own
             mf = QLearningAgent(41, 16, po.config.observer, np.random.default_rng(agent_seq))
-            run_episodes(mf, mdp.T, reward, episodes, np.random.default_rng(env_seq))
+            run_episodes(mf, task, episodes, np.random.default_rng(env_seq))
             observer_q.append(po.Q)
             alone_q.append(mf.Q)
-        ev_obs = evaluate_q(mdp.T, reward, np.array(observer_q), 0.9, 50)
-        ev_mf = evaluate_q(mdp.T, reward, np.array(alone_q), 0.9, 50)
+        ev_obs = evaluate_q(task, np.array(observer_q), 0.9)
+        ev_mf = evaluate_q(task, np.array(alone_q), 0.9)
         assert ev_obs.greedy_returns.mean() >= ev_mf.greedy_returns.mean()
 
 

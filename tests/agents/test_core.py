@@ -12,7 +12,7 @@ from simlab.agents.kernels import count_model_observe
 from simlab.agents.registry import AGENTS, make_agent
 from simlab.agents.sparse_model import CountModel
 from simlab.errors import ConfigError
-from simlab.training.harness import evaluate_q, run_episodes
+from simlab.training.harness import EpisodeTask, evaluate_q, run_episodes
 
 
 def _params(**kw):
@@ -121,8 +121,8 @@ def test_no_agent_picks_an_invalid_action(name):
     seen = []
     orig = agent.act
     agent.act = lambda s: seen.append(orig(s)) or seen[-1]
-    run_episodes(agent, T, r, 20, np.random.default_rng(2), horizon=10, start=0,
-                 fused_loop=False, valid=valid)
+    run_episodes(agent, EpisodeTask(T, r, horizon=10, start=0, valid=valid), 20,
+                 np.random.default_rng(2), fused_loop=False)
     assert seen and set(seen) == {1}
 
 
@@ -136,8 +136,9 @@ def test_fused_and_python_agree_with_mask_and_terminal(name):
     out = []
     for fused_loop in (True, False):
         agent = make_agent(name, 5, 2, np.random.default_rng(4))
-        rewards = run_episodes(agent, T, r, 30, np.random.default_rng(5), horizon=12,
-                               fused_loop=fused_loop, valid=valid, terminal=terminal)
+        rewards = run_episodes(agent, EpisodeTask(T, r, horizon=12, valid=valid,
+                                                  terminal=terminal),
+                               30, np.random.default_rng(5), fused_loop=fused_loop)
         out.append((rewards, agent.Q.copy()))
     np.testing.assert_array_equal(out[0][0], out[1][0])
     np.testing.assert_array_equal(out[0][1], out[1][1])
@@ -150,8 +151,8 @@ def test_terminal_ends_the_episode_and_counts_its_reward():
     for cfg in (QLearningConfig(epsilon=0.1), ModelBasedConfig(plan_every=5)):
         cls = QLearningAgent if isinstance(cfg, QLearningConfig) else ModelBasedAgent
         agent = cls(5, 2, cfg, np.random.default_rng(0))
-        rewards = run_episodes(agent, T, r, 200, np.random.default_rng(1), horizon=30,
-                               start=0, terminal=terminal)
+        rewards = run_episodes(agent, EpisodeTask(T, r, horizon=30, start=0, terminal=terminal),
+                               200, np.random.default_rng(1))
         # without termination a greedy agent would collect up to 27 per episode
         assert rewards.max() == 1.0
         assert rewards[-50:].mean() > 0.9
@@ -163,8 +164,8 @@ def test_all_true_mask_is_bit_identical_to_none():
     out = []
     for valid in (None, np.ones((5, 2), bool)):
         agent = make_agent("q-learning", 5, 2, np.random.default_rng(4))
-        out.append(run_episodes(agent, T, r, 30, np.random.default_rng(5), horizon=12,
-                                valid=valid))
+        out.append(run_episodes(agent, EpisodeTask(T, r, horizon=12, valid=valid), 30,
+                                np.random.default_rng(5)))
         out.append(agent.Q.copy())
     np.testing.assert_array_equal(out[0], out[2])
     np.testing.assert_array_equal(out[1], out[3])
@@ -176,11 +177,12 @@ def test_evaluate_q_with_terminal_and_mask():
     terminal[-1] = True
     Q = np.zeros((1, 5, 2))
     Q[0, :, 1] = 1.0  # always move right
-    ev = evaluate_q(T, r, Q, 0.9, 10, start=0, terminal=terminal)
+    ev = evaluate_q(EpisodeTask(T, r, horizon=10, start=0, terminal=terminal), Q, 0.9)
     assert ev.optimal_return == pytest.approx(1.0)  # reward once, then absorbed
     valid = np.ones((5, 2), bool)
     valid[:, 1] = False  # cannot move: nothing to earn
-    ev = evaluate_q(T, r, Q, 0.9, 10, start=0, terminal=terminal, valid=valid)
+    ev = evaluate_q(EpisodeTask(T, r, horizon=10, start=0, terminal=terminal, valid=valid),
+                    Q, 0.9)
     assert ev.greedy_returns[0] == pytest.approx(0.0)
 
 

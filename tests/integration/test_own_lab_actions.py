@@ -15,7 +15,6 @@ probability 0.8 and stays with probability 0.2; moves off the grid stay.
 
 from __future__ import annotations
 
-import inspect
 import json
 from pathlib import Path
 
@@ -32,8 +31,6 @@ from simlab.training.train import TrainTask, train
 
 #: (dx, dy) of each simlab Direction (UP, DOWN, LEFT, RIGHT, UL, UR, DL, DR).
 STEPS = [(0, 1), (0, -1), (-1, 0), (1, 0), (-1, 1), (1, 1), (-1, -1), (1, -1)]
-HARNESS_MASKS = "valid" in inspect.signature(harness.train_runs).parameters
-HARNESS_TERMINAL = "terminal" in inspect.signature(harness.train_runs).parameters
 
 
 def grid_counts(untried: set[tuple[int, int]] = frozenset()) -> np.ndarray:
@@ -139,28 +136,27 @@ def test_unvisited_pairs_are_masked_and_never_chosen(tmp_path: Path) -> None:
         for s in range(9):
             for _ in range(5):  # ties are broken at random: try several draws
                 assert valid[s, greedy_action(Q[s], rng, valid=valid[s])]
-    if HARNESS_MASKS:
-        # The planner's optimum: staying in the goal now costs a round trip through
-        # state 1 (UP then DOWN), so it is well below the free-stay optimum.
-        free = train(m, agent="vi-softmax", episodes=10, runs=1, seed=0, plots=False,
-                     progress=False, task=TrainTask(goal_states=(4,), unvisited="self-loop"))
-        assert res.goals[0].optimal_return < 0.8 * free.goals[0].optimal_return
-        greedy_star = arrays["Q_star"].argmax(axis=1)
-        assert valid[np.arange(9), greedy_star].all()
+    # The planner's optimum: staying in the goal now costs a round trip through
+    # state 1 (UP then DOWN), so it is well below the free-stay optimum.
+    free = train(m, agent="vi-softmax", episodes=10, runs=1, seed=0, plots=False,
+                 progress=False, task=TrainTask(goal_states=(4,), unvisited="self-loop"))
+    assert res.goals[0].optimal_return < 0.8 * free.goals[0].optimal_return
+    greedy_star = arrays["Q_star"].argmax(axis=1)
+    assert valid[np.arange(9), greedy_star].all()
 
 
 def test_train_passes_valid_and_terminal_to_the_harness(monkeypatch, tmp_path: Path) -> None:
-    """The wiring of train.py: which harness calls get ``valid=`` and ``terminal=``."""
+    """The wiring of train.py: the mask and terminal states each harness call's task holds."""
     calls: list[tuple[str, dict]] = []
     real_train, real_eval = harness.train_runs, harness.evaluate_q
 
-    def fake_train_runs(*args, valid=None, terminal=None, **kwargs):
-        calls.append(("train_runs", {"valid": valid, "terminal": terminal}))
-        return real_train(*args, **kwargs)
+    def fake_train_runs(task, *args, **kwargs):
+        calls.append(("train_runs", {"valid": task.valid, "terminal": task.terminal}))
+        return real_train(task, *args, **kwargs)
 
-    def fake_evaluate_q(*args, valid=None, terminal=None, **kwargs):
-        calls.append(("evaluate_q", {"valid": valid, "terminal": terminal}))
-        return real_eval(*args, **kwargs)
+    def fake_evaluate_q(task, *args, **kwargs):
+        calls.append(("evaluate_q", {"valid": task.valid, "terminal": task.terminal}))
+        return real_eval(task, *args, **kwargs)
 
     monkeypatch.setattr(harness, "train_runs", fake_train_runs)
     monkeypatch.setattr(harness, "evaluate_q", fake_evaluate_q)
@@ -188,7 +184,6 @@ def chain_mdp(n: int = 5):
     return mdp_from_arrays(T)
 
 
-@pytest.mark.skipif(not HARNESS_TERMINAL, reason="needs the harness's terminal= (issue 14)")
 def test_episodic_chain_reaches_the_analytic_optimum(tmp_path: Path) -> None:
     m = chain_mdp(5)
     gamma = 0.9

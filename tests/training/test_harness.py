@@ -9,7 +9,13 @@ from simlab.agents import AGENTS, make_agent
 from simlab.agents.planning import expected_return, greedy_policy, reward_on_arrival
 from simlab.errors import ConfigError
 from simlab.training.curves import curve_points
-from simlab.training.harness import evaluate_q, run_episodes, start_distribution, train_runs
+from simlab.training.harness import (
+    EpisodeTask,
+    evaluate_q,
+    run_episodes,
+    start_distribution,
+    train_runs,
+)
 
 
 @pytest.mark.parametrize("name", list(AGENTS))
@@ -19,8 +25,8 @@ def test_fused_loop_equals_python_agent_step_for_step(small_mdp, name):
     results = []
     for fused in (True, False):
         agent = make_agent(name, 12, 16, np.random.default_rng(3), **extra)
-        rewards = run_episodes(agent, small_mdp.T, reward, 30, np.random.default_rng(4),
-                               horizon=20, fused_loop=fused)  # fmt: skip
+        rewards = run_episodes(agent, EpisodeTask(small_mdp.T, reward, horizon=20), 30,
+                               np.random.default_rng(4), fused_loop=fused)
         results.append((rewards, agent.Q.copy(), getattr(agent, "controlling", None)))
     (r1, q1, c1), (r2, q2, c2) = results
     np.testing.assert_array_equal(r1, r2)
@@ -30,10 +36,10 @@ def test_fused_loop_equals_python_agent_step_for_step(small_mdp, name):
 
 
 def test_same_seed_same_curves_and_runs_are_independent(small_mdp):
-    reward = small_mdp.goal_reward("g1")
-    a = train_runs(small_mdp.T, reward, "vi-softmax", episodes=40, runs=3, seed=11)
-    b = train_runs(small_mdp.T, reward, "vi-softmax", episodes=40, runs=3, seed=11)
-    c = train_runs(small_mdp.T, reward, "vi-softmax", episodes=40, runs=3, seed=12)
+    task = EpisodeTask(small_mdp.T, small_mdp.goal_reward("g1"))
+    a = train_runs(task, "vi-softmax", episodes=40, runs=3, seed=11)
+    b = train_runs(task, "vi-softmax", episodes=40, runs=3, seed=11)
+    c = train_runs(task, "vi-softmax", episodes=40, runs=3, seed=12)
     np.testing.assert_array_equal(a.rewards, b.rewards)
     np.testing.assert_array_equal(a.Q_runs, b.Q_runs)
     assert not np.array_equal(a.rewards, c.rewards)
@@ -44,9 +50,9 @@ def test_vi_softmax_reaches_90_percent_of_optimal_on_every_goal(arena_mdp):
     """Stand-in for the table arena: 41 states, 16 actions, T estimated from
     simulated noisy moves (100 samples per pair), 9 goal areas, 2000 episodes."""
     for goal in arena_mdp.goal_names:
-        reward = arena_mdp.goal_reward(goal)
-        res = train_runs(arena_mdp.T, reward, "vi-softmax", episodes=2000, runs=3, seed=5)
-        ev = evaluate_q(arena_mdp.T, reward, res.Q_runs, res.gamma, 50)
+        task = EpisodeTask(arena_mdp.T, arena_mdp.goal_reward(goal), horizon=50)
+        res = train_runs(task, "vi-softmax", episodes=2000, runs=3, seed=5)
+        ev = evaluate_q(task, res.Q_runs, res.gamma)
         on_policy = res.rewards[:, -200:].mean()  # softmax exploration included
         assert on_policy >= 0.9 * ev.optimal_return, goal
         assert np.all(ev.greedy_returns >= 0.9 * ev.optimal_return), goal
@@ -55,16 +61,17 @@ def test_vi_softmax_reaches_90_percent_of_optimal_on_every_goal(arena_mdp):
 
 def test_model_based_learns_faster_than_model_free(arena_mdp):
     """Thesis Fig. 4.1: same selection rule, MB reaches a good level in fewer episodes."""
-    reward = arena_mdp.goal_reward("g1")
-    mb = train_runs(arena_mdp.T, reward, "mb-egreedy", episodes=300, runs=3, seed=2)
-    mf = train_runs(arena_mdp.T, reward, "q-learning", episodes=300, runs=3, seed=2)
+    task = EpisodeTask(arena_mdp.T, arena_mdp.goal_reward("g1"))
+    mb = train_runs(task, "mb-egreedy", episodes=300, runs=3, seed=2)
+    mf = train_runs(task, "q-learning", episodes=300, runs=3, seed=2)
     assert mb.rewards[:, 50:150].mean() > mf.rewards[:, 50:150].mean() + 3
 
 
 def test_evaluate_q_of_the_optimal_table_is_the_optimum(small_mdp):
     reward = small_mdp.goal_reward("g4")
-    ev = evaluate_q(small_mdp.T, reward, np.zeros((1, 12, 16)), 0.9, 50)
-    ev2 = evaluate_q(small_mdp.T, reward, ev.Q_star[None], 0.9, 50)
+    task = EpisodeTask(small_mdp.T, reward, horizon=50)
+    ev = evaluate_q(task, np.zeros((1, 12, 16)), 0.9)
+    ev2 = evaluate_q(task, ev.Q_star[None], 0.9)
     assert ev2.greedy_returns[0] == pytest.approx(ev.optimal_return)
     R = reward_on_arrival(small_mdp.T, reward)
     uniform = np.full(12, 1 / 12)
@@ -80,9 +87,11 @@ def test_start_distribution_and_bad_arguments(small_mdp):
     with pytest.raises(ConfigError, match="start"):
         start_distribution(4, 9)
     with pytest.raises(ConfigError, match="episodes"):
-        train_runs(small_mdp.T, small_mdp.goal_reward("g1"), "rmax", episodes=0, runs=1)
+        train_runs(EpisodeTask(small_mdp.T, small_mdp.goal_reward("g1")), "rmax", episodes=0,
+                   runs=1)
     with pytest.raises(ConfigError, match="known agents"):
-        train_runs(small_mdp.T, small_mdp.goal_reward("g1"), "sarsa", episodes=1, runs=1)
+        train_runs(EpisodeTask(small_mdp.T, small_mdp.goal_reward("g1")), "sarsa", episodes=1,
+                   runs=1)
 
 
 def test_curve_points_are_block_means_and_stds():

@@ -166,14 +166,15 @@ def test_heat_map_colours_cells_by_max_q_and_draws_the_background():
 def test_agents_fit_a_gymnasium_env(arena_mdp):
     from simlab.agents import make_agent
     from simlab.envs.empirical_mdp import EmpiricalMDPEnv
-    from simlab.training.harness import evaluate_q
+    from simlab.training.harness import EpisodeTask, evaluate_q
 
     env = EmpiricalMDPEnv(arena_mdp, "g5")
     env.reset(seed=0)
     agent = make_agent("vi-softmax", 41, 16, np.random.default_rng(0))
     rewards = agent.fit(env, 60)
     assert rewards.shape == (60,)
-    optimum = evaluate_q(arena_mdp.T, arena_mdp.goal_reward("g5"), agent.Q[None], 0.9, 50)
+    optimum = evaluate_q(EpisodeTask(arena_mdp.T, arena_mdp.goal_reward("g5"), horizon=50),
+                         agent.Q[None], 0.9)
     assert rewards[-20:].mean() > 0.8 * optimum.optimal_return > rewards[:3].mean()
 
 
