@@ -173,6 +173,15 @@ class PhysicsSettings:
         check_memory(array_bytes((cells,), 25), key=where.get("map_resolution", "map_resolution"),
                      what=f"the occupancy map of arena {arena.name!r}",
                      fix="a smaller arena or a coarser map_resolution")
+        # Every state needs a free pixel of its own: the floor's pixels bound the count
+        # before the mapping (the exact free count, after erosion, is known only after it).
+        floor = int((x1 - x0) / self.map_resolution) * int((y1 - y0) / self.map_resolution)
+        if self.states > floor:
+            raise ConfigError(f"{self.states} states requested but the floor of arena "
+                              f"{arena.name!r} has only {floor} pixels of "
+                              f"{self.map_resolution:g} m", key=where.get("states", "states"),
+                              fix="ask for fewer states (the thesis: 41) or a finer "
+                              "map_resolution")
 
 
 def chain_seed(root_seed: int, stage: str, i: int) -> int:
@@ -242,9 +251,16 @@ class PhysicsChain:
         def build(d: Path) -> dict[str, Any]:
             from discretize.command import discretize_command
 
-            res = discretize_command(parent.path / "map.yaml", d / "states.json",
-                                     states=self.s.states, png=d / "states.png",
-                                     progress=self.progress)
+            try:
+                res = discretize_command(parent.path / "map.yaml", d / "states.json",
+                                         states=self.s.states, png=d / "states.png",
+                                         progress=self.progress)
+            except ConfigError as exc:
+                if exc.key != "states":
+                    raise
+                # the map is this pipeline's own file: say it of the option the user gave
+                raise ConfigError(f"{exc.problem}, on the map the pipeline built", key="states",
+                                  fix="ask for fewer states or a finer map_resolution") from None
             return {"n_states": int(res.discretizer.n_states),
                     "hash": res.discretizer.content_hash()}
 

@@ -86,6 +86,9 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
     # ---- a directory where a file belongs, a file where a directory belongs
     ("drive-config-is-a-directory", NO, "drive --config {w}/q --steps 1 --no-progress",
      ("q", "found a directory")),
+    # ---- a count of states the arena cannot hold: before the mapping
+    ("pipeline-states-beyond-the-floor", NO, "pipeline --states 100000 --out {w}/p "
+     "--no-progress", ("states", "100000", "pixels")),
     # ---- options files: long option names work as keys (train's repeatable --param)
     ("train-param-in-config-bad", _write("c.toml", 'param = ["tau"]\n'),
      "train --mdp {w}/mdp.npz --config {w}/c.toml --episodes 2 --runs 1 --out {w}/t "
