@@ -2,7 +2,7 @@
 
 Every function draws with matplotlib's object API (no global pyplot state, headless)
 and writes a PNG atomically (:func:`simlab.io.atomic_write`). Curves use the thesis's
-smoothing (:func:`~simlab.visitlab.training.smooth_curve`: 100 windows of
+smoothing (:func:`~simlab.visitlab.curves.smooth_curve`: 100 windows of
 ``n_trials / 100`` trials, mean over seeds and window, band of one standard deviation
 within the window).
 """
@@ -17,8 +17,8 @@ import numpy as np
 
 from simlab.io import atomic_write
 from simlab.visitlab.actions import ACTION_DIR, DIR_DELTA
+from simlab.visitlab.curves import smooth_curve
 from simlab.visitlab.grid import Layout
-from simlab.visitlab.training import smooth_curve
 
 #: One curve: (legend label, values per trial (n_seeds, n_trials)).
 Curve = tuple[str, np.ndarray]

@@ -27,7 +27,7 @@ from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, atomic_write_json, ensure_new
 from simlab.options import CommandConfig, option
-from simlab.visitlab.training import TrainResult, smooth_curve, summarize_curve
+from simlab.visitlab.curves import TrainResult, smooth_curve, summarize_curve
 
 FILES = ("curves.npz", "curves.png", "summary.json")
 

@@ -7,15 +7,9 @@ import pytest
 
 from simlab.agents.registry import make_agent
 from simlab.errors import ConfigError
+from simlab.visitlab.curves import smooth_curve, summarize_curve
 from simlab.visitlab.reference import train_python
-from simlab.visitlab.training import (
-    loop_agent_config,
-    make_env,
-    seed_generators,
-    smooth_curve,
-    summarize_curve,
-    train,
-)
+from simlab.visitlab.training import loop_agent_config, make_env, seed_generators, train
 
 
 def test_same_seed_same_curves_and_q():

@@ -67,7 +67,7 @@ def level_metrics(goals: np.ndarray) -> dict[str, Any]:
     """``start`` (mean goals per trial over the first 10 % of trials), ``final`` (last
     20 %) and ``trials_to_90pct`` (first trial at which the smoothed seed-mean curve
     reaches 90 % of ``final``; None if never) of ``goals`` ``(seeds, trials)``."""
-    from simlab.visitlab.training import smooth_curve
+    from simlab.visitlab.curves import smooth_curve
 
     trials = goals.shape[1]
     start = float(goals[:, :max(1, trials // 10)].mean())

@@ -16,7 +16,7 @@ from simlab.experiments.visitlab.runs import as_table
 def curve_metrics(label: str, returns: np.ndarray, thresholds: Sequence[float] = (),
                   windows: Mapping[str, Sequence[float]] | None = None) -> dict[str, Any]:
     """The curve metrics of one run (module docstring), ``returns`` ``(seeds, trials)``."""
-    from simlab.visitlab.training import smooth_curve
+    from simlab.visitlab.curves import smooth_curve
 
     returns = np.asarray(returns, dtype=np.float64)
     n_trials = returns.shape[1]
@@ -46,7 +46,7 @@ def fmt_number(x: float) -> str:
 
 
 def curve_details(label: str, returns: np.ndarray) -> dict[str, Any]:
-    from simlab.visitlab.training import smooth_curve
+    from simlab.visitlab.curves import smooth_curve
 
     x, mean, std = smooth_curve(returns)
     return {"x": x.tolist(), "mean": np.round(mean, 4).tolist(), "std": np.round(std, 4).tolist()}
