@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab import validation
 from simlab.data.schema import N_ACTIONS
 from simlab.errors import ConfigError, DataError, warn
 
@@ -315,8 +316,7 @@ def load_counts(
         ConfigError: (a :class:`CountsFileError`) a missing file or any bad content.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("counts file not found", path=path)
+    validation.existing_file(path, "counts", what="counts file")
     if int(n_actions) not in (8, 16):
         raise ConfigError(f"expected 8 or 16, got {n_actions!r}", key="n_actions")
     n_actions = int(n_actions)

@@ -124,8 +124,7 @@ def _number(token: str, path: Path, lineno: int, column: str, whole: bool) -> fl
 def read_pose_log(path: str | os.PathLike[str]) -> PoseLog:
     """Read a pose log (see the module docstring). Raises ConfigError naming file and line."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("pose log not found", path=path)
+    validation.existing_file(path, "log", what="pose log")
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:

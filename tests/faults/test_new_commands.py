@@ -86,6 +86,10 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
     # ---- a directory where a file belongs, a file where a directory belongs
     ("drive-config-is-a-directory", NO, "drive --config {w}/q --steps 1 --no-progress",
      ("q", "found a directory")),
+    ("estimate-counts-is-a-directory", NO, "estimate --counts {w}/q --out {w}/m.npz",
+     ("q", "found a directory")),
+    ("import-log-log-is-a-directory", NO, "import-log {w}/q --states {w}/states.json "
+     "--out {w}/il", ("q", "found a directory")),
     # ---- a count of states the arena cannot hold: before the mapping
     ("pipeline-states-beyond-the-floor", NO, "pipeline --states 100000 --out {w}/p "
      "--no-progress", ("states", "100000", "pixels")),
