@@ -17,7 +17,7 @@ Physics settings (chosen for speed, fidelity checked by tests/physics):
   table costs ~15 us of CPU, of which ~8 us remain with the floor filtered out; the rest
   is the three floor contacts (two wheel spheres, the caster), each one normal and two
   friction rows in Bullet's Featherstone solver, set up at every step. Wheel spinning
-  friction (one more row per wheel) is left out: 0.9x the step, and turns follow the
+  friction (one more row per wheel) is left out: 0.90-0.95x the step, and turns follow the
   command closer. Pyramid instead of cone friction (a further 0.97x) or 3 solver
   iterations (0.96x) move primitives sideways past 5 mm; 4 iterations (0.98x, within the
   machine's noise) bring them to 4.4 mm and the speed error to 1.5 %, so 5 are kept.
