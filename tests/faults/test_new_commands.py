@@ -90,6 +90,15 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      ("q", "found a directory")),
     ("import-log-log-is-a-directory", NO, "import-log {w}/q --states {w}/states.json "
      "--out {w}/il", ("q", "found a directory")),
+    # ---- import-log: outputs in the way, an output that is an input
+    ("import-log-out-is-a-file", NO, "import-log {w}/log.txt --states {w}/states.json "
+     "--out {w}/counts.csv", ("counts.csv", "not a directory")),
+    ("import-log-out-is-the-log", NO, "import-log {w}/log.txt --states {w}/states.json "
+     "--out {w}/log.txt --overwrite", ("log.txt",)),
+    ("import-log-out-holds-the-inputs", NO, "import-log {w}/log.txt --states {w}/states.json "
+     "--out {w} --overwrite", ("not a dataset",)),
+    ("import-log-out-has-a-dataset", NO, "import-log {w}/log.txt --states {w}/states.json "
+     "--out {w}/data", ("data", "--overwrite")),
     # ---- a count of states the arena cannot hold: before the mapping
     ("pipeline-states-beyond-the-floor", NO, "pipeline --states 100000 --out {w}/p "
      "--no-progress", ("states", "100000", "pixels")),

@@ -26,6 +26,8 @@ WRITERS = {
     "pipeline": "pipeline --out {w}/busy --no-progress --map-minutes 0.05",
     "replay": "replay --states {w}/states.json --qtables {w}/q --hours 0.005 "
               "--baseline-hours 0 --out {w}/busy --no-progress",
+    "import-log": "import-log {w}/log.txt --states {w}/states.json --out {w}/busy",
+    "social-pipeline": "social-pipeline --out {w}/busy --trials 200 --runs 1 --hours 0.002",
 }
 
 
