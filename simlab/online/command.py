@@ -26,8 +26,9 @@ stable, 188 after the goal change (published 229 and 194); window 2: 124 stable 
 Decisions (initial values, which the papers do not give): MB values the pairs it has not
 tried at simlab's optimistic ``r_max / (1 - gamma)`` (:mod:`simlab.agents.config`) and MF
 its untried actions at ``r_max`` = 1 (one reward now). Measured on the 38-state model of
-:mod:`simlab.online.synthetic` (8 runs x 3,200 decisions, goal 18): an MB starting at 0
-stops exploring on the first route it finds (~45 % less reward on the corridor variant);
+:mod:`simlab.online.synthetic` (8 runs x 3,200 decisions, goal 18, count-model MB): an MB
+starting at 0 stops exploring on the first route it finds (~45 % less reward on a
+corridor-only layout of the same size);
 an MF starting at 0 is certain (entropy ~0) after one rewarded visit, so the entropy
 criteria hand it control too early (entropy_and_cost kappa 1: 90 % of MB's reward at 5 % of
 its cost, against 92-97 % at 30-35 % with MF at 1); an MF at ``r_max / (1 - gamma)`` = 10
