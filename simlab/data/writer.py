@@ -219,10 +219,25 @@ def _part_table(walk: TransitionArrays, rows: slice, w: int, p: int, states: tup
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
+def _killed_run_leftovers(out: Path, entries: list[Path]) -> bool:
+    """True when ``entries`` are only part files (in ``parts/`` or the top level) and no
+    manifest: what a writer killed before its manifest leaves (never a dataset, since the
+    manifest makes one). The caller holds the directory's lock, so no live writer owns them."""
+    if manifest_path(out).exists():
+        return False
+    parts_dir = out / PARTS_DIR
+    inner = list(parts_dir.iterdir()) if parts_dir.is_dir() else []
+    return all(parse_part_name(p.name) is not None and p.is_file()
+               for p in inner + [p for p in entries if p != parts_dir]) \
+        and (not parts_dir.exists() or parts_dir.is_dir())
+
+
 def _clear(out: Path, overwrite: bool) -> None:
     entries = [p for p in out.iterdir() if not p.name.startswith(".")]
     if not entries:
         return
+    if not overwrite and _killed_run_leftovers(out, entries):
+        overwrite = True  # a killed write's own parts: removed like an overwrite's
     if not overwrite:
         raise ConfigError("output directory is not empty", path=out,
                           fix="choose another --out or pass --overwrite")

@@ -204,3 +204,18 @@ def test_social_pipeline_on_a_full_disk_names_the_file_and_keeps_the_old_outputs
     assert_refused(res, "no space left", f"{work}/sp/")
     assert tree_hashes(work) == before
     assert [p.name for p in (work / "sp").iterdir()] == ["summary.json"]
+
+
+def test_import_log_rerun_after_a_kill_removes_the_killed_runs_parts(work: Path,
+                                                                     capsys) -> None:
+    argv = f"import-log {work}/log.txt --states {work}/states.json --out {work}/il".split()
+    assert run_cli(argv, capsys).code == 0
+    (work / "il" / "_manifest.json").unlink()  # killed after its parts, before its manifest
+    assert list((work / "il" / "parts").iterdir())
+    res = run_cli(argv, capsys)
+    assert res.code == 0, res.stderr
+    assert (work / "il" / "_manifest.json").is_file()
+    (work / "il" / "_manifest.json").unlink()
+    (work / "il" / "notes.txt").write_text("mine")  # not only parts: not ours to remove
+    assert_refused(run_cli(argv, capsys), "not empty", "--overwrite")
+    assert (work / "il" / "notes.txt").read_text() == "mine"
