@@ -11,7 +11,7 @@ searched space, so that the twin can only approximate them:
 * drive until the state changes at a hidden speed, time limit and detector margin;
 * wheel noise redrawn at every control tick and a random slip of up to 8 % of each move
   (the twin searches only a per-move wheel noise);
-* states from a pose with 6 cm of localization error.
+* states from a pose with 4 cm of localization error.
 
 Prints the real table's signature, then the calibration's figures against the targets: the
 visit-weighted TV distance against the bootstrap and matched floors, coverage, the
@@ -38,7 +38,7 @@ import numpy as np
 
 #: The hidden robot (see the module docstring).
 HIDDEN = dict(mode="until_state_change", fast_speed=0.18, max_drive_time=7.0,
-              detector_margin=0.06, wheel_noise_tick=0.02, slip=0.08, pose_noise_xy=0.06)
+              detector_margin=0.06, wheel_noise_tick=0.02, slip=0.08, pose_noise_xy=0.04)
 REAL_HOURS = 13.0
 REAL_TRANSITIONS = 5357
 
@@ -67,10 +67,14 @@ def build_lab(directory: Path, n_states: int = 38) -> tuple[Path, Path]:
     return arena, states
 
 
-def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float) -> dict:
+def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float,
+                workers: int) -> dict:
     """Collect the hidden robot's walk and write its counts (CSV); returns a summary."""
     from simlab.actions import parse_action_set
     from simlab.calibration.search import simulate_counts
+    from simlab.data.collect import collect
+    from simlab.data.dataset import read_dataset
+    from simlab.data.estimate import count_transitions
     from simlab.physics.motion import PrimitiveParams
 
     aset = parse_action_set(8, "ccw-east", "fast")
@@ -80,13 +84,19 @@ def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float) -
                             action_set=aset, start_states="all")
     latency = max(0.0, 3600 * REAL_HOURS / REAL_TRANSITIONS - short.mean_duration)
     params = PrimitiveParams(**HIDDEN, decision_latency=latency)
-    sim = simulate_counts(arena, states, params, hours=hours, seed=seed, action_set=aset,
-                          start_states="all")
-    s, a, s2 = np.nonzero(sim.counts)
-    lines = ["s,a,s_next,count"] + [f"{i},{j},{k},{sim.counts[i, j, k]}"
+    walk = out.with_suffix("")
+    collect(arena, states, out=walk, hours=hours, seed=seed, workers=workers, params=params,
+            n_actions=8, convention="ccw-east", speed="fast", start_states="all",
+            progress=False)
+    t = read_dataset(walk)
+    counts = count_transitions(t.column("s").to_numpy(), t.column("a").to_numpy(),
+                               t.column("s_next").to_numpy(), 38, aset.n_actions)
+    s, a, s2 = np.nonzero(counts)
+    lines = ["s,a,s_next,count"] + [f"{i},{j},{k},{counts[i, j, k]}"
                                     for i, j, k in zip(s, a, s2, strict=True)]
     out.write_text("\n".join(lines) + "\n")
-    return {"transitions": int(sim.counts.sum()), "hours": sim.hours, "latency": latency}
+    real_hours = float((t.column("duration").to_numpy() + latency).sum()) / 3600
+    return {"transitions": int(counts.sum()), "hours": real_hours, "latency": latency}
 
 
 def main() -> None:
@@ -95,6 +105,8 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=7, help="seed of the hidden walk")
     parser.add_argument("--keep", type=Path, default=None, help="keep the files here")
+    parser.add_argument("--reuse", action="store_true",
+                        help="reuse the lab and hidden walk already in --keep")
     args = parser.parse_args()
 
     from simlab.calibration.signature import real_signature
@@ -104,9 +116,15 @@ def main() -> None:
     root = args.keep or Path(tempfile.mkdtemp(prefix="simlab-twin-"))
     root.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    arena, states = build_lab(root)
     real_csv = root / "real.csv"
-    info = hidden_real(arena, states, real_csv, args.seed, 2.0 if args.quick else REAL_HOURS)
+    if args.reuse and (root / "real.json").is_file():
+        arena, states = root / "lab.toml", root / "states.json"
+        info = json.loads((root / "real.json").read_text())
+    else:
+        arena, states = build_lab(root)
+        info = hidden_real(arena, states, real_csv, args.seed,
+                           2.0 if args.quick else REAL_HOURS, args.workers)
+        (root / "real.json").write_text(json.dumps(info))
     t_real = time.perf_counter() - t0
     disc = load_discretizer(states)
     counts = load_counts(real_csv, n_states=int(disc.n_states), n_actions=8).counts

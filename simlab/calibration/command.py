@@ -179,9 +179,9 @@ class CalibrateConfig(ActionSetOptions):
     screen_share: float = option(0.25, "screening walk size as a share of the real "
                                  "transitions")
     candidates: int = option(16, "candidates screened, the starting point included")
-    confirm_top: int = option(3, "best screened candidates re-simulated on fresh seeds "
+    confirm_top: int = option(2, "best screened candidates re-simulated on fresh seeds "
                               "(the starting point too); the winner is picked there")
-    confirm_seeds: int = option(2, "fresh seeds of each confirmed candidate")
+    confirm_seeds: int = option(1, "fresh seeds of each confirmed candidate")
     confirm_hours: float | None = option(
         None, "simulated hours of each confirming walk (default: sized from the matched "
         "floor, printed in the report)")

@@ -12,7 +12,7 @@ miss (``unvisited = "max"``), so a candidate cannot win by covering less.
 **Budgets** are sized from the real table (:func:`size_budgets`): the screening walks have
 ``screen_share`` of the real transitions (cheap and noisy), the confirming walks the
 smallest multiple of them whose *matched floor* (the distance at which a perfect simulator
-with that many transitions would still lie from the real table) is within 25 % of the
+with that many transitions would still lie from the real table) is within 35 % of the
 bootstrap floor of the real table itself; the report prints the whole table of budgets.
 
 **Common random numbers**: every candidate walks with the same seed, so the same action
@@ -176,8 +176,8 @@ class CalibrationConfig:
     progress: bool = True
     screen_share: float = 0.25
     confirm_hours: float | None = None
-    confirm_top: int = 3
-    confirm_seeds: int = 2
+    confirm_top: int = 2
+    confirm_seeds: int = 1
     transfer_seeds: int = 5
     start_states: Any = "all"
     address: str | None = None
@@ -367,9 +367,11 @@ class Budgets:
 
 
 #: Multiples of the real transitions tried for the confirming budget, and the tolerance:
-#: the smallest multiple whose matched floor is within 25 % of the real bootstrap floor.
+#: the smallest multiple whose matched floor is within 35 % of the real bootstrap floor.
+#: (On a 38-state lab with 5,300 real transitions: 1.5 x, matched floor 1.32 x the floor; a
+#: 25 % tolerance asks 2 x, which doubles the confirming and twin walks for 7 % less floor.)
 BUDGET_MULTIPLES = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
-BUDGET_TOLERANCE = 1.25
+BUDGET_TOLERANCE = 1.35
 
 
 def size_budgets(real: RealTable, config: CalibrationConfig, floor: Floor,
