@@ -29,7 +29,7 @@ import numpy as np
 
 from simlab.errors import ConfigError
 from simlab.visitlab.grid import Layout
-from simlab.visitlab.training import SeedRun, loop_agent_config, run_seed
+from simlab.visitlab.training import EnvSpec, ObserverSpec, SeedRun, loop_agent_config, run_seed
 
 
 def observer_run(task: str, actor: str, trials: int,
@@ -49,8 +49,8 @@ def observer_run(task: str, actor: str, trials: int,
                           fix="use mb-egreedy, vi-softmax, rmax or sliding-window")
     cfg = loop_agent_config(actor, task, variant, actor_overrides)
     observer = loop_agent_config("q-learning", task, variant, observer_overrides)
-    return run_seed(task, cfg, trials, gens, variant=variant, env_kwargs=env_kwargs,
-                    observer=observer, takeover_fraction=takeover_fraction)
+    return run_seed(EnvSpec(task, variant, dict(env_kwargs or {})), cfg, trials, gens,
+                    observer=ObserverSpec(observer, takeover_fraction))
 
 
 def nav_optimal_q(layout: Layout, gamma: float = 0.9, tol: float = 1e-10,

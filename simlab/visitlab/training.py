@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -262,6 +262,36 @@ def make_env(task: str, **env_kwargs: Any):
     return classes[task](**env_kwargs)
 
 
+@dataclass(frozen=True)
+class EnvSpec:
+    """Which Visit-the-lab env a run trains on, as a picklable record (worker processes
+    build their own env from it).
+
+    Attributes:
+        task: ``nav``, ``social`` or ``gotohuman``.
+        variant: ``thesis`` or ``paper`` (see the module docstring).
+        kwargs: the env's other keyword arguments (``human``, ``layout``, ``episode``,
+            ``max_steps``, ...).
+    """
+
+    task: str
+    variant: str = "thesis"
+    kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def make(self):
+        """The (unwrapped) env: :func:`make_env`."""
+        return make_env(self.task, variant=self.variant, **self.kwargs)
+
+
+@dataclass(frozen=True)
+class ObserverSpec:
+    """A passive Q-learner watching a run (:func:`with_observer`): its config and the
+    share of the trials after which it takes control (1.0: it only watches)."""
+
+    config: QLearningConfig
+    takeover_fraction: float = 0.5
+
+
 def parse_value(text: str) -> Any:
     """The value a command-line word spells (``--set``, ``--start``, ``--goal``): ``none``
     / ``null`` -> None, ``true`` / ``false``, a whole or decimal number, else the text."""
@@ -455,7 +485,8 @@ def train(
     check_memory(array_bytes((seeds, trials)) + array_bytes((seeds, n_states, n_actions)),
                  what=f"learning curves of {seeds} seeds x {trials} trials and their Q-tables",
                  key="trials", fix="fewer --trials or --seeds")
-    jobs = [(task, variant, env_kwargs, cfg, trials, g, q0)
+    spec = EnvSpec(task, variant, dict(env_kwargs))
+    jobs = [(spec, cfg, trials, g, q0)
             for g, q0 in zip(seed_generators(seed, seeds), q0s, strict=True)]
     start = time.perf_counter()
     returns, qs = _run_seeds(jobs, (n_states, n_actions), workers,
@@ -585,7 +616,7 @@ def _run_seeds(jobs: list[tuple[Any, ...]], shape: tuple[int, int], workers: int
     worker pool: results do not depend on it) -> returns (seeds, trials), Q (seeds, S, A)."""
     from tqdm.auto import tqdm
 
-    seeds, trials = len(jobs), jobs[0][4]
+    seeds, trials = len(jobs), jobs[0][2]
     returns = np.zeros((seeds, trials), dtype=np.float64)
     qs = np.zeros((seeds, *shape), dtype=np.float64)
     with tqdm(total=seeds * trials, disable=not desc, unit="trial", desc=desc or None) as bar:
@@ -662,13 +693,12 @@ class SeedRun:
     steps: int = 0
 
 
-def _seed_curve(task: str, variant: str, env_kwargs: dict[str, Any], cfg: Any, trials: int,
+def _seed_curve(env: EnvSpec, cfg: Any, trials: int,
                 gens: tuple[np.random.Generator, np.random.Generator],
                 q0: np.ndarray | None, on_chunk: Any = None) -> tuple[np.ndarray, np.ndarray]:
     """One seed of :func:`train`: ``(returns (trials,), final Q (S, A))`` (the observer's
     Q for a passive observer)."""
-    run = run_seed(task, cfg, trials, gens, variant=variant, env_kwargs=env_kwargs,
-                   initial_q=q0, on_chunk=on_chunk)
+    run = run_seed(env, cfg, trials, gens, initial_q=q0, on_chunk=on_chunk)
     return run.returns, (run.q_observer if run.q_observer is not None else run.q)
 
 
@@ -687,36 +717,36 @@ def _next_chunk(done: int, seconds: float, most: int) -> int:
     return max(1, min(most, 2 * done, int(done * CHUNK_SECONDS / seconds)))
 
 
-def run_seed(task: str, cfg: Any, trials: int, gens: tuple[np.random.Generator,
-                                                           np.random.Generator], *,
-             variant: str = "thesis", env_kwargs: dict[str, Any] | None = None,
-             observer: QLearningConfig | None = None, takeover_fraction: float = 0.5,
-             initial_q: np.ndarray | None = None, keep_model: bool = False,
-             on_chunk: Any = None) -> SeedRun:
-    """One seeded run of agent config ``cfg`` (from :func:`loop_agent_config`).
+def run_seed(env_spec: EnvSpec, cfg: Any, trials: int,
+             gens: tuple[np.random.Generator, np.random.Generator], *,
+             observer: ObserverSpec | None = None, initial_q: np.ndarray | None = None,
+             keep_model: bool = False, on_chunk: Any = None) -> SeedRun:
+    """One seeded run of agent config ``cfg`` (from :func:`loop_agent_config`) on the env
+    of ``env_spec``.
 
     The building block of :func:`train` for callers that spread seeds over their own
     workers (``simlab reproduce``): with ``gens = seed_generators(seed, n)[i]`` it gives
     exactly seed ``i`` of ``train(..., seeds=n, seed=seed)``. ``observer`` adds a
-    passive Q-learner (:func:`with_observer`) taking over after ``takeover_fraction``
-    of the trials (1.0: it only watches). ``initial_q`` starts the actor's Q (the
+    passive Q-learner (:func:`with_observer`) taking over after its
+    ``takeover_fraction`` of the trials. ``initial_q`` starts the actor's Q (the
     observer's for the registry's ``passive-observer``); ``keep_model`` returns the
     actor's count model as arrays. ``on_chunk(n)`` is called after each chunk of ``n``
     trials (progress bars).
     """
-    env = make_env(task, variant=variant, **(env_kwargs or {}))
-    runner = _Runner(env, task)
+    env = env_spec.make()
+    runner = _Runner(env, env_spec.task)
     registry_observer = isinstance(cfg, PassiveObserverConfig)
     if registry_observer and observer is not None:
         raise ConfigError("the passive-observer agent already has an observer", key="observer")
-    fraction = cfg.takeover_fraction if registry_observer else takeover_fraction
+    fraction = (cfg.takeover_fraction if registry_observer
+                else 0.5 if observer is None else observer.takeover_fraction)
     if not 0.0 <= float(fraction) <= 1.0:
         raise ConfigError(f"expected a fraction in [0, 1], got {fraction!r}",
                           key="takeover_fraction")
     takeover = round(fraction * trials) if (registry_observer or observer is not None) else -1
     lr = make_learner(cfg, runner.n_states, runner.n_actions, takeover)
     if observer is not None:
-        lr = with_observer(lr, observer, takeover)
+        lr = with_observer(lr, observer.config, takeover)
     if initial_q is not None:
         target = lr.observer.Q if registry_observer else lr.Q
         target[...] = initial_q

@@ -11,7 +11,7 @@ from simlab.visitlab.adaptability import BASE_HUMAN, continue_learning, thesis_h
 from simlab.visitlab.combined import CombinedTask, Modules, evaluate
 from simlab.visitlab.humans import PRESETS
 from simlab.visitlab.passive import nav_optimal_q
-from simlab.visitlab.training import loop_agent_config, run_seed, seed_generators
+from simlab.visitlab.training import EnvSpec, loop_agent_config, run_seed, seed_generators
 
 
 def test_the_three_humans_differ_from_the_training_human_in_one_parameter():
@@ -35,10 +35,10 @@ def trained():
     (the social model kept)."""
     task = CombinedTask(human=BASE_HUMAN, max_steps=30)
     social_cfg = loop_agent_config("mb-egreedy", "social")
-    social = run_seed("social", social_cfg, 4000, seed_generators(1, 1)[0],
-                      env_kwargs={"human": BASE_HUMAN}, keep_model=True)
+    social = run_seed(EnvSpec("social", kwargs={"human": BASE_HUMAN}), social_cfg, 4000,
+                      seed_generators(1, 1)[0], keep_model=True)
     assert social.returns.sum() > 0 and social.q.any()  # it learned something to carry
-    gth = run_seed("gotohuman", loop_agent_config("mb-egreedy", "gotohuman"), 200,
+    gth = run_seed(EnvSpec("gotohuman"), loop_agent_config("mb-egreedy", "gotohuman"), 200,
                    seed_generators(1, 1)[0])
     return task, Modules(nav_optimal_q(task.layout), social.q, gth.q), social.model
 

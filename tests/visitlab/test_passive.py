@@ -10,7 +10,13 @@ from simlab.agents.registry import make_agent
 from simlab.errors import ConfigError
 from simlab.visitlab.grid import gridworld
 from simlab.visitlab.passive import nav_optimal_q, observer_run
-from simlab.visitlab.training import loop_agent_config, make_env, run_seed, seed_generators
+from simlab.visitlab.training import (
+    EnvSpec,
+    loop_agent_config,
+    make_env,
+    run_seed,
+    seed_generators,
+)
 
 NAV = {"start": "random", "goal": "random"}
 
@@ -21,7 +27,7 @@ def test_observer_q_equals_a_q_learner_fed_the_actors_transitions(actor):
     overrides = {"plan_every": 300}
     # the actor alone, and the same actor watched for the whole run
     cfg = loop_agent_config(actor, "nav", "thesis", overrides)
-    alone = run_seed("nav", cfg, trials, seed_generators(6, 1)[0], env_kwargs=NAV)
+    alone = run_seed(EnvSpec("nav", kwargs=NAV), cfg, trials, seed_generators(6, 1)[0])
     watched = observer_run("nav", actor, trials, seed_generators(6, 1)[0],
                            takeover_fraction=1.0, actor_overrides=overrides, env_kwargs=NAV)
     np.testing.assert_array_equal(watched.returns, alone.returns)  # watching changes nothing
@@ -55,8 +61,8 @@ def test_observer_takes_over_at_half_of_the_run():
     trials = 40
     overrides = {"plan_every": 300}
     cfg = loop_agent_config("mb-egreedy", "nav", "thesis", overrides)
-    half = run_seed("nav", cfg, trials // 2, seed_generators(2, 1)[0], env_kwargs=NAV)
-    full = run_seed("nav", cfg, trials, seed_generators(2, 1)[0], env_kwargs=NAV)
+    half = run_seed(EnvSpec("nav", kwargs=NAV), cfg, trials // 2, seed_generators(2, 1)[0])
+    full = run_seed(EnvSpec("nav", kwargs=NAV), cfg, trials, seed_generators(2, 1)[0])
     run = observer_run("nav", "mb-egreedy", trials, seed_generators(2, 1)[0],
                        takeover_fraction=0.5, actor_overrides=overrides, env_kwargs=NAV)
     # the first half is the actor's, the second the observer's

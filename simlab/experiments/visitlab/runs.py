@@ -184,7 +184,7 @@ def train_job(spec: dict[str, Any], seed: int, index: int) -> Any:
     """Seed ``index`` of the run ``spec`` (a :meth:`RunSpec.key` dict): a
     :class:`~simlab.visitlab.training.SeedRun` (module-level, for ``ctx.map``)."""
     from simlab.visitlab.passive import observer_run
-    from simlab.visitlab.training import loop_agent_config, run_seed, seed_generators
+    from simlab.visitlab.training import EnvSpec, loop_agent_config, run_seed, seed_generators
 
     gens = seed_generators(int(seed), int(spec["seeds"]))[int(index)]
     env = env_kwargs(spec["env"])
@@ -193,8 +193,8 @@ def train_job(spec: dict[str, Any], seed: int, index: int) -> Any:
                             takeover_fraction=float(spec["takeover"]), variant=spec["variant"],
                             actor_overrides=dict(spec["overrides"]), env_kwargs=env)
     cfg = loop_agent_config(spec["agent"], spec["task"], spec["variant"], dict(spec["overrides"]))
-    return run_seed(spec["task"], cfg, int(spec["trials"]), gens, variant=spec["variant"],
-                    env_kwargs=env, keep_model=bool(spec["keep_model"]))
+    return run_seed(EnvSpec(spec["task"], spec["variant"], dict(env)), cfg, int(spec["trials"]),
+                    gens, keep_model=bool(spec["keep_model"]))
 
 
 def _load_run(spec: RunSpec, d: Path, built: bool) -> RunData:
