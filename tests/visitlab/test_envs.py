@@ -11,7 +11,14 @@ import simlab  # noqa: F401  (registers the ids)
 from simlab.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import DIR_DELTA, Action
-from simlab.visitlab.envs import GoToHumanEnv, NavEnv, SocialEnv, decode_gth, encode_social
+from simlab.visitlab.envs import (
+    GoToHumanEnv,
+    NavEnv,
+    SocialEnv,
+    StartPoses,
+    decode_gth,
+    encode_social,
+)
 
 ENV_CASES = [
     ("simlab/VisitLab-Nav-v0", {}),
@@ -149,7 +156,8 @@ def test_gth_episode_variants():
 
 
 def test_gth_reward_in_facing_field_at_appropriate_distance():
-    env = GoToHumanEnv(episode="fixed", robot_cell=(7, 12), human_ori=0)  # human faces UP
+    # the human faces UP
+    env = GoToHumanEnv(episode="fixed", start=StartPoses(robot_cell=(7, 12), human_ori=0))
     obs, info = env.reset(seed=0)
     assert decode_gth(obs) == (0, 4, int(Action.DOWN))  # 5 cells above: too far
     obs, r, *_ , info = env.step(int(Action.DOWN))  # (8, 12): Manhattan 4, class 3

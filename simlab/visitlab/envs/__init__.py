@@ -26,7 +26,7 @@ from simlab.visitlab.envs.base import (
     decode_social,
     encode_social,
 )
-from simlab.visitlab.envs.gotohuman import GoToHumanEnv
+from simlab.visitlab.envs.gotohuman import GoToHumanEnv, StartPoses
 from simlab.visitlab.envs.nav import NavEnv
 from simlab.visitlab.envs.social import SocialEnv
 
@@ -40,6 +40,7 @@ __all__ = [
     "NavKernelArgs",
     "SocialEnv",
     "SocialKernelArgs",
+    "StartPoses",
     "decode_gth",
     "decode_social",
     "encode_social",

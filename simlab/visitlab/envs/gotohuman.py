@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,19 @@ from simlab.visitlab.perception import Perception, perception_for
 from simlab.visitlab.render import Scene
 
 
+@dataclass(frozen=True)
+class StartPoses:
+    """Where robot and human start when the episode variant fixes it (thesis Fig. 4.4):
+    cells as an index or ``(row, col)`` (the human's also ``"center"``), orientations
+    0-7 (:mod:`simlab.visitlab.actions`). Default: robot at (2, 2) facing DOWN, human at
+    the centre facing UP."""
+
+    robot_cell: int | tuple[int, int] = (2, 2)
+    human_cell: int | tuple[int, int] | str = "center"
+    robot_ori: int = 1
+    human_ori: int = 0
+
+
 class GoToHumanEnv(VisitLabEnv):
     """``simlab/VisitLab-GoToHuman-v0`` — reach the human's facing field (thesis 2.1.3).
 
@@ -36,10 +50,10 @@ class GoToHumanEnv(VisitLabEnv):
         The robot must get in front of a human: into the human's facing field, with
         line of sight, at distance class 1-3. ``episode`` (thesis Fig. 4.4):
         ``"random"`` — positions and orientations drawn each episode;
-        ``"fixed_positions"`` — robot at ``robot_cell``, human at ``human_cell``,
-        orientations random; ``"fixed"`` — positions and orientations fixed
-        (``robot_ori``, ``human_ori``). Defaults: robot at (2, 2) facing DOWN, human at
-        the centre facing UP. The human stands still unless ``human`` is given (a
+        ``"fixed_positions"`` — robot and human at the cells of ``start``
+        (:class:`StartPoses`), orientations random; ``"fixed"`` — positions and
+        orientations of ``start``. Default ``start``: robot at (2, 2) facing DOWN, human
+        at the centre facing UP. The human stands still unless ``human`` is given (a
         preset name or :class:`Human`): then it walks and turns like a human who is
         not engaged (r_H, O_H, s_H).
 
@@ -70,10 +84,7 @@ class GoToHumanEnv(VisitLabEnv):
         episode: str = "random",
         layout: Layout | str | None = None,
         human: Human | str | None = None,
-        robot_cell: int | tuple[int, int] = (2, 2),
-        human_cell: int | tuple[int, int] | str = "center",
-        robot_ori: int = 1,
-        human_ori: int = 0,
+        start: StartPoses = StartPoses(),
         max_steps: int | str | None = VARIANT_STEPS,
         perception: Perception | None = None,
         layout_seed: int | None = None,
@@ -90,12 +101,13 @@ class GoToHumanEnv(VisitLabEnv):
         self.perception = perception if perception is not None else perception_for(variant)
         self.human = None if human is None else resolve_human(human, "easy")
         named = {"center": centre(self.layout), "centre": centre(self.layout)}
-        self.robot_cell = cell_option(robot_cell, self.layout, "robot_cell", {})
-        self.human_cell = cell_option(human_cell, self.layout, "human_cell", named)
+        self.robot_cell = cell_option(start.robot_cell, self.layout, "start.robot_cell", {})
+        self.human_cell = cell_option(start.human_cell, self.layout, "start.human_cell", named)
         if self.robot_cell == self.human_cell:
-            raise ConfigError("robot and human cannot start on the same cell", key="robot_cell")
-        self.robot_ori = direction_option(robot_ori, "robot_ori")
-        self.human_ori = direction_option(human_ori, "human_ori")
+            raise ConfigError("robot and human cannot start on the same cell",
+                              key="start.robot_cell")
+        self.robot_ori = direction_option(start.robot_ori, "start.robot_ori")
+        self.human_ori = direction_option(start.human_ori, "start.human_ori")
         self.max_steps = check_steps(max_steps, 40 if thesis else 20)
         self._hp = (self.human.to_array() if self.human is not None
                     else np.zeros(8, dtype=np.float64))
