@@ -267,11 +267,11 @@ def output_transaction(out: str | os.PathLike[str], finals: Any = (), *, overwri
                 out.rmdir()  # only if empty: a failed first run must not block the rerun
         if isinstance(exc, OSError) and exc.filename is not None \
                 and STAGING_PREFIX in str(exc.filename):
-            raise _unstaged(exc, out) from exc
+            raise unstaged_error(exc, out) from exc
         raise
 
 
-def _unstaged(exc: OSError, out: Path) -> OSError:
+def unstaged_error(exc: OSError, out: Path) -> OSError:
     """``exc`` naming the final output instead of its staged copy
     (``out/.simlab-staging-x/q_N.npz`` -> ``out/q_N.npz``): messages name the user's
     files, never simlab's hidden ones."""

@@ -24,8 +24,13 @@ source, the discretizer (hash, centres) and the caller's free-form ``provenance`
 Decisions: a writer run produces a complete dataset (``complete: true``) and cannot be
 resumed (there is nothing to re-run); ``seed`` is recorded as given (0 by default: data
 that was not simulated has none). An existing non-empty directory is refused unless
-``overwrite``; with it the old manifest is removed first, then the old parts, so a crash
-midway leaves a directory no reader accepts rather than a mixture of two datasets.
+``overwrite``. The new parts and manifest are written in a hidden staging directory
+inside ``out`` (``.simlab-staging-*``, removed by the next write after a kill); only once
+they are complete is the old dataset removed (manifest first, then its parts) and the new
+``parts/`` and manifest renamed in, so a failed write (a full disk) leaves the old dataset
+as it was, and a crash in the swap leaves a directory no reader accepts rather than a
+mixture of two datasets. Parts without a manifest (a write killed before the staging
+existed) are removed by the next write without ``overwrite``.
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import shutil
+import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,7 +61,7 @@ from simlab.data.schema import (
     transition_schema,
 )
 from simlab.errors import ConfigError
-from simlab.io import exclusive_directory
+from simlab.io import STAGING_PREFIX, exclusive_directory, unstaged_error
 from simlab.physics.inputs import load_discretizer
 
 #: Rows per part file unless told otherwise.
@@ -232,7 +239,9 @@ def _killed_run_leftovers(out: Path, entries: list[Path]) -> bool:
         and (not parts_dir.exists() or parts_dir.is_dir())
 
 
-def _clear(out: Path, overwrite: bool) -> None:
+def _clear(out: Path, overwrite: bool, remove: bool = True) -> None:
+    """Refuse a directory that is not empty (unless ``overwrite``) or that holds files that
+    are not a dataset's; then, if ``remove``, remove the old dataset (manifest first)."""
     entries = [p for p in out.iterdir() if not p.name.startswith(".")]
     if not entries:
         return
@@ -252,6 +261,8 @@ def _clear(out: Path, overwrite: bool) -> None:
         raise ConfigError(f"directory holds files that are not a dataset's "
                           f"({(foreign or [PARTS_DIR])[0]}, ...); not replacing it", path=out,
                           fix="choose another --out")
+    if not remove:
+        return
     manifest_path(out).unlink(missing_ok=True)
     for p in inner + [p for p in entries if p != parts_dir]:
         p.unlink(missing_ok=True)
@@ -333,17 +344,29 @@ def write_dataset(
     manifest["writer"] = "simlab.data.writer"
     out = Path(out)
     created = not out.exists()
-    with exclusive_directory(out, what="dataset directory"):
-        _clear(out, overwrite)
-        try:
-            written = _write_walks(out, walks, states, info, schema, manifest, part_size, disc)
-        except BaseException:  # a full disk, Ctrl-C: remove this run's parts, so the rerun
-            for entry in manifest["parts"]:  # meets an empty directory, not "not empty"
-                (out / entry["file"]).unlink(missing_ok=True)
-            for d in (out / PARTS_DIR, *((out,) if created else ())):
-                with contextlib.suppress(OSError):
-                    d.rmdir()  # only when empty
-            raise
+    try:
+        with exclusive_directory(out, what="dataset directory"):
+            for stale in out.glob(f"{STAGING_PREFIX}*"):  # a killed write's; we hold the lock
+                shutil.rmtree(stale, ignore_errors=True)
+            _clear(out, overwrite, remove=False)  # refuse before any work
+            staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
+            try:
+                written = _write_walks(staging, walks, states, info, schema, manifest,
+                                       part_size, disc)
+                _clear(out, overwrite)  # the old dataset goes only once the new one is whole
+                os.replace(staging / PARTS_DIR, out / PARTS_DIR)
+                os.replace(manifest_path(staging), manifest_path(out))  # last: a dataset now
+            except OSError as exc:  # name the user's dataset, not the staging copy
+                if exc.filename is None or STAGING_PREFIX not in str(exc.filename):
+                    raise
+                raise unstaged_error(exc, out) from exc
+            finally:
+                shutil.rmtree(staging, ignore_errors=True)
+    except BaseException:  # a full disk, Ctrl-C: a first write leaves no directory behind
+        if created:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only when empty
+        raise
     return WriteResult(out=out, manifest=written, rows=sum(len(w) for w in walks))
 
 

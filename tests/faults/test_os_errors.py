@@ -30,6 +30,8 @@ COMMANDS = {
                "--out {w}/new --no-progress",
     "arena-from-map": "arena-from-map {w}/map/map.yaml --out {w}/a.toml --start 0,0,0",
     "import-log": "import-log {w}/log.txt --states {w}/states.json --out {w}/il",
+    "import-log-overwrite": "import-log {w}/log.txt --states {w}/states.json --out {w}/data "
+                            "--overwrite",
     "visitlab-train": "visitlab train --task nav --trials 5 --seeds 1 --out {w}/v "
                       "--no-progress",
 }
