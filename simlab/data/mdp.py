@@ -168,58 +168,23 @@ def mdp_from_arrays(
     arrays or centres of the wrong shape.
     """
     from simlab.agents.planning import validate_mdp
+    from simlab.data.estimate import check_unvisited_rule
 
     path = None if source is None else str(source)
     T = np.asarray(T)
     validate_mdp(T, atol=_ROW_ATOL, path=path, p_name="T")
     T = T.astype(np.float64)
     S, A = T.shape[:2]
-    names: tuple[str, ...] = ()
-    if goal_names is not None or goal_masks is not None:
-        if goal_names is None or goal_masks is None:
-            missing = "goal_masks" if goal_masks is None else "goal_names"
-            raise ConfigError("goal_names and goal_masks come together", path=path, key=missing)
-        names = tuple(str(n) for n in np.asarray(goal_names).ravel())
-        goal_masks = np.asarray(goal_masks)
-        if goal_masks.shape != (len(names), S):
-            raise ConfigError(
-                f"expected shape (G, S) = ({len(names)}, {S}), got {goal_masks.shape}",
-                path=path,
-                key="goal_masks",
-            )
-        if len(set(names)) != len(names):
-            raise ConfigError(f"duplicate goal names in {list(names)}", path=path, key="goal_names")
-        goal_masks = goal_masks.astype(bool)
-    if centres is not None:
-        centres = np.asarray(centres, dtype=np.float64)
-        if centres.shape != (S, 2):
-            raise ConfigError(
-                f"expected shape (S, 2) = ({S}, 2), got {centres.shape}", path=path, key="centres"
-            )
-    bounds_t = None
-    if bounds is not None:
-        b = np.asarray(bounds, dtype=np.float64).ravel()
-        if b.shape != (4,) or not (b[0] < b[2] and b[1] < b[3]):
-            raise ConfigError(
-                f"expected (x_min, y_min, x_max, y_max) with min < max, got {b.tolist()}",
-                path=path,
-                key="bounds",
-            )
-        bounds_t = (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
+    names, goal_masks = _checked_goals(goal_names, goal_masks, S, path)
+    centres = _checked_centres(centres, S, path)
+    bounds_t = None if bounds is None else _checked_bounds(bounds, path)
     for name, arr, shape in (("counts", counts, (S, A, S)), ("visited", visited, (S, A)),
                              ("entropy", entropy, (S, A))):  # fmt: skip
         if arr is not None and np.shape(arr) != shape:
             raise ConfigError(f"expected shape {shape}, got {np.shape(arr)}", path=path, key=name)
     if counts is not None:
         counts = _check_counts(np.asarray(counts), path, "counts")
-    from simlab.data.estimate import check_unvisited_rule
-
     check_unvisited_rule(unvisited)
-    if action_set is None and A == 16:
-        action_set = action_set_from_metadata(None, A, where=path or "mdp")
-    if action_set is not None and action_set.n_actions != A:
-        raise ConfigError(f"action_set says {action_set.n_actions} actions, T has {A}",
-                          path=path, key="action_set")
     return EmpiricalMDP(
         T=_readonly(T),
         goal_names=names,
@@ -230,9 +195,61 @@ def mdp_from_arrays(
         visited=_readonly(visited),
         entropy=_readonly(entropy),
         source=path,
-        action_set=action_set,
+        action_set=_checked_action_set(action_set, A, path),
         unvisited=unvisited,
     )
+
+
+def _checked_goals(goal_names: Any, goal_masks: np.ndarray | None, S: int, path: str | None
+                   ) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """``(names (G,), masks (G, S) bool)``: both or neither given, one mask row of S
+    states per name, names unique."""
+    if goal_names is None and goal_masks is None:
+        return (), None
+    if goal_names is None or goal_masks is None:
+        missing = "goal_masks" if goal_masks is None else "goal_names"
+        raise ConfigError("goal_names and goal_masks come together", path=path, key=missing)
+    names = tuple(str(n) for n in np.asarray(goal_names).ravel())
+    goal_masks = np.asarray(goal_masks)
+    if goal_masks.shape != (len(names), S):
+        raise ConfigError(f"expected shape (G, S) = ({len(names)}, {S}), got {goal_masks.shape}",
+                          path=path, key="goal_masks")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"duplicate goal names in {list(names)}", path=path, key="goal_names")
+    return names, goal_masks.astype(bool)
+
+
+def _checked_centres(centres: np.ndarray | None, S: int, path: str | None
+                     ) -> np.ndarray | None:
+    """``centres`` as (S, 2) float64 metres (None stays None)."""
+    if centres is None:
+        return None
+    centres = np.asarray(centres, dtype=np.float64)
+    if centres.shape != (S, 2):
+        raise ConfigError(f"expected shape (S, 2) = ({S}, 2), got {centres.shape}", path=path,
+                          key="centres")
+    return centres
+
+
+def _checked_bounds(bounds: Any, path: str | None) -> tuple[float, float, float, float]:
+    """``(x_min, y_min, x_max, y_max)`` metres, each min below its max."""
+    b = np.asarray(bounds, dtype=np.float64).ravel()
+    if b.shape != (4,) or not (b[0] < b[2] and b[1] < b[3]):
+        raise ConfigError(f"expected (x_min, y_min, x_max, y_max) with min < max, got "
+                          f"{b.tolist()}", path=path, key="bounds")
+    return (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
+
+
+def _checked_action_set(action_set: ActionSet | None, A: int, path: str | None
+                        ) -> ActionSet | None:
+    """The action set of an MDP with ``A`` actions: the given one (refused when its size is
+    not A), simlab's 16 primitives when A is 16, else None."""
+    if action_set is None and A == 16:
+        action_set = action_set_from_metadata(None, A, where=path or "mdp")
+    if action_set is not None and action_set.n_actions != A:
+        raise ConfigError(f"action_set says {action_set.n_actions} actions, T has {A}",
+                          path=path, key="action_set")
+    return action_set
 
 
 def _check_counts(counts: np.ndarray, path: str | None, key: str) -> np.ndarray:
