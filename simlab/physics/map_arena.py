@@ -176,6 +176,11 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
         goals = [(f"s{i}", float(x), float(y)) for i, (x, y) in enumerate(centres)]
     else:
         goals = _auto_goals(grid, clear, goal_radius)
+        if not goals:
+            raise ConfigError(f"no ninth of the map has a free point {goal_radius:g} m from "
+                              f"the walls (the freest is {clear.max():.3g} m from them)",
+                              key="goal_radius", fix="a smaller --goal-radius, or --states "
+                              "for goals at the state centres")
     if start is not None:
         h, w = grid.occupancy.shape
         x0, y0 = grid.origin[0], grid.origin[1]

@@ -90,6 +90,19 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      ("q", "found a directory")),
     ("import-log-log-is-a-directory", NO, "import-log {w}/q --states {w}/states.json "
      "--out {w}/il", ("q", "found a directory")),
+    # ---- arena-from-map: said of the user's option or file, never of the check file
+    ("arena-from-map-goal-radius-too-big", NO, "arena-from-map {w}/map/map.yaml --out "
+     "{w}/a.toml --goal-radius 5", ("goal_radius", "smaller --goal-radius")),
+    ("arena-from-map-states-of-another-arena", NO, "arena-from-map {w}/map/map.yaml --out "
+     "{w}/a.toml --states {w}/other_states.json", ("other_states.json", "centre 0")),
+    ("arena-from-map-start-in-a-wall", NO, "arena-from-map {w}/map/map.yaml --out "
+     "{w}/a.toml --start 0.74,0.74,0", ("start", "wall", "--start")),
+    ("arena-from-map-start-outside", NO, "arena-from-map {w}/map/map.yaml --out "
+     "{w}/a.toml --start 50,0,0", ("start", "outside the map")),
+    ("arena-from-map-start-state-without-states", NO, "arena-from-map {w}/map/map.yaml "
+     "--out {w}/a.toml --start-state 3", ("start_state", "--states")),
+    ("arena-from-map-start-state-beyond", NO, "arena-from-map {w}/map/map.yaml --out "
+     "{w}/a.toml --states {w}/states.json --start-state 25", ("start_state", "[0, 24]")),
     # ---- import-log: outputs in the way, an output that is an input
     ("import-log-out-is-a-file", NO, "import-log {w}/log.txt --states {w}/states.json "
      "--out {w}/counts.csv", ("counts.csv", "not a directory")),
@@ -119,7 +132,9 @@ def test_bad_input_is_one_line_exit_2_and_nothing_changes(
     before = tree_hashes(work)
     res = run_cli(argv.format(w=work).split(), capsys)
     assert_refused(res, *needles)
+    assert ".check" not in res.stderr and ".simlab-staging" not in res.stderr  # ours, hidden
     assert tree_hashes(work) == before
+    assert not [p for p in work.rglob(".*") if p.name != ".gitkeep"]  # no hidden leftovers
 
 
 def test_train_overwrite_retires_its_own_stale_goals_and_nothing_else(work: Path,
