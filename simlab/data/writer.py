@@ -247,9 +247,6 @@ def _clear(out: Path, overwrite: bool, remove: bool = True) -> None:
         return
     if not overwrite and _killed_run_leftovers(out, entries):
         overwrite = True  # a killed write's own parts: removed like an overwrite's
-    if not overwrite:
-        raise ConfigError("output directory is not empty", path=out,
-                          fix="choose another --out or pass --overwrite")
     parts_dir = out / PARTS_DIR
     inner = sorted(parts_dir.iterdir()) if parts_dir.is_dir() else []
     foreign = [p.name for p in entries
@@ -261,6 +258,9 @@ def _clear(out: Path, overwrite: bool, remove: bool = True) -> None:
         raise ConfigError(f"directory holds files that are not a dataset's "
                           f"({(foreign or [PARTS_DIR])[0]}, ...); not replacing it", path=out,
                           fix="choose another --out")
+    if not overwrite:  # only now: --overwrite is the fix only when it would work
+        raise ConfigError("output directory is not empty: it holds a dataset", path=out,
+                          fix="choose another --out or pass --overwrite")
     if not remove:
         return
     manifest_path(out).unlink(missing_ok=True)

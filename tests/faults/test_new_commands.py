@@ -232,5 +232,7 @@ def test_import_log_rerun_after_a_kill_removes_the_killed_runs_parts(work: Path,
     assert (work / "il" / "_manifest.json").is_file()
     (work / "il" / "_manifest.json").unlink()
     (work / "il" / "notes.txt").write_text("mine")  # not only parts: not ours to remove
-    assert_refused(run_cli(argv, capsys), "not empty", "--overwrite")
+    res = run_cli(argv, capsys)
+    assert_refused(res, "notes.txt", "not replacing it")
+    assert "--overwrite" not in res.stderr  # the hint is given only when it would work
     assert (work / "il" / "notes.txt").read_text() == "mine"
