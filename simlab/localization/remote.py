@@ -29,8 +29,13 @@ from numpy.typing import NDArray
 def _serve(conn: Any, field: Any, seq: np.random.SeedSequence, params: Any,
            initial_pose: NDArray[np.float64], odometry: NDArray[np.float64]) -> None:
     """The worker: an MCLTracker driven by the messages of :class:`RemoteTracker`."""
+    import signal
+
     from simlab.localization.tracker import MCLTracker
 
+    # Ctrl-C in a terminal reaches this process too: the replay (interrupted as well) ends
+    # it by closing the pipe; dying of it here would print a traceback beside "interrupted"
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         field.log_table.setflags(write=False)  # as built (the numba kernel's signature)
         tracker = MCLTracker(field, np.random.default_rng(seq), params,
