@@ -330,8 +330,10 @@ def _check_seed(value: int, name: str) -> None:
     numbers with a bare ``ValueError``: checked here once for every command and every way of
     giving it (option, options file, Python call)."""
     if not 0 <= value <= MAX_SEED:
+        fix = (f"seeds are non-negative: e.g. {-value} instead of {value}" if value < 0
+               and -value <= MAX_SEED else "choose a seed in [0, 2**63 - 1]")
         raise ConfigError(f"expected a whole number in [0, 2**63 - 1], got {value!r}",
-                          key=name, fix="seeds are non-negative: e.g. 5 instead of -5")
+                          key=name, fix=fix)
 
 
 def _plain(value: Any) -> Any:

@@ -193,3 +193,20 @@ def test_the_help_of_a_no_flag_says_it_turns_the_option_off() -> None:
     DemoConfig.add_arguments(parser)
     text = " ".join(parser.format_help().split())
     assert "--no-plot turn off (on by default): write the plot" in text
+
+
+def test_every_seed_is_checked_once_here_with_a_fix_that_fits_it() -> None:
+    with pytest.raises(ConfigError, match=r"seed: .*got -3 \(seeds are non-negative: e\.g\. 3 "):
+        DemoConfig(out=Path("o"), seed=-3)
+    with pytest.raises(ConfigError, match=r"choose a seed in \[0, 2\*\*63 - 1\]"):
+        DemoConfig(out=Path("o"), seed=2**64)
+    assert DemoConfig(out=Path("o"), seed=2**63 - 1).seed == 2**63 - 1
+
+    @dataclass(frozen=True, kw_only=True)
+    class Layout(CommandConfig):
+        layout_seed: int | None = option(None, "seed of a random layout")
+        seeds: int = option(3, "a count, not a seed")
+
+    assert Layout(layout_seed=None, seeds=0).layout_seed is None
+    with pytest.raises(ConfigError, match="layout_seed"):
+        Layout(layout_seed=-1)
