@@ -178,3 +178,13 @@ def test_folding_under_a_bare_root_composes_rotations_and_keeps_friction():
     np.testing.assert_allclose(xyz, [-1.0, 0.0, 0.1], atol=1e-9)  # body's +y is root's -x
     rpy = [float(v) for v in joint.find("origin").get("rpy").split()]
     np.testing.assert_allclose(rpy, [0.0, 0.0, math.pi / 2], atol=1e-9)
+
+
+def test_a_urdf_that_is_not_one_tree_is_refused_naming_the_file(tmp_path):
+    """Positions are composed from the root: two roots leave them undefined."""
+    text = URDF.read_text().replace('<link name="imu_link"/>',
+                                    '<link name="imu_link"/>\n  <link name="stray"/>')
+    path = tmp_path / "two_roots.urdf"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=r"two_roots\.urdf.*one tree.*stray"):
+        load_robot_spec(path)
