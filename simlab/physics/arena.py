@@ -47,7 +47,8 @@ in map coordinates and used unchanged. Walls are extruded (``[walls] height``) f
 occupied pixels, merged into few axis-aligned boxes (:func:`merge_rectangles`); the free
 area is the bounding box of the map's known pixels (plus one pixel), closed by perimeter
 walls of ``[walls] thickness``. ``[start] clearance`` (m, default 0.09: half the Burger's
-width) is the radius of the disc around the start position that must be free of walls.
+width) is the radius of the disc around the start position that must be free of walls and
+obstacles (on every arena: a body started half inside a box is pushed out by the engine).
 
 Every problem raises :class:`~simlab.errors.ConfigError` naming the file and the key.
 """
@@ -518,20 +519,26 @@ def _check_placements(c: _Checker, arena: ArenaConfig, clearance: float) -> None
     """The start in free space (with ``clearance`` m around it on a map arena) and no goal
     centre inside an obstacle or on a wall pixel."""
     sx, sy = arena.start[:2]
+    x0, y0, x1, y1 = arena.bounds
+    if not (x0 <= sx <= x1 and y0 <= sy <= y1):
+        raise c.fail("start.pose", f"start position {arena.start[:2]} is outside the floor "
+                     f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g} m)",
+                     fix="give a start on the floor")
     if arena.occupied(np.array([sx, sy])):
         raise c.fail("start.pose", f"start position {arena.start[:2]} is inside an obstacle "
-                     "or wall")
+                     "or wall", fix="move the start into free space")
+    # the robot's body, a disc of ``clearance`` around the start, must not overlap a wall, a
+    # box or the floor's edge either (a body half inside a box is pushed out by the engine)
+    ang = np.linspace(0.0, 2 * math.pi, 48, endpoint=False)
+    rad = np.linspace(0.0, clearance, 6)[1:, None]
+    disc = np.stack([sx + rad * np.cos(ang), sy + rad * np.sin(ang)], axis=-1)
+    hit = disc[arena.occupied(disc)]
+    if hit.size:
+        raise c.fail("start.pose", f"the robot at {arena.start[:2]} would overlap a wall or "
+                     f"obstacle (e.g. at ({hit[0][0]:.3f}, {hit[0][1]:.3f})) within "
+                     f"{clearance} m", fix="move the start into free space, or lower "
+                     "[start] clearance")
     map_walls = arena.map_walls
-    if map_walls is not None:
-        ang = np.linspace(0.0, 2 * math.pi, 48, endpoint=False)
-        rad = np.linspace(0.0, clearance, 6)[1:, None]
-        disc = np.stack([sx + rad * np.cos(ang), sy + rad * np.sin(ang)], axis=-1)
-        hit = disc[arena.occupied(disc)]
-        if hit.size:
-            raise c.fail("start.pose", f"the robot at {arena.start[:2]} would overlap a wall "
-                         f"(e.g. at ({hit[0][0]:.3f}, {hit[0][1]:.3f})) within {clearance} m",
-                         fix="move the start into free space (map coordinates), or lower "
-                             "[start] clearance")
     for i, g in enumerate(arena.goals):
         if any(ob.contains(np.array([g.x, g.y])) for ob in arena.obstacles):
             raise c.fail(f"goals[{i}].center", f"goal {g.name!r} centre is inside an obstacle")

@@ -99,3 +99,4 @@ def test_a_full_disk_keeps_the_previous_outputs_whole(work: Path, capsys, monkey
     assert_refused(res, "no space left")
     assert tree_hashes(work) == before
     assert not [p for p in (work / "cal").iterdir() if p.name.startswith(".")]
+
