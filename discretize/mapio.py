@@ -89,8 +89,7 @@ def read_map_yaml(path: str | os.PathLike[str]) -> MapYaml:
     raises :class:`ConfigError` too (the YAML points at nothing).
     """
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("map file not found", path=path, fix="give the path of a map.yaml")
+    validation.existing_file(path, what="map file", fix="give the path of a map.yaml")
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:

@@ -302,8 +302,7 @@ class Discretizer:
         """Read a file written by :meth:`save`. Raises :class:`DataError` if it is
         malformed or its ``content_hash`` does not match its centres."""
         path = Path(path)
-        if not path.is_file():
-            raise ConfigError("states file not found", path=path)
+        validation.existing_file(path, what="states file")
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -481,8 +480,7 @@ def read_centres_table(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.nda
     separate the numbers. Raises :class:`ConfigError` naming the file and line.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("centres file not found", path=path)
+    validation.existing_file(path, what="centres file")
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
@@ -552,8 +550,7 @@ def load_states(path: str | os.PathLike[str]) -> Discretizer:
     """A discretizer from a states file: ``simlab discretize`` JSON (``.json`` or content
     starting with ``{``) or a centres text file (file order / ids = state numbers)."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("states file not found", path=path)
+    validation.existing_file(path, what="states file")
     head = path.read_bytes()[:4096].lstrip()
     if path.suffix.lower() == ".json" or head.startswith(b"{"):
         return Discretizer.load(path)

@@ -126,13 +126,15 @@ def choice(value: Any, allowed: Iterable[str], key: str, *, path: Where = None) 
     return value
 
 
-def existing_file(value: Any, key: str, *, what: str = "file") -> Path:
-    """A path to an existing regular file."""
+def existing_file(value: Any, key: str | None = None, *, what: str = "file",
+                  fix: str = "check the path") -> Path:
+    """A path to an existing regular file (a directory there is called one, not "not
+    found")."""
     p = _path(value, key)
     if not p.is_file():
         problem = f"{what} not found" if not p.exists() else f"expected a {what}, found a " \
             "directory" if p.is_dir() else f"expected a {what}"
-        raise ConfigError(problem, path=p, key=key, fix="check the path")
+        raise ConfigError(problem, path=p, key=key, fix=fix)
     return p
 
 
@@ -154,7 +156,7 @@ def spelled_path(value: Any, key: str) -> Any:
     return value
 
 
-def _path(value: Any, key: str) -> Path:
+def _path(value: Any, key: str | None) -> Path:
     if not isinstance(value, str | os.PathLike) or not str(value):
         raise ConfigError(f"expected a path, got {value!r}", key=key)
     return Path(value)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.errors import ConfigError, DataError
 from simlab.io import atomic_write, ensure_new
 
@@ -48,8 +49,7 @@ def load_npz(
     missing arrays.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError("file not found", path=path)
+    validation.existing_file(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
