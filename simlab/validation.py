@@ -179,3 +179,34 @@ def _interval(low: float | None, high: float | None, low_open: bool, high_open: 
     if high is not None:
         parts.append(f"{'<' if high_open else '<='} {high:g}")
     return (" " + " and ".join(parts)) if parts else ""
+
+
+def state_ids(value: Any, key: str) -> tuple[int, ...] | None:
+    """State ids given as ``"18,34"``, one integer or a sequence of integers (None stays
+    None); each a whole number >= 0, none listed twice. Ranges are the caller's (it knows
+    the number of states)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        items: list[Any] = [p.strip() for p in value.split(",") if p.strip()]
+    elif isinstance(value, int | np.integer) and not isinstance(value, bool):
+        items = [value]
+    else:
+        try:
+            items = list(value)
+        except TypeError:
+            items = [value]
+    try:
+        if any(isinstance(x, bool | float | np.floating) for x in items):
+            raise ValueError
+        ids = tuple(int(x) for x in items)
+    except (TypeError, ValueError):
+        raise ConfigError(f"expected state ids such as 18,34, got {value!r}", key=key) \
+            from None
+    if not ids:
+        raise ConfigError("no state given", key=key, fix="e.g. 18 or 18,34")
+    if any(i < 0 for i in ids):
+        raise ConfigError(f"state ids are >= 0, got {list(ids)}", key=key)
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"a state is listed twice in {list(ids)}", key=key)
+    return ids

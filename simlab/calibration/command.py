@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab import validation
 from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
 from simlab.calibration.report import check_outputs, write_outputs
 from simlab.calibration.search import (
@@ -242,7 +243,7 @@ class CalibrateConfig(ActionSetOptions):
             transfer_seeds=self.transfer_seeds, address=self.address,
             start_states=None if str(self.start_states).strip().lower() == "none"
             else self.start_states,
-            goal_states=_state_list(self.goal_states))
+            goal_states=validation.state_ids(self.goal_states, "goal_states"))
 
     def real_action_set(self) -> ActionSet | None:
         """What the real table's actions mean; None when no field of the group was given
@@ -254,22 +255,6 @@ class CalibrateConfig(ActionSetOptions):
         n = 16 if self.n_actions is None else self.n_actions
         return parse_action_set(n, self.convention, self.speed)
 
-
-def _state_list(value: Any) -> tuple[int, ...] | None:
-    """``18,34`` (or a list) as state ids; ConfigError naming ``goal_states`` otherwise."""
-    if value is None:
-        return None
-    items = value.split(",") if isinstance(value, str) else list(value)
-    try:
-        if any(isinstance(x, bool | float) for x in items):
-            raise ValueError
-        ids = tuple(int(str(x).strip()) for x in items)
-    except (TypeError, ValueError):
-        raise ConfigError(f"expected state numbers such as 18,34, got {value!r}",
-                          key="goal_states") from None
-    if not ids:
-        raise ConfigError("no goal state given", key="goal_states", fix="e.g. 18,34")
-    return ids
 
 
 @command(CalibrateConfig)

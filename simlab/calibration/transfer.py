@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from simlab import validation
 from simlab.actions import ActionSet, ActionSetOptions
 from simlab.errors import ConfigError
 from simlab.options import command, option
@@ -1216,20 +1217,6 @@ def load_twin(path: str | os.PathLike[str]) -> TransferModel | QTableTwin:
     return TransferModel.from_mdp(load_mdp(path), name=str(path))
 
 
-def _ids(value: Any, key: str) -> tuple[int, ...] | None:
-    if value is None:
-        return None
-    parts = [p.strip() for p in str(value).split(",") if p.strip()] \
-        if isinstance(value, str) else list(np.ravel(value))
-    try:
-        ids = tuple(int(p) for p in parts)
-    except (TypeError, ValueError):
-        raise ConfigError(f"expected state ids such as 18,34, got {value!r}", key=key) from None
-    if not ids:
-        raise ConfigError("no state given", key=key, fix="e.g. 18 or 18,34")
-    return ids
-
-
 @dataclass(frozen=True, kw_only=True)
 class TransferConfig(ActionSetOptions):
     """Options of ``simlab transfer`` / :func:`transfer_command`. The action-set group
@@ -1271,8 +1258,8 @@ class TransferConfig(ActionSetOptions):
     def validate(self) -> None:
         if not self.sim:
             raise ConfigError("no twin given", key="sim", fix="--sim MDP_OR_QTABLES ...")
-        object.__setattr__(self, "goal_states", _ids(self.goal_states, "goal_states"))
-        object.__setattr__(self, "start_states", _ids(self.start_states, "start_states"))
+        for key in ("goal_states", "start_states"):
+            object.__setattr__(self, key, validation.state_ids(getattr(self, key), key))
         if self.occupancy_map is not None and self.states is None:
             raise ConfigError("the map figure needs the states file", key="map",
                               fix="add --states STATES.json")
@@ -1281,8 +1268,6 @@ class TransferConfig(ActionSetOptions):
                               "mdp.npz records its own action set", key="n_actions",
                               fix="drop them")
         self.make_action_set(16)
-        from simlab import validation
-
         validation.whole(self.n_boot, "n_boot", minimum=0)
         validation.whole(self.seed, "seed", minimum=0)
 

@@ -387,18 +387,7 @@ def parse_start_states(value: Any, n_states: int | None) -> list[int] | None:
         return None
     if isinstance(value, str) and value.strip().lower() == "all":
         return None if n_states is None else list(range(int(n_states)))
-    items = value.split(",") if isinstance(value, str) else list(value)
-    try:
-        if any(isinstance(x, bool | float) for x in items):
-            raise ValueError
-        starts = [int(str(x).strip()) for x in items]
-    except (TypeError, ValueError):
-        raise ConfigError(f"expected 'all' or state numbers such as 0,5,12, got {value!r}",
-                          key="start_states") from None
-    if not starts:
-        raise ConfigError("no start state given", key="start_states", fix="'all' or 0,5,12")
-    if len(set(starts)) != len(starts):
-        raise ConfigError(f"a state is listed twice: {starts}", key="start_states")
+    starts = list(v.state_ids(value, "start_states") or ())
     if n_states is not None:
         bad = [s for s in starts if not 0 <= s < n_states]
         if bad:

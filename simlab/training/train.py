@@ -73,26 +73,6 @@ __all__ = ["TASK_MODES", "GoalSummary", "TrainConfig", "TrainSummary", "TrainTas
 TASK_MODES = ("per-step", "episodic")
 
 
-def _state_list(value: Any, key: str) -> tuple[int, ...] | None:
-    if value is None:
-        return None
-    if isinstance(value, str):
-        parts = [p.strip() for p in value.split(",") if p.strip()]
-    elif isinstance(value, int | np.integer):
-        parts = [value]
-    else:
-        parts = list(value)
-    try:
-        states = tuple(int(p) for p in parts)
-    except (TypeError, ValueError):
-        raise ConfigError(f"expected state ids such as 18,19, got {value!r}", key=key) from None
-    if not states:
-        raise ConfigError("no state given", key=key, fix="e.g. 18 or 18,19")
-    if len(set(states)) != len(states):
-        raise ConfigError(f"state listed twice in {list(states)}", key=key)
-    return states
-
-
 @dataclasses.dataclass(frozen=True)
 class TrainTask:
     """What the agent is asked to do (see the module docstring's decisions).
@@ -114,8 +94,8 @@ class TrainTask:
         if self.mode not in TASK_MODES:
             raise ConfigError(f"unknown task {self.mode!r}", key="task",
                               fix="use 'per-step' or 'episodic'")
-        object.__setattr__(self, "goal_states", _state_list(self.goal_states, "goal_states"))
-        object.__setattr__(self, "start_states", _state_list(self.start_states, "start_states"))
+        for key in ("goal_states", "start_states"):
+            object.__setattr__(self, key, v.state_ids(getattr(self, key), key))
         if self.unvisited is not None and self.unvisited not in ("mask", "self-loop"):
             raise ConfigError(f"unknown rule {self.unvisited!r}", key="unvisited",
                               fix="use 'mask' or 'self-loop'")
