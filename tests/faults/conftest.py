@@ -150,3 +150,19 @@ def assert_refused(res: Outcome, *needles: str, code: int = 2) -> None:
 
 
 PYTHON = sys.executable
+
+
+def failing(err: int, nth: int, real):
+    """``real`` (``os.fsync``, ``tempfile.mkstemp``, ...) that raises ``OSError(err)`` from
+    its ``nth`` call on (1: the very first write fails; 3: after two files were written)."""
+    import os
+
+    calls = {"n": 0}
+
+    def fake(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] >= nth:
+            raise OSError(err, os.strerror(err))
+        return real(*args, **kwargs)
+
+    return fake

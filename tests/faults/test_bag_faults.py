@@ -18,7 +18,7 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from .conftest import Inputs, assert_refused, run_cli, tree_hashes
+from .conftest import Inputs, assert_refused, failing, run_cli, tree_hashes
 
 
 @pytest.fixture(scope="module")
@@ -221,27 +221,15 @@ def test_import_bag_overwrite_replaces_only_its_own_dataset(wb: Path, capsys) ->
     _unchanged(before, wb)
 
 
-def _failing(err: int, nth: int, real):
-    calls = {"n": 0}
-
-    def fake(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] >= nth:
-            raise OSError(err, os.strerror(err))
-        return real(*args, **kwargs)
-
-    return fake
-
-
 @pytest.mark.parametrize(("err", "nth"), [(errno.ENOSPC, 1), (errno.ENOSPC, 3),
                                           (errno.EROFS, 1)])
 def test_import_bag_on_a_full_disk_leaves_nothing_and_the_rerun_works(
         err: int, nth: int, wb: Path, capsys, monkeypatch) -> None:
     before = tree_hashes(wb)
     if err == errno.EROFS:
-        monkeypatch.setattr(tempfile, "mkstemp", _failing(err, nth, tempfile.mkstemp))
+        monkeypatch.setattr(tempfile, "mkstemp", failing(err, nth, tempfile.mkstemp))
     else:
-        monkeypatch.setattr(os, "fsync", _failing(err, nth, os.fsync))
+        monkeypatch.setattr(os, "fsync", failing(err, nth, os.fsync))
     args = ["import-bag", str(wb / "bag"), "--states", str(wb / "states.json"), "--out",
             str(wb / "ds")]
     res = run_cli(args, capsys)
@@ -325,7 +313,7 @@ def test_a_read_only_output_is_one_line_naming_it(command: str, wb: Path, capsys
     """The file system refuses the first directory the command creates (tests run as
     root, which chmod cannot stop: the refusal is injected)."""
     before = tree_hashes(wb)
-    monkeypatch.setattr(tempfile, "mkdtemp", _failing(errno.EROFS, 1, tempfile.mkdtemp))
+    monkeypatch.setattr(tempfile, "mkdtemp", failing(errno.EROFS, 1, tempfile.mkdtemp))
     out = wb / "out"
     args = (["export-bag", str(wb / "data"), "--no-scans"] if command == "export-bag" else
             ["import-bag", str(wb / "bag"), "--states", str(wb / "states.json")])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from discretize.voronoi import Discretizer
-from tests.faults.conftest import assert_refused, run_cli, tree_hashes
+from tests.faults.conftest import assert_refused, failing, run_cli, tree_hashes
 
 FAST = ("--simulator kinematic --candidates 2 --hours-per-candidate 0.05 --confirm-top 1 "
         "--confirm-seeds 1 --transfer-seeds 1 --confirm-hours 0.05 --n-boot 5 "
@@ -85,15 +85,7 @@ def test_a_full_disk_keeps_the_previous_outputs_whole(work: Path, capsys, monkey
     assert run_cli(_argv(work), capsys).code == 0
     before = tree_hashes(work)
     real = os.fsync
-    calls = {"n": 0}
-
-    def full(fd: int) -> None:
-        calls["n"] += 1
-        if calls["n"] >= nth:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        real(fd)
-
-    monkeypatch.setattr(os, "fsync", full)
+    monkeypatch.setattr(os, "fsync", failing(errno.ENOSPC, nth, real))
     res = run_cli(_argv(work, extra="--overwrite --seed 4"), capsys)
     monkeypatch.setattr(os, "fsync", real)
     assert_refused(res, "no space left")

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .conftest import assert_refused, run_cli, tree_hashes
+from .conftest import assert_refused, failing, run_cli, tree_hashes
 
 
 def _write(name: str, data: str | bytes) -> Callable[[Path], None]:
@@ -151,11 +151,7 @@ def test_train_overwrite_retires_its_own_stale_goals_and_nothing_else(work: Path
 def test_a_failed_overwrite_retires_nothing(work: Path, capsys, monkeypatch) -> None:
     before = tree_hashes(work)
     real = os.fsync
-
-    def full(fd: int) -> None:
-        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-    monkeypatch.setattr(os, "fsync", full)
+    monkeypatch.setattr(os, "fsync", failing(errno.ENOSPC, 1, real))
     res = run_cli(f"train --mdp {work}/mdp.npz --goals N --episodes 2 --runs 1 --no-plots "
                   f"--out {work}/q --overwrite --no-progress".split(), capsys)
     monkeypatch.setattr(os, "fsync", real)
@@ -178,15 +174,7 @@ def test_import_log_on_a_full_disk_leaves_no_parts_and_the_rerun_works(
     argv = f"import-log {work}/log.txt --states {work}/states.json --out {work}/il".split()
     (work / "il").mkdir()  # the user's empty folder stays, and stays empty
     real = os.fsync
-    calls = {"n": 0}
-
-    def full_at_second(fd: int) -> None:
-        calls["n"] += 1
-        if calls["n"] >= 2:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        real(fd)
-
-    monkeypatch.setattr(os, "fsync", full_at_second)
+    monkeypatch.setattr(os, "fsync", failing(errno.ENOSPC, 2, real))
     # the log's 8 decisions in parts of 10 rows: one part, then the manifest fails
     assert_refused(run_cli(argv, capsys), "no space left")
     monkeypatch.setattr(os, "fsync", real)
@@ -205,15 +193,7 @@ def test_social_pipeline_on_a_full_disk_names_the_file_and_keeps_the_old_outputs
     (work / "sp" / "summary.json").write_text("{}")  # the previous run's, to be kept
     before = tree_hashes(work)
     real = os.fsync
-    calls = {"n": 0}
-
-    def full(fd: int) -> None:
-        calls["n"] += 1
-        if calls["n"] >= nth:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        real(fd)
-
-    monkeypatch.setattr(os, "fsync", full)
+    monkeypatch.setattr(os, "fsync", failing(errno.ENOSPC, nth, real))
     res = run_cli(argv, capsys)
     monkeypatch.setattr(os, "fsync", real)
     assert_refused(res, "no space left", f"{work}/sp/")

@@ -14,7 +14,7 @@ import tempfile
 
 import pytest
 
-from .conftest import assert_refused, run_cli, tree_hashes
+from .conftest import assert_refused, failing, run_cli, tree_hashes
 
 COMMANDS = {
     "train": "train --mdp {w}/mdp.npz --episodes 2 --runs 1 --out {w}/q --overwrite "
@@ -47,18 +47,6 @@ ERRORS = {
 WHEN = (1, 3)
 
 
-def _failing(err: int, nth: int, real):
-    calls = {"n": 0}
-
-    def fake(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] >= nth:
-            raise OSError(err, os.strerror(err))
-        return real(*args, **kwargs)
-
-    return fake
-
-
 CASES = [(c, e, n) for c in COMMANDS for e in (errno.ENOSPC, errno.EROFS) for n in WHEN]
 CASES += [("train", errno.EDQUOT, 2), ("estimate", errno.EIO, 2)]
 
@@ -69,9 +57,9 @@ def test_write_failure_is_one_line_and_leaves_everything_as_it_was(
         command: str, err: int, nth: int, work, capsys, monkeypatch) -> None:
     before = tree_hashes(work)
     if err == errno.EROFS and nth == 1:  # the file system refuses to create anything
-        monkeypatch.setattr(tempfile, "mkstemp", _failing(err, 1, tempfile.mkstemp))
+        monkeypatch.setattr(tempfile, "mkstemp", failing(err, 1, tempfile.mkstemp))
     else:
-        monkeypatch.setattr(os, "fsync", _failing(err, nth, os.fsync))
+        monkeypatch.setattr(os, "fsync", failing(err, nth, os.fsync))
     res = run_cli(COMMANDS[command].format(w=work).split(), capsys)
     monkeypatch.undo()
     if res.code == 0:  # fewer writes than nth: nothing failed, nothing to check here
