@@ -27,6 +27,7 @@ perfect simulator run for that budget.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,8 +173,11 @@ def bootstrap_floor(real: ArrayLike, rng: np.random.Generator, *, n_boot: int = 
             d[b] = tv_distance(_resample(T, n, rng), real_c).distance
         else:
             d[b] = tv_distance(_resample(T, m, rng), _resample(T, n, rng)).distance
-    return Floor(median=float(np.nanmedian(d)), low=float(np.nanquantile(d, 0.025)),
-                 high=float(np.nanquantile(d, 0.975)), samples=d)
+    finite = d[np.isfinite(d)]
+    if finite.size == 0:  # no pair in both samples (e.g. a simulation that tried none)
+        return Floor(median=math.nan, low=math.nan, high=math.nan, samples=d)
+    return Floor(median=float(np.median(finite)), low=float(np.quantile(finite, 0.025)),
+                 high=float(np.quantile(finite, 0.975)), samples=d)
 
 
 def excess_distance(sim: ArrayLike, real: ArrayLike, rng: np.random.Generator, *,
@@ -199,7 +203,9 @@ def excess_distance(sim: ArrayLike, real: ArrayLike, rng: np.random.Generator, *
     ref = np.empty(int(n_boot))
     for b in range(int(n_boot)):
         ref[b] = tv_distance(_resample(Ts, ns, rng), _resample(Ts, nr_common, rng)).distance
-    return float(observed - np.nanmedian(ref))
+    finite = ref[np.isfinite(ref)]
+    # no pair in both tables: nothing of the distance is sampling, all of it is a miss
+    return float(observed - (np.median(finite) if finite.size else 0.0))
 
 
 def cross_entropy(sim: ArrayLike, real: ArrayLike, *, alpha: float = 0.5) -> float:

@@ -770,7 +770,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
                               speed_fields=used_speed_field(aset) if aset.n_actions == 8
                               else ())
     space.check_fields(base)
-    warned = reach_warnings(sig, space, base, aset) if config.simulator == "physics" else []
+    warned = reach_warnings(sig, space, base, aset)
     for w in warned:
         warn(w)
     rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(2)[1])

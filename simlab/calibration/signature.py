@@ -136,22 +136,26 @@ def _longest_fixed_move(space: ParameterSpace, base: Any, action_set: ActionSet)
 
 def reach_warnings(sig: Signature, space: ParameterSpace, base: Any,
                    action_set: ActionSet) -> list[str]:
-    """Why the space may not reach the real table, each with what to change (empty when
-    nothing stands out). Physics records only (``mode`` is a field)."""
-    if getattr(base, "mode", None) is None or not math.isfinite(sig.cell_size):
-        return []
-    specs = {p.name: p for p in space.specs}
-    modes = specs["mode"].choices if "mode" in specs else (base.mode,)
+    """Why the space may not reach the real table, or the real table may not tell much,
+    each with what to change (empty when nothing stands out). The mode check applies to
+    physics records only (``mode`` is a field)."""
     out = []
-    longest = _longest_fixed_move(space, base, action_set)
-    if ("until_state_change" not in (modes or ()) and sig.self_share < SELF_SHARE_DRIVES_ON
-            and longest < 0.5 * sig.cell_size):
+    physics = getattr(base, "mode", None) is not None and math.isfinite(sig.cell_size)
+    specs = {p.name: p for p in space.specs}
+    modes = (specs["mode"].choices if "mode" in specs else (base.mode,)) if physics else ()
+    longest = _longest_fixed_move(space, base, action_set) if physics else math.inf
+    if (physics and "until_state_change" not in (modes or ())
+            and sig.self_share < SELF_SHARE_DRIVES_ON and longest < 0.5 * sig.cell_size):
         out.append(
             f"the real robot leaves its state in {100 * (1 - sig.self_share):.0f} % of its "
             f"moves, but the searched primitives move at most {longest:.2f} m against cells "
             f"of {sig.cell_size:.2f} m and run in {', '.join(modes or ())} mode only: search "
             "the mode too ([parameters.mode] choices = [\"fixed\", \"until_state_change\"]) "
             "or widen drive_time and the speeds")
+    if sig.states_visited < 0.5 * sig.states:
+        out.append(f"the real data leave only {sig.states_visited} of {sig.states} states "
+                   f"({sig.transitions} transitions): the twin is calibrated on a corner of "
+                   "the lab; give more of the robot's data")
     if sig.pairs_visited < sig.pairs:
         share = sig.pairs_visited / sig.pairs
         if share < 0.5:

@@ -6,6 +6,7 @@ The options are the fields of :class:`simlab.calibration.command.CalibrateConfig
 from __future__ import annotations
 
 import argparse
+import math
 
 HELP = "calibrate primitive parameters against a real transition count table"
 
@@ -27,9 +28,10 @@ def run(args: argparse.Namespace) -> int:
            else "screening only")
     print(f"winner: candidate #{r.best} of {len(r.candidates)} ({how}): {values}")
     tv = r.final.tv
-    print(f"TV distance {r.final.distance:.3f} (floor {r.floor.median:.3f}, matched "
-          f"{r.matched_floor.median:.3f}); the twin tried {tv.common} of "
-          f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement {r.agreement:.0%}")
+    print(f"TV distance {r.final.distance:.3f} (floor {_num(r.floor.median)}, matched "
+          f"{_num(r.matched_floor.median)}); the twin tried {tv.common} of "
+          f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement "
+          f"{_num(100 * r.agreement, '{:.0f}')} %")
     if r.transfer is not None:
         from simlab.calibration.report import transfer_overview
 
@@ -40,6 +42,10 @@ def run(args: argparse.Namespace) -> int:
               f"steps ({len(ratios)} twin seeds, {ov['goals']} goals)")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0
+
+
+def _num(x: float, fmt: str = "{:.3f}") -> str:
+    return fmt.format(x) if math.isfinite(x) else "n/a"
 
 
 def _value(v: object) -> str:

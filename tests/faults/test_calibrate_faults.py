@@ -92,3 +92,14 @@ def test_a_full_disk_keeps_the_previous_outputs_whole(work: Path, capsys, monkey
     assert tree_hashes(work) == before
     assert not [p for p in (work / "cal").iterdir() if p.name.startswith(".")]
 
+
+
+def test_a_real_table_on_a_corner_of_the_lab_is_said_without_numpy_text(work: Path,
+                                                                        capsys) -> None:
+    # counts.csv: 6 transitions from 3 of the 25 states
+    res = run_cli(_argv(work), capsys)
+    assert res.code == 0, res.stderr
+    warnings = [ln for ln in res.stderr.splitlines() if ": warning: " in ln]
+    assert any("only 3 of 25 states (6 transitions)" in ln for ln in warnings), res.stderr
+    assert not any("NaN" in ln or "slice" in ln for ln in res.stderr.splitlines())
+    assert "nan" not in res.stdout
