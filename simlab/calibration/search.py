@@ -374,6 +374,15 @@ BUDGET_MULTIPLES = (0.25, 0.5, 1.0, 1.5, 2.0, 3.0)
 BUDGET_TOLERANCE = 1.35
 
 
+def screen_budget(config: CalibrationConfig, real_transitions: int
+                  ) -> tuple[float | None, int | None]:
+    """``(hours, transitions)`` of a screening walk: ``hours_per_candidate`` when given,
+    else ``screen_share`` of the real transitions."""
+    if config.hours_per_candidate is not None:
+        return config.hours_per_candidate, None
+    return None, max(1, round(config.screen_share * real_transitions))
+
+
 def size_budgets(real: RealTable, config: CalibrationConfig, floor: Floor,
                  rng: np.random.Generator) -> Budgets:
     """Walk sizes from the real table (module docstring).
@@ -393,8 +402,7 @@ def size_budgets(real: RealTable, config: CalibrationConfig, floor: Floor,
         table.append((m, mf.median))
     good = [m for m, f in table if m >= 1.0 and f <= BUDGET_TOLERANCE * floor.median]
     multiple = good[0] if good else BUDGET_MULTIPLES[-1]
-    screen_h = config.hours_per_candidate
-    screen_n = None if screen_h is not None else max(1, round(config.screen_share * total))
+    screen_h, screen_n = screen_budget(config, total)
     if config.confirm_hours is not None:
         return Budgets(screen_h, screen_n, config.confirm_hours, None, None, table)
     return Budgets(screen_h, screen_n, None, max(1, round(multiple * total)), multiple, table)
@@ -595,9 +603,8 @@ class _Poll:
 def _context(real: RealTable, arena: Any, disc: Any, space: ParameterSpace, base: Any,
              config: CalibrationConfig, walk_seed: int,
              screen: tuple[float | None, int | None] | None = None) -> dict[str, Any]:
-    if screen is None:  # as size_budgets has it
-        screen = (config.hours_per_candidate, None) if config.hours_per_candidate is not None \
-            else (None, max(1, round(config.screen_share * int(real.counts.sum()))))
+    if screen is None:
+        screen = screen_budget(config, int(real.counts.sum()))
     return {"space": space, "config": config, "arena": arena, "states": disc, "base": base,
             "walk_seed": int(walk_seed), "real": real, "n_states": int(disc.n_states),
             "screen": screen}
