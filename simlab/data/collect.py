@@ -449,6 +449,11 @@ def collect(cfg: CollectConfig) -> CollectResult:
       :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
       ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
     * ``pose_source_options``: keyword arguments for the pose source factory.
+    * ``start_states``: ``"all"`` or a list of states: one walk from each state's centre
+      (its own seed stream, the budget split evenly; ``workers`` processes run them), so
+      the walk covers the lab; recorded as ``manifest["parameters"]["start_states"]``.
+    * ``n_actions``/``convention``/``speed``: walk in a real robot's action set (see
+      :class:`CollectConfig`); recorded as ``manifest["action_set"]``.
     * ``progress``: show a tqdm bar with transitions/s and simulated hours per wall second.
 
     Returns:
