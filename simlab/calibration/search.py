@@ -748,15 +748,78 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     Raises:
         ConfigError: inconsistent inputs, before any simulation.
     """
-    from tqdm.auto import tqdm
+    config = CalibrationConfig() if config is None else config
+    t0 = time.perf_counter()
+    setup = _setup(real, arena, states, space, base, config)
+    rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(2)[1])
+    floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
+    budgets = size_budgets(real, config, floor, rng)
+    screen = (budgets.screen_hours, budgets.screen_transitions)
+    runner = _Runner(int(config.workers), config.address)
+    try:
+        cands, screen_best = search(real, setup.arena, setup.disc, space=setup.space,
+                                    base=setup.base, config=config, runner=runner,
+                                    screen=screen)
+        ctx = _context(real, setup.arena, setup.disc, setup.space, setup.base, config,
+                       config.seed, screen)
+        done = _Confirmed(best=screen_best, final=cands[screen_best])
+        if config.confirm:
+            done = _confirm_stage(runner, cands, screen_best, ctx,
+                                  (budgets.confirm_hours, budgets.confirm_transitions))
+    finally:
+        runner.close()
+    params, fitted = _fit_latency(_params_at(setup.space, setup.base, cands[done.best].unit),
+                                  real, done.final.sim)
+    final = done.final
+    matched = bootstrap_floor(real.counts, rng, n_boot=config.n_boot,
+                              other_n=final.sim.counts.sum(axis=2))
+    sim_hours = final.sim.hours
+    if fitted:
+        sim_hours = final.sim.rows * (final.sim.mean_duration + params.decision_latency) / 3600
+    sim_summary = table_summary(final.sim.counts, hours=sim_hours, blocked=final.sim.blocked)
+    late = None if config.simulator != "physics" else self_share_warning(
+        setup.signature.self_share, float(sim_summary["self_transition_share"]))
+    if late is not None:
+        warn(late)
+        setup.warnings.append(late)
+    return CalibrationResult(
+        config=config, space=setup.space, base=setup.base, params=params, candidates=cands,
+        best=done.best, final=final, floor=floor, matched_floor=matched, real=real,
+        real_summary=table_summary(real.counts, hours=real.hours, blocked=real.blocked),
+        sim_summary=sim_summary,
+        agreement=argmax_agreement(final.sim.counts, real.counts),
+        entropy_real=entropy_per_action(real.counts),
+        entropy_sim=entropy_per_action(final.sim.counts),
+        latency_fitted=fitted, wall_seconds=time.perf_counter() - t0, notes=done.notes,
+        start_confirmed=done.start, signature=setup.signature, budgets=budgets,
+        confirmed=done.confirmed, twins=done.twins,
+        transfer=_transfer(real, done.twins, setup, config), warnings=setup.warnings,
+        screen_best=screen_best,
+    )
 
+
+@dataclass
+class _Setup:
+    """What :func:`calibrate` checked and derived before any simulation."""
+
+    arena: Any
+    disc: Any
+    goals: list[int]
+    signature: Signature
+    base: Any
+    space: ParameterSpace
+    warnings: list[str]
+
+
+def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | None, base: Any,
+           config: CalibrationConfig) -> _Setup:
+    """Check the inputs (ConfigError before any simulation), read the real signature, and
+    pick the start and the space from it; warn where the space cannot reach the table."""
     from simlab.calibration.space import default_space
     from simlab.data.collect import parse_start_states
     from simlab.data.walkers import check_pose_source
     from simlab.physics.inputs import load_arena_config, load_discretizer
 
-    config = CalibrationConfig() if config is None else config
-    t0 = time.perf_counter()
     check_pose_source(config.pose_source, config.simulator)
     arena_cfg = load_arena_config(arena)
     disc = load_discretizer(states)
@@ -780,77 +843,64 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     warned = reach_warnings(sig, space, base, aset)
     for w in warned:
         warn(w)
-    rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(2)[1])
-    floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
-    budgets = size_budgets(real, config, floor, rng)
-    screen = (budgets.screen_hours, budgets.screen_transitions)
-    confirm_budget = (budgets.confirm_hours, budgets.confirm_transitions)
-    runner = _Runner(int(config.workers), config.address)
+    return _Setup(arena_cfg, disc, goals, sig, base, space, warned)
+
+
+@dataclass(frozen=True)
+class _Confirmed:
+    """The outcome of the confirmation: the winner's index, its pooled confirming walks
+    (``final``), the start's, every confirming walk, the twins and the notes."""
+
+    best: int
+    final: Candidate
+    start: Candidate | None = None
+    confirmed: list[Candidate] = field(default_factory=list)
+    twins: list[Candidate] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+def _confirm_stage(runner: _Runner, cands: list[Candidate], screen_best: int,
+                   ctx: dict[str, Any], budget: tuple[float | None, int | None]
+                   ) -> _Confirmed:
+    """Confirm the best screened candidates and the start on fresh seeds, pick the winner
+    there, then walk its twin seeds (one progress bar over all these walks)."""
+    from tqdm.auto import tqdm
+
+    cfg: CalibrationConfig = ctx["config"]
+    n_picks = len(_picks(cands, cfg.confirm_top))
+    extra = max(cfg.transfer_seeds - cfg.confirm_seeds, 0)
+    bar = tqdm(total=n_picks * cfg.confirm_seeds + extra, desc="calibrate: confirm",
+               unit="walk", disable=not cfg.progress)
     try:
-        cands, best = search(real, arena_cfg, disc, space=space, base=base, config=config,
-                             runner=runner, screen=screen)
-        screen_best = best
-        ctx = _context(real, arena_cfg, disc, space, base, config, config.seed, screen)
-        final = cands[best]
-        start = None
-        confirmed: list[Candidate] = []
-        twins: list[Candidate] = []
-        notes = []
-        if config.confirm:
-            n_picks = len(_picks(cands, config.confirm_top))
-            extra = max(config.transfer_seeds - config.confirm_seeds, 0)
-            bar = tqdm(total=n_picks * config.confirm_seeds + extra,
-                       desc="calibrate: confirm", unit="walk", disable=not config.progress)
-            try:
-                best, runs = _confirm(runner, cands, ctx, confirm_budget, bar)
-                final = _pooled(runs[best], best, ctx)
-                start = _pooled(runs[0], 0, ctx)
-                confirmed = [c for i in runs for c in runs[i]]
-                notes.append(_confirm_note(cands, runs, best, screen_best))
-                if config.transfer_seeds:
-                    twins = _twins(runner, cands[best], runs[best], ctx, confirm_budget, bar)
-            finally:
-                bar.close()
+        best, runs = _confirm(runner, cands, ctx, budget, bar)
+        twins = _twins(runner, cands[best], runs[best], ctx, budget, bar) \
+            if cfg.transfer_seeds else []
     finally:
-        runner.close()
-    params, fitted = _fit_latency(_params_at(space, base, cands[best].unit), real, final.sim)
-    matched = bootstrap_floor(real.counts, rng, n_boot=config.n_boot,
-                              other_n=final.sim.counts.sum(axis=2))
-    sim_hours = final.sim.hours
-    if fitted:
-        sim_hours = final.sim.rows * (final.sim.mean_duration + params.decision_latency) / 3600
-    sim_summary = table_summary(final.sim.counts, hours=sim_hours, blocked=final.sim.blocked)
-    late = None if config.simulator != "physics" else self_share_warning(
-        sig.self_share, float(sim_summary["self_transition_share"]))
-    if late is not None:
-        warn(late)
-        warned.append(late)
-    transfer = None
-    if twins:
-        from simlab.calibration.transfer import TransferModel, transfer_report
+        bar.close()
+    return _Confirmed(best=best, final=_pooled(runs[best], best, ctx),
+                      start=_pooled(runs[0], 0, ctx),
+                      confirmed=[c for i in runs for c in runs[i]], twins=twins,
+                      notes=[_confirm_note(cands, runs, best, screen_best)])
 
-        def model(counts: NDArray[np.int64], name: str) -> TransferModel:
-            return TransferModel.from_counts(counts, name=name, action_set=aset,
-                                             centres=disc.centres)
 
-        # with the perfect-twin floor: the real optimum of an estimated model is biased low
-        transfer = transfer_report(
-            model(real.counts, real.source or "real"),
-            [model(t.sim.counts, f"twin seed {t.seed}") for t in twins],
-            {f"s{g}": [g] for g in goals}, n_boot=TRANSFER_BOOT,
-            rng=np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(11,))))
-    return CalibrationResult(
-        config=config, space=space, base=base, params=params, candidates=cands, best=best,
-        final=final, floor=floor, matched_floor=matched, real=real,
-        real_summary=table_summary(real.counts, hours=real.hours, blocked=real.blocked),
-        sim_summary=sim_summary,
-        agreement=argmax_agreement(final.sim.counts, real.counts),
-        entropy_real=entropy_per_action(real.counts),
-        entropy_sim=entropy_per_action(final.sim.counts),
-        latency_fitted=fitted, wall_seconds=time.perf_counter() - t0, notes=notes,
-        start_confirmed=start, signature=sig, budgets=budgets, confirmed=confirmed,
-        twins=twins, transfer=transfer, warnings=warned, screen_best=screen_best,
-    )
+def _transfer(real: RealTable, twins: list[Candidate], setup: _Setup,
+              config: CalibrationConfig) -> Any:
+    """The transfer report of the twin walks on the real model (None without twins), every
+    goal of ``setup.goals`` with its perfect-twin floor (the real optimum of an estimated
+    model is biased low)."""
+    if not twins:
+        return None
+    from simlab.calibration.transfer import TransferModel, transfer_report
+
+    def model(counts: NDArray[np.int64], name: str) -> TransferModel:
+        return TransferModel.from_counts(counts, name=name, action_set=real.action_set,
+                                         centres=setup.disc.centres)
+
+    return transfer_report(
+        model(real.counts, real.source or "real"),
+        [model(t.sim.counts, f"twin seed {t.seed}") for t in twins],
+        {f"s{g}": [g] for g in setup.goals}, n_boot=TRANSFER_BOOT,
+        rng=np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(11,))))
 
 
 #: Resamples of the transfer report's perfect-twin floor (per goal).
