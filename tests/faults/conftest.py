@@ -166,3 +166,18 @@ def failing(err: int, nth: int, real):
         return real(*args, **kwargs)
 
     return fake
+
+
+def writes_file(name: str, data: str | bytes):
+    """A case's setup: write ``data`` (text or bytes) to ``name`` inside the test's copy of
+    the inputs (parents made)."""
+
+    def setup(w: Path) -> None:
+        p = w / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(data, bytes):
+            p.write_bytes(data)
+        else:
+            p.write_text(data)
+
+    return setup

@@ -16,17 +16,7 @@ import numpy as np
 import pytest
 
 from .conftest import assert_refused, run_cli, tree_hashes
-
-
-def _write(name: str, data: str | bytes) -> Callable[[Path], None]:
-    def setup(w: Path) -> None:
-        p = w / name
-        p.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(data, bytes):
-            p.write_bytes(data)
-        else:
-            p.write_text(data)
-    return setup
+from .conftest import writes_file as _write
 
 
 def _manifest(edit: Callable[[dict], None]) -> Callable[[Path], None]:
