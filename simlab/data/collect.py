@@ -396,6 +396,23 @@ def parse_start_states(value: Any, n_states: int | None) -> list[int] | None:
     return starts
 
 
+def _walks(cfg: CollectConfig, n_states: int
+           ) -> tuple[list[int] | None, int, list[int] | None, float | None]:
+    """``(start states or None, number of walks, transitions per walk, seconds per walk)``:
+    one walk per worker from the arena's start, or one per start state; the budget is split
+    evenly over the walks."""
+    starts = parse_start_states(cfg.start_states, n_states)
+    walks = cfg.workers if starts is None else len(starts)
+    if cfg.transitions is not None and cfg.transitions < walks:
+        raise ConfigError(f"{cfg.transitions} transitions cannot be split over {walks} "
+                          "start states", key="start_states",
+                          fix="use fewer start states or more transitions")
+    per_worker = None if cfg.transitions is None else _split_transitions(
+        int(cfg.transitions), walks)
+    t_budget = None if cfg.hours is None else float(cfg.hours) * 3600.0 / walks
+    return starts, walks, per_worker, t_budget
+
+
 def _start_poses(starts: list[int] | None, disc: Any) -> list[tuple[float, float, float]] | None:
     """Truth start pose of each walk: the state's centre, facing +x (the first primitive
     turns to its own heading anyway)."""
@@ -469,15 +486,7 @@ def collect(cfg: CollectConfig) -> CollectResult:
     arena_cfg = load_arena_config(cfg.arena)
     disc = load_discretizer(cfg.states)
     params = cfg.resolved_params()
-    starts = parse_start_states(cfg.start_states, int(disc.n_states))
-    walks = cfg.workers if starts is None else len(starts)
-    if cfg.transitions is not None and cfg.transitions < walks:
-        raise ConfigError(f"{cfg.transitions} transitions cannot be split over {walks} "
-                          "start states", key="start_states",
-                          fix="use fewer start states or more transitions")
-    per_worker = None if cfg.transitions is None else _split_transitions(
-        int(cfg.transitions), walks)
-    t_budget = None if cfg.hours is None else float(cfg.hours) * 3600.0 / walks
+    starts, walks, per_worker, t_budget = _walks(cfg, int(disc.n_states))
     schema = transition_schema(cfg.pose_source)
     manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
                              starts)
