@@ -70,7 +70,7 @@ def main() -> None:
     parser.add_argument("--objective", default="excess", choices=("excess", "tv", "loglik"))
     args = parser.parse_args()
 
-    from simlab.actions import parse_action_set
+    from simlab.base.actions import parse_action_set
     from simlab.calibration.search import (
         CalibrationConfig,
         RealTable,

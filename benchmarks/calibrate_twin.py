@@ -70,7 +70,7 @@ def build_lab(directory: Path, n_states: int = 38) -> tuple[Path, Path]:
 def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float,
                 workers: int) -> dict:
     """Collect the hidden robot's walk and write its counts (CSV); returns a summary."""
-    from simlab.actions import parse_action_set
+    from simlab.base.actions import parse_action_set
     from simlab.calibration.search import simulate_counts
     from simlab.data.collect import collect
     from simlab.data.dataset import read_dataset

@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simlab.actions import HEADINGS
-from simlab.assets import resolve
+from simlab.base.actions import HEADINGS
+from simlab.base.assets import resolve
 from simlab.physics.motion import PrimitiveParams, execute_primitive
 from simlab.physics.world import World
 

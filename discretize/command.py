@@ -4,7 +4,7 @@ The discretizer itself (eroded free space, centres, numbering, ``state_of``) is
 :mod:`discretize.voronoi`; the figure (thesis Fig. 3.5: map, cells, centres, visits) is
 :mod:`discretize.plot`. This module composes them into the command: every input and
 every output path is checked (exists?) before any file is written, and the outputs are
-written atomically (:mod:`simlab.io`).
+written atomically (:mod:`simlab.base.io`).
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ from discretize.gridmap import OccupancyMap
 from discretize.mapio import read_map
 from discretize.plot import render_states_png, visits_from_dataset
 from discretize.voronoi import DEFAULT_ROBOT_RADIUS, Discretizer, load_centres_txt
-from simlab import validation
-from simlab.errors import ConfigError
-from simlab.io import atomic_write, ensure_new
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write, ensure_new
+from simlab.base.options import CommandConfig, command, option
 
 
 @dataclass(frozen=True)

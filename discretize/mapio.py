@@ -38,9 +38,9 @@ import numpy as np
 import yaml
 
 from discretize.gridmap import FREE, OCCUPIED, UNKNOWN, OccupancyMap
-from simlab import validation
-from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write, atomic_write_text, ensure_new
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write, atomic_write_text, ensure_new
 
 MODES = ("trinary", "scale", "raw")
 #: Pixel values ``map_saver`` writes in trinary mode.

@@ -204,7 +204,7 @@ class OccupancyGrid:
             raise ValueError(f"shape: expected positive (H, W), got {shape}")
         if not resolution > 0:
             raise ValueError(f"resolution: expected > 0, got {resolution}")
-        from simlab.guards import array_bytes, check_memory
+        from simlab.base.guards import array_bytes, check_memory
 
         # log-odds + two stamps (8 bytes each) and the int8 map made from them
         check_memory(array_bytes((height, width), 25), key="resolution",

@@ -17,8 +17,8 @@ import numpy as np
 
 from discretize.gridmap import UNKNOWN, OccupancyMap
 from discretize.voronoi import DEFAULT_ROBOT_RADIUS, Discretizer, eroded_free_mask
-from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write, ensure_new
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write, ensure_new
 
 
 def visits_from_dataset(path: str | os.PathLike[str], n_states: int) -> np.ndarray:

@@ -51,9 +51,9 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from discretize.gridmap import OccupancyMap
-from simlab import validation
-from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write_json, ensure_new
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write_json, ensure_new
 
 #: Half-diagonal of the TurtleBot3 Burger footprint 138 x 178 mm, metres.
 TURTLEBOT3_BURGER_RADIUS = 0.5 * math.hypot(0.138, 0.178)

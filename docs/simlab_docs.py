@@ -48,7 +48,7 @@ class ParsedCommand:
 @contextlib.contextmanager
 def _recording(seen: list[tuple[argparse.ArgumentParser, type]]) -> Iterator[None]:
     """Record which ``CommandConfig`` generates the options of which parser."""
-    from simlab.options import CommandConfig
+    from simlab.base.options import CommandConfig
 
     original = CommandConfig.__dict__["add_arguments"]
 

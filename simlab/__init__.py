@@ -18,10 +18,10 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
-from simlab._numba_cache import use_versioned_cache_dir as _use_versioned_cache_dir
+from simlab.base._numba_cache import use_versioned_cache_dir as _use_versioned_cache_dir
 from simlab.envs import register_when_imported as _register_when_imported
 
-# before anything imports numba: one cache directory per source version (simlab._numba_cache)
+# before anything imports numba: one cache directory per source version (simlab.base._numba_cache)
 _use_versioned_cache_dir()
 
 try:

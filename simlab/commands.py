@@ -8,7 +8,7 @@ own them, so this module is cheap to import.
 
 from __future__ import annotations
 
-from simlab.lazy import lazy_exports
+from simlab.base.lazy import lazy_exports
 
 #: Function name -> "module:attribute".
 _FUNCTIONS: dict[str, str] = {

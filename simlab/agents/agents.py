@@ -37,7 +37,7 @@ from simlab.agents.config import (
 )
 from simlab.agents.sparse_model import CountModel
 from simlab.agents.window_model import WindowModel
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = [
     "ModelBasedAgent",

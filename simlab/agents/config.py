@@ -3,7 +3,7 @@
 Defaults are the thesis's (gamma 0.9, alpha 0.7, epsilon 0.05, tau 0.1); the
 paper's settings (alpha 0.5, R-max m=1 navigation / m=5 social, one VI sweep
 every 1000 steps) are a ``dataclasses.replace`` away. A bad value raises
-:class:`~simlab.errors.ConfigError` naming the field.
+:class:`~simlab.base.errors.ConfigError` naming the field.
 
 Decision (the thesis says "arbitrarily initialised"): Q-values of state-action
 pairs an agent has never tried start **optimistic**, ``r_max / (1 - gamma)``
@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 
 __all__ = [
     "AgentConfig",

@@ -63,7 +63,7 @@ from simlab.agents.kernels import (
     n_valid,
     q_learning_update,
 )
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = [
     "KIND_MB",

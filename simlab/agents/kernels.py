@@ -110,7 +110,7 @@ agent's transitions; to hand over control, select actions on the observer's
 
 ``tests/agents/test_kernels.py`` runs this example. Note on ``cache=True``: numba
 does not track dependencies between cached functions in different files; simlab's own
-kernels are cached per version of the whole source (:mod:`simlab._numba_cache`), so an
+kernels are cached per version of the whole source (:mod:`simlab.base._numba_cache`), so an
 edit here recompiles its callers. Your own cached loops calling these kernels need the
 same care (their cache files do not notice a new simlab).
 """

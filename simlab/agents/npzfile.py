@@ -1,7 +1,7 @@
 """The npz file of simlab's agent layer: plain numeric arrays plus one ``meta_json``.
 
 ``meta_json`` is a 0-d numpy unicode string holding JSON (with ``"format"``:
-:data:`FORMAT`). Files are written atomically (:func:`simlab.io.atomic_write`: temporary
+:data:`FORMAT`). Files are written atomically (:func:`simlab.base.io.atomic_write`: temporary
 sibling, then rename) and read with ``allow_pickle=False``. What the arrays mean (a
 Q-table, a count model, an agent) is :mod:`simlab.agents.storage`'s; the greedy policy of
 a Q-table file (:mod:`simlab.agents.policy`) reads it through :func:`load_npz` too.
@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write, ensure_new
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write, ensure_new
 
 #: The ``format`` every file's metadata records.
 FORMAT = "simlab-agents-1"

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = [
     "bellman_expectation_operator",

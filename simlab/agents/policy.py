@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from simlab.agents.npzfile import load_npz
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["greedy", "masked_argmax", "qtable_mask"]
 

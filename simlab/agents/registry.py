@@ -42,7 +42,7 @@ from simlab.agents.config import (
     config_from_dict,
     config_to_dict,
 )
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["AGENTS", "AgentSpec", "agent_config", "agent_names", "make_agent"]
 

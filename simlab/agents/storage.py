@@ -39,7 +39,7 @@ from simlab.agents.npzfile import load_npz, write_npz
 from simlab.agents.policy import masked_argmax, qtable_mask
 from simlab.agents.sparse_model import CountModel
 from simlab.agents.window_model import WindowModel
-from simlab.errors import ConfigError, DataError
+from simlab.base.errors import ConfigError, DataError
 
 __all__ = [
     "load_agent",

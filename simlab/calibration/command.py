@@ -15,8 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
+from simlab.base import validation
+from simlab.base.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
+from simlab.base.errors import ConfigError
+from simlab.base.options import command, option
 from simlab.calibration.report import check_outputs, write_outputs
 from simlab.calibration.search import (
     CalibrationConfig,
@@ -26,8 +28,6 @@ from simlab.calibration.search import (
     default_base,
 )
 from simlab.calibration.space import ParameterSpace, load_space
-from simlab.errors import ConfigError
-from simlab.options import command, option
 
 
 def load_base(path: str | os.PathLike[str] | None, simulator: str) -> Any:
@@ -43,7 +43,7 @@ def load_base(path: str | os.PathLike[str] | None, simulator: str) -> Any:
         from simlab.physics.motion import PrimitiveParams
 
         return PrimitiveParams.from_toml(path)  # the format of collect --primitives
-    from simlab.io import read_toml
+    from simlab.base.io import read_toml
 
     path = Path(path)
     table = read_toml(path, what="primitives file").get("primitives")
@@ -163,7 +163,7 @@ def _map_of(arena_cfg: Any) -> Any:
 @dataclass(frozen=True, kw_only=True)
 class CalibrateConfig(ActionSetOptions):
     """Options of ``simlab calibrate`` / :func:`calibrate_command`: the files, the real
-    table's action set (:class:`~simlab.actions.ActionSetOptions`; ``n_actions`` None =
+    table's action set (:class:`~simlab.base.actions.ActionSetOptions`; ``n_actions`` None =
     16) and the search options, which become a :class:`CalibrationConfig` (checked there,
     so their errors name ``calibration.<field>`` as they always did)."""
 

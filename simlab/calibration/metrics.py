@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def _counts(x: ArrayLike, name: str) -> NDArray[np.int64]:

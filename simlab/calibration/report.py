@@ -14,7 +14,7 @@ temporary sibling and renamed):
 * ``transfer.png`` — with twin seeds: the transfer of twin policies to the real model
   (:mod:`simlab.calibration.transfer`) for the goal where the twins do worst.
 
-All of them are written in one output transaction (:func:`simlab.io.output_transaction`):
+All of them are written in one output transaction (:func:`simlab.base.io.output_transaction`):
 a failed or killed run leaves the previous outputs as they were, and ``overwrite``
 replaces only these names.
 """
@@ -30,14 +30,14 @@ from typing import Any
 
 import numpy as np
 
-from simlab.calibration.search import CalibrationResult
-from simlab.io import (
+from simlab.base.io import (
     atomic_write,
     atomic_write_json,
     atomic_write_text,
     ensure_new,
     output_transaction,
 )
+from simlab.calibration.search import CalibrationResult
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
 

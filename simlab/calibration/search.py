@@ -26,7 +26,7 @@ refinement in rounds of ``workers`` candidates: the minimum of a quadratic fitte
 squares to the candidates nearest the best (it averages the walks' noise over many points),
 then a compass search around the best point so far (``+- step`` along each coordinate, the
 step shrinking by ``shrink`` after a full poll found nothing better). Candidates of a round
-run in parallel on :mod:`simlab.parallel` (local processes, or Ray with ``address``).
+run in parallel on :mod:`simlab.base.parallel` (local processes, or Ray with ``address``).
 
 **Confirmation** (``confirm``): the ``confirm_top`` best distinct screened candidates and
 the starting point are re-simulated in physics on ``confirm_seeds`` fresh seeds at the
@@ -55,8 +55,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.actions import SIMLAB16, ActionSet
+from simlab.base import validation
+from simlab.base.actions import SIMLAB16, ActionSet
+from simlab.base.errors import ConfigError, warn
 from simlab.calibration.metrics import (
     Floor,
     TVResult,
@@ -77,7 +78,6 @@ from simlab.calibration.signature import (
     used_speed_field,
 )
 from simlab.calibration.space import ParameterSpace
-from simlab.errors import ConfigError, warn
 
 
 @dataclass(frozen=True)
@@ -451,13 +451,13 @@ class CalibrationResult:
 
 
 class _Runner:
-    """Simulates candidate tables on the one parallel layer (:mod:`simlab.parallel`): in
+    """Simulates candidate tables on the one parallel layer (:mod:`simlab.base.parallel`): in
     this process for one worker, else a pool of ``workers`` processes (one arena per
     process, workers exit with us), or Ray tasks on ``address``; tables come back in job
     order."""
 
     def __init__(self, workers: int, address: str | None = None) -> None:
-        from simlab.parallel import make_executor
+        from simlab.base.parallel import make_executor
 
         if address is not None:
             self._executor = make_executor("ray", address=address)

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from simlab.actions import ActionSet
+from simlab.base.actions import ActionSet
 from simlab.calibration.space import ParameterSpace
 
 

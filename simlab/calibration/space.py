@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 
 SCALES = ("linear", "log")
 
@@ -178,7 +178,7 @@ def space_from_mapping(table: Mapping[str, Any], *, where: str = "parameters") -
 
 def load_space(path: str | os.PathLike[str]) -> ParameterSpace:
     """Read a space TOML file (module docstring); errors name the file and key."""
-    from simlab.io import read_toml
+    from simlab.base.io import read_toml
 
     path = Path(path)
     doc = read_toml(path, what="parameter space file")

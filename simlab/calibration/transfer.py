@@ -34,7 +34,7 @@ Decisions:
   lowest action index; a state with no way to the goal takes its lowest allowed action.
 * **Action sets.** Twin and real model must hold the same primitives. A twin of simlab's 16
   primitives is read on an 8-action real set through the columns
-  :meth:`simlab.actions.ActionSet.primitives` gives (the twin's action doing each real
+  :meth:`simlab.base.actions.ActionSet.primitives` gives (the twin's action doing each real
   action); a real action the twin has no column for is an error.
 * **Starts.** Default: every non-goal state the real robot left at least once. Start states
   from which even the real optimum cannot reach the goal are dropped (reported as
@@ -64,10 +64,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab import validation
-from simlab.actions import ActionSet, ActionSetOptions
-from simlab.errors import ConfigError
-from simlab.options import command, option
+from simlab.base import validation
+from simlab.base.actions import ActionSet, ActionSetOptions
+from simlab.base.errors import ConfigError
+from simlab.base.options import command, option
 
 __all__ = [
     "GoalTransfer",
@@ -1142,7 +1142,7 @@ def render_transfer_png(result: TransferResult, *, grid: Any = None, disc: Any =
 def plot_transfer(result: TransferResult, path: str | os.PathLike[str], *, grid: Any = None,
                   disc: Any = None) -> Path:
     """Write :func:`render_transfer_png` to ``path`` atomically."""
-    from simlab.io import atomic_write_bytes
+    from simlab.base.io import atomic_write_bytes
 
     atomic_write_bytes(path, render_transfer_png(result, grid=grid, disc=disc))
     return Path(path)
@@ -1157,8 +1157,8 @@ def load_qtable_twin(path: str | os.PathLike[str]) -> QTableTwin:
     """A twin from a ``simlab train`` output directory (every ``q_*.npz``) or one Q-table
     file: ``Q``, ``goal_mask`` (required: the goal it was trained for), ``valid`` and
     ``greedy`` when stored, the action set of its metadata."""
-    from simlab.actions import action_set_from_metadata
     from simlab.agents.storage import load_npz
+    from simlab.base.actions import action_set_from_metadata
 
     path = Path(path)
     files = sorted(path.glob("q_*.npz")) if path.is_dir() else [path]
@@ -1302,7 +1302,7 @@ def _check_outputs(cfg: TransferConfig) -> dict[str, Path]:
         if any(_resolve(p) == rs for p in paths.values()):
             raise ConfigError("an output would replace this input", path=src, key="out",
                               fix="choose another --out")
-    from simlab.io import ensure_new
+    from simlab.base.io import ensure_new
 
     if out.exists() and not out.is_dir():
         raise ConfigError("the output directory is a file", path=out, key="out",
@@ -1367,7 +1367,7 @@ def transfer_command(cfg: TransferConfig) -> TransferFiles:
     """``simlab transfer``: score the twins' policies on the real model; write
     ``transfer.json`` (:meth:`TransferResult.to_json`), ``transfer.md`` and ``transfer.png``
     into ``out`` through one output transaction (nothing is written on any error)."""
-    from simlab.io import atomic_write_json, atomic_write_text, output_transaction
+    from simlab.base.io import atomic_write_json, atomic_write_text, output_transaction
 
     paths = _check_outputs(cfg)
     disc = grid = None

@@ -8,7 +8,7 @@ Each subcommand lives in its own module ``simlab/cli/<name>.py`` defining
 * ``run(args) -> int | None`` — calls the library function (the same one exposed
   in :mod:`simlab.commands`) and prints a short summary.
 
-Library code raises; this module alone turns :class:`~simlab.errors.SimlabError`,
+Library code raises; this module alone turns :class:`~simlab.base.errors.SimlabError`,
 the operating system's errors (missing files, permissions, a full disk, a read-only
 file system, an ``--out`` that is a file) and running out of memory into one line on
 stderr and exit code 2; Ctrl-C is ``simlab X: interrupted`` and exit code 130; any other
@@ -24,7 +24,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from simlab.errors import SimlabError
+from simlab.base.errors import SimlabError
 
 #: Subcommand name -> module under simlab.cli. Order is the order of --help.
 SUBCOMMANDS: dict[str, str] = {

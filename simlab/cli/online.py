@@ -17,7 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
     from simlab.online.command import OnlineConfig, online
 
     cfg = OnlineConfig.from_args(args)

@@ -27,7 +27,7 @@ def config_from_args(args: argparse.Namespace) -> ReplayConfig:
     """The :class:`ReplayConfig` of the command line (``--states`` and ``--out`` are
     required here, on the command line or in ``--config``, unlike in the Python function);
     the primitive flags become ``params``."""
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
 
     for name in ("states", "out"):
         if not _given(args, name):
@@ -44,7 +44,7 @@ def _given(args: argparse.Namespace, name: str) -> bool:
     config = getattr(args, "config", None)
     if config is None:
         return False
-    from simlab.io import read_toml
+    from simlab.base.io import read_toml
 
     return any(k.replace("-", "_") == name for k in read_toml(config))
 

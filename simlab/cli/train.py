@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def config_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~simlab.training.train.TrainConfig` of the parsed command line
     (``--param`` pairs win over a ``params`` table of ``--config FILE``)."""
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
     from simlab.training.train import TrainConfig
 
     cfg = TrainConfig.from_args(args)

@@ -84,12 +84,12 @@ def _show(args: argparse.Namespace) -> int:
     import numpy as np
 
     from simlab.agents.kernels import greedy_action
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
     from simlab.visitlab.training import ShowConfig, make_env
 
     cfg = ShowConfig.from_args(args)
     if cfg.png:
-        from simlab.io import ensure_new
+        from simlab.base.io import ensure_new
 
         ensure_new(cfg.png, overwrite=cfg.overwrite, what="PNG")  # before the episode
     env = make_env(cfg.task, variant=cfg.variant, render_mode="ansi",
@@ -120,7 +120,7 @@ def _show(args: argparse.Namespace) -> int:
         print(f"action {a}  reward {reward:g}  total {total:g}")
         print(env.render())
     if cfg.png:
-        from simlab.io import atomic_write
+        from simlab.base.io import atomic_write
 
         env.render_mode = "rgb_array"
         import imageio.v3 as iio
@@ -132,8 +132,8 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from simlab.errors import ConfigError
-    from simlab.io import ensure_new
+    from simlab.base.errors import ConfigError
+    from simlab.base.io import ensure_new
     from simlab.visitlab.results import PlotConfig, load_results, plot_results, summarize_curve
 
     cfg = PlotConfig.from_args(args)
@@ -155,7 +155,7 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _module_q(path, run: int, seed_index: int):
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
     from simlab.visitlab.results import load_results
 
     runs = load_results(path)
@@ -171,8 +171,8 @@ def _module_q(path, run: int, seed_index: int):
 def _combined(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from simlab.errors import ConfigError
-    from simlab.io import ensure_new
+    from simlab.base.errors import ConfigError
+    from simlab.base.io import ensure_new
     from simlab.visitlab.combined import (
         CombinedConfig,
         CombinedTask,

@@ -9,7 +9,7 @@ Layers, one per module:
 * :mod:`simlab.data.walkers` — what runs inside a worker: the physics random walk,
   a physics-free kinematic stand-in, pose sources;
 * :mod:`simlab.data.backends` — the dataset parts as jobs of the one parallel layer
-  (:mod:`simlab.parallel`: in-process, local processes or Ray);
+  (:mod:`simlab.base.parallel`: in-process, local processes or Ray);
 * :mod:`simlab.data.collect` — the ``simlab collect`` driver (budgets, exact resume);
 * :mod:`simlab.data.estimate` — counts, T = n(s,a,s')/n(s,a), entropy, coverage,
   ``simlab estimate``;
@@ -27,7 +27,7 @@ re-exported here because their names are those of their modules.
 
 from __future__ import annotations
 
-from simlab.lazy import lazy_exports
+from simlab.base.lazy import lazy_exports
 
 _LAZY: dict[str, str] = {
     "CollectResult": "simlab.data.collect",

@@ -1,4 +1,4 @@
-"""Where the parts of a random walk run: the collection's jobs on :mod:`simlab.parallel`.
+"""Where the parts of a random walk run: the collection's jobs on :mod:`simlab.base.parallel`.
 
 Every executor runs the same function, :func:`simlab.data.walkers.run_part`, on the
 same :class:`~simlab.data.walkers.PartJob`, and a part's rows depend only on its job;
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from simlab.base.parallel import BACKENDS, Executor, make_executor
 from simlab.data.walkers import PartJob, PartResult, WalkerCache, run_part
-from simlab.parallel import BACKENDS, Executor, make_executor
 
 __all__ = ["BACKENDS", "PartBackend", "make_backend"]
 
@@ -43,7 +43,7 @@ class PartBackend:
 def make_backend(name: str, workers: int, address: str | None = None) -> PartBackend:
     """The backend ``name`` for ``workers`` concurrent walks: ``local`` with one worker
     runs in this process, with more a pool of ``workers`` processes (one arena per
-    process); ``ray`` runs Ray tasks on ``address`` (see :func:`simlab.parallel.connect_ray`).
+    process); ``ray`` runs Ray tasks on ``address`` (see :func:`simlab.base.parallel.connect_ray`).
     """
     if name == "ray":
         return PartBackend(make_executor("ray", address=address))

@@ -37,8 +37,11 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from simlab import validation as v
-from simlab.actions import SIMLAB16, ActionSetOptions
+from simlab.base import validation as v
+from simlab.base.actions import SIMLAB16, ActionSetOptions
+from simlab.base.errors import ConfigError
+from simlab.base.io import exclusive_directory
+from simlab.base.options import command, option
 from simlab.data.backends import BACKENDS, make_backend
 from simlab.data.dataset import unlisted_parts, validate_part, write_part
 from simlab.data.manifest import (
@@ -63,10 +66,7 @@ from simlab.data.walkers import (
     WalkSpec,
     check_pose_source,
 )
-from simlab.errors import ConfigError
-from simlab.io import exclusive_directory
 from simlab.localization.sources import POSE_SOURCES
-from simlab.options import command, option
 from simlab.physics.inputs import load_arena_config, load_discretizer
 from simlab.physics.primitive_options import PrimitiveOptions
 
@@ -491,7 +491,7 @@ def collect(cfg: CollectConfig) -> CollectResult:
     manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
                              starts)
     if cfg.backend == "ray" and cfg.address is not None:  # before --out is touched
-        from simlab.parallel import check_reachable
+        from simlab.base.parallel import check_reachable
 
         check_reachable(cfg.address)
     # One run per directory: a second collect on the same --out stops here.
@@ -537,7 +537,7 @@ def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
                   t_budget: float | None, starts: list[int] | None) -> dict[str, Any]:
     """The manifest this run writes (or checks a resumed directory's against)."""
     from simlab import __version__
-    from simlab.statecheck import check_centres_in_arena
+    from simlab.base.statecheck import check_centres_in_arena
 
     states = cfg.states
     aset = cfg.make_action_set()

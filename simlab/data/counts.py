@@ -27,8 +27,8 @@ The type is chosen by suffix (``.csv``, ``.json``); any other name (notably a fi
 without extension, as the ISIR files are published) is **sniffed**: a file whose first
 non-blank character is ``[`` or ``{`` is JSON, anything else CSV.
 
-Validation (a :class:`CountsFileError`, both a :class:`~simlab.errors.ConfigError` and a
-:class:`~simlab.errors.DataError`, naming the file, the row and the field): UTF-8 text;
+Validation (a :class:`CountsFileError`, both a :class:`~simlab.base.errors.ConfigError` and a
+:class:`~simlab.base.errors.DataError`, naming the file, the row and the field): UTF-8 text;
 every value a whole number (``12`` or ``12.0``, not ``12.5``, not ``true``) within int64;
 counts >= 0; ``s`` and ``s_next`` in ``0..S-1``, ``a`` in ``0..A-1``; unknown or missing
 columns/fields; an empty file. ``S`` comes from the caller (``--states`` or
@@ -41,7 +41,7 @@ sessions naturally repeats triples — counted in :attr:`CountTable.duplicates` 
 reported with a :class:`DuplicateRowsWarning`.
 
 The table is ActionSet-independent: ``n_actions`` (8 or 16) only sizes it; what action
-``a`` means is attached by the caller (:mod:`simlab.actions`).
+``a`` means is attached by the caller (:mod:`simlab.base.actions`).
 """
 
 from __future__ import annotations
@@ -58,9 +58,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError, warn
 from simlab.data.schema import N_ACTIONS
-from simlab.errors import ConfigError, DataError, warn
 
 COLUMNS = ("s", "a", "s_next", "count")
 #: Largest dense ``(S, A, S)`` int64 table :func:`load_counts` allocates (bytes).

@@ -3,7 +3,7 @@
 Reading goes through the manifest: only the parts it lists are read, in (worker,
 part) order, and with ``validate=True`` each one is checked against it (SHA-256,
 row count, column names and types, discretizer hash, index ranges). Any problem is a
-:class:`~simlab.errors.DataError` that names the file.
+:class:`~simlab.base.errors.DataError` that names the file.
 
 Other tools read the parts directory ``DIR/parts`` (:func:`parts_path`): pyarrow, pandas,
 Polars, DuckDB (``read_parquet``) and Ray Data all take that one path; see
@@ -24,11 +24,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
+from simlab.base.actions import SIMLAB16, ActionSet, action_set_from_metadata
+from simlab.base.errors import DataError, warn
+from simlab.base.io import atomic_write
 from simlab.data.manifest import file_sha256, manifest_path, read_manifest
 from simlab.data.schema import N_ACTIONS, PARTS_DIR, parse_part_name, part_file, part_name
-from simlab.errors import DataError, warn
-from simlab.io import atomic_write
 
 #: Key of the Parquet schema metadata holding the discretizer hash of a part.
 DISCRETIZER_META_KEY = b"simlab.discretizer"

@@ -17,7 +17,7 @@ and replay only choose among visited actions of a state (``valid = visited``; a 
 no visited action keeps all of them); ``self-loop`` is the old rule, the self-loop taken
 at face value. T itself is the same under both rules (so old results stay bit-identical).
 
-**Action sets**: the model records its :class:`~simlab.actions.ActionSet` (number of
+**Action sets**: the model records its :class:`~simlab.base.actions.ActionSet` (number of
 actions, direction numbering, speed of an 8-action set), from the dataset or from the
 ``--n-actions/--convention/--speed`` of a count table; files without it are simlab's 16
 primitives.
@@ -55,12 +55,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab import validation
-from simlab.actions import SIMLAB16, ActionSet, ActionSetOptions
+from simlab.base import validation
+from simlab.base.actions import SIMLAB16, ActionSet, ActionSetOptions
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write, atomic_write_json, ensure_new, output_transaction
+from simlab.base.options import command, option
 from simlab.data.schema import N_ACTIONS
-from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
-from simlab.options import command, option
 from simlab.physics.inputs import load_arena_config, load_discretizer
 
 #: Lower edges of the n(s, a) histogram bins of the coverage report: [0], [1], [2, 5), ...
@@ -111,7 +111,7 @@ def count_transitions(
     for name, v, upper in (("s", s, n_states), ("a", a, n_actions), ("s_next", s_next, n_states)):
         if v.size and (v.min() < 0 or v.max() >= upper):
             raise ValueError(f"{name}: indices must lie in 0..{upper - 1}")
-    from simlab.guards import array_bytes, check_memory
+    from simlab.base.guards import array_bytes, check_memory
 
     # counts, T and the bincount buffer: three (S, A, S) 8-byte tables
     check_memory(array_bytes((n_states, n_actions, n_states), 24), key="n_states",
@@ -444,8 +444,8 @@ def _floats(values: NDArray[np.float64]) -> list[float | None]:
 @dataclass(frozen=True, kw_only=True)
 class EstimateConfig(ActionSetOptions):
     """Options of ``simlab estimate`` / :func:`estimate`. The action-set group
-    (:class:`~simlab.actions.ActionSetOptions`) and ``action_set`` (an
-    :class:`~simlab.actions.ActionSet`, from Python) describe a count table only; a dataset
+    (:class:`~simlab.base.actions.ActionSetOptions`) and ``action_set`` (an
+    :class:`~simlab.base.actions.ActionSet`, from Python) describe a count table only; a dataset
     records its own (decision: the group is refused for a dataset, as the CLI always did)."""
 
     COMMAND = "estimate"
@@ -556,7 +556,7 @@ def estimate(cfg: EstimateConfig) -> EstimateResult:
     disc = None if cfg.states is None else load_discretizer(cfg.states)
     arena_cfg = None if cfg.arena is None else load_arena_config(cfg.arena)
     if disc is not None and arena_cfg is not None:  # the goals are found through the centres
-        from simlab.statecheck import check_centres_in_arena
+        from simlab.base.statecheck import check_centres_in_arena
 
         check_centres_in_arena(disc.centres, arena_cfg, source=str(cfg.states)
                                if isinstance(cfg.states, str | os.PathLike) else None)

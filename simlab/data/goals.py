@@ -89,7 +89,7 @@ def select_goals(masks: GoalMasks, goals: str | Iterable[str] | None, n_states: 
     goal of the same name, so a replay rewards exactly what training rewarded. Any other
     name must be one of ``masks.names``.
     """
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
 
     if goals is None or goals == "all":
         return masks

@@ -15,9 +15,9 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write_json
 from simlab.data.schema import FORMAT_NAME, FORMAT_VERSION, MANIFEST_NAME
-from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write_json
 
 #: Manifest fields that must agree between a dataset on disk and a run resuming it.
 RESUME_KEYS = (

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from simlab.actions import ActionSet, action_set_from_metadata
-from simlab.errors import ConfigError
+from simlab.base.actions import ActionSet, action_set_from_metadata
+from simlab.base.errors import ConfigError
 
 __all__ = ["EmpiricalMDP", "SparseEmpiricalMDP", "load_mdp", "load_sparse_mdp",
            "mdp_from_arrays"]

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from simlab.io import atomic_write
+from simlab.base.io import atomic_write
 
 SLOW_COLOUR = "#4477aa"
 FAST_COLOUR = "#ee6677"

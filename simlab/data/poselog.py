@@ -39,7 +39,7 @@ rotation merge into one; a decision's start and end are known to one sample inte
 
 **Action** (:func:`decision_actions`): the heading octant of the decision's translation
 (from the sample where the move starts to the last one), or of the final yaw when
-blocked, numbered in the declared :class:`~simlab.actions.ActionSet` (``ccw-east`` for the
+blocked, numbered in the declared :class:`~simlab.base.actions.ActionSet` (``ccw-east`` for the
 ISIR logs). With 16 actions the speed is ``fast`` when the mean translation speed exceeds
 ``speed_split`` (m/s); blocked decisions are taken as slow (the log cannot tell).
 
@@ -61,10 +61,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.actions import ActionSet, parse_action_set
-from simlab.errors import ConfigError
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation
+from simlab.base.actions import ActionSet, parse_action_set
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, command, option
 
 _MOVE, _TURN, _IDLE = 2, 1, 0
 
@@ -237,7 +237,7 @@ class RobotActionOptions(CommandConfig):
     """The ``--n-actions/--convention`` field group of the robot-data importers
     (``import-log``, ``import-bag``): the action set the imported decisions are numbered in.
 
-    Not :class:`~simlab.actions.ActionSetOptions`: its defaults are simlab's own robot (16
+    Not :class:`~simlab.base.actions.ActionSetOptions`: its defaults are simlab's own robot (16
     actions, ``simlab`` order, ``n_actions`` None = not given, plus ``--speed``), these are
     the ISIR robot's logs (8 actions counted ``ccw-east``), and the importers never had a
     speed option (an 8-action import is ``slow``).
@@ -252,7 +252,7 @@ class RobotActionOptions(CommandConfig):
         self.make_action_set()  # a bad convention names its field here
 
     def make_action_set(self) -> ActionSet:
-        """The :class:`~simlab.actions.ActionSet` of the fields."""
+        """The :class:`~simlab.base.actions.ActionSet` of the fields."""
         return parse_action_set(self.n_actions, self.convention)
 
 

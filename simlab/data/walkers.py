@@ -41,8 +41,8 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.actions import HEADINGS, SIMLAB16
-from simlab.errors import ConfigError
+from simlab.base.actions import HEADINGS, SIMLAB16
+from simlab.base.errors import ConfigError
 from simlab.localization.sources import (  # noqa: F401 (the names stay importable here)
     POSE_SOURCES,
     SCANLESS_POSE_SOURCES,
@@ -339,7 +339,7 @@ class WalkSpec:
         primitives: the primitives the walk draws from, uniformly; the recorded action
             ``a`` is the index into this tuple (default: all 16, so ``a`` is the
             primitive). A real robot's 8 actions walk with their 8 primitives
-            (:meth:`simlab.actions.ActionSet.primitives`).
+            (:meth:`simlab.base.actions.ActionSet.primitives`).
     """
 
     key: str

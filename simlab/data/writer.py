@@ -18,7 +18,7 @@ path pyarrow, pandas, Polars, DuckDB and Ray Data all read), manifest at
 ``worker``); it is cut into parts of ``part_size`` rows, every part written atomically
 (temporary name, fsync, rename), and the manifest — which is what makes the directory a
 dataset — is written **last**, so an interrupted write never looks like a complete dataset.
-The manifest holds the :class:`~simlab.actions.ActionSet` as ``action_set``, the pose
+The manifest holds the :class:`~simlab.base.actions.ActionSet` as ``action_set``, the pose
 source, the discretizer (hash, centres) and the caller's free-form ``provenance``.
 
 Decisions: a writer run produces a complete dataset (``complete: true``) and cannot be
@@ -48,7 +48,9 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from simlab.actions import SIMLAB16, ActionSet
+from simlab.base.actions import SIMLAB16, ActionSet
+from simlab.base.errors import ConfigError
+from simlab.base.io import STAGING_PREFIX, exclusive_directory, unstaged_error
 from simlab.data.dataset import write_part
 from simlab.data.manifest import manifest_path, new_manifest, write_manifest
 from simlab.data.schema import (
@@ -60,8 +62,6 @@ from simlab.data.schema import (
     schema_to_json,
     transition_schema,
 )
-from simlab.errors import ConfigError
-from simlab.io import STAGING_PREFIX, exclusive_directory, unstaged_error
 from simlab.physics.inputs import load_discretizer
 
 #: Rows per part file unless told otherwise.
@@ -176,7 +176,7 @@ class DatasetInfo:
             raise ConfigError(f"unknown pose source {self.pose_source!r}", key="pose_source",
                               fix=f"choose one of {', '.join(POSE_SOURCE_NAMES)}")
         if not isinstance(self.action_set, ActionSet):
-            raise ConfigError("expected an ActionSet (simlab.actions)", key="action_set")
+            raise ConfigError("expected an ActionSet (simlab.base.actions)", key="action_set")
         if "name" not in self.arena:
             raise ConfigError("the arena record needs a 'name'", key="arena")
 

@@ -12,8 +12,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from simlab.base.errors import ConfigError
 from simlab.data.mdp import EmpiricalMDP, load_mdp, mdp_from_arrays
-from simlab.errors import ConfigError
 
 __all__ = ["EmpiricalMDPEnv", "render_states_rgb"]
 
@@ -24,7 +24,7 @@ class EmpiricalMDPEnv(gym.Env):
       goal (name from the file's ``goal_names``, index, or an explicit (S,) mask).
     * **Observation** ``Discrete(S)``: the Markov state (Voronoi cell index).
     * **Action** ``Discrete(A)``: what action ``a`` does is the MDP's ``action_set``
-      (:class:`~simlab.actions.ActionSet`; simlab's 16 primitives ``speed * 8 + direction``
+      (:class:`~simlab.base.actions.ActionSet`; simlab's 16 primitives ``speed * 8 + direction``
       for the table arena, 8 actions for a real robot's data). ``env.action_set`` and
       ``env.valid_actions`` ((S, A) bool, the ``mask`` rule for unvisited pairs; None when every
       action is allowed) tell an agent which actions mean what and which were never tried.

@@ -15,8 +15,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ClosedEnvironmentError
 
-from simlab.actions import SIMLAB16, ActionSet
-from simlab.errors import ConfigError
+from simlab.base.actions import SIMLAB16, ActionSet
+from simlab.base.errors import ConfigError
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import PrimitiveParams
@@ -81,7 +81,7 @@ class TableArenaEnv(gym.Env):
       the thesis's 16 motion primitives, index = speed * 8 + direction (UP, DOWN, LEFT, RIGHT,
       UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT in the map frame; slow 0.10 m/s or fast
       0.22 m/s for 0.5 s), each preceded by the LIDAR obstacle check (see
-      :mod:`simlab.physics.motion`). Another :class:`~simlab.actions.ActionSet` (e.g. a real
+      :mod:`simlab.physics.motion`). Another :class:`~simlab.base.actions.ActionSet` (e.g. a real
       robot's 8 actions numbered counter-clockwise from East) renumbers them: action ``a``
       executes the primitive ``action_set.to_primitive(a)``; ``info["primitive"]`` says which.
     * **Observation** ``Dict(pose=Box(3), lidar=Box(360), lidar_valid=MultiBinary(360))``

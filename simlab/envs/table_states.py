@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from simlab.actions import ActionSet, action_set_from_metadata
+from simlab.base.actions import ActionSet, action_set_from_metadata
+from simlab.base.errors import ConfigError
 from simlab.envs.table_arena import TableArenaEnv
-from simlab.errors import ConfigError
 from simlab.localization.sources import SCANLESS_POSE_SOURCES
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.motion import PrimitiveParams

@@ -51,7 +51,7 @@ Check operators (``value`` is what the metric is compared with):
 A check whose metric the runner did not return, or returned as ``None``/NaN, **FAILs**
 (it is never hidden). A check whose ``budgets`` exclude the current budget is listed as
 "not checked at this budget". Every problem in a file raises
-:class:`~simlab.errors.ConfigError` naming the file and the key (``expect[2].op``).
+:class:`~simlab.base.errors.ConfigError` naming the file and the key (``expect[2].op``).
 
 2. Runners
 ----------
@@ -105,7 +105,7 @@ The runner returns a :class:`~simlab.experiments.context.RunResult`:
 * ``details`` — optional JSON-ready data (per-action values, curves) saved in
   ``DIR/<name>/result.json``.
 
-A runner raises :class:`~simlab.errors.ConfigError` for bad ``params``/``budget``
+A runner raises :class:`~simlab.base.errors.ConfigError` for bad ``params``/``budget``
 values (name the key, e.g. ``key="params.hours"``); any exception is caught by the
 driver, shown in the table as ERROR, and the other experiments still run.
 
@@ -125,7 +125,7 @@ experiment failed to run (and, with ``--strict``, when a check FAILed).
 
 from __future__ import annotations
 
-from simlab.lazy import lazy_exports
+from simlab.base.lazy import lazy_exports
 
 _LAZY: dict[str, str] = {
     "RunContext": "simlab.experiments.context",

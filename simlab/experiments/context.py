@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def experiment_seed(root_seed: int, name: str) -> np.random.SeedSequence:

@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
+from simlab.base import validation
+from simlab.base.io import atomic_write
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
-from simlab.io import atomic_write
 
 
 def flip_coins(p: float, flips: int, seed: np.random.SeedSequence) -> float:

@@ -11,7 +11,7 @@ import importlib
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 if TYPE_CHECKING:
     from simlab.experiments.context import RunContext, RunResult

@@ -28,11 +28,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from simlab import validation
-from simlab.errors import ConfigError, DataError
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write_json, atomic_write_text
+from simlab.base.options import CommandConfig, command, option
 from simlab.experiments.spec import BUDGETS, FAIL, ExperimentSpec, discover_experiments, select
-from simlab.io import atomic_write_json, atomic_write_text
-from simlab.options import CommandConfig, command, option
 
 RESULTS_MD = "results.md"
 RESULTS_JSON = "results.json"
@@ -262,7 +262,7 @@ def reproduce(cfg: ReproduceConfig, log: Callable[[str], None] | None = print
     previous = _read_previous(out / RESULTS_JSON)
 
     from simlab import __version__
-    from simlab.parallel import make_executor
+    from simlab.base.parallel import make_executor
 
     executor = make_executor(cfg.backend, workers=cfg.workers, address=cfg.address)
     say = log or (lambda _line: None)

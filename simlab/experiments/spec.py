@@ -2,7 +2,7 @@
 
 See the contract in :mod:`simlab.experiments` for the file format. Everything here is
 pure: :func:`load_experiment` reads one file into a frozen :class:`ExperimentSpec`
-(raising :class:`~simlab.errors.ConfigError` naming the file and the key), and
+(raising :class:`~simlab.base.errors.ConfigError` naming the file and the key), and
 :meth:`Check.evaluate` compares a runner's metrics with one check.
 """
 
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 
 BUDGETS = ("quick", "full")
 #: Operators comparing a metric with a number.

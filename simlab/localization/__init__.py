@@ -10,7 +10,7 @@ that a map belongs to its arena). Nothing here imports PyBullet.
 
 from __future__ import annotations
 
-from simlab.lazy import lazy_exports
+from simlab.base.lazy import lazy_exports
 
 # Lazy (PEP 562): the pose-source names (:mod:`~simlab.localization.sources`) are read by
 # the CLI's parsers, which must not pay for scipy and the filter at ``simlab --help``.

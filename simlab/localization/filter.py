@@ -48,8 +48,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from discretize.gridmap import OccupancyMap
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 from simlab.localization.likelihood import (
     LikelihoodField,
     SensorModelParams,

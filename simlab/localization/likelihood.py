@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from discretize.gridmap import OccupancyMap
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 
 
 @dataclass(frozen=True)

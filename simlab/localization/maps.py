@@ -29,7 +29,7 @@ import numpy as np
 from scipy import ndimage
 
 from discretize.gridmap import FREE, OCCUPIED, OccupancyMap
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def arena_map(arena: Any, resolution: float = 0.01, margin: float = 0.1) -> OccupancyMap:

@@ -24,7 +24,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def wrap(angle: NDArray[np.float64] | float) -> NDArray[np.float64]:

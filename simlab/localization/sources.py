@@ -21,7 +21,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["POSE_SOURCES", "SCANLESS_POSE_SOURCES", "OdometryPose", "PoseSource", "TruthPose",
            "check_pose_source_name", "make_pose_source"]

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from discretize.gridmap import OccupancyMap
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.localization.filter import MCLParams, ParticleFilter, ScanLike
 from simlab.localization.likelihood import LikelihoodField
 from simlab.localization.motion import compose, relative, relative3, wrap

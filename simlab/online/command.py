@@ -4,7 +4,7 @@ Every *arm* (a criterion; ``entropy_and_cost`` once per ``kappa``) runs ``seeds`
 independent runs of ``decisions`` decisions on the task of
 :mod:`simlab.online.task` (start states, goal, one change at ``change_at``), through the
 fused loop of :mod:`simlab.online.loop`; jobs run in parallel through
-:mod:`simlab.parallel`. Seeding: ``SeedSequence(seed).spawn(seeds)[i].spawn(2)`` gives
+:mod:`simlab.base.parallel`. Seeding: ``SeedSequence(seed).spawn(seeds)[i].spawn(2)`` gives
 run ``i`` its environment and agent streams, the same for every arm (common random
 numbers: arms differ by their decisions, not by their luck).
 
@@ -57,10 +57,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation as v
-from simlab.errors import ConfigError
+from simlab.base import validation as v
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, command, option
 from simlab.online.meta import CRITERIA
-from simlab.options import CommandConfig, command, option
 
 __all__ = ["MB_DEFAULTS", "MF_DEFAULTS", "OnlineConfig", "OnlineResult", "arm_names",
            "online", "run_arm"]
@@ -238,14 +238,14 @@ class OnlineResult:
 def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
     """Run every arm of ``cfg`` on its MDP and write the outputs (module docstring).
 
-    ``executor`` (Python only): a :mod:`simlab.parallel` executor the runs go to (e.g. the
+    ``executor`` (Python only): a :mod:`simlab.base.parallel` executor the runs go to (e.g. the
     one of ``simlab reproduce``); default: one of ``backend`` / ``workers``, closed after.
     """
     import contextlib
 
+    from simlab.base.io import output_transaction
+    from simlab.base.parallel import make_executor
     from simlab.data.mdp import EmpiricalMDP, load_mdp
-    from simlab.io import output_transaction
-    from simlab.parallel import make_executor
 
     t0 = time.perf_counter()
     m = cfg.mdp if isinstance(cfg.mdp, EmpiricalMDP) else load_mdp(v.existing_file(

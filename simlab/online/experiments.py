@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 
@@ -46,10 +46,10 @@ def model_mdp(name: str, seed: int, folder: Any) -> Any:
     if name != "isir-synthetic":
         raise ConfigError(f"unknown model {name!r}", key="params.model",
                           fix=f"choose one of {', '.join(MODELS)}")
-    from simlab.actions import parse_action_set
+    from simlab.base.actions import parse_action_set
+    from simlab.base.io import atomic_write_text
     from simlab.data.counts import load_counts
     from simlab.data.estimate import empirical_mdp
-    from simlab.io import atomic_write_text
     from simlab.online.synthetic import corridor_counts, isir_document
 
     path = folder / "transitionModel"

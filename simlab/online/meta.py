@@ -248,7 +248,7 @@ def make_expert(config: Any, n_states: int, n_actions: int) -> core.Learner:
     (``plan_every = 0``): an expert plans when the meta-controller picks it."""
     from simlab.agents.config import PassiveObserverConfig, SlidingWindowConfig
     from simlab.agents.kernels import count_model_new, rmax_q_init, window_model_new
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
 
     if isinstance(config, PassiveObserverConfig):
         raise ConfigError("an expert is a single agent; the passive observer is the "
@@ -278,8 +278,8 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
     ``criterion`` one of :data:`CRITERIA`; ``kappa`` >= 0; ``cost_alpha`` in (0, 1];
     ``valid`` (S, A) bool actions allowed per state (None: all).
     """
-    from simlab import validation
-    from simlab.errors import ConfigError
+    from simlab.base import validation
+    from simlab.base.errors import ConfigError
 
     if criterion not in CRITERIA:
         raise ConfigError(f"unknown criterion {criterion!r}", key="criterion",

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.online import meta
 from simlab.online.loop import OnlineLog
 

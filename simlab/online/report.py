@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.io import atomic_write, atomic_write_bytes, atomic_write_json, atomic_write_text
+from simlab.base.io import atomic_write, atomic_write_bytes, atomic_write_json, atomic_write_text
 
 __all__ = ["MARKER", "summarize", "write_outputs"]
 

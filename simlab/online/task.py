@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["Change", "OnlineMdp", "OnlineTask", "close_passages", "parse_passages"]
 

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from simlab.errors import ConfigError
-from simlab.fingerprint import source_fingerprint
-from simlab.io import atomic_write_json
+from simlab.base.errors import ConfigError
+from simlab.base.fingerprint import source_fingerprint
+from simlab.base.io import atomic_write_json
 
 MARKER = "_stage.json"
 
@@ -61,7 +61,7 @@ def _source_path(name: str) -> Path:
 
         return Path(discretize.__file__).resolve().parent
     if name.startswith("assets/"):
-        from simlab.assets import asset_dir
+        from simlab.base.assets import asset_dir
 
         return Path(asset_dir(name.split("/", 1)[1]))
     path = Path(simlab.__file__).resolve().parent / name

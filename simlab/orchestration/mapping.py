@@ -32,11 +32,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from simlab import validation as v
-from simlab.errors import ConfigError
-from simlab.io import atomic_write_json, output_transaction
+from simlab.base import validation as v
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write_json, output_transaction
+from simlab.base.options import CommandConfig, command, option
 from simlab.localization.sources import SCANLESS_POSE_SOURCES
-from simlab.options import CommandConfig, command, option
 
 if TYPE_CHECKING:  # the occupancy kernels load numba: only when a map is built, not for --help
     from discretize.gridmap import OccupancyMap

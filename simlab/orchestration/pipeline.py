@@ -32,11 +32,11 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from simlab import validation
-from simlab.errors import ConfigError
-from simlab.io import atomic_write_bytes, atomic_write_json, exclusive_directory
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write_bytes, atomic_write_json, exclusive_directory
+from simlab.base.options import CommandConfig, command, option
 from simlab.localization.sources import POSE_SOURCES
-from simlab.options import CommandConfig, command, option
 from simlab.orchestration.report import train_ratios
 from simlab.orchestration.stages import PhysicsChain, PhysicsSettings, Stage
 
@@ -115,7 +115,7 @@ def _read_state(out: Path) -> dict[str, Any]:
     """``pipeline.json`` of a run being resumed (DataError naming it if damaged)."""
     import json
 
-    from simlab.errors import DataError
+    from simlab.base.errors import DataError
 
     path = out / "pipeline.json"
     try:

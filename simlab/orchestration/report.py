@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from simlab import __version__
-from simlab.io import atomic_write_text
+from simlab.base.io import atomic_write_text
 
 
 def train_ratios(record: dict[str, Any]) -> tuple[float | None, float | None]:

@@ -59,8 +59,8 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 from simlab.localization.sources import POSE_SOURCES
 from simlab.orchestration.cache import MARKER, Stage, StageCache
 
@@ -157,7 +157,7 @@ class PhysicsSettings:
         """Validate the settings that name things (the agent, the arena) and the sizes,
         before any work: ``pipeline --agent nosuch`` must not fail after the mapping."""
         from simlab.agents.registry import agent_config
-        from simlab.guards import array_bytes, check_memory
+        from simlab.base.guards import array_bytes, check_memory
         from simlab.physics.arena import ArenaConfig, load_arena
 
         where = where or {}

@@ -3,7 +3,7 @@
 Every numba kernel of the physics chain is ``@njit(cache=True)``: the first run on a
 machine compiles it (the value-iteration softmax training about 12 s on a quiet 2-core
 box, the particle filter's kernels a few seconds) and writes the machine code to the numba cache
-directory of this source version (:mod:`simlab._numba_cache`, or the user's
+directory of this source version (:mod:`simlab.base._numba_cache`, or the user's
 ``NUMBA_CACHE_DIR``); later processes load it in milliseconds. Numba caches per *type signature*, not per array size, so
 running a kernel once on a tiny problem of the same dtypes and layouts fills the cache
 for the real one.
@@ -141,9 +141,9 @@ def start_warmup(agent: str | None = "vi-softmax", mcl: bool = True) -> Warmup:
     training, ``wait()`` on the handle; lend :attr:`Warmup.worker` to later stages and
     ``close()`` it at the end (or use the handle as a context manager). A failure in the
     worker is harmless: the stages then compile as they would without it. The worker is
-    a :func:`simlab.parallel.spawn_worker` (it exits with its parent).
+    a :func:`simlab.base.parallel.spawn_worker` (it exits with its parent).
     """
-    from simlab.parallel import spawn_worker
+    from simlab.base.parallel import spawn_worker
 
     pool = spawn_worker()
     return Warmup(future=pool.submit(warm_kernels, agent, mcl), pool=pool,

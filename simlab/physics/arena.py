@@ -50,7 +50,7 @@ walls of ``[walls] thickness``. ``[start] clearance`` (m, default 0.09: half the
 width) is the radius of the disc around the start position that must be free of walls and
 obstacles (on every arena: a body started half inside a box is pushed out by the engine).
 
-Every problem raises :class:`~simlab.errors.ConfigError` naming the file and the key.
+Every problem raises :class:`~simlab.base.errors.ConfigError` naming the file and the key.
 """
 
 from __future__ import annotations
@@ -65,9 +65,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab import validation
-from simlab.assets import resolve
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.assets import resolve
+from simlab.base.errors import ConfigError
 
 #: Height of the LIDAR scan plane above the floor (m); walls and obstacles must reach above it
 #: to be seen. Kept in sync with ``scan_joint`` in robots/turtlebot3_burger.urdf by a test.

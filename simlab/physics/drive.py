@@ -11,10 +11,10 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from simlab import validation
-from simlab.errors import ConfigError
-from simlab.io import atomic_write, ensure_new
-from simlab.options import command, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write, ensure_new
+from simlab.base.options import command, option
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def load_arena_config(arena: Any) -> Any:

@@ -23,7 +23,7 @@ from operator import itemgetter
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 # Fields of a ``rayTestBatch`` result: (object id, link, hit fraction, position, normal).
 _HIT_ID = itemgetter(0)

@@ -24,10 +24,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.errors import ConfigError
-from simlab.io import atomic_write_text, ensure_new
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write_text, ensure_new
+from simlab.base.options import CommandConfig, command, option
 from simlab.physics.arena import START_CLEARANCE, load_arena
 
 _NINTHS = ("NW", "N", "NE", "W", "C", "E", "SW", "S", "SE")

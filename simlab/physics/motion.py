@@ -52,10 +52,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.actions import HEADINGS
-from simlab.directions import Direction
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.actions import HEADINGS
+from simlab.base.directions import Direction
+from simlab.base.errors import ConfigError
 from simlab.physics.lidar import LidarScan
 from simlab.physics.robot import wrap_angle
 from simlab.physics.world import World
@@ -207,7 +207,7 @@ class PrimitiveParams:
     def from_toml(cls, path: str | os.PathLike[str]) -> PrimitiveParams:
         """Load the ``[primitives]`` table of a TOML file (other tables are ignored, so a
         calibration report can carry the table beside its own)."""
-        from simlab.io import read_toml
+        from simlab.base.io import read_toml
 
         p = Path(path)
         data = read_toml(p, what="primitives file", key="--primitives")

@@ -32,7 +32,7 @@ def box_obstacle(x: float, y: float, size: tuple[float, float], *, height: float
     """The :class:`~simlab.physics.arena.Obstacle` of a box centred at ``(x, y)`` m with
     footprint ``size`` (x, y extents, m) turned by ``yaw`` rad, ``height`` m tall. A box
     must reach above the LIDAR plane to be seen; sizes and height must be > 0."""
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
     from simlab.physics.arena import LIDAR_PLANE_HEIGHT, Obstacle
 
     for key, value in (("x", x), ("y", y), ("yaw", yaw), ("height", height),

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from simlab.options import CommandConfig, option
+from simlab.base.options import CommandConfig, option
 
 __all__ = ["PRIMITIVE_FIELDS", "PrimitiveOptions"]
 

@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.assets import resolve
-from simlab.errors import ConfigError
+from simlab.base.assets import resolve
+from simlab.base.errors import ConfigError
 from simlab.physics._bullet import pybullet
 
 #: Published TurtleBot3 Burger controller limits.

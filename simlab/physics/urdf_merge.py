@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.io import atomic_write_text
+from simlab.base.io import atomic_write_text
 
 
 def _rpy_matrix(rpy: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -18,10 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from simlab import validation as v
-from simlab.errors import ConfigError
+from simlab.base import validation as v
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, option
 from simlab.localization.sources import POSE_SOURCES
-from simlab.options import CommandConfig, option
 
 POLICIES = ("greedy", "random")
 

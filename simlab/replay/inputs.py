@@ -7,7 +7,7 @@
   primitives for files without one; an 8-action table without one is refused). All goals
   must share one action set. A saved ``valid`` (S, A) mask (unvisited pairs) travels with
   them: the replay never executes a masked action. A goal without a file, a wrong shape,
-  non-finite values or disagreeing action sets raise :class:`~simlab.errors.ConfigError`
+  non-finite values or disagreeing action sets raise :class:`~simlab.base.errors.ConfigError`
   naming the file.
 * **The empirical MDP** (for the predicted rate): the ``mdp.npz`` given, or the one the
   Q-tables record in their metadata (``mdp``). Its ``T`` must be ``(S, A, S)`` with the
@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.actions import SIMLAB16, ActionSet, action_set_from_metadata
+from simlab.base.actions import SIMLAB16, ActionSet, action_set_from_metadata
+from simlab.base.errors import ConfigError, warn
 from simlab.data.goals import is_state_goal
-from simlab.errors import ConfigError, warn
 
 #: Number of simlab motion primitives (thesis 3.2: 8 directions x 2 speeds).
 N_ACTIONS = 16

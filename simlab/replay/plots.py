@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.io import atomic_write
+from simlab.base.io import atomic_write
 
 
 @dataclass(frozen=True)

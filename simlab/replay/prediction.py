@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse.csgraph import connected_components
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def greedy_policy_matrix(Q: NDArray[np.float64], tie_tolerance: float = 1e-9

@@ -14,7 +14,7 @@ hours (Fig. 4.10):
    ``argmax_a Q_goal(s, a)`` over the **valid** actions (ties broken at random;
    ``policy="random"`` picks uniformly among all the robot's actions);
 3. it executes the motion primitive of that action, ``action_set.to_primitive(a)`` (the
-   Q-tables' :class:`~simlab.actions.ActionSet`: 16 simlab primitives, or e.g. a real
+   Q-tables' :class:`~simlab.base.actions.ActionSet`: 16 simlab primitives, or e.g. a real
    robot's 8 actions numbered counter-clockwise from East), in physics; the obstacle
    detector is part of the primitive (a blocked primitive rotates but does not translate);
 4. the robot clock advances by the primitive's stepped duration plus the decision latency
@@ -104,10 +104,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, ensure_new, output_transaction
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write, atomic_write_json, ensure_new, output_transaction
+from simlab.base.options import command
 from simlab.localization.sources import POSE_SOURCES
-from simlab.options import command
 from simlab.replay.config import POLICIES, ReplayConfig
 from simlab.replay.loop import FRAME_PARTICLES, ReplayLog, RunOutcome, RunSpec, drive_to_pose
 from simlab.replay.policy import greedy_action
@@ -169,13 +169,13 @@ class _Inputs:
 def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     """Arena, states, goals, Q-tables, MDP, map and primitive parameters, all checked
     before anything runs (ConfigError naming the file)."""
+    from simlab.base.statecheck import check_centres_in_arena
     from simlab.data.goals import goal_state_masks, select_goals
     from simlab.localization.filter import MCLParams
     from simlab.localization.likelihood import LikelihoodField
     from simlab.localization.maps import load_map_for_arena
     from simlab.physics.inputs import load_arena_config, load_discretizer
     from simlab.replay.inputs import discover_mdp, load_model, load_qtables, primitive_params_for
-    from simlab.statecheck import check_centres_in_arena
 
     arena_cfg = load_arena_config(cfg.arena)
     disc = load_discretizer(cfg.states)
@@ -207,7 +207,7 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
 
 def _check_hashes(disc: Any, qt: Any, mdp_source: Any, states_src: str | None) -> None:
     """The Q-tables and the MDP file were built on these states."""
-    from simlab.statecheck import check_states_hash, npz_states_hash
+    from simlab.base.statecheck import check_states_hash, npz_states_hash
 
     states_hash = disc.content_hash()
     for i, meta in enumerate(() if qt is None else qt.metadata):
@@ -408,7 +408,7 @@ def _worker(plan: RunPlan, lent: Any = None) -> Any:
         return contextlib.nullcontext(None)
     if lent is not None:
         return contextlib.nullcontext(lent)
-    from simlab.parallel import spawn_worker
+    from simlab.base.parallel import spawn_worker
 
     return spawn_worker()  # exits with us, like every simlab worker
 
@@ -453,7 +453,7 @@ def _actions_and_mask(qt: Any, model: Any) -> tuple[Any, NDArray[np.bool_] | Non
     ``valid``; for Q-tables without one (older files) the MDP's ``valid`` repeated per
     goal; none for Q-tables trained under the ``self-loop`` rule.
     """
-    from simlab.actions import SIMLAB16
+    from simlab.base.actions import SIMLAB16
 
     if qt is not None:
         action_set = qt.action_set

@@ -141,7 +141,7 @@ def run_both(plan: RunPlan, pool: Any = None) -> tuple[RunOutcome, RunOutcome | 
     drives the main run: the two worlds share nothing and each draws from its own
     seed streams, so the outcome is the sequential one, bit for bit (tested); the
     replay's wall time becomes that of the longer run instead of their sum. ``pool``: the
-    one-process pool to use (:func:`simlab.parallel.spawn_worker`, left open for the
+    one-process pool to use (:func:`simlab.base.parallel.spawn_worker`, left open for the
     caller's later jobs, e.g. the video); None: one of its own, closed on return.
     """
     if plan.baseline is None or not plan.split_baseline:
@@ -152,7 +152,7 @@ def run_both(plan: RunPlan, pool: Any = None) -> tuple[RunOutcome, RunOutcome | 
         with _bar(plan.baseline_hours, "replay random baseline", plan.progress) as bar:
             return main, run(plan.baseline, plan.baseline_seqs, bar)
     if pool is None:
-        from simlab.parallel import spawn_worker
+        from simlab.base.parallel import spawn_worker
 
         with spawn_worker() as own:  # exits with us, like every simlab worker
             return run_both(plan, own)

@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.io import atomic_write
+from simlab.base.io import atomic_write
 from simlab.physics.render import (
     FLOOR,
     GOAL,
@@ -97,7 +97,7 @@ class ReplayCanvas:
                  Q: NDArray[np.float64] | None, goal_names: Sequence[str], grid: Any = None,
                  pixels_per_metre: float = 200.0, trail_length: int = 30, *,
                  action_set: Any = None, valid: NDArray[np.bool_] | None = None) -> None:
-        from simlab.actions import SIMLAB16
+        from simlab.base.actions import SIMLAB16
         from simlab.training.heatmap import ARROW_DIRECTIONS, rasterize_cells
 
         self.action_set = SIMLAB16 if action_set is None else action_set

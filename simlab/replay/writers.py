@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.io import atomic_write
+from simlab.base.io import atomic_write
 from simlab.replay.loop import ReplayLog, RunOutcome
 from simlab.replay.summary import ReplaySummary
 

@@ -66,7 +66,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.errors import ConfigError, DataError
+from simlab.base.errors import ConfigError, DataError
 from simlab.ros.markers import SceneMarkers, voronoi_cells
 
 TOPICS = {
@@ -121,7 +121,7 @@ class BagTrajectory:
     ``range_min`` (REP-117; None: no /scan); ``state`` (n,) int; ``goal`` (n,) str;
     ``actions`` ``(k,)`` int with ``action_t`` (k,) s (None: no action topic), and per
     decision ``blocked`` (k,) bool and ``duration`` (k,) s (None: not recorded);
-    ``action_set`` the :meth:`simlab.actions.ActionSet.to_json` record of the action
+    ``action_set`` the :meth:`simlab.base.actions.ActionSet.to_json` record of the action
     indices; ``pose_source`` what the map pose is (``truth`` for a simulator's);
     ``map`` an :class:`~discretize.gridmap.OccupancyMap` (None: no /map);
     ``scan_offset`` (x, y, z) m of base_scan in base_link; ``base_offset`` (x, y, z) m of
@@ -442,7 +442,7 @@ def _check(traj: BagTrajectory) -> int:
 # -- the bag directory: what may be replaced, where it is staged ------------------------
 def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The ``rosbag2_bagfile_information`` table of a bag's ``metadata.yaml``;
-    :class:`~simlab.errors.DataError` naming the file when it is missing or not valid."""
+    :class:`~simlab.base.errors.DataError` naming the file when it is missing or not valid."""
     from ruamel.yaml import YAML
     from ruamel.yaml.error import YAMLError
 
@@ -680,7 +680,7 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     ``scans`` is None); the state and goal topics likewise (by bag time). Times are seconds
     since ``t0`` (s; default: the bag's recorded time origin, else the first pose stamp).
     A missing or damaged bag, or a pose topic that is absent, empty or not a pose, is a
-    :class:`~simlab.errors.DataError` naming the bag (or :class:`ConfigError` when the
+    :class:`~simlab.base.errors.DataError` naming the bag (or :class:`ConfigError` when the
     path does not exist).
     """
     rb, ts, _ = _rosbags()

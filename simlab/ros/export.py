@@ -45,9 +45,9 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError, DataError
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.options import CommandConfig, command, option
 
 
 @dataclass(frozen=True)

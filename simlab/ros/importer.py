@@ -24,7 +24,7 @@
   recorded in the provenance.
 * **States**: nearest centre of the states file (the writer's rule). Written with
   :func:`simlab.data.writer.write_dataset` in the one output transaction
-  (:func:`simlab.io.output_transaction`): a failure leaves ``out`` as it was; pose source
+  (:func:`simlab.base.io.output_transaction`): a failure leaves ``out`` as it was; pose source
   ``log`` unless the bag records another.
 * **Safety**: ``out`` is checked before the bag is read: an existing dataset is replaced
   only with ``overwrite`` and only if this command wrote it; ``out`` may not be, contain
@@ -48,10 +48,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab.actions import ActionSet, parse_action_set
+from simlab.base.actions import ActionSet, parse_action_set
+from simlab.base.errors import ConfigError
+from simlab.base.options import command, option
 from simlab.data.poselog import RobotActionOptions, SegmentOptions
-from simlab.errors import ConfigError
-from simlab.options import command, option
 
 #: ``provenance.importer`` of the datasets this command writes: what ``--overwrite`` may
 #: replace.
@@ -184,9 +184,9 @@ def _check_out(out: Path, bag: Path, overwrite: bool) -> None:
     """Refuse ``out`` before any work: a file, a directory that overlaps the bag, or one
     that holds anything but a dataset this command wrote (that one only with
     ``overwrite``)."""
+    from simlab.base.errors import DataError
     from simlab.data.manifest import read_manifest
     from simlab.data.schema import PARTS_DIR, parse_part_name
-    from simlab.errors import DataError
 
     a, b = out.resolve(), bag.resolve()
     if a == b or a in b.parents or b in a.parents:
@@ -231,9 +231,9 @@ def _write(out: Path, walk: Any, info: Any, overwrite: bool, part_size: int | No
     """``write_dataset`` into the staging directory of one output transaction, renamed
     into ``out`` at the end; then the old dataset's parts that the new one does not list
     are removed. OS errors name ``out``, not the staging directory."""
+    from simlab.base.io import output_transaction
     from simlab.data.schema import PARTS_DIR
     from simlab.data.writer import DEFAULT_PART_SIZE, write_dataset
-    from simlab.io import output_transaction
 
     try:
         with output_transaction(out, overwrite=overwrite, what="dataset") as txn:

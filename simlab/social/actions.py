@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.actions import HEADINGS
+from simlab.base.actions import HEADINGS
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper, action_index
 from simlab.physics.robot import wrap_angle
 from simlab.social.perception import bearing, quantise_direction

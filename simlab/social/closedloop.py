@@ -67,8 +67,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 from simlab.physics.arena import ArenaConfig, GoalArea
 from simlab.social.actions import N_SOCIAL_ACTIONS, grid_q_to_physics
 from simlab.social.perception import bearing, quantise_direction
@@ -338,11 +338,11 @@ def closed_loop_frames(run: ClosedLoopRun, config: ClosedLoopConfig | None = Non
 
 def write_closed_loop_gif(frames: list[NDArray[np.uint8]], path: str | Path,
                           fps: float = 4.0) -> Path:
-    """Write ``frames`` as a looping GIF at ``path`` atomically (:func:`simlab.io.atomic_write`;
-    an existing file is replaced: callers check with :func:`simlab.io.ensure_new`)."""
+    """Write ``frames`` as a looping GIF at ``path`` atomically (:func:`simlab.base.io.atomic_write`;
+    an existing file is replaced: callers check with :func:`simlab.base.io.ensure_new`)."""
     import imageio.v3 as iio
 
-    from simlab.io import atomic_write
+    from simlab.base.io import atomic_write
 
     if not frames:
         raise ValueError("no frames to write")

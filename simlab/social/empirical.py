@@ -155,13 +155,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from simlab import validation
+from simlab.base import validation
 from simlab.data.estimate import SparseCountModel, sparse_count_model, valid_actions
 from simlab.social.actions import N_SOCIAL_ACTIONS, SIGNALS
 from simlab.social.walk import N_SOCIAL_STATES, SocialWalk, decode_social
 
 #: Opposite of each direction in the thesis order (UP, DOWN, LEFT, RIGHT, UP-LEFT,
-#: UP-RIGHT, DOWN-LEFT, DOWN-RIGHT; :class:`simlab.directions.Direction`).
+#: UP-RIGHT, DOWN-LEFT, DOWN-RIGHT; :class:`simlab.base.directions.Direction`).
 OPPOSITE: NDArray[np.int64] = np.array([1, 0, 3, 2, 7, 6, 5, 4], dtype=np.int64)
 OPPOSITE.flags.writeable = False
 
@@ -355,7 +355,7 @@ def train_empirical(walks: list[SocialWalk], *, reward: str = "measured",
     required direction redrawn with ``redraw_p`` (the walk's). Deterministic: the same
     walks give the same Q-table.
     """
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
 
     if reward not in ("measured", "rule"):
         raise ConfigError(f"unknown reward {reward!r}", key="reward",

@@ -35,9 +35,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.actions import HEADINGS
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.actions import HEADINGS
+from simlab.base.errors import ConfigError
 from simlab.physics.arena import ArenaConfig
 from simlab.social.perception import quantise_direction
 from simlab.visitlab.humans import Human

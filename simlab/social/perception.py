@@ -19,8 +19,8 @@ Chartouny et al. 2024):
   (walls and obstacles are the only other bodies; the human has no body). Casting toward
   the robot avoids starting the ray inside the robot's collision shape.
 * **angle** — the bearing robot -> human quantised to the nearest of the 8 directions of
-  :class:`simlab.directions.Direction` (map frame, UP = +y; headings
-  :data:`simlab.actions.HEADINGS`); this is the grid's angle, whose UP is "row - 1",
+  :class:`simlab.base.directions.Direction` (map frame, UP = +y; headings
+  :data:`simlab.base.actions.HEADINGS`); this is the grid's angle, whose UP is "row - 1",
   i.e. up on the screen, as +y is on the table's top-down view. A bearing exactly between
   two directions goes to the counter-clockwise one (the grid rounds half up the same way).
 * **distance class** 0-4: ``sum(d > b for b in bounds_m)`` for the Euclidean centre
@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.actions import HEADINGS
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.actions import HEADINGS
+from simlab.base.errors import ConfigError
 from simlab.physics.robot import wrap_angle
 from simlab.visitlab.perception import percept_level
 
@@ -154,7 +154,7 @@ def in_field(orientation: float, direction: float, half_width: float) -> bool:
 
 
 def quantise_direction(theta: float) -> int:
-    """Direction index 0-7 (:class:`~simlab.directions.Direction`) nearest to the map-frame
+    """Direction index 0-7 (:class:`~simlab.base.directions.Direction`) nearest to the map-frame
     angle ``theta`` (rad); halfway angles go counter-clockwise."""
     sector = math.floor(float(theta) / (math.pi / 4.0) + 0.5) % 8
     return int(_SECTOR_DIR[sector])

@@ -17,7 +17,7 @@ depend on where they ran), estimates the sparse MDP and plans on it
 (:func:`simlab.social.empirical.train_empirical`), then runs the closed loop with that
 Q-table on the same seeds as the others.
 
-:func:`social_pipeline` writes into ``out`` (one output transaction, :mod:`simlab.io`):
+:func:`social_pipeline` writes into ``out`` (one output transaction, :mod:`simlab.base.io`):
 
 * ``summary.json`` — settings, the grid training's plateau, per-run figures
   (:meth:`~simlab.social.closedloop.ClosedLoopRun.summary`) of the combined loop and the
@@ -74,10 +74,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation as v
-from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, output_transaction
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation as v
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write, atomic_write_json, output_transaction
+from simlab.base.options import CommandConfig, command, option
 from simlab.social.closedloop import (
     ClosedLoopConfig,
     ClosedLoopRun,
@@ -121,7 +121,7 @@ class SocialPipelineConfig(CommandConfig):
                               "least-tried (coverage-seeking)", choices=WALK_POLICIES)
     walk_segments: int = option(4, "independent seeded walk segments (walk_steps split "
                                 "evenly, rounded up); the data depend on it, not on workers")
-    workers: int = option(1, "processes that run the walk's segments (simlab.parallel)")
+    workers: int = option(1, "processes that run the walk's segments (simlab.base.parallel)")
     gif_decisions: int = option(120, "decisions shown in the GIF (0: no GIF)")
     gif_fps: float = option(4.0, "GIF frames per second")
     overwrite: bool = option(False, "replace existing outputs")
@@ -259,7 +259,7 @@ def social_pipeline(cfg: SocialPipelineConfig, executor: Any | None = None
     (``social_pipeline(out="runs/social", hours=0.25, trials=10000)``). Same seed -> the
     same runs and summary (apart from the wall-clock figures and ``walk_workers``), whether
     the walk ran here, on ``workers`` processes or on ``executor`` (a
-    :mod:`simlab.parallel` executor the caller owns, run-time only: not an option).
+    :mod:`simlab.base.parallel` executor the caller owns, run-time only: not an option).
     """
     if executor is not None and cfg.workers != 1:
         raise ConfigError("give either workers or an executor for the walk", key="workers",

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
+from simlab.base import validation
 from simlab.physics.arena import ArenaConfig
 from simlab.physics.render import TopDown
 from simlab.physics.robot import RobotSpec

@@ -88,9 +88,9 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.actions import HEADINGS
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.actions import HEADINGS
+from simlab.base.errors import ConfigError
 from simlab.localization.sources import POSE_SOURCES, make_pose_source
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams, ScanStepper

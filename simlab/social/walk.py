@@ -24,7 +24,7 @@ Decisions:
   collection are a smaller one (nested budgets). Same seed, segments and budget -> the
   same dataset (content).
 * **Parallel segments**: :func:`social_walk` ``processes=N`` runs the
-  segments as jobs of a :mod:`simlab.parallel` executor (the ``local`` process pool of
+  segments as jobs of a :mod:`simlab.base.parallel` executor (the ``local`` process pool of
   ``simlab collect``, or ``ray``), each job on its own PyBullet world; results come back
   in segment order, so the data do not depend on ``processes`` (a test checks 1 vs 2).
   With ``processes=1`` the segments run one after the other on one world in this process.
@@ -48,7 +48,7 @@ Decisions:
 * **States record.** The dataset's discretizer is :class:`SocialStates`: 2560 states whose
   ``centres`` are chart coordinates, not metres (x = level * 5 + distance class,
   y = required direction * 8 + angle), and which has no poses -> states mapping.
-* **Actions.** 22 actions are not an :class:`~simlab.actions.ActionSet` (8 or 16
+* **Actions.** 22 actions are not an :class:`~simlab.base.actions.ActionSet` (8 or 16
   primitives): the manifest records ``action_set: null`` and ``parameters.action_names``
   (:data:`ACTION_NAMES`), the writer's ``DatasetInfo.action_names``.
 """
@@ -64,8 +64,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 from simlab.physics.motion import N_ACTIONS
 from simlab.social.actions import N_SOCIAL_ACTIONS, SocialAction
 from simlab.social.perception import SOCIAL_DIMS
@@ -219,7 +219,7 @@ def social_walk(cfg: WalkConfig, *, processes: int = 1, backend: str = "local",
                 address: str | None = None, executor: Any | None = None) -> list[SocialWalk]:
     """Run the walk: one :class:`SocialWalk` per segment, in segment order (module
     docstring). ``processes`` > 1 (or ``backend="ray"``) runs the segments as jobs of a
-    :func:`simlab.parallel.make_executor` executor; ``executor`` (a :mod:`simlab.parallel`
+    :func:`simlab.base.parallel.make_executor` executor; ``executor`` (a :mod:`simlab.base.parallel`
     executor the caller owns and closes, e.g. the one of ``simlab reproduce``) runs them
     on it instead (``processes`` and ``backend`` must then keep their defaults). The
     result does not depend on where the segments ran."""
@@ -234,7 +234,7 @@ def social_walk(cfg: WalkConfig, *, processes: int = 1, backend: str = "local",
     if backend == "local" and (processes == 1 or cfg.workers == 1):
         with SocialTable(cfg.social) as table:
             return [_walk_one(table, cfg, seq) for seq in seqs]
-    from simlab.parallel import make_executor
+    from simlab.base.parallel import make_executor
 
     workers = None if backend == "ray" else min(processes, cfg.workers)
     with make_executor(backend, workers=workers, address=address) as ex:

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["curve_points", "plot_learning_curves", "render_learning_curves", "save_learning_curves"]
 
@@ -114,7 +114,7 @@ def save_learning_curves(
 
     Written atomically (temporary file then rename); the caller checks overwrite.
     """
-    from simlab.io import atomic_write_bytes
+    from simlab.base.io import atomic_write_bytes
 
     atomic_write_bytes(path, render_learning_curves(panels, n_points=n_points,
                                                     suptitle=suptitle))

@@ -54,7 +54,7 @@ from simlab.agents.planning import (
     value_iteration,
 )
 from simlab.agents.registry import agent_config, make_agent
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.training import fused
 
 __all__ = [

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from simlab.actions import SIMLAB16, ActionSet
-from simlab.errors import ConfigError
-from simlab.io import atomic_write_bytes
+from simlab.base.actions import SIMLAB16, ActionSet
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write_bytes
 
 __all__ = [
     "ARROW_DIRECTIONS",

@@ -61,11 +61,11 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation as v
+from simlab.base import validation as v
+from simlab.base.errors import ConfigError, warn
+from simlab.base.io import atomic_write_bytes, atomic_write_json, output_transaction
+from simlab.base.options import CommandConfig, command, option
 from simlab.data.goals import state_goal_name
-from simlab.errors import ConfigError, warn
-from simlab.io import atomic_write_bytes, atomic_write_json, output_transaction
-from simlab.options import CommandConfig, command, option
 
 __all__ = ["TASK_MODES", "GoalSummary", "TrainConfig", "TrainSummary", "TrainTask", "resolve_goals", "train"]
 
@@ -293,7 +293,7 @@ class TrainConfig(CommandConfig):
     workers: int = option(1, "processes sharing the goals and figures (1: this one only; N "
                           "starts N-1 worker processes)")
     pool: Any | None = option(
-        None, "a concurrent.futures process executor (e.g. simlab.parallel.spawn_worker()) "
+        None, "a concurrent.futures process executor (e.g. simlab.base.parallel.spawn_worker()) "
         "whose workers train and draw part of the goals; the caller owns it (a simlab "
         "WorkerPool gets a goal per process at a time, any other executor one)", cli=False)
 
@@ -362,7 +362,7 @@ def train(cfg: TrainConfig) -> TrainSummary:
     t0 = time.perf_counter()
     mdp = cfg.mdp
     m = mdp if isinstance(mdp, EmpiricalMDP) else load_mdp(mdp)
-    from simlab.statecheck import npz_states_hash
+    from simlab.base.statecheck import npz_states_hash
 
     # the states fingerprint travels from the MDP into every Q-table (replay checks it)
     states_hash = None if isinstance(mdp, EmpiricalMDP) else npz_states_hash(mdp)
@@ -374,7 +374,7 @@ def train(cfg: TrainConfig) -> TrainSummary:
 
     # validates the name and overrides before any work
     gamma = float(agent_config(cfg.agent, cfg.params).gamma)
-    from simlab.guards import array_bytes, check_memory
+    from simlab.base.guards import array_bytes, check_memory
 
     # per goal and run: the reward curve (float64) and the final Q-table
     check_memory(array_bytes((len(names), cfg.runs, cfg.episodes + m.n_states * m.n_actions),
@@ -394,7 +394,7 @@ def train(cfg: TrainConfig) -> TrainSummary:
     with contextlib.ExitStack() as stack:
         pool = cfg.pool
         if pool is None and cfg.workers > 1:
-            from simlab.parallel import worker_pool
+            from simlab.base.parallel import worker_pool
 
             pool = worker_pool(cfg.workers - 1)
             stack.callback(pool.shutdown, wait=True, cancel_futures=True)
@@ -655,7 +655,7 @@ def _train_goals_shared(job: _TrainJob
     shared = _SharedGoals(job.pool, work, list(names), lambda: bar.update(cfg.runs))
     futures: dict[str, Any] = {}
     try:
-        # one goal per process of a simlab pool (simlab.parallel.WorkerPool); any other
+        # one goal per process of a simlab pool (simlab.base.parallel.WorkerPool); any other
         # executor is fed one goal at a time
         for _ in range(getattr(job.pool, "processes", 1)):
             shared.feed()
@@ -741,7 +741,7 @@ def _write_outputs(job: _TrainJob, res: _Results, files: dict[str, Path],
 
     import json
 
-    from simlab.io import atomic_write
+    from simlab.base.io import atomic_write
 
     curve_rows = res.curve_rows
     with atomic_write(files["curves"], "wb") as fh:

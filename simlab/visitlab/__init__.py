@@ -32,7 +32,7 @@ Nothing here knows about PyBullet.
 
 from __future__ import annotations
 
-from simlab.lazy import lazy_exports
+from simlab.base.lazy import lazy_exports
 
 #: The three Visit-the-lab learning tasks (:func:`simlab.visitlab.training.train`).
 TASKS = ("nav", "social", "gotohuman")
@@ -40,7 +40,7 @@ TASKS = ("nav", "social", "gotohuman")
 # Names re-exported from the submodules, imported on first use: the submodules compile
 # numba kernels, and light importers (the CLI parser, experiment specs) only need TASKS.
 _names, __getattr__, _dir = lazy_exports(__name__, {
-    "Direction": "simlab.directions",
+    "Direction": "simlab.base.directions",
     "Action": "simlab.visitlab.actions",
     "move_action": "simlab.visitlab.actions",
     "Layout": "simlab.visitlab.grid",

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from simlab.agents.config import QLearningConfig
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.combined import CombinedRun, CombinedTask, Modules, combined_chunk, new_out
 from simlab.visitlab.humans import Human

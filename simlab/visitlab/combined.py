@@ -51,7 +51,7 @@ sequence, the robot approaching, HELLO, COME, leading, the goal changing).
 Note for developers: :func:`combined_chunk` is compiled with ``cache=True`` and calls
 the kernels of :mod:`simlab.visitlab.dynamics` and the agent steps of
 :mod:`simlab.agents.core`; numba does not track dependencies between files, so simlab
-keeps one numba cache directory per version of its source (:mod:`simlab._numba_cache`).
+keeps one numba cache directory per version of its source (:mod:`simlab.base._numba_cache`).
 """
 
 from __future__ import annotations
@@ -66,11 +66,11 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from simlab import validation
 from simlab.agents import core
 from simlab.agents.kernels import greedy_action
-from simlab.errors import ConfigError
-from simlab.options import CommandConfig, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, option
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import ACTION_DIR, ACTION_SPEED, Action
 from simlab.visitlab.grid import Layout, make_layout
@@ -594,7 +594,7 @@ def write_episode_gif(task: CombinedTask, episode: Episode, path: str | os.PathL
     unless ``overwrite``). Returns the path."""
     import imageio.v3 as iio
 
-    from simlab.io import atomic_write, ensure_new
+    from simlab.base.io import atomic_write, ensure_new
 
     path = ensure_new(path, overwrite=overwrite, what="episode GIF")
     frames = episode_frames(task, episode, cell_px=cell_px)

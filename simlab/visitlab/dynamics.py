@@ -80,7 +80,7 @@ new cell lies in the goal room.
 Note for developers: the kernels are compiled with ``cache=True`` and numba does
 not track dependencies between files; the fused loops of :mod:`simlab.visitlab.training`
 still see an edit here because simlab keeps one numba cache directory per version of its
-source (:mod:`simlab._numba_cache`; with ``NUMBA_CACHE_DIR`` set by hand, or numba
+source (:mod:`simlab.base._numba_cache`; with ``NUMBA_CACHE_DIR`` set by hand, or numba
 imported before simlab, delete the cache files yourself).
 """
 

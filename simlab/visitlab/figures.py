@@ -1,7 +1,7 @@
 """Figures of the Visit-the-lab results (thesis Figs. 4.1-4.7, IMOL poster Figs. 4-5).
 
 Every function draws with matplotlib's object API (no global pyplot state, headless)
-and writes a PNG atomically (:func:`simlab.io.atomic_write`). Curves use the thesis's
+and writes a PNG atomically (:func:`simlab.base.io.atomic_write`). Curves use the thesis's
 smoothing (:func:`~simlab.visitlab.curves.smooth_curve`: 100 windows of
 ``n_trials / 100`` trials, mean over seeds and window, band of one standard deviation
 within the window).
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simlab.io import atomic_write
+from simlab.base.io import atomic_write
 from simlab.visitlab.actions import ACTION_DIR, DIR_DELTA
 from simlab.visitlab.curves import smooth_curve
 from simlab.visitlab.grid import Layout

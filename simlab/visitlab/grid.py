@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.actions import DIR_DELTA
 
 #: Layouts with more cells than this get no precomputed line-of-sight table
@@ -413,7 +413,7 @@ def make_layout(spec: str | Layout, seed: int | None = None) -> Layout:
         except ValueError:
             raise ConfigError(f"unknown layout {spec!r}", key="layout",
                               fix="use gridworld-HxW, e.g. gridworld-20x20") from None
-        from simlab.guards import array_bytes, check_memory
+        from simlab.base.guards import array_bytes, check_memory
 
         # cell labels, two wall rasters and per-cell tables: ~32 bytes a cell, before any
         # Q-table (cells x goals x 25 actions, checked by the trainer)

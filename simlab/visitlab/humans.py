@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 # Indices into the human parameter array.
 H_S1, H_S2, H_S3, H_FAIL, H_POINT, H_LOSE, H_TURN, H_MOVE = range(8)

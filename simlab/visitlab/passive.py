@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.grid import Layout
 from simlab.visitlab.training import EnvSpec, ObserverSpec, SeedRun, loop_agent_config, run_seed
 

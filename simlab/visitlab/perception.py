@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.actions import DIR_SECTOR, SECTOR_DIR
 
 METRICS = ("manhattan", "chebyshev")

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from simlab.agents.config import QLearningConfig, Selection
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def python_greedy(q: np.ndarray, rng: np.random.Generator) -> int:

@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError, DataError
-from simlab.io import atomic_write, atomic_write_json, ensure_new
-from simlab.options import CommandConfig, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import atomic_write, atomic_write_json, ensure_new
+from simlab.base.options import CommandConfig, option
 from simlab.visitlab.curves import TrainResult, smooth_curve, summarize_curve
 
 FILES = ("curves.npz", "curves.png", "summary.json")

@@ -58,7 +58,6 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from simlab import validation
 from simlab.agents import core
 from simlab.agents.config import (
     ModelBasedConfig,
@@ -71,8 +70,9 @@ from simlab.agents.config import (
 from simlab.agents.core import agent_params
 from simlab.agents.kernels import count_model_new, rmax_q_init, window_model_new
 from simlab.agents.registry import AGENTS, agent_config
-from simlab.errors import ConfigError
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, command, option
 from simlab.visitlab import TASKS
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.curves import TrainResult
@@ -471,7 +471,7 @@ def train(
     ``simlab visitlab train`` (every agent and human of a :class:`VisitlabTrainConfig`,
     files written into its ``out``) is :func:`train_command`.
     """
-    from simlab.guards import array_bytes, check_memory
+    from simlab.base.guards import array_bytes, check_memory
 
     validation.choice(task, TASKS, "task")
     if trials is None:
@@ -576,7 +576,7 @@ def train_command(cfg: VisitlabTrainConfig,
     One output transaction: refused before any training (a file in the way, a locked
     ``out``), written whole or not at all (a full disk, Ctrl-C).
     """
-    from simlab.io import output_transaction
+    from simlab.base.io import output_transaction
     from simlab.visitlab.results import FILES, save_results
 
     finals = tuple(cfg.out / name for name in FILES)
@@ -626,7 +626,7 @@ def _run_seeds(jobs: list[tuple[Any, ...]], shape: tuple[int, int], workers: int
             return returns, qs
         from concurrent.futures import as_completed
 
-        from simlab.parallel import worker_pool
+        from simlab.base.parallel import worker_pool
 
         # workers exit with this process; Ctrl-C cancels what has not started instead of
         # waiting for every seed to finish

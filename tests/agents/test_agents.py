@@ -23,7 +23,7 @@ from simlab.agents import (
     value_iteration,
 )
 from simlab.agents import kernels as K
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def small_stochastic_mdp():

@@ -11,7 +11,7 @@ from simlab.agents.config import ModelBasedConfig, QLearningConfig, RMaxConfig
 from simlab.agents.kernels import count_model_observe
 from simlab.agents.registry import AGENTS, make_agent
 from simlab.agents.sparse_model import CountModel
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.training.harness import EpisodeTask, evaluate_q, run_episodes
 
 

@@ -17,7 +17,7 @@ from simlab.agents.planning import (
     validate_mdp,
     value_iteration,
 )
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 def hand_mdp():

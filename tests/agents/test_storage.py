@@ -21,7 +21,7 @@ from simlab.agents import (
     save_q_table,
 )
 from simlab.agents import kernels as K
-from simlab.errors import ConfigError, DataError
+from simlab.base.errors import ConfigError, DataError
 
 
 def _drive(agent, rng, steps, S):

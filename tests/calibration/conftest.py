@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from discretize.voronoi import Discretizer
-from simlab.actions import ActionSet
+from simlab.base.actions import ActionSet
 from simlab.calibration.search import RealTable, SimTable, simulate_counts
 
 

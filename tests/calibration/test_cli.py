@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab.actions import parse_action_set
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.calibration.command import load_base
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
-from simlab.errors import ConfigError
 from simlab.physics.motion import PrimitiveParams
 from tests.calibration.conftest import hidden_walk, write_counts_csv
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.calibration.metrics import (
     argmax_agreement,
     bootstrap_floor,
@@ -14,7 +15,6 @@ from simlab.calibration.metrics import (
     table_summary,
     tv_distance,
 )
-from simlab.errors import ConfigError
 
 
 def table(entries: dict[tuple[int, int, int], int], S: int = 3, A: int = 2) -> np.ndarray:

@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from simlab.actions import SIMLAB16
+from simlab.base.actions import SIMLAB16
 from simlab.calibration.search import CalibrationConfig, calibrate
 from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.physics.motion import PrimitiveParams

@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.actions import SIMLAB16, parse_action_set
+from simlab.base.actions import SIMLAB16, parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.calibration.search import CalibrationConfig, RealTable, calibrate
 from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.data.walkers import KinematicParams
-from simlab.errors import ConfigError
 from tests.calibration.conftest import hidden_walk, real_table
 
 CCW8 = parse_action_set(8, "ccw-east")

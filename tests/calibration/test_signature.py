@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.actions import SIMLAB16, parse_action_set
+from simlab.base.actions import SIMLAB16, parse_action_set
 from simlab.calibration.signature import (
     reach_warnings,
     real_signature,

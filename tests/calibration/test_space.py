@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.calibration.space import (
     ParameterSpace,
     ParamSpec,
     default_space,
     load_space,
 )
-from simlab.errors import ConfigError
 from simlab.physics.motion import PrimitiveParams
 
 

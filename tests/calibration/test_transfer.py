@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from discretize.voronoi import Discretizer
-from simlab.actions import SIMLAB16, ActionSet, parse_action_set
+from simlab.base.actions import SIMLAB16, ActionSet, parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.calibration.transfer import (
     QTable,
     QTableTwin,
@@ -25,7 +26,6 @@ from simlab.calibration.transfer import (
     twin_columns,
     twin_policy,
 )
-from simlab.errors import ConfigError
 
 CCW8 = parse_action_set(8, "ccw-east")
 

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from simlab.actions import parse_action_set
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.data.collect import CollectConfig
 from simlab.data.estimate import EstimateConfig
-from simlab.errors import ConfigError
 from simlab.orchestration.mapping import MapConfig
 from simlab.training.train import TrainConfig, TrainTask
 

@@ -94,7 +94,7 @@ def test_drive_config_unknown_key_names_file_and_key(tmp_path, capsys):
 
 
 def test_drive_takes_the_config_or_its_fields():
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
     from simlab.physics.drive import DriveConfig
 
     by_config = drive(DriveConfig(steps=3, seed=2, slow_speed=0.15, progress=False))

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.cli import main
-from simlab.errors import ConfigError
 from simlab.orchestration.pipeline import STAGES, pipeline
 from simlab.orchestration.stages import PhysicsSettings
 

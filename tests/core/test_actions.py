@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.actions import (
+from simlab.base.actions import (
     HEADINGS,
     SIMLAB16,
     ActionSet,
@@ -15,8 +15,8 @@ from simlab.actions import (
     convention_permutation,
     parse_action_set,
 )
-from simlab.directions import Direction
-from simlab.errors import ConfigError
+from simlab.base.directions import Direction
+from simlab.base.errors import ConfigError
 
 
 def test_ccw_east_headings_turn_counter_clockwise_from_east():

@@ -21,9 +21,9 @@ def test_every_subcommand_has_a_python_function():
 
 
 def test_every_subcommand_function_takes_its_config():
-    """Each command's options are one CommandConfig (simlab.options): the function takes
+    """Each command's options are one CommandConfig (simlab.base.options): the function takes
     the config or its fields, and the CLI reads --config files of the same names."""
-    from simlab.options import CommandConfig
+    from simlab.base.options import CommandConfig
 
     for name in SUBCOMMANDS:
         function = getattr(commands, _function_name(name))

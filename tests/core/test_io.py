@@ -7,8 +7,8 @@ import stat
 
 import pytest
 
-from simlab.errors import ConfigError
-from simlab.io import atomic_write, atomic_write_json, ensure_new
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write, atomic_write_json, ensure_new
 
 
 def test_atomic_write_is_all_or_nothing(tmp_path):

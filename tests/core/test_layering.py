@@ -37,10 +37,7 @@ PACKAGES = ("simlab", "discretize")
 #: Packages of one layer may use each other (the Gymnasium registration table of
 #: ``simlab.envs`` names ``simlab.visitlab.envs:...`` classes: same layer, allowed).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("simlab", "simlab.errors", "simlab.io", "simlab.validation", "simlab.actions",
-     "simlab.directions", "simlab.assets", "simlab.guards", "simlab.lazy",
-     "simlab.statecheck", "simlab.parallel", "simlab.options", "simlab._numba_cache",
-     "simlab.fingerprint"),
+    ("simlab", "simlab.base"),
     ("discretize",),
     ("simlab.physics",),
     ("simlab.localization",),
@@ -61,10 +58,10 @@ PACKAGES_EXACT = ("simlab",)
 ALLOWED: dict[tuple[str, str, str], str] = {
     ("simlab", "import", "simlab.envs"): "``import simlab`` registers the Gymnasium env ids "
                                          "(gymnasium.make('simlab/...') works after it)",
-    ("simlab._numba_cache", "string", "discretize"): "names the discretize package's folder "
+    ("simlab.base._numba_cache", "string", "discretize"): "names the discretize package's folder "
                                                        "to fingerprint its sources; imports "
                                                        "nothing from it",
-    ("simlab.errors", "string", "discretize"): "names the discretize package's folder so "
+    ("simlab.base.errors", "string", "discretize"): "names the discretize package's folder so "
                                                "that warn() skips its frames; imports "
                                                "nothing from it",
 }
@@ -215,7 +212,7 @@ def test_declared_exceptions_are_still_needed() -> None:
 
 KNOWN = {"simlab.data", "simlab.data.walkers", "simlab.replay", "simlab.replay.replay",
          "simlab.replay.localization",
-         "simlab.physics", "simlab.physics.motion", "simlab.errors", "simlab.cli"}
+         "simlab.physics", "simlab.physics.motion", "simlab.base.errors", "simlab.cli"}
 
 
 @pytest.mark.parametrize("source, kind, target", [
@@ -251,9 +248,23 @@ def test_allowed_uses_are_not_flagged() -> None:
 
 
 def test_layer_table_orders_the_examples() -> None:
-    assert layer_of("simlab.errors") < layer_of("discretize.voronoi") < layer_of(
+    assert layer_of("simlab.base.errors") < layer_of("discretize.voronoi") < layer_of(
         "simlab.physics.motion") < layer_of("simlab.data.collect") < layer_of(
         "simlab.replay.replay") < layer_of("simlab.experiments.visitlab.runs") < layer_of(
         "simlab.cli.replay")
     assert layer_of("numpy") is None
     assert layer_of("simlab.newthing") is None  # a new top-level module must be placed
+
+
+def test_the_folder_tree_shows_the_layers() -> None:
+    """Every layer entry is a folder (a package), so the tree reads as the table: the only
+    modules at the top of ``simlab/`` are its ``__init__``, ``__main__`` and the public face
+    ``commands`` (every command as a function, for scripts and notebooks)."""
+    top = sorted(p.stem for p in (ROOT / "simlab").glob("*.py"))
+    assert top == ["__init__", "__main__", "commands"]
+    for layer in LAYERS:
+        for entry in layer:
+            if entry in PACKAGES_EXACT or entry in ("simlab.commands", "simlab.__main__"):
+                continue
+            folder = ROOT.joinpath(*entry.split("."))
+            assert (folder / "__init__.py").is_file(), f"{entry} is not a package folder"

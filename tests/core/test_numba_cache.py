@@ -1,4 +1,4 @@
-"""One numba cache directory per source version (simlab._numba_cache): an edit anywhere in
+"""One numba cache directory per source version (simlab.base._numba_cache): an edit anywhere in
 simlab's sources gives a new directory, so kernels that inline other files' kernels are
 recompiled instead of reloaded stale."""
 
@@ -9,8 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from simlab import _numba_cache as nc
-from simlab.fingerprint import source_fingerprint
+from simlab.base import _numba_cache as nc
+from simlab.base.fingerprint import source_fingerprint
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab import validation as v
-from simlab.errors import ConfigError
-from simlab.options import CommandConfig, command, option
+from simlab.base import validation as v
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, command, option
 
 
 @dataclass(frozen=True, kw_only=True)

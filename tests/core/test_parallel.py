@@ -6,8 +6,8 @@ import os
 
 import pytest
 
-from simlab.errors import ConfigError
-from simlab.parallel import (
+from simlab.base.errors import ConfigError
+from simlab.base.parallel import (
     InProcessExecutor,
     LocalExecutor,
     make_executor,
@@ -82,8 +82,8 @@ def test_an_unreachable_or_malformed_ray_address_is_refused_at_once() -> None:
 
     import pytest
 
-    from simlab.errors import ConfigError
-    from simlab.parallel import check_reachable
+    from simlab.base.errors import ConfigError
+    from simlab.base.parallel import check_reachable
 
     with socket.socket() as free:  # a port nobody listens on: bound, then closed
         free.bind(("127.0.0.1", 0))

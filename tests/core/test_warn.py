@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import _OURS, warn
 from simlab.data.counts import DuplicateRowsWarning, load_counts
 from simlab.data.mdp import EmpiricalMDP
-from simlab.errors import _OURS, warn
 from simlab.training.train import train
 
 

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.cli import main
 from simlab.data.dataset import read_dataset
 from simlab.data.schema import MANIFEST_NAME
-from simlab.errors import ConfigError
 
 
 def test_collect_estimate_cli(tmp_path: Path, grid_states_file: Path,

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import exclusive_directory
 from simlab.data.collect import CollectResult
 from simlab.data.dataset import open_dataset, read_dataset
 from simlab.data.manifest import read_manifest, write_manifest
 from simlab.data.schema import MANIFEST_NAME, TRUTH_COLUMNS, part_file, part_name
 from simlab.data.walkers import KinematicParams
-from simlab.errors import ConfigError, DataError
-from simlab.io import exclusive_directory
 
 Collect = Callable[..., CollectResult]
 

@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab.actions import parse_action_set
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.data.collect import CollectResult
 from simlab.data.dataset import open_dataset, read_dataset
 from simlab.data.walkers import KinematicParams
-from simlab.errors import ConfigError
 
 Collect = Callable[..., CollectResult]
 

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import DataError
 from simlab.data.counts import DuplicateRowsWarning, load_counts
 from simlab.data.estimate import estimate
 from simlab.data.goals import goal_state_masks
-from simlab.errors import DataError
 from simlab.physics.arena import GoalArea
 
 ROWS = [(0, 3, 1, 12), (0, 3, 2, 4), (2, 15, 2, 7), (1, 0, 0, 1)]

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError, DataError
 from simlab.data.dataset import read_dataset
 from simlab.data.estimate import (
     count_transitions,
@@ -20,7 +21,6 @@ from simlab.data.estimate import (
     mean_entropy_per_action,
     transition_matrix,
 )
-from simlab.errors import ConfigError, DataError
 
 
 def test_hand_counted_transitions() -> None:
@@ -245,8 +245,8 @@ def _count_csv(path: Path, rows: list[tuple[int, int, int, int]]) -> Path:
 
 
 def test_estimate_records_the_action_set_and_the_unvisited_rule(tmp_path: Path) -> None:
-    from simlab.actions import parse_action_set
     from simlab.agents.storage import load_npz
+    from simlab.base.actions import parse_action_set
 
     table = _count_csv(tmp_path / "c.csv", [(0, 0, 1, 3), (0, 2, 0, 1), (1, 7, 0, 2)])
     aset = parse_action_set(8, "ccw-east")
@@ -272,7 +272,7 @@ def test_estimate_records_the_action_set_and_the_unvisited_rule(tmp_path: Path) 
 
 def test_estimate_of_a_dataset_takes_its_action_set(tmp_path: Path,
                                                     kinematic_dataset: Path) -> None:
-    from simlab.actions import SIMLAB16, parse_action_set
+    from simlab.base.actions import SIMLAB16, parse_action_set
     from simlab.data.mdp import load_mdp
 
     estimate(kinematic_dataset, tmp_path / "mdp.npz", plot=False)
@@ -306,7 +306,7 @@ def test_estimate_cli_action_flags(tmp_path: Path, kinematic_dataset: Path, caps
 
 def test_estimate_of_an_isir_model_reports_its_fields_and_states_without_data(
         tmp_path: Path) -> None:
-    from simlab.actions import parse_action_set
+    from simlab.base.actions import parse_action_set
 
     doc = {"transitionActions": [
         {"state": 0, "transitions": [{"action": 0, "state": 1, "prob": 4},

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.data.estimate import (
     SPARSE_CELLS,
     SparseCountModel,
@@ -22,7 +23,6 @@ from simlab.data.estimate import (
     valid_actions,
 )
 from simlab.data.mdp import load_mdp, load_sparse_mdp
-from simlab.errors import ConfigError
 
 
 def _random_log(seed: int, n: int, S: int, A: int) -> tuple[np.ndarray, ...]:

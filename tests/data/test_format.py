@@ -11,6 +11,7 @@ import pyarrow.dataset as pads
 import pyarrow.parquet as pq
 import pytest
 
+from simlab.base.errors import ConfigError, DataError
 from simlab.data.dataset import encode_part, open_dataset, read_dataset
 from simlab.data.manifest import check_resumable, file_sha256, read_manifest, write_manifest
 from simlab.data.schema import (
@@ -22,7 +23,6 @@ from simlab.data.schema import (
     transition_schema,
 )
 from simlab.data.walkers import part_generators
-from simlab.errors import ConfigError, DataError
 
 
 def test_part_names_sort_by_worker_then_part() -> None:

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError, DataError
 from simlab.data.counts import (
     MAX_TABLE_BYTES,
     CountsFileError,
     DuplicateRowsWarning,
     load_counts,
 )
-from simlab.errors import ConfigError, DataError
 
 # (s, a, s', count) of a small 8-action model.
 ISIR_ROWS = [(0, 0, 1, 12), (0, 0, 0, 3), (0, 4, 0, 5), (1, 2, 2, 7), (2, 7, 0, 1)]

@@ -13,7 +13,8 @@ import pytest
 
 from discretize.voronoi import Discretizer
 from simlab import commands
-from simlab.actions import parse_action_set
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.cli import main
 from simlab.data.dataset import open_dataset
 from simlab.data.poselog import (
@@ -25,7 +26,6 @@ from simlab.data.poselog import (
     read_pose_log,
     segment_decisions,
 )
-from simlab.errors import ConfigError
 
 CCW = parse_action_set(8, "ccw-east")
 CENTRES = np.array([[x, y] for y in (2.0, 1.0, 0.0) for x in (0.0, 1.0, 2.0, 3.0)])

@@ -18,11 +18,11 @@ import pyarrow.parquet as pq
 import pytest
 
 from discretize.voronoi import Discretizer
+from simlab.base.errors import DataError
 from simlab.data.collect import CollectResult
 from simlab.data.dataset import open_dataset, parts_path, read_dataset, write_part
 from simlab.data.manifest import read_manifest
 from simlab.data.schema import COLUMN_DOCS, MANIFEST_NAME, PARTS_DIR, parse_part_name, part_name
-from simlab.errors import DataError
 
 Collect = Callable[..., CollectResult]
 Columns = tuple[np.ndarray, np.ndarray, np.ndarray]  # worker, step, x

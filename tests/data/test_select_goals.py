@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.data.goals import GoalMasks, is_state_goal, select_goals, state_goal_name
-from simlab.errors import ConfigError
 
 ARENA = GoalMasks(np.array(["NW", "C"], dtype=np.str_),
                   np.array([[1, 1, 0, 0, 0], [0, 0, 1, 0, 0]], dtype=bool))

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.data import walkers
-from simlab.errors import ConfigError
 from simlab.localization import sources
 
 

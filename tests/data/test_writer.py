@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from discretize.voronoi import Discretizer
-from simlab.actions import SIMLAB16, parse_action_set
+from simlab.base.actions import SIMLAB16, parse_action_set
+from simlab.base.errors import ConfigError, DataError
 from simlab.data.dataset import open_dataset
 from simlab.data.manifest import manifest_path
 from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
-from simlab.errors import ConfigError, DataError
 
 CENTRES = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 

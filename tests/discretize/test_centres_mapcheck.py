@@ -14,8 +14,8 @@ from discretize.mapcheck import check_points
 from discretize.mapio import read_map, write_map
 from discretize.plot import draw_states, known_bounds
 from discretize.voronoi import Discretizer, load_centres_txt, load_states, read_centres_table
+from simlab.base.errors import ConfigError
 from simlab.cli import main
-from simlab.errors import ConfigError
 
 XY = np.array([[0.5, 0.5], [1.5, 0.5], [2.5, 0.5], [0.5, 1.5], [1.5, 1.5]])
 

@@ -11,8 +11,8 @@ import pytest
 
 from discretize.mapio import read_map, write_map
 from discretize.voronoi import Discretizer
+from simlab.base.errors import ConfigError
 from simlab.cli import main
-from simlab.errors import ConfigError
 
 
 @pytest.fixture

@@ -18,7 +18,7 @@ from discretize.mapio import (
     read_map_yaml,
     write_map,
 )
-from simlab.errors import ConfigError, DataError
+from simlab.base.errors import ConfigError, DataError
 
 
 def _random_trinary(rng, shape=(37, 53)) -> np.ndarray:

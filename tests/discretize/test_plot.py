@@ -9,7 +9,7 @@ import pytest
 
 from discretize.plot import plot_states, render_states_png, visits_from_dataset
 from discretize.voronoi import Discretizer
-from simlab.errors import ConfigError, DataError
+from simlab.base.errors import ConfigError, DataError
 
 
 def _write_parts(root, parts):

@@ -17,7 +17,7 @@ from discretize.voronoi import (
     load_centres_txt,
     row_major_order,
 )
-from simlab.errors import ConfigError, DataError
+from simlab.base.errors import ConfigError, DataError
 
 
 @pytest.fixture(scope="module")

@@ -103,5 +103,5 @@ def test_rest_roles_become_code_spans() -> None:
     pytest.importorskip("griffe")
     from griffe_rest import markdown_of
 
-    text = "See :func:`simlab.agents.greedy` and :class:`~simlab.actions.ActionSet`::\n\n    x\n"
+    text = "See :func:`simlab.agents.greedy` and :class:`~simlab.base.actions.ActionSet`::\n\n    x\n"
     assert markdown_of(text) == "See `simlab.agents.greedy` and `ActionSet`:\n\n    x\n"

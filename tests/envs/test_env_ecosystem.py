@@ -14,8 +14,8 @@ from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the environments)
 from discretize.voronoi import Discretizer
+from simlab.base.errors import ConfigError
 from simlab.envs.table_arena import finite_scan, rep117_scan
-from simlab.errors import ConfigError
 
 
 def test_finite_and_rep117_scan_conversions() -> None:
@@ -169,8 +169,8 @@ def test_states_env_observes_voronoi_states_with_the_goal_reward() -> None:
 
 
 def test_states_env_takes_the_action_set_of_a_q_table(tmp_path) -> None:
-    from simlab.actions import parse_action_set
     from simlab.agents.storage import save_q_table
+    from simlab.base.actions import parse_action_set
 
     aset = parse_action_set(8, "ccw-east")
     path = tmp_path / "q.npz"

@@ -19,10 +19,10 @@ from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the environments)
 from simlab.agents import greedy, save_q_table
+from simlab.base.errors import ConfigError
 from simlab.envs import ENV_ENTRY_POINTS
 from simlab.envs.table_arena import rep117_scan
 from simlab.envs.table_states import TableArenaStatesEnv
-from simlab.errors import ConfigError
 
 
 def test_goal_conditioned_table_arena_passes_check_env_and_shows_the_goal() -> None:

@@ -8,7 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the environments)
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 
 @pytest.mark.filterwarnings("ignore:.*maximum value is infinity")  # inf = no return (REP 117)
@@ -68,7 +68,7 @@ def test_render_and_bad_arguments():
 
 
 def test_action_set_option_renumbers_the_primitives() -> None:
-    from simlab.actions import parse_action_set
+    from simlab.base.actions import parse_action_set
 
     aset = parse_action_set(8, "ccw-east")
     env = gym.make("simlab/TableArena-v0", max_steps=3, action_set=aset.to_json()).unwrapped

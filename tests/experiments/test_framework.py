@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
+from simlab.base.parallel import LocalExecutor, make_executor
 from simlab.cli import main
-from simlab.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult, experiment_seed
 from simlab.experiments.registry import get_runner, runner
 from simlab.experiments.reproduce import reproduce
-from simlab.parallel import LocalExecutor, make_executor
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "simlab" / "experiments" / "example.toml"
 

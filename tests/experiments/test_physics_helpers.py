@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.experiments.physics import linearity_r2, paired_entropy_difference
 from simlab.experiments.spec import discover_experiments
 from simlab.orchestration.stages import (

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.cli import main
 from simlab.cli.reproduce import add_arguments
-from simlab.errors import ConfigError
 from simlab.experiments.reproduce import ReproduceConfig, reproduce
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "simlab" / "experiments" / "example.toml"

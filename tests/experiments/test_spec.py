@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.experiments.spec import (
     FAIL,
     NOT_CHECKED,

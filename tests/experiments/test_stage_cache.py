@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.orchestration.cache import (
     MARKER,
     SOURCES,

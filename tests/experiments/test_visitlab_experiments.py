@@ -9,7 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
+from simlab.base.parallel import LocalExecutor
 from simlab.experiments.context import RunContext, experiment_seed
 from simlab.experiments.reproduce import reproduce
 from simlab.experiments.visitlab import (
@@ -19,7 +20,6 @@ from simlab.experiments.visitlab import (
     parse_run,
     visitlab_seed,
 )
-from simlab.parallel import LocalExecutor
 from simlab.visitlab.actions import move_action
 from simlab.visitlab.grid import gridworld
 from simlab.visitlab.training import train

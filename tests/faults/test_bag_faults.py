@@ -282,7 +282,7 @@ def test_a_killed_export_leaves_staging_that_the_next_one_removes(wb: Path, caps
 
 
 def test_a_killed_import_leaves_staging_that_the_next_one_removes(wb: Path, capsys) -> None:
-    from simlab.io import STAGING_PREFIX
+    from simlab.base.io import STAGING_PREFIX
 
     (wb / "ds" / f"{STAGING_PREFIX}dead" / "parts").mkdir(parents=True)
     res = run_cli(["import-bag", str(wb / "bag"), "--states", str(wb / "states.json"),
@@ -292,7 +292,7 @@ def test_a_killed_import_leaves_staging_that_the_next_one_removes(wb: Path, caps
 
 
 def test_a_second_writer_stops_at_once(wb: Path, capsys) -> None:
-    from simlab.io import exclusive_directory
+    from simlab.base.io import exclusive_directory
     from simlab.ros.bag import _lock
 
     before = tree_hashes(wb)

@@ -9,8 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from simlab.errors import ConfigError, DataError
-from simlab.io import STAGING_PREFIX, atomic_write_text, exclusive_directory, output_transaction
+from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import (
+    STAGING_PREFIX,
+    atomic_write_text,
+    exclusive_directory,
+    output_transaction,
+)
 
 
 def test_transaction_renames_every_file_at_the_end(tmp_path: Path) -> None:
@@ -72,7 +77,7 @@ def test_transaction_paths_stay_inside(tmp_path: Path) -> None:
 
 
 def test_memory_guard_names_the_field_and_the_figure(monkeypatch) -> None:
-    from simlab.guards import array_bytes, check_memory, memory_budget
+    from simlab.base.guards import array_bytes, check_memory, memory_budget
 
     monkeypatch.setenv("SIMLAB_MEMORY_LIMIT", "1G")
     assert memory_budget() == 1 << 30
@@ -112,8 +117,8 @@ def test_manifest_schema_catches_duplicates_and_types(tmp_path: Path, inputs) ->
 
 def test_states_fingerprint_and_arena_checks(inputs) -> None:
     from discretize.voronoi import Discretizer
+    from simlab.base.statecheck import check_centres_in_arena, check_states_hash, npz_states_hash
     from simlab.physics.arena import load_arena
-    from simlab.statecheck import check_centres_in_arena, check_states_hash, npz_states_hash
 
     table = load_arena("table")
     disc = Discretizer.load(inputs.states)

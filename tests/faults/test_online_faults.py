@@ -16,7 +16,7 @@ from .conftest import assert_refused, run_cli, tree_hashes
 def ws(tmp_path: Path) -> Path:
     """A workspace with a valid 4-state mdp.npz (chain, goal 3)."""
     from simlab.agents.storage import load_npz  # noqa: F401  (the reader the command uses)
-    from simlab.io import atomic_write
+    from simlab.base.io import atomic_write
 
     T = np.zeros((4, 2, 4))
     for s in range(4):

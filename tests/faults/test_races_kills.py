@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from simlab.io import exclusive_directory
+from simlab.base.io import exclusive_directory
 
 from .conftest import assert_refused, run_cli, tree_hashes
 
@@ -150,7 +150,7 @@ def test_a_second_sigint_after_the_report_cannot_kill_the_exit(how: str) -> None
 
 def test_worker_initializer_exits_when_the_parent_is_gone() -> None:
     code = ("import os, time\n"
-            "from simlab.parallel import exit_with_parent\n"
+            "from simlab.base.parallel import exit_with_parent\n"
             "exit_with_parent(os.getppid(), 0.05)\n"  # our parent lives: keep going
             "exit_with_parent(os.getppid() + 1_000_000, 0.05)\n"  # not our parent: exit
             "print('still here')\n")
@@ -220,7 +220,7 @@ def test_internal_errors_are_one_line_exit_1(monkeypatch, capsys) -> None:
 
 _CTRL_C_IN_A_TERMINAL = """
 import os, signal, sys, time
-from simlab.parallel import worker_pool
+from simlab.base.parallel import worker_pool
 
 pool = worker_pool(2)
 list(pool.map(time.sleep, [0.5, 0.5]))  # both workers started, now idle

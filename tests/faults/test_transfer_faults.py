@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab.actions import SIMLAB16, parse_action_set
+from simlab.base.actions import SIMLAB16, parse_action_set
 from tests.calibration.test_transfer import lattice, lattice_counts, write_counts
 from tests.faults.conftest import assert_refused, run_cli, tree_hashes
 

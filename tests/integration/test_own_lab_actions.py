@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab.actions import CONVENTIONS, HEADINGS, SIMLAB16, parse_action_set
 from simlab.agents.storage import load_npz, save_q_table
+from simlab.base.actions import CONVENTIONS, HEADINGS, SIMLAB16, parse_action_set
 from simlab.cli import main
 from simlab.data.mdp import load_mdp, mdp_from_arrays
 from simlab.replay.replay import greedy_action
@@ -228,7 +228,7 @@ def test_old_files_still_load(tmp_path: Path) -> None:
     # An old 8-action Q-table (no record) is refused: its numbering is unknown.
     save_q_table(tmp_path / "q" / "q_g1.npz", np.zeros((3, 8)), metadata={"goal": "g1"},
                  overwrite=True)
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
 
     with pytest.raises(ConfigError, match="no action_set record"):
         load_qtables(tmp_path / "q", ("g1",), 3)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from discretize.gridmap import OccupancyMap
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.localization.likelihood import (
     LikelihoodField,
     SensorModelParams,

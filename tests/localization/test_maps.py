@@ -9,7 +9,7 @@ import pytest
 
 from discretize.gridmap import OccupancyMap
 from discretize.mapio import write_map
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.localization.maps import (
     arena_map,
     check_map_matches_arena,

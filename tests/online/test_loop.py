@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from simlab.agents import core
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.online import meta
 from simlab.online.loop import run_online
 from simlab.online.task import Change, OnlineTask, close_passages, parse_passages

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from simlab.agents.kernels import ALL_VALID
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.online import meta
 from simlab.online.loop import run_online
 from simlab.online.task import OnlineTask

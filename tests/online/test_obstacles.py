@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.motion import PrimitiveParams, execute_primitive
 from simlab.physics.obstacles import add_box, arena_with_box, remove_box
 from simlab.physics.world import World

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from discretize.voronoi import Discretizer
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.online import meta
 from simlab.online.physics import PhysicsChange, run_physics_online
 from simlab.physics.world import World

@@ -13,7 +13,7 @@ import pytest
 
 from discretize.gridmap import OccupancyMap
 from discretize.mapio import write_map
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.arena import load_arena, merge_rectangles
 from simlab.physics.world import World
 

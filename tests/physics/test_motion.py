@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.motion import (
     HEADINGS,
     N_ACTIONS,

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from simlab.assets import resolve
-from simlab.errors import ConfigError
+from simlab.base.assets import resolve
+from simlab.base.errors import ConfigError
 from simlab.physics._bullet import BulletClient, pybullet, quiet_stdout
 from simlab.physics.arena import LIDAR_PLANE_HEIGHT
 from simlab.physics.robot import load_robot_spec

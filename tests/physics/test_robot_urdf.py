@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.assets import resolve
-from simlab.errors import ConfigError
+from simlab.base.assets import resolve
+from simlab.base.errors import ConfigError
 from simlab.physics.robot import _parse_urdf
 
 

@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simlab.actions import CONVENTIONS, parse_action_set
 from simlab.agents.planning import reward_on_arrival, value_iteration
 from simlab.agents.storage import save_q_table
-from simlab.errors import ConfigError
+from simlab.base.actions import CONVENTIONS, parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.replay.replay import greedy_action, replay
 
 CCW8 = parse_action_set(8, "ccw-east")

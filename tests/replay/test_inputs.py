@@ -11,7 +11,7 @@ import pytest
 
 from discretize.voronoi import Discretizer
 from simlab.agents.storage import save_q_table
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.motion import PrimitiveParams
 from simlab.replay.inputs import (
     ModelInputs,

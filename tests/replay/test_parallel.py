@@ -76,19 +76,19 @@ def test_a_lent_worker_runs_the_baseline_and_stays_open(chain, tmp_path, monkeyp
     instead of starting a process, leaves it open, and the results are the same."""
     import os
 
-    import simlab.parallel
+    import simlab.base.parallel
 
     monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
     monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
     kw = dict(hours=0.02, seed=4, progress=False, baseline_hours=0.02)
     own = replay("table", chain.states, chain.qtables, out=tmp_path / "own", **kw)
-    with simlab.parallel.spawn_worker() as lent:
+    with simlab.base.parallel.spawn_worker() as lent:
         pid = lent.submit(os.getpid).result()
 
         def refuse():
             raise AssertionError("a second worker was started beside the lent one")
 
-        monkeypatch.setattr(simlab.parallel, "spawn_worker", refuse)
+        monkeypatch.setattr(simlab.base.parallel, "spawn_worker", refuse)
         got = replay("table", chain.states, chain.qtables, out=tmp_path / "lent", pool=lent,
                      **kw)
         assert lent.submit(os.getpid).result() == pid != os.getpid()  # still open, same one

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from simlab.agents.planning import reward_on_arrival, value_iteration
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.replay.prediction import (
     expected_cumulative_reward,
     goal_switch_chain,

@@ -9,7 +9,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.replay.prediction import greedy_ties
 from simlab.replay.replay import drive_to_pose, greedy_action, replay
 

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.replay.config import ReplayConfig
 from simlab.replay.loop import Recorder
 from simlab.replay.summary import BaselineStats, Comparison, comparison, run_stats

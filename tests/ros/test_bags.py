@@ -14,11 +14,11 @@ pytest.importorskip("rosbags")
 
 from discretize.gridmap import OccupancyMap
 from discretize.voronoi import Discretizer
-from simlab.actions import parse_action_set
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
 from simlab.cli import main
 from simlab.data.dataset import open_dataset, read_dataset
 from simlab.data.poselog import import_log
-from simlab.errors import ConfigError
 from simlab.ros.bag import BagTrajectory, read_bag, write_bag
 from simlab.ros.importer import import_bag
 from tests.data.test_import_log import _simulate as simulate_log

@@ -9,7 +9,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.arena import load_arena
 from simlab.physics.render import TopDown
 from simlab.social.actions import SocialAction

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.sparse import csr_matrix
 
+from simlab.base.errors import ConfigError
 from simlab.data.estimate import sparse_count_model, valid_actions
-from simlab.errors import ConfigError
 from simlab.social.actions import SocialAction
 from simlab.social.empirical import (
     OPPOSITE,

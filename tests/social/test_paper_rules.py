@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from simlab.actions import HEADINGS
-from simlab.errors import ConfigError
+from simlab.base.actions import HEADINGS
+from simlab.base.errors import ConfigError
 from simlab.physics.motion import action_index
 from simlab.social.actions import SocialAction
 from simlab.social.human import HumanBody, idle_step

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.world import World
 from simlab.social.human import HumanBody
 from simlab.social.perception import (

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.social.actions import SocialAction
 from simlab.social.perception import quantise_direction, social_obs_index
 from simlab.social.task import SocialConfig, SocialTable, SourceEstimate

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.actions import HEADINGS
+from simlab.base.actions import HEADINGS
 from simlab.physics.arena import Obstacle, load_arena
 from simlab.social.closedloop import goal_direction
 from simlab.social.human import is_free

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.arena import load_arena
 from simlab.physics.robot import load_robot_spec
 from simlab.social.actions import SocialAction

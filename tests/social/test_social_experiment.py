@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
+from simlab.base.parallel import InProcessExecutor, LocalExecutor
 from simlab.experiments.context import RunContext, experiment_seed
 from simlab.experiments.social import closed_loop
-from simlab.parallel import InProcessExecutor, LocalExecutor
 from simlab.social.pipeline import social_pipeline
 from simlab.social.walk import WalkConfig, social_walk
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.physics.motion import action_index
 from simlab.social.actions import GRID_ACTION, N_SOCIAL_ACTIONS, SocialAction, grid_q_to_physics
 from simlab.social.human import HumanBody

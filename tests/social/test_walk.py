@@ -89,7 +89,7 @@ def test_estimated_rows_sum_to_one_over_visited_pairs(dataset):
 
 
 def test_bad_walk_config():
-    from simlab.errors import ConfigError
+    from simlab.base.errors import ConfigError
 
     with pytest.raises(ConfigError):
         WalkConfig(steps=0)
@@ -149,10 +149,10 @@ class _TinyStates:
 def test_estimate_reads_a_dataset_of_named_actions(tmp_path):
     import json
 
+    from simlab.base.errors import ConfigError
     from simlab.data.estimate import EstimateConfig, estimate
     from simlab.data.mdp import load_mdp
     from simlab.data.writer import DatasetInfo, TransitionArrays, write_dataset
-    from simlab.errors import ConfigError
 
     with pytest.raises(ConfigError, match="action_names"):
         DatasetInfo(discretizer=_TinyStates(), action_names=("a", "a"))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.social.actions import N_SOCIAL_ACTIONS
 from simlab.social.walk import (
     N_POOLED_STATES,

@@ -8,9 +8,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the environments)
+from simlab.base.errors import ConfigError
 from simlab.data.mdp import load_mdp
 from simlab.envs.empirical_mdp import EmpiricalMDPEnv
-from simlab.errors import ConfigError
 
 
 def test_passes_the_gymnasium_env_checker(small_mdp_file):
@@ -136,7 +136,7 @@ def test_inconsistent_goal_arrays(tmp_path, small_mdp, write_mdp):
 def test_env_exposes_the_action_set_and_the_mask(tmp_path) -> None:
     import json
 
-    from simlab.actions import SIMLAB16, parse_action_set
+    from simlab.base.actions import SIMLAB16, parse_action_set
     from simlab.data.mdp import load_mdp
     from simlab.envs.empirical_mdp import EmpiricalMDPEnv
 

@@ -7,7 +7,7 @@ import pytest
 
 from simlab.agents import AGENTS, make_agent
 from simlab.agents.planning import expected_return, greedy_policy, reward_on_arrival
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.training.curves import curve_points
 from simlab.training.harness import (
     EpisodeTask,

@@ -10,8 +10,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from simlab.agents import load_q_table
+from simlab.base.errors import ConfigError
 from simlab.cli import main
-from simlab.errors import ConfigError
 from simlab.training.heatmap import ARROW_DIRECTIONS, rasterize_cells
 from simlab.training.train import train
 
@@ -204,7 +204,7 @@ def test_heat_map_arrows_follow_the_action_set_and_skip_masked_actions():
     import matplotlib.pyplot as plt
     from matplotlib.quiver import Quiver
 
-    from simlab.actions import parse_action_set
+    from simlab.base.actions import parse_action_set
     from simlab.training.heatmap import HeatmapScene, plot_q_heatmap
 
     ccw = parse_action_set(8, "ccw-east")

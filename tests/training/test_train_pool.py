@@ -9,8 +9,8 @@ import json
 import numpy as np
 import pytest
 
+from simlab.base.errors import ConfigError
 from simlab.cli import main
-from simlab.errors import ConfigError
 from simlab.training.train import train
 
 RUN = dict(agent="q-softmax", goals="all", episodes=40, runs=2, seed=5,
@@ -79,7 +79,7 @@ def sequential(small_mdp_file, map_yaml, tmp_path):
 
 def test_a_spawned_worker_gives_the_sequential_outputs_byte_for_byte(
         small_mdp_file, map_yaml, tmp_path, sequential):
-    from simlab.parallel import spawn_worker
+    from simlab.base.parallel import spawn_worker
 
     pool = spawn_worker()
     try:

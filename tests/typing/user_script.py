@@ -15,12 +15,12 @@ from numpy.typing import NDArray
 import simlab
 import simlab.commands
 from discretize.voronoi import Discretizer, load_states
-from simlab.actions import SIMLAB16, ActionSet, parse_action_set
 from simlab.agents import greedy, load_q_table, make_agent, value_iteration
+from simlab.base.actions import SIMLAB16, ActionSet, parse_action_set
+from simlab.base.errors import ConfigError, DataError
 from simlab.data.dataset import parts_path, read_dataset
 from simlab.data.mdp import EmpiricalMDP, load_mdp
 from simlab.envs.table_arena import TableArenaEnv
-from simlab.errors import ConfigError, DataError
 
 
 def run_policy(q_file: Path, states: Path, goal: str, steps: int) -> float:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.adaptability import BASE_HUMAN, continue_learning, thesis_humans
 from simlab.visitlab.combined import CombinedTask, Modules, evaluate
 from simlab.visitlab.humans import PRESETS

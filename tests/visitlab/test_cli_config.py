@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import simlab.commands as commands
+from simlab.base.errors import ConfigError
 from simlab.cli import main
 from simlab.cli.visitlab import add_arguments, train_config_from_args
-from simlab.errors import ConfigError
 from simlab.visitlab.combined import CombinedConfig
 from simlab.visitlab.results import PlotConfig
 from simlab.visitlab.training import (

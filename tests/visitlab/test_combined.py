@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import Action, move_action
 from simlab.visitlab.combined import (

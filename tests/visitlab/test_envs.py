@@ -8,7 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import simlab  # noqa: F401  (registers the ids)
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import DIR_DELTA, Action
 from simlab.visitlab.envs import (

@@ -7,7 +7,7 @@ from collections import deque
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.actions import ACTION_DIR, ACTION_SPEED, DIR_DELTA, Action, move_action
 from simlab.visitlab.grid import (
     Layout,

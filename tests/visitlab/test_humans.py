@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.humans import PRESETS, Human, human
 
 # SPEC B4 table: s_H, F_H, P_H, L_H, O_H, r_H

@@ -7,7 +7,7 @@ import pytest
 
 from simlab.agents.kernels import q_learning_update
 from simlab.agents.registry import make_agent
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.grid import gridworld
 from simlab.visitlab.passive import nav_optimal_q, observer_run
 from simlab.visitlab.training import (

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simlab.directions import Direction
-from simlab.errors import ConfigError
+from simlab.base.directions import Direction
+from simlab.base.errors import ConfigError
 from simlab.visitlab.actions import DIR_DELTA, DIR_OPPOSITE
 from simlab.visitlab.grid import Layout, gridworld, lab_layout, paper_layout
 from simlab.visitlab.perception import (

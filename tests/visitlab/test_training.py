@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from simlab.agents.registry import make_agent
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab.curves import smooth_curve, summarize_curve
 from simlab.visitlab.reference import train_python
 from simlab.visitlab.training import loop_agent_config, make_env, seed_generators, train

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.experiments.visitlab.metrics import curve_details

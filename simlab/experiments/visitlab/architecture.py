@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
+from simlab.base import validation
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.experiments.visitlab.modules import (

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.experiments.visitlab.metrics import curve_metrics, greedy_success, pearson

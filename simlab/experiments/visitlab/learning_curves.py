@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 from simlab.experiments.visitlab.metrics import (

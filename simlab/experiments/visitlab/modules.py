@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 from simlab.experiments.visitlab.metrics import curve_metrics
 from simlab.experiments.visitlab.runs import (
     RunData,

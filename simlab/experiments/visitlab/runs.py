@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write
 from simlab.experiments.context import RunContext
-from simlab.io import atomic_write
 from simlab.orchestration.cache import Slot, StageCache
 from simlab.visitlab import TASKS
 

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.grid import Layout
 from simlab.visitlab.humans import Human

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import N_MOVE_ACTIONS
 from simlab.visitlab.envs.base import (

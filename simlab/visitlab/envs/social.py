@@ -6,7 +6,7 @@ from typing import Any
 
 from gymnasium import spaces
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.actions import N_SOCIAL_ACTIONS
 from simlab.visitlab.envs.base import (

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError, warn
+from simlab.base.errors import ConfigError, warn
 
 __all__ = ["MAX_BAD_FRACTION", "check_centres_in_arena", "check_states_hash",
            "npz_states_hash"]

@@ -31,8 +31,8 @@ from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any
 
-from simlab import validation
-from simlab.errors import ConfigError
+from simlab.base import validation
+from simlab.base.errors import ConfigError
 
 #: Where jobs can run (``--backend``).
 BACKENDS = ("local", "ray")

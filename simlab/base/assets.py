@@ -10,7 +10,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 _KINDS = ("robots", "arenas")
 
@@ -22,7 +22,7 @@ def asset_dir(kind: str) -> Path:
     packaged = Path(str(resources.files("simlab"))) / "_assets" / kind
     if packaged.is_dir():
         return packaged
-    source_tree = Path(__file__).resolve().parent.parent / kind
+    source_tree = Path(__file__).resolve().parents[2] / kind
     if source_tree.is_dir():
         return source_tree
     raise ConfigError(

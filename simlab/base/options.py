@@ -41,7 +41,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar, TypeVar
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["CommandConfig", "command", "option"]
 
@@ -164,7 +164,7 @@ class CommandConfig:
     @classmethod
     def from_toml(cls: type[C], path: str | os.PathLike[str], table: str | None = None) -> C:
         """Read the options from a TOML file (the whole file, or one ``[table]``)."""
-        from simlab.io import read_toml
+        from simlab.base.io import read_toml
 
         data = read_toml(path)
         if table is not None:
@@ -204,7 +204,7 @@ class CommandConfig:
         values: dict[str, Any] = {}
         config_path = getattr(args, "config", None)
         if config_path is not None:
-            from simlab.io import read_toml
+            from simlab.base.io import read_toml
 
             values.update(cls._by_field(read_toml(config_path), config_path))
         names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]

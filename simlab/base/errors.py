@@ -52,7 +52,7 @@ class DataError(SimlabError, ValueError):
 
 
 #: Source folders whose frames :func:`warn` skips: simlab's and discretize's packages.
-_OURS = tuple(str(_Path(__file__).parent.parent / pkg) + _sep
+_OURS = tuple(str(_Path(__file__).parents[2] / pkg) + _sep
               for pkg in ("simlab", "discretize"))
 
 

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 # The process umask, read once (os.umask can only be read by setting it). Temporary files
 # from mkstemp are created 0600; outputs get the mode a plain open() would give them.
@@ -136,7 +136,7 @@ def exclusive_directory(path: str | os.PathLike[str], *, what: str = "output dir
     :class:`ConfigError` instead. The lock lives on the directory itself (no lock file is
     left behind) and is released when the block ends or the process dies.
     """
-    import fcntl  # POSIX only; imported here so that simlab.io itself imports anywhere
+    import fcntl  # POSIX only; imported here so that simlab.base.io itself imports anywhere
 
     path = Path(path)
     if path.exists() and not path.is_dir():
@@ -258,7 +258,7 @@ def output_transaction(out: str | os.PathLike[str], finals: Any = (), *, overwri
                 txn = OutputTransaction(out, staging, finals)
                 yield txn
                 written = txn.commit()
-                logging.getLogger("simlab.io").info("%s: %d file(s) written", out, len(written))
+                logging.getLogger("simlab.base.io").info("%s: %d file(s) written", out, len(written))
             finally:
                 shutil.rmtree(staging, ignore_errors=True)
     except BaseException as exc:

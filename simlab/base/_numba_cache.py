@@ -9,7 +9,7 @@ a ``git pull`` of an editable install it would silently run the old agent rules.
 :func:`use_versioned_cache_dir` (called by ``import simlab`` and ``import discretize``,
 before either imports numba) therefore points ``NUMBA_CACHE_DIR`` at
 ``$XDG_CACHE_HOME/simlab/numba/<fingerprint>`` (``~/.cache`` without it), where the
-fingerprint (:func:`simlab.fingerprint.source_fingerprint` with ``stamps``) hashes the path, size
+fingerprint (:func:`simlab.base.fingerprint.source_fingerprint` with ``stamps``) hashes the path, size
 and modification time of every ``.py`` file of the ``simlab`` and ``discretize`` packages
 (the stamps numba itself uses, for all files at once; 4-9 ms). Same code -> same directory, so compiled kernels are still reused across
 runs and by worker processes (they inherit the variable). Older directories beyond the
@@ -29,7 +29,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from simlab.fingerprint import source_fingerprint
+from simlab.base.fingerprint import source_fingerprint
 
 #: Fingerprint directories kept (the newest by modification time).
 KEEP = 8
@@ -55,7 +55,7 @@ def use_versioned_cache_dir() -> Path | None:
     if (os.environ.get("NUMBA_CACHE_DIR") or "numba" in sys.modules
             or os.environ.get("SIMLAB_NUMBA_CACHE") == "source"):
         return None
-    here = Path(__file__).resolve().parent
+    here = Path(__file__).resolve().parents[1]  # the simlab package folder
     roots = [p for p in (here.parent / name for name in _PACKAGES) if p.is_dir()]
     try:
         target = cache_root() / source_fingerprint(roots, (".py",), stamps=True)

@@ -16,7 +16,7 @@ def source_fingerprint(roots: Iterable[Path],
     check at every import). A missing root is an error (a renamed module must not
     silently leave the key). Used by the stage cache
     (:mod:`simlab.orchestration.cache`) and the numba cache directory
-    (:mod:`simlab._numba_cache`)."""
+    (:mod:`simlab.base._numba_cache`)."""
     h = hashlib.sha256()
     for root in roots:
         if not root.exists():

@@ -3,7 +3,7 @@ choices, true/false, files and directories.
 
 One home for the messages, so that every bad value reads the same way wherever it comes
 from (a CLI option, a TOML table, a Python keyword): each check raises
-:class:`~simlab.errors.ConfigError` naming the field (``key``), the file when there is one
+:class:`~simlab.base.errors.ConfigError` naming the field (``key``), the file when there is one
 (``path``), what was expected and what was found, and returns the value in its canonical
 type (``int`` for whole numbers, ``float`` for numbers, :class:`~pathlib.Path` for paths).
 
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = [
     "boolean",
@@ -114,7 +114,7 @@ def executor(value: Any, key: str = "pool") -> Any:
         return value
     raise ConfigError(f"expected a process executor from Python, got {value!r}", key=key,
                       fix=f"remove {key!r} from the options file (Python callers pass e.g. "
-                          "simlab.parallel.spawn_worker())")
+                          "simlab.base.parallel.spawn_worker())")
 
 
 def choice(value: Any, allowed: Iterable[str], key: str, *, path: Where = None) -> str:

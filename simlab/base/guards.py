@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import os
 
-from simlab.errors import ConfigError
+from simlab.base.errors import ConfigError
 
 __all__ = ["array_bytes", "check_memory", "format_bytes", "memory_budget"]
 

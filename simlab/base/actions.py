@@ -2,7 +2,7 @@
 
 simlab's own robot has 16 primitives, ``index = speed * 8 + direction`` with directions in
 the thesis order UP, DOWN, LEFT, RIGHT, UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT
-(:class:`~simlab.directions.Direction`, UP = +y of the map). A real robot's data often
+(:class:`~simlab.base.directions.Direction`, UP = +y of the map). A real robot's data often
 differs on both counts: the ISIR TurtleBot logs have **8 actions** (one speed) numbered
 **counter-clockwise from East** (0 E, 1 NE, 2 N, 3 NW, 4 W, 5 SW, 6 S, 7 SE). Reading such
 data with simlab's order sends every arrow and every replayed move the wrong way without a
@@ -33,9 +33,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.directions import Direction
-from simlab.errors import ConfigError
-from simlab.options import CommandConfig, option
+from simlab.base.directions import Direction
+from simlab.base.errors import ConfigError
+from simlab.base.options import CommandConfig, option
 
 #: Heading (rad, counter-clockwise from +x of the map) of each simlab :class:`Direction`.
 HEADINGS: NDArray[np.float64] = np.array(
