@@ -161,26 +161,43 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
     """
     from discretize.mapio import read_map
 
-    out, map_yaml, states, start, goal_radius = (cfg.out, cfg.map_yaml, cfg.states, cfg.start,
-                                                 cfg.goal_radius)
-    ensure_new(out, overwrite=cfg.overwrite, what="arena file")
-    grid = read_map(map_yaml, flip_y=cfg.flip_y)
+    ensure_new(cfg.out, overwrite=cfg.overwrite, what="arena file")
+    grid = read_map(cfg.map_yaml, flip_y=cfg.flip_y)
     clear = _clearance(grid.occupancy, grid.resolution)
     if clear.max() < START_CLEARANCE:
         raise ConfigError("no free pixel is far enough from the walls for the robot",
-                          path=map_yaml, fix="check the map's thresholds")
-    if states is not None:
+                          path=cfg.map_yaml, fix="check the map's thresholds")
+    goals, centres = _goals(cfg, grid, clear)
+    start = _initial_pose(cfg, grid, clear, centres)
+    text = _arena_text(cfg, start, goals)
+    _check_arena_text(text, cfg)
+    atomic_write_text(cfg.out, text)
+    return cfg.out
+
+
+def _goals(cfg: ArenaFromMapConfig, grid: Any, clear: NDArray[np.float64]
+           ) -> tuple[list[tuple[str, float, float]], NDArray[np.float64] | None]:
+    """The goal circles ``[(name, x, y)]`` (m, map frame) and the state centres (S, 2) in m
+    (None without ``states``): one goal per centre, else one per ninth of the map."""
+    if cfg.states is not None:
         from simlab.physics.inputs import load_discretizer
 
-        centres = np.asarray(load_discretizer(states).centres, dtype=float)
-        goals = [(f"s{i}", float(x), float(y)) for i, (x, y) in enumerate(centres)]
-    else:
-        goals = _auto_goals(grid, clear, goal_radius)
-        if not goals:
-            raise ConfigError(f"no ninth of the map has a free point {goal_radius:g} m from "
-                              f"the walls (the freest is {clear.max():.3g} m from them)",
-                              key="goal_radius", fix="a smaller --goal-radius, or --states "
-                              "for goals at the state centres")
+        centres = np.asarray(load_discretizer(cfg.states).centres, dtype=float)
+        return [(f"s{i}", float(x), float(y)) for i, (x, y) in enumerate(centres)], centres
+    goals = _auto_goals(grid, clear, cfg.goal_radius)
+    if not goals:
+        raise ConfigError(f"no ninth of the map has a free point {cfg.goal_radius:g} m from "
+                          f"the walls (the freest is {clear.max():.3g} m from them)",
+                          key="goal_radius", fix="a smaller --goal-radius, or --states "
+                          "for goals at the state centres")
+    return goals, None
+
+
+def _initial_pose(cfg: ArenaFromMapConfig, grid: Any, clear: NDArray[np.float64],
+                  centres: NDArray[np.float64] | None) -> tuple[float, float, float]:
+    """The start pose ``(x m, y m, yaw degrees)``: ``start`` (checked to lie on the map), the
+    centre of ``start_state``, else the freest state centre or free pixel, facing +y."""
+    start, states = cfg.start, cfg.states
     if start is not None:
         h, w = grid.occupancy.shape
         x0, y0 = grid.origin[0], grid.origin[1]
@@ -189,27 +206,34 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
             raise ConfigError(f"({start[0]:g}, {start[1]:g}) is outside the map (x {x0:.2f}.."
                               f"{x1:.2f} m, y {y0:.2f}..{y1:.2f} m)", key="start",
                               fix="give --start X,Y,YAW in the map's frame, in metres")
+        return start
     if cfg.start_state is not None:
+        assert centres is not None  # the config refuses a start state without states
         if cfg.start_state >= len(centres):
             raise ConfigError(f"expected a state in [0, {len(centres) - 1}] of the states "
                               f"file, got {cfg.start_state}", key="start_state", path=states
                               if isinstance(states, str | os.PathLike) else None)
         cx, cy = centres[cfg.start_state]
-        start = (float(cx), float(cy), 90.0)
-    if start is None:
-        if states is not None:
-            h = grid.occupancy.shape[0]
-            col = np.floor((centres[:, 0] - grid.origin[0]) / grid.resolution).astype(int)
-            row = h - 1 - np.floor((centres[:, 1] - grid.origin[1]) / grid.resolution).astype(int)
-            ok = (row >= 0) & (row < h) & (col >= 0) & (col < grid.occupancy.shape[1])
-            c = np.zeros(len(centres))
-            c[ok] = clear[row[ok], col[ok]]
-            best = int(c.argmax())
-            sx, sy = (float(centres[best, 0]), float(centres[best, 1]))
-        else:
-            r, cc = np.unravel_index(int(clear.argmax()), clear.shape)
-            sx, sy = _pixel_xy(grid, int(r), int(cc))
-        start = (sx, sy, 90.0)
+        return (float(cx), float(cy), 90.0)
+    if centres is not None:
+        h = grid.occupancy.shape[0]
+        col = np.floor((centres[:, 0] - grid.origin[0]) / grid.resolution).astype(int)
+        row = h - 1 - np.floor((centres[:, 1] - grid.origin[1]) / grid.resolution).astype(int)
+        ok = (row >= 0) & (row < h) & (col >= 0) & (col < grid.occupancy.shape[1])
+        c = np.zeros(len(centres))
+        c[ok] = clear[row[ok], col[ok]]
+        best = int(c.argmax())
+        sx, sy = (float(centres[best, 0]), float(centres[best, 1]))
+    else:
+        r, cc = np.unravel_index(int(clear.argmax()), clear.shape)
+        sx, sy = _pixel_xy(grid, int(r), int(cc))
+    return (sx, sy, 90.0)
+
+
+def _arena_text(cfg: ArenaFromMapConfig, start: tuple[float, float, float],
+                goals: list[tuple[str, float, float]]) -> str:
+    """The arena TOML's text: the map (path relative to ``out``), walls, start, goals."""
+    map_yaml, out = cfg.map_yaml, cfg.out
     rel = os.path.relpath(map_yaml.resolve(), out.resolve().parent)
     comment = " ".join(str(map_yaml).split())  # a comment is one line
     lines = [
@@ -230,11 +254,8 @@ def arena_from_map(cfg: ArenaFromMapConfig) -> Path:
     ]
     for gname, gx, gy in goals:
         lines += ["", "[[goals]]", f"name = {toml_string(gname)}",
-                  f"center = [{gx:.4f}, {gy:.4f}]", f"radius = {goal_radius}"]
-    text = "\n".join(lines) + "\n"
-    _check_arena_text(text, cfg)
-    atomic_write_text(out, text)
-    return out
+                  f"center = [{gx:.4f}, {gy:.4f}]", f"radius = {cfg.goal_radius}"]
+    return "\n".join(lines) + "\n"
 
 
 def toml_string(text: str) -> str:
