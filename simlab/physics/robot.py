@@ -181,6 +181,50 @@ def _frames(robot: SimpleNamespace, path: Path) -> tuple[str, dict[str, NDArray[
     return roots[0], poses
 
 
+def _tyre(wheel_link: Any, path: Path) -> tuple[float, float]:
+    """The tyre's ``(radius, width)`` in m: the first cylinder of the wheel link's visuals."""
+    cylinders = [v.geometry.cylinder for v in wheel_link.visuals if v.geometry.cylinder]
+    if not cylinders:
+        raise ConfigError(
+            "wheel link has no <visual><geometry><cylinder> giving the tyre radius and width",
+            path=path, key=f"link[@name={wheel_link.name!r}]",
+        )
+    return float(cylinders[0].radius), float(cylinders[0].length)
+
+
+def _outline(base: Any, frames: dict[str, NDArray[np.float64]], wheels: list[tuple[float, float]],
+             wheel_radius: float, wheel_width: float
+             ) -> tuple[tuple[float, float, float, float], float]:
+    """The footprint ``(x_min, x_max, y_min, y_max)`` and swept radius (m, root frame).
+
+    The outline is the collision boxes of the wheels' parent link ``base`` and the two tyres
+    (centres ``wheels`` (x, y) in m); the parent's frame may be offset from the root's,
+    never rotated in yaw here.
+    """
+    boxes = []
+    for col in base.collisions:
+        if col.geometry.box is not None:
+            sx, sy, _ = col.geometry.box.size
+            centre = (frames[base.name] @ col.origin)[:2, 3]
+            boxes.append((float(centre[0]), float(centre[1]), sx, sy))
+    xs: list[float] = []
+    ys: list[float] = []
+    for ox, oy, sx, sy in boxes:
+        xs += [ox - sx / 2, ox + sx / 2]
+        ys += [oy - sy / 2, oy + sy / 2]
+    for jx, jy in wheels:
+        xs += [jx - wheel_radius, jx + wheel_radius]
+        ys += [jy - wheel_width / 2, jy + wheel_width / 2]
+    footprint = (min(xs), max(xs), min(ys), max(ys))
+    # Swept radius from the actual outline pieces (the corner of the bounding box would
+    # overestimate: the wheels do not reach the rear corners).
+    corners = [(ox + a * sx / 2, oy + b * sy / 2)
+               for ox, oy, sx, sy in boxes for a in (-1, 1) for b in (-1, 1)]
+    corners += [(jx + a * wheel_radius, jy + b * wheel_width / 2)
+                for jx, jy in wheels for a in (-1, 1) for b in (-1, 1)]
+    return footprint, max(math.hypot(x, y) for x, y in corners)
+
+
 def load_robot_spec(
     name_or_path: str | Path = "turtlebot3_burger",
     *,
@@ -199,15 +243,7 @@ def load_robot_spec(
 
     jl = _joint(robot, left_wheel_joint, path)
     jr = _joint(robot, right_wheel_joint, path)
-    wheel_link = _link(robot, jl.child, path)
-    cylinders = [v.geometry.cylinder for v in wheel_link.visuals if v.geometry.cylinder]
-    if not cylinders:
-        raise ConfigError(
-            "wheel link has no <visual><geometry><cylinder> giving the tyre radius and width",
-            path=path, key=f"link[@name={wheel_link.name!r}]",
-        )
-    wheel_radius = float(cylinders[0].radius)
-    wheel_width = float(cylinders[0].length)
+    wheel_radius, wheel_width = _tyre(_link(robot, jl.child, path), path)
     # wheel centres (x, y) in the root frame
     wl, wr = (frames[j.child][:2, 3] for j in (jl, jr))
     separation = abs(float(wl[1] - wr[1]))
@@ -224,32 +260,9 @@ def load_robot_spec(
     lidar_offset = tuple(float(v) for v in frames[js.child][:3, 3])
     base_link_offset = tuple(float(v) for v in frames[jl.parent][:3, 3])
 
-    # Footprint: the collision boxes of the wheels' parent link and the wheel tyres, in the
-    # root frame (the parent's frame may be offset from it, never rotated in yaw here).
     base = _link(robot, jl.parent, path)
-    boxes = []
-    for col in base.collisions:
-        if col.geometry.box is not None:
-            sx, sy, _ = col.geometry.box.size
-            centre = (frames[base.name] @ col.origin)[:2, 3]
-            boxes.append((float(centre[0]), float(centre[1]), sx, sy))
     wheels = [(float(w[0]), float(w[1])) for w in (wl, wr)]
-    xs: list[float] = []
-    ys: list[float] = []
-    for ox, oy, sx, sy in boxes:
-        xs += [ox - sx / 2, ox + sx / 2]
-        ys += [oy - sy / 2, oy + sy / 2]
-    for jx, jy in wheels:
-        xs += [jx - wheel_radius, jx + wheel_radius]
-        ys += [jy - wheel_width / 2, jy + wheel_width / 2]
-    footprint = (min(xs), max(xs), min(ys), max(ys))
-    # Swept radius from the actual outline pieces (the corner of the bounding box would
-    # overestimate: the wheels do not reach the rear corners).
-    corners = [(ox + a * sx / 2, oy + b * sy / 2)
-               for ox, oy, sx, sy in boxes for a in (-1, 1) for b in (-1, 1)]
-    corners += [(jx + a * wheel_radius, jy + b * wheel_width / 2)
-                for jx, jy in wheels for a in (-1, 1) for b in (-1, 1)]
-    swept = max(math.hypot(x, y) for x, y in corners)
+    footprint, swept = _outline(base, frames, wheels, wheel_radius, wheel_width)
 
     mass = sum(float(link.inertial.mass) for link in robot.links if link.inertial is not None)
     return RobotSpec(
