@@ -286,6 +286,48 @@ def _jsonable(obj: Any) -> Any:
     return obj
 
 
+def _checked_walks(walks: TransitionArrays | Sequence[TransitionArrays], info: DatasetInfo,
+                   part_size: int) -> list[TransitionArrays]:
+    """``walks`` as a list, each with truth poses exactly when the pose source has them;
+    ``part_size`` a whole number >= 1."""
+    walks = [walks] if isinstance(walks, TransitionArrays) else list(walks)
+    if not walks or not all(isinstance(w, TransitionArrays) for w in walks):
+        raise ConfigError("expected one or more TransitionArrays", key="walks")
+    if isinstance(part_size, bool) or int(part_size) != part_size or part_size < 1:
+        raise ConfigError(f"expected a whole number >= 1, got {part_size!r}", key="part_size")
+    truth_needed = info.pose_source not in NO_TRUTH_SOURCES
+    for w, walk in enumerate(walks):
+        if truth_needed != (walk.truth is not None):
+            raise ConfigError(f"pose source {info.pose_source!r} "
+                              f"{'needs' if truth_needed else 'takes no'} truth poses",
+                              key=f"walk {w}: truth")
+    return walks
+
+
+def _manifest(info: DatasetInfo, disc: Any, n_actions: int, workers: int, part_size: int,
+              schema: pa.Schema) -> dict[str, Any]:
+    """The ``_manifest.json`` content before the parts are written (their list is added by
+    :func:`_write_walks`): versions, the discretizer's hash and centres, the action set
+    (or the action names of an imported dataset), provenance."""
+    from simlab import __version__
+
+    manifest = new_manifest(
+        simlab_version=__version__, arena=info.arena, robot=info.robot,
+        simulator=info.simulator, pose_source=info.pose_source,
+        discretizer={"hash": disc.content_hash(), "n_states": int(disc.n_states),
+                     "centres": np.asarray(disc.centres, dtype=np.float64).tolist()},
+        seed=int(info.seed), workers=workers,
+        parameters={**dict(info.parameters), "n_actions": n_actions,
+                    "part_size": int(part_size),
+                    **({} if info.action_names is None
+                       else {"action_names": list(info.action_names)})},
+        schema=schema_to_json(schema))
+    manifest["action_set"] = info.action_set.to_json() if info.action_names is None else None
+    manifest["provenance"] = dict(info.provenance)
+    manifest["writer"] = "simlab.data.writer"
+    return manifest
+
+
 def write_dataset(
     out: str | os.PathLike[str],
     walks: TransitionArrays | Sequence[TransitionArrays],
@@ -310,38 +352,14 @@ def write_dataset(
         ConfigError: bad arrays (naming the field), states or actions out of range,
             a non-empty ``out`` without ``overwrite``. Nothing is written then.
     """
-    from simlab import __version__
-
-    walks = [walks] if isinstance(walks, TransitionArrays) else list(walks)
-    if not walks or not all(isinstance(w, TransitionArrays) for w in walks):
-        raise ConfigError("expected one or more TransitionArrays", key="walks")
-    if isinstance(part_size, bool) or int(part_size) != part_size or part_size < 1:
-        raise ConfigError(f"expected a whole number >= 1, got {part_size!r}", key="part_size")
-    truth_needed = info.pose_source not in NO_TRUTH_SOURCES
-    for w, walk in enumerate(walks):
-        if truth_needed != (walk.truth is not None):
-            raise ConfigError(f"pose source {info.pose_source!r} "
-                              f"{'needs' if truth_needed else 'takes no'} truth poses",
-                              key=f"walk {w}: truth")
+    walks = _checked_walks(walks, info, part_size)
     disc = load_discretizer(info.discretizer)
-    n_states, aset = int(disc.n_states), info.action_set
-    n_actions = aset.n_actions if info.action_names is None else len(info.action_names)
+    n_states = int(disc.n_states)
+    n_actions = info.action_set.n_actions if info.action_names is None \
+        else len(info.action_names)
     states = [_states(walk, disc, n_states, n_actions, w) for w, walk in enumerate(walks)]
     schema = transition_schema(info.pose_source)
-    manifest = new_manifest(
-        simlab_version=__version__, arena=info.arena, robot=info.robot,
-        simulator=info.simulator, pose_source=info.pose_source,
-        discretizer={"hash": disc.content_hash(), "n_states": n_states,
-                     "centres": np.asarray(disc.centres, dtype=np.float64).tolist()},
-        seed=int(info.seed), workers=len(walks),
-        parameters={**dict(info.parameters), "n_actions": n_actions,
-                    "part_size": int(part_size),
-                    **({} if info.action_names is None
-                       else {"action_names": list(info.action_names)})},
-        schema=schema_to_json(schema))
-    manifest["action_set"] = aset.to_json() if info.action_names is None else None
-    manifest["provenance"] = dict(info.provenance)
-    manifest["writer"] = "simlab.data.writer"
+    manifest = _manifest(info, disc, n_actions, len(walks), part_size, schema)
     out = Path(out)
     created = not out.exists()
     try:
