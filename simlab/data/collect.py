@@ -294,7 +294,40 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
     the walk to a real robot's actions: it draws uniformly over their primitives and
     records ``a`` in their numbering (the manifest records the set), so the estimated MDP
     and the Q-tables trained on it have the real data's actions and a twin-trained Q-table
-    is scored on the real model directly. Default: simlab's 16 primitives."""
+    is scored on the real model directly. Default: simlab's 16 primitives.
+
+    The fields:
+
+    * ``arena``: built-in arena name, ``.toml`` path or an ``ArenaConfig``.
+    * ``states``: states file of ``simlab discretize`` (JSON) or a discretizer object
+      (``state_of(xy (N, 2)) -> (N,)``, ``n_states``, ``centres``, ``content_hash()``).
+    * ``out``: dataset directory; must be empty or absent unless ``resume``.
+    * ``hours``: total simulated robot time (h), split evenly over the workers;
+      ``transitions``: total number of transitions instead.
+    * ``seed``: root seed; worker ``w``, part ``p`` draw from
+      ``SeedSequence(seed, spawn_key=(w, p))``.
+    * ``workers``: independent walks, one arena (process) each.
+    * ``resume``: continue the collection already in ``out`` (see the module docstring).
+    * ``backend``: ``"local"`` (process pool; in-process for one worker) or ``"ray"``;
+      ``address``: Ray cluster address (default: local Ray).
+    * ``part_size``: transitions per part file (the unit of crash loss and resumption).
+    * ``pose_source``: ``"truth"``, ``"odometry"`` or ``"mcl"`` — the poses recorded and
+      discretized (truth columns are added when it is not ``truth``).
+    * ``simulator``: ``"physics"`` (PyBullet) or ``"kinematic"`` (physics-free point robot
+      for dry runs; see :class:`~simlab.data.walkers.KinematicWalker`).
+    * ``params`` or the primitive options: see :meth:`CollectConfig.resolved_params`.
+      Recorded complete in ``manifest["parameters"]["primitive"]``
+      (``PrimitiveParams.from_json`` or
+      :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
+      ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
+    * ``pose_source_options``: keyword arguments for the pose source factory.
+    * ``start_states``: ``"all"`` or a list of states: one walk from each state's centre
+      (its own seed stream, the budget split evenly; ``workers`` processes run them), so
+      the walk covers the lab; recorded as ``manifest["parameters"]["start_states"]``.
+    * ``n_actions``/``convention``/``speed``: walk in a real robot's action set (see
+      above); recorded as ``manifest["action_set"]``.
+    * ``progress``: show a tqdm bar with transitions/s and simulated hours per wall second.
+    """
 
     COMMAND = "collect"
     ARGUMENTS = ("arena", "states")
@@ -441,37 +474,7 @@ def collect(cfg: CollectConfig) -> CollectResult:
     """Collect an epsilon = 1 random-walk transition dataset into the directory ``out``.
 
     Takes a :class:`CollectConfig` or its fields as arguments (``collect("table",
-    "states.json", out=..., hours=1.0)``). The fields:
-
-    * ``arena``: built-in arena name, ``.toml`` path or an ``ArenaConfig``.
-    * ``states``: states file of ``simlab discretize`` (JSON) or a discretizer object
-      (``state_of(xy (N, 2)) -> (N,)``, ``n_states``, ``centres``, ``content_hash()``).
-    * ``out``: dataset directory; must be empty or absent unless ``resume``.
-    * ``hours``: total simulated robot time (h), split evenly over the workers;
-      ``transitions``: total number of transitions instead.
-    * ``seed``: root seed; worker ``w``, part ``p`` draw from
-      ``SeedSequence(seed, spawn_key=(w, p))``.
-    * ``workers``: independent walks, one arena (process) each.
-    * ``resume``: continue the collection already in ``out`` (see the module docstring).
-    * ``backend``: ``"local"`` (process pool; in-process for one worker) or ``"ray"``;
-      ``address``: Ray cluster address (default: local Ray).
-    * ``part_size``: transitions per part file (the unit of crash loss and resumption).
-    * ``pose_source``: ``"truth"``, ``"odometry"`` or ``"mcl"`` — the poses recorded and
-      discretized (truth columns are added when it is not ``truth``).
-    * ``simulator``: ``"physics"`` (PyBullet) or ``"kinematic"`` (physics-free point robot
-      for dry runs; see :class:`~simlab.data.walkers.KinematicWalker`).
-    * ``params`` or the primitive options: see :meth:`CollectConfig.resolved_params`.
-      Recorded complete in ``manifest["parameters"]["primitive"]``
-      (``PrimitiveParams.from_json`` or
-      :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
-      ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
-    * ``pose_source_options``: keyword arguments for the pose source factory.
-    * ``start_states``: ``"all"`` or a list of states: one walk from each state's centre
-      (its own seed stream, the budget split evenly; ``workers`` processes run them), so
-      the walk covers the lab; recorded as ``manifest["parameters"]["start_states"]``.
-    * ``n_actions``/``convention``/``speed``: walk in a real robot's action set (see
-      :class:`CollectConfig`); recorded as ``manifest["action_set"]``.
-    * ``progress``: show a tqdm bar with transitions/s and simulated hours per wall second.
+    "states.json", out=..., hours=1.0)``); the fields are documented there.
 
     Returns:
         A :class:`CollectResult`.
