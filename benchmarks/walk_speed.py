@@ -1,0 +1,109 @@
+"""How many simulated transitions per wall second does the calibration walk run?
+
+`simlab calibrate` spends its time in one walk: the physics walker driving each primitive
+until the *localized* state changes (``mode = "until_state_change"`` with pose noise), the
+obstacle detector re-run at every 10 Hz control tick, 8 ccw-east actions at the fast speed,
+one walk from every state (``start_states = "all"``). This script builds the benchmark
+lab of ``benchmarks/calibrate_twin.py`` (a 9.3 x 2.7 m corridor lab, 38 states), collects
+``--transitions`` of that walk, and in the same run the fixed-time walk of the default
+table arena (16 primitives, the thesis's 0.5 s drive) as a baseline, and prints
+transitions per wall second and CPU second of both and their ratio.
+
+``--profile`` runs the calibration walk once more under ``cProfile`` and prints the top
+entries by own time (ray tests, the per-tick state lookup, stepSimulation, Python overhead
+of the tick loop).
+
+Run: ``python benchmarks/walk_speed.py [--transitions 760] [--profile] [--top 25]``.
+The machine may be shared: the load average (``os.getloadavg``) is printed with the numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import os
+import pstats
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from calibrate_twin import HIDDEN, build_lab  # benchmarks/ is on sys.path as the script's dir
+from collect_speed import ground_truth_states
+
+#: A calibration candidate's primitive settings: the twin's searched space holds the drive
+#: mode, speed, time limit, detector margin, localization error and a per-move wheel noise
+#: (``simlab.calibration.space``); here they take the hidden robot's values.
+TWIN = dict(mode="until_state_change", fast_speed=HIDDEN["fast_speed"],
+            max_drive_time=HIDDEN["max_drive_time"], detector_margin=HIDDEN["detector_margin"],
+            pose_noise_xy=HIDDEN["pose_noise_xy"], wheel_noise=0.05)
+
+
+def lab_walk(root: Path, transitions: int, seed: int) -> dict[str, Any]:
+    """Keyword arguments of :func:`simlab.data.collect.collect` for the calibration walk."""
+    from simlab.physics.motion import PrimitiveParams
+
+    arena, states = build_lab(root)
+    return dict(arena=arena, states=states, transitions=transitions, seed=seed, workers=1,
+                params=PrimitiveParams(**TWIN), n_actions=8, convention="ccw-east",
+                speed="fast", start_states="all", progress=False)
+
+
+def table_walk(root: Path, transitions: int, seed: int) -> dict[str, Any]:
+    """Keyword arguments of :func:`simlab.data.collect.collect` for the table baseline."""
+    states = ground_truth_states(root / "table_states.json", "table", 41)
+    return dict(arena="table", states=states, transitions=transitions, seed=seed, workers=1,
+                progress=False)
+
+
+def timed(kwargs: dict[str, Any], out: Path) -> tuple[float, float, int]:
+    """(wall s, CPU s, transitions) of one collection into ``out``."""
+    from simlab.data.collect import collect
+
+    w0, c0 = time.perf_counter(), time.process_time()
+    result = collect(out=out, **kwargs)
+    return time.perf_counter() - w0, time.process_time() - c0, int(result.transitions)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--transitions", type=int, default=760,
+                        help="transitions of each walk (760 = 20 per start state of the lab)")
+    parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--profile", action="store_true", help="cProfile the calibration walk")
+    parser.add_argument("--top", type=int, default=25, help="profile entries to print")
+    parser.add_argument("--calibration-transitions", type=int, default=77_000,
+                        help="transitions of a calibration, for the wall-time estimate")
+    args = parser.parse_args()
+
+    with tempfile.TemporaryDirectory(prefix="simlab-walk-") as tmp:
+        root = Path(tmp)
+        lab = lab_walk(root, args.transitions, args.seed)
+        table = table_walk(root, args.transitions, args.seed)
+        load0 = os.getloadavg()[0]
+        lw, lc, ln = timed(lab, root / "lab-walk")
+        tw, tc, tn = timed(table, root / "table-walk")
+        load1 = os.getloadavg()[0]
+        print(f"load average (1 min) {load0:.2f} before, {load1:.2f} after; "
+              f"{os.cpu_count()} cores")
+        print(f"calibration walk (lab, until_state_change + pose noise, 8 fast actions, all "
+              f"starts): {ln} transitions in {lw:.1f} s wall / {lc:.1f} s CPU = "
+              f"{ln / lw:.1f} /s wall, {ln / lc:.1f} /s CPU")
+        print(f"baseline (table, fixed 0.5 s, 16 primitives): {tn} transitions in {tw:.1f} s "
+              f"wall / {tc:.1f} s CPU = {tn / tw:.1f} /s wall, {tn / tc:.1f} /s CPU")
+        print(f"ratio calibration walk / baseline: {(ln / lw) / (tn / tw):.3f} wall, "
+              f"{(ln / lc) / (tn / tc):.3f} CPU")
+        n = args.calibration_transitions
+        print(f"estimate: {n} calibration transitions = {n * lc / ln:.0f} CPU s, so about "
+              f"{n * lc / ln / 2:.0f} s wall on 2 idle cores (walks only)")
+        if args.profile:
+            prof = cProfile.Profile()
+            prof.enable()
+            timed(lab, root / "lab-walk-profiled")
+            prof.disable()
+            stats = pstats.Stats(prof)
+            stats.sort_stats("tottime").print_stats(args.top)
+
+
+if __name__ == "__main__":
+    main()
