@@ -1,6 +1,6 @@
 """``simlab train``: learn Q-tables on an empirical MDP, one per goal area.
 
-The options are the fields of :class:`simlab.training.train.TrainConfig`.
+The options are the fields of :class:`simlab.training.config.TrainConfig`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from simlab.training.train import TrainConfig, param_pair
+    from simlab.training.config import TrainConfig, param_pair
 
     TrainConfig.add_arguments(parser)
     # repeatable, so not generated: the field is the dict ``params``
@@ -30,10 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> Any:
-    """The :class:`~simlab.training.train.TrainConfig` of the parsed command line
+    """The :class:`~simlab.training.config.TrainConfig` of the parsed command line
     (``--param`` pairs win over a ``params`` table of ``--config FILE``)."""
     from simlab.base.errors import ConfigError
-    from simlab.training.train import TrainConfig
+    from simlab.training.config import TrainConfig
 
     cfg = TrainConfig.from_args(args)
     if cfg.out is None:
