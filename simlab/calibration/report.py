@@ -181,8 +181,24 @@ def _cell(v: Any, fmt: str = "{:.3f}") -> str:
 
 def report_markdown(result: CalibrationResult) -> str:
     """The markdown report: sim vs real side by side, then the search."""
+    out = io.StringIO()
+    out.write(f"# Calibration against {result.real.source or 'the real table'}\n\n")
+    _intro(out, result)
+    out.write("| | real | sim (calibrated) |\n|---|---|---|\n")
+    for name, a, b in _side_by_side(result):
+        out.write(f"| {name} | {a} | {b} |\n")
+    _distance(out, result)
+    out.write(_budget_section(result))
+    out.write(_transfer_section(result))
+    _parameters(out, result)
+    _search_table(out, result)
+    out.write("\n![calibration](calibration.png)\n")
+    return out.getvalue()
+
+
+def _side_by_side(result: CalibrationResult) -> list[tuple[str, Any, Any]]:
+    """(row name, real, sim) of the signature table, coverage last."""
     r, s = result.real_summary, result.sim_summary
-    tv = result.final.tv
     rows = [
         ("states (visited)", f"{r['states']} ({r['states_visited']})",
          f"{s['states']} ({s['states_visited']})"),
@@ -198,9 +214,17 @@ def report_markdown(result: CalibrationResult) -> str:
          _cell(s["self_transition_share"])),
         ("blocked rate", _cell(r["blocked_rate"]), _cell(s["blocked_rate"])),
     ]
-    out = io.StringIO()
+    cov = coverage(result)
+    tried_share = _cell(100 * (cov["real_weight_tried"] or 0.0), "{:.1f}")
+    rows.append(("real (s, a) pairs tried by the twin", cov["real_pairs"],
+                 f"{cov['real_pairs_tried']} ({tried_share} % of the real transitions)"))
+    rows.append(("states reached", r["states_visited"], f"{cov['states_reached']}"))
+    return rows
+
+
+def _intro(out: io.StringIO, result: CalibrationResult) -> None:
+    """Warnings, the walks' actions and starts, and the real signature."""
     cfg = result.config
-    out.write(f"# Calibration against {result.real.source or 'the real table'}\n\n")
     for w in result.warnings:
         out.write(f"> **Warning:** {w}.\n\n")
     starts = cfg.start_states
@@ -218,14 +242,11 @@ def report_markdown(result: CalibrationResult) -> str:
                   "mode.\n\n" if hasattr(result.base, "mode") else
                   f"Real signature: {100 * sig.self_share:.0f} % of the transitions stay in "
                   f"their state; cells of {sig.cell_size:.2f} m.\n\n")
-    cov = coverage(result)
-    tried_share = _cell(100 * (cov["real_weight_tried"] or 0.0), "{:.1f}")
-    rows.append(("real (s, a) pairs tried by the twin", cov["real_pairs"],
-                 f"{cov['real_pairs_tried']} ({tried_share} % of the real transitions)"))
-    rows.append(("states reached", r["states_visited"], f"{cov['states_reached']}"))
-    out.write("| | real | sim (calibrated) |\n|---|---|---|\n")
-    for name, a, b in rows:
-        out.write(f"| {name} | {a} | {b} |\n")
+
+
+def _distance(out: io.StringIO, result: CalibrationResult) -> None:
+    """The distance against its floors, agreement and coverage in words."""
+    tv = result.final.tv
     fl, mf = result.floor, result.matched_floor
     out.write(
         f"\n**Visit-weighted TV distance** {_cell(tv.distance)} against a bootstrap sampling "
@@ -237,8 +258,10 @@ def report_markdown(result: CalibrationResult) -> str:
         f"the simulation ({_cell(100 * tv.real_weight_uncovered, '{:.1f}')} % of the real "
         f"visits, rule `{tv.unvisited}`), {tv.sim_only} simulated pairs absent from the real "
         "table.\n\n")
-    out.write(_budget_section(result))
-    out.write(_transfer_section(result))
+
+
+def _parameters(out: io.StringIO, result: CalibrationResult) -> None:
+    """The searched fields, start against calibrated."""
     out.write("## Calibrated parameters\n\n| field | start | calibrated |\n|---|---|---|\n")
     base, new = _record(result.base), _record(result.params)
     changed = [*result.space.names, "decision_latency"] if result.latency_fitted \
@@ -248,6 +271,10 @@ def report_markdown(result: CalibrationResult) -> str:
     out.write("\n" + ("Decision latency fitted to the real transitions per hour.\n"
                       if result.latency_fitted else
                       "Decision latency not fitted (real duration unknown).\n"))
+
+
+def _search_table(out: io.StringIO, result: CalibrationResult) -> None:
+    """Every candidate, the winner and the screening's best marked, then the notes."""
     out.write("\n## Search\n\n| # | stage | " + " | ".join(result.space.names)
               + " | distance |\n|" + "---|" * (result.space.dim + 3) + "\n")
     for c in result.candidates:
@@ -257,8 +284,6 @@ def report_markdown(result: CalibrationResult) -> str:
         out.write(f"| {c.index} | {c.stage} | {vals} | {_cell(c.distance)}{mark} |\n")
     for note in result.notes:
         out.write(f"\n{note}.\n")
-    out.write("\n![calibration](calibration.png)\n")
-    return out.getvalue()
 
 
 def _value(v: Any) -> str:
