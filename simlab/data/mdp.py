@@ -14,12 +14,12 @@ which training accepts and heat-map arrows and replay refuse)
 and ``unvisited`` (``mask``, the default also for files without it, or ``self-loop``).
 
 Sparse files (``simlab estimate`` on a large MDP, ``meta_json["storage"] == "sparse-csr"``,
-:mod:`simlab.data.estimate`): no ``T``, but the CSR arrays ``shape`` (3,) ``(S, A, S)``,
+:mod:`simlab.data.count_model`): no ``T``, but the CSR arrays ``shape`` (3,) ``(S, A, S)``,
 ``indptr`` (S A + 1,), ``indices`` (nnz,) s', ``probabilities`` (nnz,) and ``counts_data``
 (nnz,). The sibling loader :func:`load_sparse_mdp` reads them into a
 :class:`SparseEmpiricalMDP` (validated the same way: rows are distributions); decision:
 :func:`load_mdp` densifies a sparse file when ``S * A * S`` is at most
-:data:`simlab.data.estimate.SPARSE_CELLS` (so every existing consumer reads it), and
+:data:`simlab.data.count_model.SPARSE_CELLS` (so every existing consumer reads it), and
 otherwise raises a :class:`ConfigError` naming :func:`load_sparse_mdp`.
 """
 
@@ -94,7 +94,7 @@ class EmpiricalMDP:
         all of them); None under ``self-loop``, without ``visited``/``counts``, or when
         every pair was visited (so fully covered data trains exactly as before).
         """
-        from simlab.data.estimate import valid_actions
+        from simlab.data.count_model import valid_actions
 
         if self.unvisited != "mask":
             return None
@@ -168,7 +168,7 @@ def mdp_from_arrays(
     arrays or centres of the wrong shape.
     """
     from simlab.agents.planning import validate_mdp
-    from simlab.data.estimate import check_unvisited_rule
+    from simlab.data.count_model import check_unvisited_rule
 
     path = None if source is None else str(source)
     T = np.asarray(T)
@@ -330,7 +330,7 @@ class SparseEmpiricalMDP:
     @property
     def valid(self) -> np.ndarray | None:
         """As :attr:`EmpiricalMDP.valid`: (S, A) bool planner-choosable actions, or None."""
-        from simlab.data.estimate import valid_actions
+        from simlab.data.count_model import valid_actions
 
         if self.unvisited != "mask" or self.visited is None:
             return None
@@ -352,7 +352,7 @@ def load_sparse_mdp(path: str | os.PathLike[str]) -> SparseEmpiricalMDP:
     from scipy.sparse import csr_matrix
 
     from simlab.agents.storage import load_npz
-    from simlab.data.estimate import check_unvisited_rule
+    from simlab.data.count_model import check_unvisited_rule
 
     arrays, meta = load_npz(path, SPARSE_ARRAYS)
     where = str(path)
@@ -414,7 +414,7 @@ def load_sparse_mdp(path: str | os.PathLike[str]) -> SparseEmpiricalMDP:
 
 def _densified(m: SparseEmpiricalMDP) -> EmpiricalMDP:
     """:class:`EmpiricalMDP` of a small sparse file (module docstring, decision)."""
-    from simlab.data.estimate import SPARSE_CELLS
+    from simlab.data.count_model import SPARSE_CELLS
 
     S, A = m.n_states, m.n_actions
     if S * A * S > SPARSE_CELLS:

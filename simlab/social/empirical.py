@@ -2,8 +2,8 @@
 rate the MDPs predict.
 
 From a social random walk in physics (:mod:`simlab.social.walk`: 2560 observation states,
-22 actions) the sparse count model of :mod:`simlab.data.estimate`
-(:func:`~simlab.data.estimate.sparse_count_model`: the dense 2560 x 22 x 2560 table would
+22 actions) the sparse count model of :mod:`simlab.data.count_model`
+(:func:`~simlab.data.count_model.sparse_count_model`: the dense 2560 x 22 x 2560 table would
 be 1.2 GB per array) gives ``T(s, a, s')``; a reward ``R(s, a)`` and value iteration on the
 CSR matrix ``(S * A, S)`` give the ``(2560, 22)`` Q-table that
 :func:`simlab.social.closedloop.run_closed_loop` reads.
@@ -35,7 +35,7 @@ transitions with level 7 after and the human's move (its poses) in direction ``r
 Without pooling the model is the plain estimate of the walk on the 2560 states.
 
 **Untried (s, a)**: the ``mask`` rule of :mod:`simlab.data.estimate`: the planner maximises
-over :func:`~simlab.data.estimate.valid_actions` only; masked entries of the Q-table are
+over :func:`~simlab.data.count_model.valid_actions` only; masked entries of the Q-table are
 ``-inf`` (the closed loop's greedy choice never takes them unless everything is masked or
 excluded; a state without data has all actions valid, self-loops of value 0: uniform ties).
 
@@ -156,7 +156,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from simlab.base import validation
-from simlab.data.estimate import SparseCountModel, sparse_count_model, valid_actions
+from simlab.data.count_model import SparseCountModel, sparse_count_model, valid_actions
 from simlab.social.actions import N_SOCIAL_ACTIONS, SIGNALS
 from simlab.social.walk import N_SOCIAL_STATES, SocialWalk, decode_social
 
