@@ -25,8 +25,8 @@ HELP = ("Visit the lab: train the navigation, social and go-to-human modules; sh
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from simlab.visitlab.combined import CombinedConfig
+    from simlab.visitlab.options import ShowConfig, VisitlabTrainConfig
     from simlab.visitlab.results import PlotConfig
-    from simlab.visitlab.training import ShowConfig, VisitlabTrainConfig
 
     sub = parser.add_subparsers(dest="visitlab_command", metavar="ACTION", required=True)
     t = sub.add_parser("train", help="train agents, save curves (npz), a plot and a summary",
@@ -55,7 +55,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def train_config_from_args(args: argparse.Namespace):  # -> VisitlabTrainConfig
     """The train options of the parsed command line (``--set`` pairs win over a ``set``
     table of ``--config FILE``)."""
-    from simlab.visitlab.training import VisitlabTrainConfig, parse_overrides
+    from simlab.visitlab.options import VisitlabTrainConfig, parse_overrides
 
     cfg = VisitlabTrainConfig.from_args(args)
     if args.set:
@@ -85,7 +85,8 @@ def _show(args: argparse.Namespace) -> int:
 
     from simlab.agents.kernels import greedy_action
     from simlab.base.errors import ConfigError
-    from simlab.visitlab.training import ShowConfig, make_env
+    from simlab.visitlab.options import ShowConfig
+    from simlab.visitlab.training import make_env
 
     cfg = ShowConfig.from_args(args)
     if cfg.png:

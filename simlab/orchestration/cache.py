@@ -49,7 +49,7 @@ SOURCES: dict[str, tuple[str, ...]] = {
                 "replay", "localization", "discretize/", "assets/robots", "assets/arenas"),
     "visitlab-run": ("visitlab/actions.py", "visitlab/grid.py", "visitlab/perception.py",
                      "visitlab/humans.py", "visitlab/dynamics.py", "visitlab/envs.py",
-                     "visitlab/training.py", "visitlab/passive.py", "agents"),
+                     "visitlab/training.py", "visitlab/fused.py", "visitlab/passive.py", "agents"),
 }
 
 

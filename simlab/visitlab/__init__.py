@@ -11,8 +11,10 @@ A robot must get a simulated human's attention and lead them to goal rooms. Laye
 * :mod:`~simlab.visitlab.dynamics` — the navigation, social and go-to-human step
   kernels (numba), the one source of truth for the dynamics;
 * :mod:`~simlab.visitlab.envs` — Gymnasium wrappers (``simlab/VisitLab-*-v0``);
-* :mod:`~simlab.visitlab.training` — fused numba training loops and
-  :func:`~simlab.visitlab.training.train` (``simlab visitlab train``);
+* :mod:`~simlab.visitlab.fused` — the fused numba training loops (env step and agent
+  update in one loop) and the agents' thesis / paper settings;
+* :mod:`~simlab.visitlab.training` — seeded runs, :func:`~simlab.visitlab.training.train`
+  and ``simlab visitlab train`` (options in :mod:`~simlab.visitlab.options`);
 * :mod:`~simlab.visitlab.results` — curves files (npz), Fig. 4.1-style plots,
   summaries;
 * :mod:`~simlab.visitlab.combined` — the combined architecture (thesis Fig. 3.1):

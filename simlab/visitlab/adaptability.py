@@ -46,8 +46,8 @@ from simlab.agents.config import QLearningConfig
 from simlab.base.errors import ConfigError
 from simlab.visitlab import dynamics as dyn
 from simlab.visitlab.combined import CombinedRun, CombinedTask, Modules, combined_chunk, new_out
+from simlab.visitlab.fused import make_learner, model_from_state, model_state
 from simlab.visitlab.humans import Human
-from simlab.visitlab.training import make_learner, model_from_state, model_state
 
 #: The training human of the adaptability study (see the module docstring).
 BASE_HUMAN = Human((0.0, 1.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0, name="easy, 2 cells/step")
@@ -73,8 +73,8 @@ def continue_learning(task: CombinedTask, modules: Modules, agent_cfg: Any, tria
     """Run ``trials`` combined trials while the social module keeps learning.
 
     ``agent_cfg`` is the social agent's config (from
-    :func:`~simlab.visitlab.training.loop_agent_config`); its Q starts at
-    ``modules.social_q``; ``model`` (from :func:`~simlab.visitlab.training.model_state`)
+    :func:`~simlab.visitlab.fused.loop_agent_config`); its Q starts at
+    ``modules.social_q``; ``model`` (from :func:`~simlab.visitlab.fused.model_state`)
     is the model it continues with (None: an empty model). ``gens`` = ``(env_rng,
     agent_rng)``. Returns goals and social rewards per trial, the final Q table and,
     for a model-based agent, the final model.

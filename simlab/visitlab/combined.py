@@ -440,7 +440,7 @@ def new_out(trials: int, record: np.ndarray | None = None) -> CombinedOut:
 class CombinedRun:
     """One seeded run: goal rooms reached and social reward per trial, ``(trials,)``
     each; for a learning run also the social agent's final Q table ``(2560, 30)`` and
-    model (:func:`~simlab.visitlab.training.model_state` arrays), else None."""
+    model (:func:`~simlab.visitlab.fused.model_state` arrays), else None."""
 
     goals: np.ndarray
     social_rewards: np.ndarray

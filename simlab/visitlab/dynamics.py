@@ -2,7 +2,7 @@
 
 These functions are the single source of truth for the simulation: the Gymnasium
 envs (:mod:`simlab.visitlab.envs`) and the fused training loops
-(:mod:`simlab.visitlab.training`) both call them. Everything is a plain array:
+(:mod:`simlab.visitlab.fused`) both call them. Everything is a plain array:
 
 * ``st`` — the world state, int64 shape ``(N_STATE,)``, indexed by the ``S_*``
   constants: robot cell, robot orientation, human cell, human orientation,
@@ -78,7 +78,7 @@ Navigation step (:func:`nav_step`): the robot moves (no human); reward +1 if the
 new cell lies in the goal room.
 
 Note for developers: the kernels are compiled with ``cache=True`` and numba does
-not track dependencies between files; the fused loops of :mod:`simlab.visitlab.training`
+not track dependencies between files; the fused loops of :mod:`simlab.visitlab.fused`
 still see an edit here because simlab keeps one numba cache directory per version of its
 source (:mod:`simlab.base._numba_cache`; with ``NUMBA_CACHE_DIR`` set by hand, or numba
 imported before simlab, delete the cache files yourself).

@@ -10,8 +10,8 @@ social tasks), and how does the actor's exploration shape what the observer lear
 (Fig. 5: Q maps of MF alone, MF observing MB epsilon-greedy and MF observing R-max, and
 their learned values against the optimal values V*(s))?
 
-The loops are the fused ones of :mod:`simlab.visitlab.training`
-(:func:`~simlab.visitlab.training.with_observer` turns any actor — model-based
+The loops are the fused ones of :mod:`simlab.visitlab.fused`
+(:func:`~simlab.visitlab.fused.with_observer` turns any actor — model-based
 epsilon-greedy, value-iteration softmax, R-max — into a watched one), so an observer
 run costs what the actor's run costs. The observer is the ``q-learning`` agent of the
 variant (thesis: alpha 0.7, epsilon 0.05, Q starting at 0, so that after the take-over
@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 
 from simlab.base.errors import ConfigError
+from simlab.visitlab.fused import loop_agent_config
 from simlab.visitlab.grid import Layout
-from simlab.visitlab.training import EnvSpec, ObserverSpec, SeedRun, loop_agent_config, run_seed
+from simlab.visitlab.training import EnvSpec, ObserverSpec, SeedRun, run_seed
 
 
 def observer_run(task: str, actor: str, trials: int,

@@ -97,7 +97,7 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     ``adaptability.png``.
     """
     from simlab.visitlab.figures import plot_curve_panels
-    from simlab.visitlab.training import loop_agent_config
+    from simlab.visitlab.fused import loop_agent_config
 
     specs = module_specs(params, budget)
     n = specs["nav"].seeds

@@ -36,7 +36,8 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
     """
     from simlab.visitlab.combined import record_episodes, write_episode_gif
     from simlab.visitlab.figures import plot_histograms
-    from simlab.visitlab.training import loop_agent_config, seed_generators
+    from simlab.visitlab.fused import loop_agent_config
+    from simlab.visitlab.training import seed_generators
 
     specs = module_specs(params, budget)
     n = specs["nav"].seeds

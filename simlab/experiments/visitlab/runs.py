@@ -169,7 +169,7 @@ class RunData:
     path: Path
 
     def model(self, i: int) -> dict[str, np.ndarray]:
-        """Seed ``i``'s kept model as :func:`~simlab.visitlab.training.model_state` arrays."""
+        """Seed ``i``'s kept model as :func:`~simlab.visitlab.fused.model_state` arrays."""
         with np.load(self.model_paths[i], allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
 
@@ -183,8 +183,9 @@ def run_cache(ctx: RunContext) -> StageCache:
 def train_job(spec: dict[str, Any], seed: int, index: int) -> Any:
     """Seed ``index`` of the run ``spec`` (a :meth:`RunSpec.key` dict): a
     :class:`~simlab.visitlab.training.SeedRun` (module-level, for ``ctx.map``)."""
+    from simlab.visitlab.fused import loop_agent_config
     from simlab.visitlab.passive import observer_run
-    from simlab.visitlab.training import EnvSpec, loop_agent_config, run_seed, seed_generators
+    from simlab.visitlab.training import EnvSpec, run_seed, seed_generators
 
     gens = seed_generators(int(seed), int(spec["seeds"]))[int(index)]
     env = env_kwargs(spec["env"])

@@ -118,7 +118,7 @@ class GoToHumanEnv(VisitLabEnv):
 
     def kernel_args(self) -> GthKernelArgs:
         """The fixed inputs of the fused go-to-human loop
-        (:func:`simlab.visitlab.training.gth_train_chunk`) as a :data:`GthKernelArgs`."""
+        (:func:`simlab.visitlab.fused.gth_train_chunk`) as a :data:`GthKernelArgs`."""
         lay = self.layout
         return GthKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
                              self.human is not None, int(self._episode_code),

@@ -93,7 +93,7 @@ class NavEnv(VisitLabEnv):
 
     def kernel_args(self) -> NavKernelArgs:
         """The fixed inputs of the fused navigation loop
-        (:func:`simlab.visitlab.training.nav_train_chunk`) as a :data:`NavKernelArgs`."""
+        (:func:`simlab.visitlab.fused.nav_train_chunk`) as a :data:`NavKernelArgs`."""
         lay = self.layout
         return NavKernelArgs(lay.walls_h, lay.walls_v, lay.cell_labels, int(self.start_cell),
                              int(self.goal_label), np.array(lay.goal_labels, dtype=np.int64),

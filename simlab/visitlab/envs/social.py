@@ -108,7 +108,7 @@ class SocialEnv(VisitLabEnv):
 
     def kernel_args(self) -> SocialKernelArgs:
         """The fixed inputs of the fused social loop
-        (:func:`simlab.visitlab.training.social_train_chunk`) as a
+        (:func:`simlab.visitlab.fused.social_train_chunk`) as a
         :data:`SocialKernelArgs`."""
         lay = self.layout
         return SocialKernelArgs(lay.walls_h, lay.walls_v, self._los, self._pcfg, self._hp,
