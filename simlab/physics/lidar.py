@@ -128,6 +128,43 @@ class Lidar:
             hit = self._subsets[key] = (self._dirs[b], angles)
         return hit
 
+    def far(self, reach: float | None) -> float:
+        """Where the rays of a scan of ``reach`` (m, None: ``range_max``) end (m from the
+        sensor); raises ValueError if that is not beyond ``range_min``."""
+        spec = self.spec
+        far = spec.range_max if reach is None else min(float(reach), spec.range_max)
+        if not far > spec.range_min:
+            raise ValueError(f"reach must exceed range_min = {spec.range_min} m, got {reach}")
+        return far
+
+    def missed_scan(self, pose: NDArray[np.float64], rng: np.random.Generator | None,
+                    stamp: float = 0.0, beams: NDArray[np.int64] | None = None,
+                    reach: float | None = None) -> LidarScan:
+        """The scan :meth:`scan` returns when no ray hits anything, without casting them:
+        every range ``inf``, every hit id -1, and the same range-noise draws from ``rng``
+        (discarded), so the generator's stream goes on as after a cast."""
+        spec = self.spec
+        self.far(reach)
+        angles = self._angles if beams is None else self._subset(beams)[1]
+        n = angles.shape[0]
+        self.skip_noise(rng, n)
+        return LidarScan(
+            ranges=np.full(n, np.inf),
+            angles=angles,
+            range_min=spec.range_min,
+            range_max=spec.range_max,
+            sensor_offset=self.offset[:2].copy(),
+            pose=np.asarray(pose, dtype=float).copy(),
+            stamp=stamp,
+            hit_ids=np.full(n, -1, dtype=np.int64),
+        )
+
+    def skip_noise(self, rng: np.random.Generator | None, n: int) -> None:
+        """Draw (and drop) the range noise of a scan of ``n`` beams: what a scan whose
+        rays all miss takes from ``rng`` (its readings are ``inf`` whatever the noise)."""
+        if rng is not None and self.spec.noise_sigma > 0:
+            rng.normal(0.0, self.spec.noise_sigma, size=(n,))
+
     def scan(self, link_pos: NDArray[np.float64], link_rot: NDArray[np.float64],
              pose: NDArray[np.float64], rng: np.random.Generator | None,
              stamp: float = 0.0, beams: NDArray[np.int64] | None = None,
@@ -143,9 +180,7 @@ class Lidar:
         The noise draws do not depend on ``reach``, so the generator stream is unchanged.
         """
         spec = self.spec
-        far = spec.range_max if reach is None else min(float(reach), spec.range_max)
-        if not far > spec.range_min:
-            raise ValueError(f"reach must exceed range_min = {spec.range_min} m, got {reach}")
+        far = self.far(reach)
         origin = link_pos + link_rot @ self.offset
         local, angles = (self._dirs, self._angles) if beams is None else self._subset(beams)
         dirs = local @ link_rot.T

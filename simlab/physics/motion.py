@@ -420,14 +420,28 @@ class _ActuationNoise:
             self.drive.set_wheel_gains(1.0, 1.0)
 
 
-def _rotate(world: World, stepper: ScanStepper, p: PrimitiveParams, target: float,
-            heading: Callable[[], float], noise: _ActuationNoise) -> float:
-    """Turn in place to ``target`` (rad); returns the final true heading error (rad).
+@dataclass(frozen=True)
+class _Run:
+    """What the phases of one primitive share: the world and its stepper, the parameters,
+    the heading the controller steers by (rad, true or odometry), the actuation noise and
+    the target heading (rad)."""
+
+    world: World
+    stepper: ScanStepper
+    p: PrimitiveParams
+    heading: Callable[[], float]
+    noise: _ActuationNoise
+    target: float
+
+
+def _rotate(run: _Run) -> float:
+    """Turn in place to ``run.target`` (rad); returns the final true heading error (rad).
 
     ``heading`` returns a float, so the errors stay plain floats. The fine loop runs ~15
     times per primitive: its lookups are hoisted and ``max``/``min`` written as compares
     (same values: no NaN can occur here)."""
-    command, advance, tick = world.drive.command, stepper.advance, noise.tick
+    world, p, target, heading = run.world, run.p, run.target, run.heading
+    command, advance, tick = world.drive.command, run.stepper.advance, run.noise.tick
     w_max = world.robot_spec.w_max
     err = wrap_angle(target - heading())
     bulk = abs(err) - 0.25
@@ -458,35 +472,80 @@ def _rotate(world: World, stepper: ScanStepper, p: PrimitiveParams, target: floa
     return wrap_angle(target - world.yaw())
 
 
-def _detector(world: World, p: PrimitiveParams, rng: np.random.Generator,
+@dataclass(frozen=True)
+class _Detector:
+    """The obstacle check of one robot and parameter set, on a fresh scan of the cone ahead.
+
+    Only the beams that can see the swept corridor are cast (``beams``; the others cannot
+    block: this cuts the check's cost by 2/3), and only as far as the corridor's farthest
+    corner plus ten noise sigmas (``reach``, m; a shorter ray test is ~3x cheaper; anything
+    beyond cannot read as inside the corridor). The corridor is that of the longer nominal
+    drive (``max(slow, fast) * drive_time + detector_margin``).
+    """
+
+    beams: NDArray[np.int64]
+    reach: float
+    footprint: tuple[float, float, float, float]
+    margin: float
+    side_margin: float
+
+    @classmethod
+    def of(cls, world: World, p: PrimitiveParams) -> _Detector:
+        spec, lidar = world.robot_spec, world.lidar_spec
+        corridor = max(p.slow_speed, p.fast_speed) * p.drive_time + p.detector_margin
+        beams = detector_beams(lidar.n_beams, lidar.range_min, spec.lidar_offset[0],
+                               spec.footprint, corridor, p.detector_side_margin)
+        _, x_max, _, y_max = spec.footprint
+        reach = (math.hypot(x_max + corridor - spec.lidar_offset[0],
+                            y_max + p.detector_side_margin)
+                 + 10.0 * lidar.noise_sigma + 0.01)
+        return cls(beams, max(reach, lidar.range_min + 0.01), spec.footprint,
+                   p.detector_margin, p.detector_side_margin)
+
+    def check(self, world: World, rng: np.random.Generator,
               distance: float) -> tuple[bool, LidarScan]:
-    """The obstacle check on a fresh scan of the cone ahead: only the beams that can see the
-    swept corridor are cast (the others cannot block; this cuts the check's cost by 2/3),
-    and only as far as the corridor's farthest corner plus ten noise sigmas (a shorter ray
-    test is ~3x cheaper; anything beyond cannot read as inside the corridor)."""
-    spec, lidar = world.robot_spec, world.lidar_spec
-    corridor = max(p.slow_speed, p.fast_speed) * p.drive_time + p.detector_margin
-    beams = detector_beams(lidar.n_beams, lidar.range_min, spec.lidar_offset[0], spec.footprint,
-                           corridor, p.detector_side_margin)
-    _, x_max, _, y_max = spec.footprint
-    reach = (math.hypot(x_max + corridor - spec.lidar_offset[0], y_max + p.detector_side_margin)
-             + 10.0 * lidar.noise_sigma + 0.01)
-    scan = world.scan(rng, beams=beams, reach=max(reach, lidar.range_min + 0.01))
-    blocked = corridor_blocked(scan, distance, spec.footprint, p.detector_margin,
-                               p.detector_side_margin)
-    return blocked, scan
+        """(blocked, the scan) for a drive of ``distance`` (m); the noise comes from ``rng``."""
+        scan = world.scan(rng, beams=self.beams, reach=self.reach)
+        return corridor_blocked(scan, distance, self.footprint, self.margin,
+                                self.side_margin), scan
+
+    def blocked(self, world: World, rng: np.random.Generator, distance: float) -> bool:
+        """:meth:`check`'s answer alone (the re-check at every control tick): when no ray
+        can hit anything (:meth:`World.rays_miss`) the scan, all ``inf``, is not even built;
+        its noise is drawn all the same, so ``rng`` goes on as after a cast."""
+        if world.rays_miss(self.reach):
+            world.lidar.skip_noise(rng, self.beams.shape[0])
+            return False
+        return self.check(world, rng, distance)[0]
 
 
-def _drive(world: World, stepper: ScanStepper, p: PrimitiveParams, v: float, target: float,
-           heading: Callable[[], float], noise: _ActuationNoise,
-           until: Callable[[], str | None] | None) -> tuple[str, float]:
-    """Drive straight at ``v`` holding ``target`` with control ticks at ``hold_hz``.
+def _until_state_change(world: World, rng: np.random.Generator, detector: _Detector,
+                        distance: float, state_of: StateOf,
+                        start: NDArray[np.float64]) -> Callable[[], str | None]:
+    """The stop rule of ``until_state_change`` mode, asked after every control tick: the
+    state of the true position left the state of ``start`` (3,), or the detector, re-run
+    on the nominal drive's corridor (``distance``, m), says blocked."""
+    s0 = int(state_of(start[:2]))
+
+    def until() -> str | None:
+        if int(state_of(world.pose()[:2])) != s0:
+            return "state_change"
+        if detector.blocked(world, rng, distance):
+            return "detector"
+        return None
+
+    return until
+
+
+def _drive(run: _Run, v: float, until: Callable[[], str | None] | None) -> tuple[str, float]:
+    """Drive straight at ``v`` (m/s) holding ``run.target`` with control ticks at ``hold_hz``.
 
     ``until`` (until_state_change mode) is asked after every tick and returns a stop reason
     or None; the drive then lasts at most ``max_drive_time``, else ``drive_time``.
     Returns (stop reason, time driven in s).
     """
-    command, advance, tick = world.drive.command, stepper.advance, noise.tick
+    p, target, heading, noise = run.p, run.target, run.heading, run.noise
+    command, advance, tick = run.world.drive.command, run.stepper.advance, noise.tick
     hold_dt, gain = 1.0 / p.hold_hz, p.hold_gain
     noise.driving = True
     total = p.drive_time if until is None else p.max_drive_time
@@ -505,6 +564,35 @@ def _drive(world: World, stepper: ScanStepper, p: PrimitiveParams, v: float, tar
                 break
     noise.driving = False
     return reason, total - max(remaining, 0.0)
+
+
+def _brake(run: _Run) -> None:
+    """Brake until at rest. "At rest" allows the few mm/s of creep that PyBullet's iterative
+    solver leaves on velocity motors held at zero with 5 iterations (it shrinks with more
+    iterations, at 2-4x the cost per step); over a settle it moves < 1 mm."""
+    world, p, advance = run.world, run.p, run.stepper.advance
+    run.noise.clear()
+    world.drive.command(0.0, 0.0)
+    advance(p.settle_time)
+    deadline = world.time + p.settle_timeout
+    while world.time < deadline:
+        lin, ang = world.velocity()
+        if abs(lin) < REST_SPEED and abs(ang) < REST_YAW_RATE:
+            break
+        advance(0.02)
+
+
+def _start(world: World, action: int, rng: np.random.Generator, p: PrimitiveParams,
+           stepper: ScanStepper) -> _Run:
+    """The shared state of a primitive: its target heading, the heading it steers by and
+    its actuation noise (drawn here, so before the rotation)."""
+    _speed, direction = decode_action(action)
+    noise = _ActuationNoise(p, rng, world.drive)
+    heading: Callable[[], float] = world.yaw
+    if p.heading_source != "truth":
+        def heading() -> float:
+            return float(world.odometry()[2])
+    return _Run(world, stepper, p, heading, noise, float(HEADINGS[direction]))
 
 
 def execute_primitive(
@@ -531,69 +619,26 @@ def execute_primitive(
         raise ConfigError("mode 'until_state_change' needs the discretizer's state_of",
                           key="PrimitiveParams.mode",
                           fix="pass state_of=... (collect passes its states' discretizer)")
-    _speed, direction = decode_action(action)
-    target = float(HEADINGS[direction])
-    drive = world.drive
+    decode_action(action)  # a bad action fails before anything moves
     stepper = ScanStepper(world, rng, on_scan, scan_beams)
-    t0 = world.time
-    pose_before = world.pose()
-    odom_before = world.odometry()
-    noise = _ActuationNoise(p, rng, drive)
-
-    heading: Callable[[], float] = world.yaw
-    if p.heading_source != "truth":
-        def heading() -> float:
-            return float(world.odometry()[2])
-
-    # 1. Rotate.
-    heading_error = _rotate(world, stepper, p, target, heading, noise)
+    t0, pose_before, odom_before = world.time, world.pose(), world.odometry()
+    run = _start(world, action, rng, p, stepper)
+    heading_error = _rotate(run)                                  # 1. rotate
     pose_turned = world.pose()
-
-    # 2. Obstacle check on the corridor of a nominal drive.
     v = p.speed_of(action)
-    distance = v * p.drive_time
-    blocked, scan = _detector(world, p, rng, distance)
-
-    # 3. Drive straight with a heading hold.
+    distance = v * p.drive_time                                   # 2. check the corridor
+    detector = _Detector.of(world, p)
+    blocked, scan = detector.check(world, rng, distance)
     reason, driven = "blocked", 0.0
-    if not blocked:
+    if not blocked:                                               # 3. drive
         until = None
-        if p.mode == "until_state_change":
-            s0 = int(state_of(pose_before[:2]))  # type: ignore[misc]
-
-            def until() -> str | None:
-                if int(state_of(world.pose()[:2])) != s0:  # type: ignore[misc]
-                    return "state_change"
-                if _detector(world, p, rng, distance)[0]:
-                    return "detector"
-                return None
-
-        reason, driven = _drive(world, stepper, p, v, target, heading, noise, until)
-
-    # 4. Brake until at rest. "At rest" allows the few mm/s of creep that PyBullet's
-    # iterative solver leaves on velocity motors held at zero with 5 iterations (it shrinks
-    # with more iterations, at 2-4x the cost per step); over a settle it moves < 1 mm.
-    noise.clear()
-    drive.command(0.0, 0.0)
-    stepper.advance(p.settle_time)
-    deadline = world.time + p.settle_timeout
-    while world.time < deadline:
-        lin, ang = world.velocity()
-        if abs(lin) < REST_SPEED and abs(ang) < REST_YAW_RATE:
-            break
-        stepper.advance(0.02)
-
+        if p.mode == "until_state_change" and state_of is not None:  # checked above
+            until = _until_state_change(world, rng, detector, distance, state_of, pose_before)
+        reason, driven = _drive(run, v, until)
+    _brake(run)                                                   # 4. brake
     return PrimitiveResult(
-        action=int(action),
-        blocked=blocked,
-        pose_before=pose_before,
-        pose_after=world.pose(),
-        odom_before=odom_before,
-        odom_after=world.odometry(),
-        duration=world.time - t0,
-        heading_error=heading_error,
-        scan=scan,
-        stop_reason=reason,
-        drive_duration=driven,
-        pose_turned=pose_turned,
+        action=int(action), blocked=blocked, pose_before=pose_before,
+        pose_after=world.pose(), odom_before=odom_before, odom_after=world.odometry(),
+        duration=world.time - t0, heading_error=heading_error, scan=scan,
+        stop_reason=reason, drive_duration=driven, pose_turned=pose_turned,
     )

@@ -48,6 +48,84 @@ WALL_FRICTION = 0.5
 MAX_COMPOUND_CHILDREN = 16
 
 
+def _boundary_walls(arena: ArenaConfig) -> list[tuple[float, float, float, float]]:
+    """The four boundary walls as ``(centre x, centre y, half x, half y)`` (m)."""
+    hx, hy = arena.size[0] / 2, arena.size[1] / 2
+    cx, cy = arena.center
+    t = arena.wall_thickness
+    return [
+        (cx - hx - t / 2, cy, t / 2, hy + t),
+        (cx + hx + t / 2, cy, t / 2, hy + t),
+        (cx, cy - hy - t / 2, hx + t, t / 2),
+        (cx, cy + hy + t / 2, hx + t, t / 2),
+    ]
+
+
+class StaticClearance:
+    """Lower bounds of the horizontal distance (m) from a point to the arena's static bodies.
+
+    The bodies (boundary walls, map walls, box and cylinder obstacles) are taken as
+    vertical prisms of unbounded height over their footprints, so the bound also holds
+    for any ray that stays within it, at any height. The bound is kept on a grid of
+    ``resolution`` (m) over the arena's bounds: a cell stores the exact distance from its
+    centre to the nearest footprint less its half-diagonal (distance is 1-Lipschitz, so
+    no point of the cell is nearer) and less ``1e-9`` m for the rounding of the cell
+    index. Outside the grid the bound is 0. The resolution is coarsened for large arenas
+    so that the grid keeps at most ``max_cells`` cells.
+
+    Used to leave out ray tests that provably hit nothing (:meth:`World.rays_miss`).
+    """
+
+    def __init__(self, arena: ArenaConfig, resolution: float = 0.02,
+                 max_cells: int = 250_000) -> None:
+        x0, y0, x1, y1 = arena.bounds
+        resolution = max(resolution, math.sqrt((x1 - x0) * (y1 - y0) / max_cells))
+        self.x0, self.y0 = float(x0), float(y0)
+        self.inv = 1.0 / resolution
+        nx = max(1, math.ceil((x1 - x0) * self.inv))
+        ny = max(1, math.ceil((y1 - y0) * self.inv))
+        xs = self.x0 + (np.arange(nx) + 0.5) * resolution
+        ys = self.y0 + (np.arange(ny) + 0.5) * resolution
+        gx, gy = np.meshgrid(xs, ys)  # (ny, nx)
+        dist = np.full(gx.shape, np.inf)
+        boxes = [(x, y, ex, ey, 0.0) for x, y, ex, ey in _boundary_walls(arena)]
+        if arena.map_walls is not None:
+            boxes += [((bx0 + bx1) / 2, (by0 + by1) / 2, (bx1 - bx0) / 2, (by1 - by0) / 2, 0.0)
+                      for bx0, by0, bx1, by1 in arena.map_walls.boxes]
+        for ob in arena.obstacles:
+            if ob.kind == "box":
+                boxes.append((ob.x, ob.y, ob.size[0] / 2, ob.size[1] / 2, ob.yaw))
+            else:
+                dist = np.minimum(dist, np.maximum(np.hypot(gx - ob.x, gy - ob.y) - ob.radius,
+                                                   0.0))
+        for cx, cy, ex, ey, yaw in boxes:
+            c, s = math.cos(yaw), math.sin(yaw)
+            dx, dy = gx - cx, gy - cy
+            u = np.maximum(np.abs(c * dx + s * dy) - ex, 0.0)
+            v = np.maximum(np.abs(-s * dx + c * dy) - ey, 0.0)
+            dist = np.minimum(dist, np.hypot(u, v))
+        #: (ny, nx) lower bounds (m) of the cells; rows are y.
+        self.bounds = dist - resolution * math.sqrt(0.5) - 1e-9
+        self.bounds.setflags(write=False)
+        self.nx, self.ny = nx, ny
+
+    def at(self, x: float, y: float) -> float:
+        """A lower bound (m) of the distance from ``(x, y)`` to every static footprint."""
+        u = (x - self.x0) * self.inv
+        v = (y - self.y0) * self.inv
+        if 0.0 <= u < self.nx and 0.0 <= v < self.ny:
+            return float(self.bounds[int(v), int(u)])
+        return 0.0
+
+
+#: Margins (m) of the scan shortcut of :meth:`World.scan`: how much farther than a ray's
+#: length the nearest static footprint must be, and how high above the floor the rays
+#: must stay. Bullet's shapes keep their collision margins inside the given extents, so
+#: a ray never reports a hit outside a footprint; the margins are slack on top.
+CLEAR_MARGIN = 0.02
+FLOOR_MARGIN = 0.05
+
+
 class World:
     """An arena with one robot. Use as a context manager or call :meth:`close`.
 
@@ -85,6 +163,7 @@ class World:
         with quiet_stdout():
             self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         self._steps = 0
+        self._clearance: StaticClearance | None = None  # built on first use; the arena stays
         self.reset()
 
     # ------------------------------------------------------------------ lifecycle
@@ -132,23 +211,21 @@ class World:
         self.drive = DiffDrive(c, self.body, self.robot_spec, pose)
         self.lidar = Lidar(c, self.body, self.robot_spec.lidar_offset, self.lidar_spec)
         self._steps = 0
+        # What the scan shortcut knows of: any body added or removed afterwards turns it off.
+        self._num_bodies = c.getNumBodies
+        self._built_bodies = (c.getNumBodies(), list(self.static_bodies))
+        self._sensor_from_com = tuple(float(o) - i for o, i in
+                                      zip(self.robot_spec.lidar_offset, self._inertial_xyz,
+                                          strict=True))
 
     def _build_arena(self) -> None:
         c, a = self.client, self.arena
         plane = c.createCollisionShape(pybullet.GEOM_PLANE)
         self.floor = c.createMultiBody(0, plane)
         c.changeDynamics(self.floor, -1, lateralFriction=FLOOR_FRICTION)
-        hx, hy = a.size[0] / 2, a.size[1] / 2
-        cx, cy = a.center
-        t, h = a.wall_thickness, a.wall_height
-        walls = [  # (centre x, centre y, half x, half y)
-            (cx - hx - t / 2, cy, t / 2, hy + t),
-            (cx + hx + t / 2, cy, t / 2, hy + t),
-            (cx, cy - hy - t / 2, hx + t, t / 2),
-            (cx, cy + hy + t / 2, hx + t, t / 2),
-        ]
+        h = a.wall_height
         self.static_bodies = [self.floor]
-        for x, y, ex, ey in walls:
+        for x, y, ex, ey in _boundary_walls(a):
             shape = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=[ex, ey, h / 2])
             vis = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=[ex, ey, h / 2],
                                       rgbaColor=[0.8, 0.7, 0.55, 1]) if self.gui else -1
@@ -298,8 +375,47 @@ class World:
         """One LIDAR scan at the current state (noise from ``rng``; none if ``rng`` is None).
 
         ``beams`` restricts the cast to a subset of beam indices and ``reach`` shortens the
-        rays (see :meth:`Lidar.scan`).
+        rays (see :meth:`Lidar.scan`). A scan whose rays provably hit nothing
+        (:meth:`rays_miss`) is not cast: :meth:`Lidar.missed_scan` gives the same scan and
+        the same noise draws.
         """
         pos, rot = self._link_frame()
         pose = np.array([pos[0], pos[1], math.atan2(rot[1, 0], rot[0, 0])])
+        if self.rays_miss(reach):
+            return self.lidar.missed_scan(pose, rng, stamp=self.time, beams=beams, reach=reach)
         return self.lidar.scan(pos, rot, pose, rng, stamp=self.time, beams=beams, reach=reach)
+
+    def rays_miss(self, reach: float | None) -> bool:
+        """Whether every ray of a scan of ``reach`` (m from the sensor; None: the full
+        range) provably hits nothing now, so its ray test can be left out (the obstacle
+        detector's short scans, re-run at every control tick, are mostly far from
+        everything).
+
+        A ray of the scan runs from ``range_min`` to ``far`` along a unit direction in the
+        sensor's tilted plane: it stays within ``far`` of the sensor horizontally and within
+        ``far * sin(tilt)`` of its height. It can hit a static body only if one's footprint
+        lies within ``far`` (:class:`StaticClearance`), the floor only if that drop reaches
+        it, and the robot itself never (rays start ``range_min`` out, see
+        :mod:`simlab.physics.lidar`). Bodies added to or removed from the client after the
+        last :meth:`reset` (a human's robot, a box of :mod:`simlab.physics.obstacles`) are
+        unknown to the bound: the answer is then False. Plain floats: this runs at every
+        control tick.
+        """
+        far = self.lidar.far(reach)
+        n_bodies, static = self._built_bodies
+        if self._num_bodies() != n_bodies or self.static_bodies != static:
+            return False
+        (cx, cy, cz), (qx, qy, qz, qw) = self._get_base(self.body)
+        dx, dy, dz = self._sensor_from_com
+        # rows of the base's rotation matrix (the sensor is at com + R @ (dx, dy, dz))
+        r20, r21 = 2.0 * (qx * qz - qy * qw), 2.0 * (qy * qz + qx * qw)
+        sz = cz + r20 * dx + r21 * dy + (1.0 - 2.0 * (qx * qx + qy * qy)) * dz
+        if sz - far * math.hypot(r20, r21) <= FLOOR_MARGIN:
+            return False
+        sx = (cx + (1.0 - 2.0 * (qy * qy + qz * qz)) * dx + 2.0 * (qx * qy - qz * qw) * dy
+              + 2.0 * (qx * qz + qy * qw) * dz)
+        sy = (cy + 2.0 * (qx * qy + qz * qw) * dx + (1.0 - 2.0 * (qx * qx + qz * qz)) * dy
+              + 2.0 * (qy * qz - qx * qw) * dz)
+        if self._clearance is None:
+            self._clearance = StaticClearance(self.arena)
+        return self._clearance.at(sx, sy) > far + CLEAR_MARGIN
