@@ -13,26 +13,27 @@ Defaults are the published ones (Dromnelle et al. 2022, sec. 3-4): MF Q-learning
 on the learned model, gamma 0.9, beta 50, planning until a sweep changes no Q by more than
 1e-4 (at most 100 sweeps); cost filter alpha 0.6; start states 0 and 32, goal 18, change at
 decision 1,601 (index 1600): goal -> 34, or passages 20 <-> 21 and 6 <-> 7 closed.
-Decision (the MB's model): the published MB learns its transition and reward model with
-the learning rate 0.6, so its model follows a change within a few visits; simlab's
-nearest agent is the sliding-window model (``sliding-window``, the last ``window``
-outcomes of each pair), default window 5. Measured (6 runs x 3,200 decisions on the
-38-state model, change at 1,600): with the count model (``vi-softmax``, all outcomes
-kept) MB alone earns 243 on the stable task but 0.1 in the 1,600 decisions after the goal
-moves (the old goal's mean reward fades as 1/n and nothing else pays); window 5: 225
-stable, 188 after the goal change (published 229 and 194); window 2: 124 stable (a
-2-outcome model is too noisy).
+Decisions that follow the authors' published implementation of the method (Dromnelle
+et al. 2022, sec. 2; their code "meta-control-decision-making-agent", which the papers'
+text leaves implicit):
 
-Decisions (initial values, which the papers do not give): MB values the pairs it has not
-tried at simlab's optimistic ``r_max / (1 - gamma)`` (:mod:`simlab.agents.config`) and MF
-its untried actions at ``r_max`` = 1 (one reward now). Measured on the 38-state model of
-:mod:`simlab.online.synthetic` (8 runs x 3,200 decisions, goal 18, count-model MB): an MB
-starting at 0 stops exploring on the first route it finds (~45 % less reward on a
-corridor-only layout of the same size);
-an MF starting at 0 is certain (entropy ~0) after one rewarded visit, so the entropy
-criteria hand it control too early (entropy_and_cost kappa 1: 90 % of MB's reward at 5 % of
-its cost, against 92-97 % at 30-35 % with MF at 1); an MF at ``r_max / (1 - gamma)`` = 10
-explores every action and earns a quarter of what it earns at 1 (56 against 125).
+* **MB's model** is a window of the last ``window`` = 10 outcomes of each pair
+  (``sliding-window``), so the model follows a change within a few visits; with the
+  count model (``vi-softmax``, all outcomes kept) the old goal's mean reward would fade
+  as 1/n and MB would not recover from a goal change.
+* **Initial values.** Both experts start every value at 1 while their rewards are scaled
+  by 1.9, i.e. at ``1 / 1.9`` of a reward: here ``q_init = 1 / 1.9`` for both experts with
+  reward 1. An untried action is then worth a little more than a step away from the
+  goal, so both explore, but less than the goal.
+* **A reward ends the episode** (``reward_ends``): the rewarded state's values are reset
+  to 0 (:mod:`simlab.online.meta`). Without it the goal keeps its initial value forever:
+  after the goal moves, the old route still leads to a state worth ``q_init`` and MF's
+  distribution along it stays certain, so the entropy criteria never hand control back
+  to MB.
+* **Filtered action distributions** (``prob_alpha`` 0.6): the criterion reads each
+  expert's action distribution at ``s`` low-pass filtered over its visits, and weighs the
+  cost term by ``exp(-kappa * H_MF)`` with MF's entropy in bits
+  (:mod:`simlab.online.meta`).
 
 Outputs in ``out`` (one output transaction: all or nothing):
 
@@ -66,10 +67,10 @@ __all__ = ["MB_DEFAULTS", "MF_DEFAULTS", "OnlineConfig", "OnlineResult", "arm_na
            "online", "run_arm"]
 
 #: Published settings applied to the MF expert when its preset has the field.
-MF_DEFAULTS = {"alpha": 0.6, "gamma": 0.9, "tau": 0.02, "q_init": 1.0}
+MF_DEFAULTS = {"alpha": 0.6, "gamma": 0.9, "tau": 0.02, "q_init": 1.0 / 1.9}
 #: Published settings applied to the MB expert when its preset has the field.
-MB_DEFAULTS = {"gamma": 0.9, "tau": 0.02, "max_sweeps": 100, "tol": 1e-4, "plan_every": 0,
-               "window": 5}
+MB_DEFAULTS = {"gamma": 0.9, "tau": 0.02, "q_init": 1.0 / 1.9, "max_sweeps": 100, "tol": 1e-4,
+               "plan_every": 0, "window": 10}
 
 CHANGES = ("none", "goal", "passages")
 FILES = ("decisions.parquet", "cumulative_reward.png", "cumulative_cost.png", "mb_share.png",
@@ -129,14 +130,19 @@ class OnlineConfig(CommandConfig):
     mf: str = option("q-softmax", "agent of the MF expert (simlab agent name)")
     mb: str = option("sliding-window", "agent of the MB expert (simlab agent name)")
     mf_params: Any | None = option(None, "overrides of the MF expert {name: value} (over "
-                                   "the published alpha 0.6, gamma 0.9, tau 0.02; q_init 1)",
+                                   "the published alpha 0.6, gamma 0.9, tau 0.02; q_init 1/1.9)",
                                    cli=False)
     mb_params: Any | None = option(None, "overrides of the MB expert {name: value} (over "
-                                   "gamma 0.9, tau 0.02, max_sweeps 100, tol 1e-4, window 5)", cli=False)
+                                   "gamma 0.9, tau 0.02, q_init 1/1.9, max_sweeps 100, tol 1e-4, "
+                                   "window 10)", cli=False)
     cost: str = option("backups", "cost the criterion reads: backups (deterministic, "
                        "bit-identical seeded runs) or seconds (wall clock, as published)",
                        choices=("backups", "seconds"))
     cost_alpha: float = option(0.6, "rate of the per-state low-pass cost filter, in (0, 1]")
+    prob_alpha: float = option(0.6, "rate of the per-state low-pass filter of each expert's "
+                               "action distribution, in (0, 1] (1: the last softmax)")
+    reward_ends: bool = option(True, "a reward ends the episode: the rewarded state's values "
+                               "are reset to 0 (--no-reward-ends keeps them)")
     window: int = option(200, "decisions per bin of the MB-share curve and of recovery")
     workers: int | None = option(None, "local worker processes (default: the cores; 1: in "
                                  "this process)")
@@ -165,9 +171,10 @@ class OnlineConfig(CommandConfig):
             raise ConfigError("no kappa given", key="kappas")
         for k in self.kappas:
             v.positive(k, "kappas", allow_zero=True)
-        if not (0.0 < self.cost_alpha <= 1.0):
-            raise ConfigError(f"expected a rate in (0, 1], got {self.cost_alpha!r}",
-                              key="cost_alpha")
+        for key in ("cost_alpha", "prob_alpha"):
+            rate = getattr(self, key)
+            if not (isinstance(rate, int | float) and 0.0 < rate <= 1.0):
+                raise ConfigError(f"expected a rate in (0, 1], got {rate!r}", key=key)
         if self.change != "none" and not 1 <= self.change_at < self.decisions:
             raise ConfigError(f"expected a decision in 1..{self.decisions - 1}, got "
                               f"{self.change_at}", key="change_at",
@@ -187,6 +194,14 @@ class OnlineConfig(CommandConfig):
                               passages=parse_passages(self.passages)),)
         return OnlineTask(goal=self.goal, start_states=self.start_states, changes=changes)
 
+    def arbitration(self, criterion: str, kappa: float) -> Any:
+        """The :class:`~simlab.online.meta.Arbitration` of one arm of these options."""
+        from simlab.online.meta import Arbitration
+
+        return Arbitration(criterion=criterion, kappa=float(kappa), cost_alpha=self.cost_alpha,
+                           use_time=self.cost == "seconds", prob_alpha=self.prob_alpha,
+                           reward_ends=self.reward_ends)
+
     def expert_configs(self) -> tuple[Any, Any]:
         """The agent configs of the MF and MB experts (published defaults, then overrides)."""
         return (_expert_config(self.mf, MF_DEFAULTS, self.mf_params, "mf_params"),
@@ -205,18 +220,17 @@ def arm_names(criteria: tuple[str, ...], kappas: tuple[float, ...]) -> list[tupl
     return arms
 
 
-def run_arm(T: np.ndarray, task: Any, mf_config: Any, mb_config: Any, criterion: str,
-            kappa: float, cost_alpha: float, use_time: bool, valid: np.ndarray | None,
-            decisions: int, seed: np.random.SeedSequence) -> dict[str, np.ndarray]:
-    """One run (module-level: a parallel job): fresh experts, ``decisions`` decisions on
+def run_arm(T: np.ndarray, task: Any, mf_config: Any, mb_config: Any, arbitration: Any,
+            valid: np.ndarray | None, decisions: int, seed: np.random.SeedSequence
+            ) -> dict[str, np.ndarray]:
+    """One run (module-level: a parallel job): fresh experts arbitrated by
+    ``arbitration`` (:class:`~simlab.online.meta.Arbitration`), ``decisions`` decisions on
     the compiled ``task`` of ``T`` (S, A, S). Returns the log columns."""
     from simlab.online.loop import run_online
-    from simlab.online.meta import make_meta_agent
 
     env_seed, agent_seed = seed.spawn(2)
     S, A = T.shape[:2]
-    agent = make_meta_agent(mf_config, mb_config, S, A, criterion=criterion, kappa=kappa,
-                            cost_alpha=cost_alpha, use_time=use_time, valid=valid)
+    agent = arbitration.agent(mf_config, mb_config, S, A, valid=valid)
     log = run_online(agent, task.compile(T), decisions, np.random.default_rng(env_seed),
                      np.random.default_rng(agent_seed))
     return log.columns()
@@ -272,9 +286,8 @@ def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
                               key="overwrite", fix="choose another --out")
     seeds = np.random.SeedSequence(cfg.seed).spawn(cfg.seeds)
     jobs = [dict(T=np.asarray(m.T), task=task, mf_config=mf_cfg, mb_config=mb_cfg,
-                 criterion=crit, kappa=kappa, cost_alpha=cfg.cost_alpha,
-                 use_time=cfg.cost == "seconds", valid=m.valid, decisions=cfg.decisions,
-                 seed=seeds[i])
+                 arbitration=cfg.arbitration(crit, kappa), valid=m.valid,
+                 decisions=cfg.decisions, seed=seeds[i])
             for _, crit, kappa in arms for i in range(cfg.seeds)]
     with contextlib.ExitStack() as stack:
         txn = None

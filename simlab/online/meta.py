@@ -25,10 +25,25 @@ Decisions made here (the papers leave them to the implementation):
   synchronous sweeps), so a plan of ``k`` sweeps costs ``k`` times that; a model-free
   decision costs 1. Seeded runs are then bit-identical. The wall-clock planning time (what
   the paper measured) is recorded beside it, and used instead with ``use_time=True``.
-* **Entropies** are Shannon entropies of each expert's softmax at its own temperature over
-  the valid actions of ``s``, normalised by ``log(n_valid)`` to [0, 1] (``H / H_max``).
-  They are read *before* planning (the arbitration must not pay for the plan it is
-  deciding about); ``exp(-kappa * H_MF)`` uses the normalised ``H_MF``.
+* **Entropies** (Dromnelle et al. 2022, sec. 2.3; Living Machines 2020, sec. 2.2): each
+  expert keeps, per state, its action distribution low-pass filtered over its visits
+  (``pi_e(s) <- pi_e(s) + alpha_p (softmax_e(Q_e[s]) - pi_e(s))``, alpha_p 0.6, uniform at
+  first). The criterion reads the filtered distributions of ``s`` *before* planning (the
+  arbitration must not pay for the plan it is deciding about); then the chosen expert
+  plans and both experts filter their new softmax at ``s`` into ``pi_e(s)``. ``H_e`` is
+  the Shannon entropy of ``pi_e(s)`` over the valid actions; the quality term uses it
+  normalised, ``H_e / H_max`` in [0, 1] (``H_max = log n_valid``), the weight of the cost
+  term uses MF's entropy in bits, ``exp(-kappa * H_MF)`` with ``H_MF`` in [0, log2
+  n_valid] (3 bits for the 8 actions of the published robot): when MF is unsure its
+  cheapness counts for little and MB comes in (the published arbitration).
+  ``prob_alpha = 1`` reads the last softmax computed at ``s`` instead.
+* **A reward ends the episode** (the published protocol: after a reward the robot
+  restarts from a start state and the rewarded state's values are reset to 0): with
+  ``reward_ends`` both experts learn the rewarded transition and then set the values of
+  the state it reached to 0, so a goal is worth its reward and nothing after it. When
+  the goal moves, the old goal's state stops being rewarded, its values are learned
+  again from the transitions that leave it, and MF's values along the old route fall
+  (its entropy there rises) instead of staying propped up by the goal's initial value.
 * **Costs per state**, low-pass filtered (``C <- C + alpha_c (c - C)``, alpha_c 0.6), start
   at 0 and are updated for the expert that planned only; ``C_e / max_e C_e`` is 0 when both
   are 0.
@@ -39,6 +54,7 @@ Decisions made here (the papers leave them to the implementation):
 from __future__ import annotations
 
 from collections import namedtuple
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -51,17 +67,20 @@ __all__ = [
     "CRITERIA",
     "EXPERT_MB",
     "EXPERT_MF",
+    "Arbitration",
     "MetaAgent",
     "MetaParams",
     "choose_expert",
     "criterion_code",
     "decide",
+    "distribution_entropy",
     "expert_plan",
     "learn",
     "lowpass",
     "make_expert",
     "make_meta_agent",
     "normalised_entropy",
+    "softmax_into",
 ]
 
 #: Criterion names, their codes are the indices: ``mf`` / ``mb`` (one expert always
@@ -75,14 +94,19 @@ EXPERT_MF, EXPERT_MB = 0, 1
 
 #: Arbitration parameters: ``criterion`` (code of :data:`CRITERIA`), ``kappa`` (weight of
 #: MF's certainty on the cost term), ``cost_alpha`` (low-pass rate of the per-state costs),
-#: ``use_time`` (decide on wall-clock seconds instead of backups).
-MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time"])
+#: ``use_time`` (decide on wall-clock seconds instead of backups), ``prob_alpha``
+#: (low-pass rate of the per-state action distributions), ``reward_ends`` (a reward ends
+#: the episode: the rewarded state's values are reset to 0).
+MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time",
+                                       "prob_alpha", "reward_ends"])
 
 #: The meta-controlled pair: ``mf`` and ``mb`` (:class:`simlab.agents.core.Learner`),
 #: ``cost`` (2, S) float64 filtered backups per expert and state, ``cost_time`` (2, S)
-#: float64 filtered seconds, ``params`` (:class:`MetaParams`), ``valid`` (S, A) bool or
+#: float64 filtered seconds, ``probs`` (2, S, A) float64 filtered action distributions
+#: per expert and state, ``params`` (:class:`MetaParams`), ``valid`` (S, A) bool or
 #: ``core.NO_MASK``. Built by :func:`make_meta_agent`.
-MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "params", "valid"])
+MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "probs", "params",
+                                     "valid"])
 
 
 def criterion_code(name: str) -> int:
@@ -126,13 +150,56 @@ def normalised_entropy(q, vrow, tau):
 
 
 @njit(cache=True)
-def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, rng):
+def distribution_entropy(p, vrow):
+    """Shannon entropy of the distribution ``p`` (A,) over the valid actions ``vrow`` (A,)
+    bool (:data:`~simlab.agents.kernels.ALL_VALID`: all), as ``(normalised, max_bits)``:
+    ``H / log(n_valid)`` in [0, 1] (0 with a single valid action) and the largest entropy
+    in bits, ``log2(n_valid)``. Zero probabilities contribute 0."""
+    A = p.shape[0]
+    every = vrow.shape[0] == 0 or n_valid(vrow, A) == 0
+    k = A if every else n_valid(vrow, A)
+    if k <= 1:
+        return 0.0, 0.0
+    h = 0.0
+    for b in range(A):
+        if (every or vrow[b]) and p[b] > 0.0:
+            h -= p[b] * np.log(p[b])
+    return min(max(h / np.log(k), 0.0), 1.0), np.log(k) / np.log(2.0)
+
+
+@njit(cache=True)
+def softmax_into(q, vrow, tau, out):
+    """The softmax of ``q`` (A,) at temperature ``tau`` over the valid actions ``vrow``
+    into ``out`` (A,) (0 for the others); ``tau <= 0``: uniform over the maximisers."""
+    A = q.shape[0]
+    every = vrow.shape[0] == 0 or n_valid(vrow, A) == 0
+    qmax = -np.inf
+    for b in range(A):
+        if (every or vrow[b]) and q[b] > qmax:
+            qmax = q[b]
+    z = 0.0
+    for b in range(A):
+        out[b] = 0.0
+        if every or vrow[b]:
+            if tau <= 0.0:
+                out[b] = 1.0 if q[b] == qmax else 0.0
+            else:
+                out[b] = np.exp((q[b] - qmax) / tau)
+            z += out[b]
+    for b in range(A):
+        out[b] /= z
+
+
+@njit(cache=True)
+def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
     """The expert that plans: :data:`EXPERT_MF` (0) or :data:`EXPERT_MB` (1).
 
     ``h_*`` normalised entropies in [0, 1], ``c_*`` the experts' (filtered) costs at this
-    state (any unit, >= 0). ``entropy_and_cost``: value of expert e
-    ``-(h_e + exp(-kappa * h_mf) * c_e / max(c_mf, c_mb))``, the larger wins. Ties go to
-    MF; only ``random`` draws from ``rng``.
+    state (any unit, >= 0), ``h_max_bits`` the largest entropy in bits (``log2`` of the
+    number of valid actions). ``entropy_and_cost`` (Dromnelle et al. 2022, sec. 2.3):
+    value of expert e ``-(h_e + exp(-kappa * H_MF) * c_e / max(c_mf, c_mb))`` with MF's
+    entropy in bits ``H_MF = h_mf * h_max_bits``; the larger wins. Ties go to MF; only
+    ``random`` draws from ``rng``.
     """
     if criterion == C_MF:
         return EXPERT_MF
@@ -143,7 +210,7 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, rng):
     if criterion == C_ENTROPY:
         return EXPERT_MB if h_mb < h_mf else EXPERT_MF
     c_max = max(c_mf, c_mb)
-    w = np.exp(-kappa * h_mf)
+    w = np.exp(-kappa * h_mf * h_max_bits)
     v_mf = -h_mf
     v_mb = -h_mb
     if c_max > 0.0:
@@ -196,22 +263,41 @@ def _perf_counter() -> float:
 
 
 @njit(cache=True)
+def _filter_probs(ag, s, vrow):
+    """Both experts filter their current softmax at ``s`` into ``ag.probs[:, s]``."""
+    new = np.empty(ag.probs.shape[2])
+    alpha = ag.params.prob_alpha
+    softmax_into(ag.mf.Q[s], vrow, ag.mf.params.tau, new)
+    _lowpass_row(ag.probs[EXPERT_MF, s], new, alpha)
+    softmax_into(ag.mb.Q[s], vrow, ag.mb.params.tau, new)
+    _lowpass_row(ag.probs[EXPERT_MB, s], new, alpha)
+
+
+@njit(cache=True, inline="always")
+def _lowpass_row(old, new, alpha):
+    for b in range(old.shape[0]):
+        old[b] = lowpass(old[b], new[b], alpha)
+
+
+@njit(cache=True)
 def decide(ag, s, rng):
     """One decision of :class:`MetaAgent` ``ag`` in state ``s``.
 
-    Returns ``(action, expert, h_mf, h_mb, c_mf, c_mb, backups, seconds)``: the entropies
-    and filtered costs the criterion read, and the chosen expert's planning cost in
-    backups and wall-clock seconds (both recorded; the filter of the one the criterion
-    uses decides). Draws from ``rng``: the criterion's (``random`` only), then the chosen
-    expert's action selection.
+    Returns ``(action, expert, h_mf, h_mb, c_mf, c_mb, backups, seconds)``: the
+    normalised entropies of the filtered distributions and the filtered costs the
+    criterion read, and the chosen expert's planning cost in backups and wall-clock
+    seconds (both recorded; the filter of the one the criterion uses decides). After the
+    plan both experts filter their softmax at ``s`` (module docstring). Draws from
+    ``rng``: the criterion's (``random`` only), then the chosen expert's action selection.
     """
     vrow = ALL_VALID if ag.valid.shape[0] == 0 else ag.valid[s]
-    h_mf = normalised_entropy(ag.mf.Q[s], vrow, ag.mf.params.tau)
-    h_mb = normalised_entropy(ag.mb.Q[s], vrow, ag.mb.params.tau)
+    h_mf, h_max_bits = distribution_entropy(ag.probs[EXPERT_MF, s], vrow)
+    h_mb, _ = distribution_entropy(ag.probs[EXPERT_MB, s], vrow)
     table = ag.cost_time if ag.params.use_time else ag.cost
     c_mf = table[EXPERT_MF, s]
     c_mb = table[EXPERT_MB, s]
-    e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa, rng)
+    e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
+                      h_max_bits, rng)
     t0 = _now()
     if e == EXPERT_MB:
         backups = expert_plan(ag.mb, ag.valid)
@@ -221,6 +307,7 @@ def decide(ag, s, rng):
     alpha = ag.params.cost_alpha
     ag.cost[e, s] = lowpass(ag.cost[e, s], float(backups), alpha)
     ag.cost_time[e, s] = lowpass(ag.cost_time[e, s], seconds, alpha)
+    _filter_probs(ag, s, vrow)
     if e == EXPERT_MB:
         a = core.act(ag.mb.Q, s, ag.mb.params, ag.valid, rng)
     else:
@@ -232,11 +319,15 @@ def decide(ag, s, rng):
 def learn(ag, s, a, r, s_next):
     """Both experts learn from ``(s, a, r, s_next)`` (no randomness): MF's Q-learning
     update, MB's model count and incremental backup (:func:`simlab.agents.core.learn`;
-    experts never plan here)."""
+    experts never plan here). With ``reward_ends`` a rewarded transition then resets
+    both experts' values of ``s_next`` to 0 (module docstring)."""
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
+    if ag.params.reward_ends and r > 0.0:
+        ag.mf.Q[s_next, :] = 0.0
+        ag.mb.Q[s_next, :] = 0.0
 
 
 # --------------------------------------------------------------------------- builders
@@ -272,11 +363,14 @@ def make_expert(config: Any, n_states: int, n_actions: int) -> core.Learner:
 def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: int, *,
                     criterion: str = "entropy_and_cost", kappa: float = 1.0,
                     cost_alpha: float = 0.6, use_time: bool = False,
+                    prob_alpha: float = 0.6, reward_ends: bool = True,
                     valid: np.ndarray | None = None) -> MetaAgent:
-    """A fresh :class:`MetaAgent`: experts of the two agent configs, per-state costs at 0.
+    """A fresh :class:`MetaAgent`: experts of the two agent configs, per-state costs at 0,
+    per-state action distributions uniform over the valid actions.
 
-    ``criterion`` one of :data:`CRITERIA`; ``kappa`` >= 0; ``cost_alpha`` in (0, 1];
-    ``valid`` (S, A) bool actions allowed per state (None: all).
+    ``criterion`` one of :data:`CRITERIA`; ``kappa`` >= 0; ``cost_alpha`` and
+    ``prob_alpha`` in (0, 1]; ``reward_ends`` (module docstring); ``valid`` (S, A) bool
+    actions allowed per state (None: all).
     """
     from simlab.base import validation
     from simlab.base.errors import ConfigError
@@ -285,11 +379,42 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
         raise ConfigError(f"unknown criterion {criterion!r}", key="criterion",
                           fix=f"choose one of {', '.join(CRITERIA)}")
     validation.positive(kappa, "kappa", allow_zero=True)
-    if not (isinstance(cost_alpha, int | float) and 0.0 < cost_alpha <= 1.0):
-        raise ConfigError(f"expected a rate in (0, 1], got {cost_alpha!r}", key="cost_alpha")
+    for key, rate in (("cost_alpha", cost_alpha), ("prob_alpha", prob_alpha)):
+        if not (isinstance(rate, int | float) and 0.0 < rate <= 1.0):
+            raise ConfigError(f"expected a rate in (0, 1], got {rate!r}", key=key)
     mf = make_expert(mf_config, n_states, n_actions)
     mb = make_expert(mb_config, n_states, n_actions)
-    return MetaAgent(mf, mb, np.zeros((2, n_states)), np.zeros((2, n_states)),
+    mask = core.as_mask(valid, n_states, n_actions)
+    probs = np.full((2, n_states, n_actions), 1.0 / n_actions)
+    if mask.shape[0] > 0:
+        k = np.maximum(mask.sum(axis=1, keepdims=True), 1)
+        rows = np.where(mask.any(axis=1, keepdims=True), mask / k, 1.0 / n_actions)
+        probs[:] = rows[None]
+    return MetaAgent(mf, mb, np.zeros((2, n_states)), np.zeros((2, n_states)), probs,
                      MetaParams(criterion_code(criterion), float(kappa), float(cost_alpha),
-                                bool(use_time)),
-                     core.as_mask(valid, n_states, n_actions))
+                                bool(use_time), float(prob_alpha), bool(reward_ends)),
+                     mask)
+
+
+@dataclass(frozen=True)
+class Arbitration:
+    """How the meta-controller arbitrates (the arguments of :func:`make_meta_agent` that
+    travel together from a command to its parallel runs): ``criterion`` one of
+    :data:`CRITERIA`, ``kappa`` >= 0, ``cost_alpha`` and ``prob_alpha`` in (0, 1],
+    ``use_time`` (decide on seconds), ``reward_ends`` (module docstring)."""
+
+    criterion: str = "entropy_and_cost"
+    kappa: float = 1.0
+    cost_alpha: float = 0.6
+    use_time: bool = False
+    prob_alpha: float = 0.6
+    reward_ends: bool = True
+
+    def agent(self, mf_config: Any, mb_config: Any, n_states: int, n_actions: int,
+              valid: np.ndarray | None = None) -> MetaAgent:
+        """A fresh :class:`MetaAgent` arbitrating this way (:func:`make_meta_agent`)."""
+        return make_meta_agent(mf_config, mb_config, n_states, n_actions,
+                               criterion=self.criterion, kappa=self.kappa,
+                               cost_alpha=self.cost_alpha, use_time=self.use_time,
+                               prob_alpha=self.prob_alpha, reward_ends=self.reward_ends,
+                               valid=valid)

@@ -21,7 +21,7 @@ def chain(n: int = 5, p: float = 1.0) -> np.ndarray:
 
 @pytest.fixture
 def experts():
-    mf = agent_config("q-softmax", {"alpha": 0.6, "tau": 0.02, "q_init": 1.0})
-    mb = agent_config("sliding-window", {"tau": 0.02, "max_sweeps": 100, "tol": 1e-4,
-                                         "plan_every": 0, "window": 5})
+    mf = agent_config("q-softmax", {"alpha": 0.6, "tau": 0.02, "q_init": 1 / 1.9})
+    mb = agent_config("sliding-window", {"tau": 0.02, "q_init": 1 / 1.9, "max_sweeps": 100,
+                                         "tol": 1e-4, "plan_every": 0, "window": 10})
     return mf, mb

@@ -30,9 +30,11 @@ def test_mf_learns_from_mb_decisions_as_a_passive_observer(experts) -> None:
     T = chain(6)
     ag, log = _run(experts, T, OnlineTask(goal=(5,), start_states=(0,)), n=600)
     assert np.all(log.expert == meta.EXPERT_MB)
-    Q = np.full((6, 2), 1.0)  # the MF expert's q_init
+    Q = np.full((6, 2), 1 / 1.9)  # the MF expert's q_init
     for s, a, r, s2 in zip(log.s, log.a, log.reward, log.s_next, strict=True):
         Q[s, a] += 0.6 * (r + 0.9 * Q[s2].max() - Q[s, a])
+        if r > 0:
+            Q[s2] = 0.0  # a reward ends the episode: the goal's values are reset
     np.testing.assert_allclose(ag.mf.Q, Q, rtol=0, atol=1e-12)
     assert np.all(ag.mf.Q[:5].argmax(axis=1) == 1)  # go right, towards the goal
     assert log.reward.sum() > 0.8 * 600 / 5  # MB heads for the goal: ~5 decisions a reward

@@ -18,30 +18,36 @@ from .conftest import chain
 EC = meta.criterion_code("entropy_and_cost")
 
 
-def _choose(criterion: str, h_mf, h_mb, c_mf, c_mb, kappa=1.0, seed=0):
+def _choose(criterion: str, h_mf, h_mb, c_mf, c_mb, kappa=1.0, bits=3.0, seed=0):
     return meta.choose_expert(meta.criterion_code(criterion), h_mf, h_mb, c_mf, c_mb, kappa,
-                              np.random.default_rng(seed))
+                              bits, np.random.default_rng(seed))
 
 
-@pytest.mark.parametrize(("h_mf", "h_mb", "c_mf", "c_mb", "kappa", "expected"), [
-    # MF unsure (0.9), MB sure (0.2): -(0.9 + e^-0.9 * 1/300) = -0.9014 < -(0.2 + 0.4066)
-    (0.9, 0.2, 1.0, 300.0, 1.0, meta.EXPERT_MB),
-    # MF fairly sure (0.3): -(0.3 + 0.7408/300) = -0.3025 > -(0.2 + 0.7408) = -0.9408
-    (0.3, 0.2, 1.0, 300.0, 1.0, meta.EXPERT_MF),
-    # same entropies as the first case, kappa 0 (weight 1): -0.9033 vs -1.2: MF
-    (0.9, 0.2, 1.0, 300.0, 0.0, meta.EXPERT_MF),
-    # kappa 5: weight e^-4.5 = 0.0111: -(0.2 + 0.0111) > -(0.9 + 0.00004): MB
-    (0.9, 0.2, 1.0, 300.0, 5.0, meta.EXPERT_MB),
+@pytest.mark.parametrize(("h_mf", "h_mb", "c_mf", "c_mb", "kappa", "bits", "expected"), [
+    # 8 actions (3 bits). MF unsure (0.9 = 2.7 bits), MB sure (0.2): weight e^-2.7 = 0.0672;
+    # -(0.9 + 0.0672/300) = -0.9002 < -(0.2 + 0.0672) = -0.2672
+    (0.9, 0.2, 1.0, 300.0, 1.0, 3.0, meta.EXPERT_MB),
+    # MF fairly sure (0.3 = 0.9 bits): weight 0.4066; -0.3014 > -(0.2 + 0.4066)
+    (0.3, 0.2, 1.0, 300.0, 1.0, 3.0, meta.EXPERT_MF),
+    # kappa 0 (weight 1): -(0.9 + 1/300) = -0.9033 > -(0.2 + 1) = -1.2
+    (0.9, 0.2, 1.0, 300.0, 0.0, 3.0, meta.EXPERT_MF),
+    # MF half sure, 8 actions: 1.5 bits, weight e^-1.5 = 0.2231: -(0.2 + 0.2231) = -0.4231
+    # > -(0.5 + 0.0007): MB ...
+    (0.5, 0.2, 1.0, 300.0, 1.0, 3.0, meta.EXPERT_MB),
+    # ... but with 2 actions 0.5 is 0.5 bit, weight e^-0.5 = 0.6065: -0.8065 < -0.5020: MF
+    (0.5, 0.2, 1.0, 300.0, 1.0, 1.0, meta.EXPERT_MF),
     # equal costs: the cost terms cancel, the lower entropy wins
-    (0.5, 0.4, 7.0, 7.0, 1.0, meta.EXPERT_MB),
+    (0.5, 0.4, 7.0, 7.0, 1.0, 3.0, meta.EXPERT_MB),
     # no cost known yet (0/0 counts as 0): entropies only; a tie goes to MF
-    (0.6, 0.6, 0.0, 0.0, 1.0, meta.EXPERT_MF),
+    (0.6, 0.6, 0.0, 0.0, 1.0, 3.0, meta.EXPERT_MF),
 ])
-def test_entropy_and_cost_hand_worked(h_mf, h_mb, c_mf, c_mb, kappa, expected) -> None:
-    v_mf = -(h_mf + math.exp(-kappa * h_mf) * (c_mf / max(c_mf, c_mb) if max(c_mf, c_mb) else 0))
-    v_mb = -(h_mb + math.exp(-kappa * h_mf) * (c_mb / max(c_mf, c_mb) if max(c_mf, c_mb) else 0))
+def test_entropy_and_cost_hand_worked(h_mf, h_mb, c_mf, c_mb, kappa, bits, expected) -> None:
+    w = math.exp(-kappa * h_mf * bits)  # MF's entropy in bits weighs the cost term
+    c_max = max(c_mf, c_mb)
+    v_mf = -(h_mf + w * (c_mf / c_max if c_max else 0))
+    v_mb = -(h_mb + w * (c_mb / c_max if c_max else 0))
     assert (meta.EXPERT_MB if v_mb > v_mf else meta.EXPERT_MF) == expected  # the formula
-    assert _choose("entropy_and_cost", h_mf, h_mb, c_mf, c_mb, kappa) == expected
+    assert _choose("entropy_and_cost", h_mf, h_mb, c_mf, c_mb, kappa, bits) == expected
 
 
 def test_entropy_criterion_and_fixed_experts() -> None:
@@ -54,8 +60,8 @@ def test_entropy_criterion_and_fixed_experts() -> None:
 
 def test_random_criterion_is_a_fair_coin_drawn_from_the_generator() -> None:
     rng = np.random.default_rng(3)
-    picks = [meta.choose_expert(meta.criterion_code("random"), 0.0, 0.0, 0.0, 0.0, 1.0, rng)
-             for _ in range(4000)]
+    picks = [meta.choose_expert(meta.criterion_code("random"), 0.0, 0.0, 0.0, 0.0, 1.0, 3.0,
+                                rng) for _ in range(4000)]
     assert abs(np.mean(picks) - 0.5) < 4 * 0.5 / math.sqrt(4000)
     expect = np.random.default_rng(3).random(4000) < 0.5  # one draw each, MB below 0.5
     np.testing.assert_array_equal(np.array(picks) == meta.EXPERT_MB, expect)
@@ -73,6 +79,52 @@ def test_normalised_entropy_bounds() -> None:
     assert meta.normalised_entropy(np.array([0.0, 5.0, 0.0, 9.0]), vrow, 0.02) == \
         pytest.approx(1.0)
     assert meta.normalised_entropy(np.array([0.0, 5.0]), np.array([True, False]), 0.02) == 0.0
+
+
+def test_distribution_entropy_normalised_and_in_bits() -> None:
+    h, bits = meta.distribution_entropy(np.full(8, 1 / 8), ALL_VALID)
+    assert h == pytest.approx(1.0) and bits == pytest.approx(3.0)
+    h, bits = meta.distribution_entropy(np.array([0.75, 0.25, 0.0, 0.0]),
+                                        np.array([True, True, False, False]))
+    assert bits == pytest.approx(1.0)
+    assert h == pytest.approx(-(0.75 * math.log(0.75) + 0.25 * math.log(0.25)) / math.log(2))
+    assert meta.distribution_entropy(np.array([0.0, 1.0, 0.0]), ALL_VALID)[0] == 0.0
+
+
+def test_decisions_read_the_filtered_distributions_of_the_state(experts) -> None:
+    """Hand-worked: MF's Q row at state 0 is (tau ln 3, 0), softmax (3/4, 1/4); MB's is flat.
+    The first decision reads the uniform start (entropy 1); after it both filters hold
+    0.6 * softmax + 0.4 * the old value, and the second decision reads those."""
+    mf, mb = experts
+    ag = meta.make_meta_agent(mf, mb, 3, 2, criterion="mf")
+    ag.mf.Q[0] = (0.02 * math.log(3), 0.0)
+    ag.mb.Q[0] = (0.5, 0.5)
+    rng = np.random.default_rng(0)
+    out = meta.decide(ag, 0, rng)
+    assert out[2] == pytest.approx(1.0) and out[3] == pytest.approx(1.0)
+    np.testing.assert_allclose(ag.probs[meta.EXPERT_MF, 0], [0.6 * 0.75 + 0.2, 0.6 * 0.25 + 0.2])
+    np.testing.assert_allclose(ag.probs[meta.EXPERT_MB, 0], [0.5, 0.5])
+    np.testing.assert_allclose(ag.probs[:, 1:], 0.5)  # other states untouched
+    p = np.array([0.65, 0.35])
+    out = meta.decide(ag, 0, rng)
+    assert out[2] == pytest.approx(-(p * np.log(p)).sum() / math.log(2))
+    assert out[3] == pytest.approx(1.0)
+    np.testing.assert_allclose(ag.probs[meta.EXPERT_MF, 0], 0.6 * np.array([0.75, 0.25]) + 0.4 * p)
+
+
+@pytest.mark.parametrize("reward_ends", [True, False])
+def test_a_reward_resets_the_values_of_the_rewarded_state(experts, reward_ends) -> None:
+    mf, mb = experts
+    ag = meta.make_meta_agent(mf, mb, 3, 2, reward_ends=reward_ends)
+    ag.mf.Q[2] = 0.7
+    ag.mb.Q[2] = 0.7
+    meta.learn(ag, 1, 1, 1.0, 2)
+    q0 = 1 / 1.9  # the MF expert's q_init
+    assert ag.mf.Q[1, 1] == pytest.approx(q0 + 0.6 * (1.0 + 0.9 * 0.7 - q0))  # learned first
+    expect = 0.0 if reward_ends else 0.7
+    assert np.all(ag.mf.Q[2] == expect) and np.all(ag.mb.Q[2] == expect)
+    meta.learn(ag, 0, 1, 0.0, 1)  # no reward: nothing is reset
+    assert np.all(ag.mf.Q[1] != 0.0)
 
 
 def test_lowpass_filter() -> None:
@@ -127,3 +179,5 @@ def test_bad_arbitration_settings_are_refused(experts) -> None:
         meta.make_meta_agent(mf, mb, 3, 2, cost_alpha=0.0)
     with pytest.raises(ConfigError, match="kappa"):
         meta.make_meta_agent(mf, mb, 3, 2, kappa=-1.0)
+    with pytest.raises(ConfigError, match="prob_alpha"):
+        meta.make_meta_agent(mf, mb, 3, 2, prob_alpha=1.5)
