@@ -34,6 +34,7 @@ import numpy as np
 
 from simlab.base.actions import ActionSet, action_set_from_metadata
 from simlab.base.errors import ConfigError
+from simlab.data.goals import GoalMasks
 
 __all__ = ["EmpiricalMDP", "SparseEmpiricalMDP", "load_mdp", "load_sparse_mdp",
            "mdp_from_arrays"]
@@ -147,8 +148,7 @@ def _readonly(a: np.ndarray | None) -> np.ndarray | None:
 def mdp_from_arrays(
     T: np.ndarray,
     *,
-    goal_names: Any = None,
-    goal_masks: np.ndarray | None = None,
+    goals: GoalMasks | None = None,
     centres: np.ndarray | None = None,
     bounds: Any = None,
     counts: np.ndarray | None = None,
@@ -160,6 +160,8 @@ def mdp_from_arrays(
 ) -> EmpiricalMDP:
     """Validate arrays and build an :class:`EmpiricalMDP`.
 
+    ``goals`` names the goal areas and their states (``names`` (G,), ``masks`` (G, S) bool,
+    the record :func:`simlab.data.goals.goal_state_masks` returns; None: no goals).
     ``action_set`` must have A actions (default: simlab's 16 primitives when A is 16, else
     None); ``unvisited`` is ``mask`` or ``self-loop`` (see :attr:`EmpiricalMDP.valid`).
 
@@ -175,7 +177,7 @@ def mdp_from_arrays(
     validate_mdp(T, atol=_ROW_ATOL, path=path, p_name="T")
     T = T.astype(np.float64)
     S, A = T.shape[:2]
-    names, goal_masks = _checked_goals(goal_names, goal_masks, S, path)
+    names, goal_masks = _checked_goals(goals, S, path)
     centres = _checked_centres(centres, S, path)
     bounds_t = None if bounds is None else _checked_bounds(bounds, path)
     for name, arr, shape in (("counts", counts, (S, A, S)), ("visited", visited, (S, A)),
@@ -200,10 +202,11 @@ def mdp_from_arrays(
     )
 
 
-def _checked_goals(goal_names: Any, goal_masks: np.ndarray | None, S: int, path: str | None
+def _checked_goals(goals: GoalMasks | None, S: int, path: str | None
                    ) -> tuple[tuple[str, ...], np.ndarray | None]:
     """``(names (G,), masks (G, S) bool)``: both or neither given, one mask row of S
     states per name, names unique."""
+    goal_names, goal_masks = (None, None) if goals is None else goals
     if goal_names is None and goal_masks is None:
         return (), None
     if goal_names is None or goal_masks is None:
@@ -217,6 +220,14 @@ def _checked_goals(goal_names: Any, goal_masks: np.ndarray | None, S: int, path:
     if len(set(names)) != len(names):
         raise ConfigError(f"duplicate goal names in {list(names)}", path=path, key="goal_names")
     return names, goal_masks.astype(bool)
+
+
+def _goal_pair(names: Any, masks: np.ndarray | None) -> GoalMasks | None:
+    """The goals of a file's ``goal_names`` and ``goal_masks`` (None when it has neither;
+    one without the other is refused by :func:`mdp_from_arrays`, naming the missing one)."""
+    if names is None and masks is None:
+        return None
+    return GoalMasks(names, masks)  # type: ignore[arg-type]
 
 
 def _checked_centres(centres: np.ndarray | None, S: int, path: str | None
@@ -290,8 +301,7 @@ def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
     n_actions = int(T.shape[1]) if T.ndim == 3 else 16
     return mdp_from_arrays(
         T,
-        goal_names=arrays.get("goal_names"),
-        goal_masks=arrays.get("goal_masks"),
+        goals=_goal_pair(arrays.get("goal_names"), arrays.get("goal_masks")),
         centres=arrays.get("centres"),
         bounds=arrays.get("bounds"),
         counts=arrays.get("counts"),
@@ -430,8 +440,8 @@ def _densified(m: SparseEmpiricalMDP) -> EmpiricalMDP:
     action_set = None
     if m.meta.get("action_set") is not None or A == 16:
         action_set = action_set_from_metadata(m.meta, A, where=str(m.source))
-    return mdp_from_arrays(m.dense_T(), goal_names=m.goal_names or None,
-                           goal_masks=m.goal_masks, centres=m.centres, bounds=m.bounds,
+    return mdp_from_arrays(m.dense_T(), goals=_goal_pair(m.goal_names or None, m.goal_masks),
+                           centres=m.centres, bounds=m.bounds,
                            counts=counts,
                            visited=m.visited, entropy=m.entropy, source=m.source,
                            action_set=action_set, unvisited=m.unvisited)

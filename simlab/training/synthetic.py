@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from simlab.data.goals import GoalMasks
 from simlab.data.mdp import EmpiricalMDP, mdp_from_arrays
 
 __all__ = ["DIRECTIONS", "synthetic_arena_mdp"]
@@ -93,8 +94,7 @@ def synthetic_arena_mdp(
         masks[g, tree.query(p, k=goal_cells)[1]] = True
     return mdp_from_arrays(
         T,
-        goal_names=np.array([f"g{i + 1}" for i in range(9)]),
-        goal_masks=masks,
+        goals=GoalMasks(np.array([f"g{i + 1}" for i in range(9)]), masks),
         centres=centres,
         bounds=(0.0, 0.0, side, side),
         counts=counts,
