@@ -683,7 +683,7 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     :class:`~simlab.base.errors.DataError` naming the bag (or :class:`ConfigError` when the
     path does not exist).
     """
-    rb, ts, _ = _rosbags()
+    _rosbags()  # a missing library is named first, whatever the path
     path = Path(path)
     if not path.exists():
         raise ConfigError("bag not found", path=path, fix="give the bag's directory")
@@ -693,6 +693,35 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     info = read_metadata(path)
     custom = info.get("custom_data") or {}
     custom = custom if isinstance(custom, dict) else {}
+    topics, pose_topic = _read_topics(path, pose_topic, scan_topic, action_topic)
+    if not topics.get(pose_topic):
+        raise DataError(f"{path}: pose_topic: {pose_topic!r} has no messages")
+    if t0 is None and "simlab.time_origin_ns" in custom:
+        with contextlib.suppress(TypeError, ValueError):
+            t0 = int(custom["simlab.time_origin_ns"]) * 1e-9
+    try:
+        traj = _trajectory(topics, pose_topic, scan_topic, action_topic, t0, path)
+    except DataError:
+        raise
+    except _READ_FAILURES as exc:
+        raise DataError(f"{path}: damaged bag, a message does not hold what its type says "
+                        f"({type(exc).__name__}: {exc})") from None
+    action_set = _recorded_action_set(custom, path)
+    pose_source = custom.get("simlab.pose_source")
+    from dataclasses import replace
+
+    return replace(traj, action_set=action_set,
+                   pose_source=None if pose_source is None else str(pose_source),
+                   custom={str(k): str(v) for k, v in custom.items()})
+
+
+def _read_topics(path: Path, pose_topic: str | None, scan_topic: str | None,
+                 action_topic: str | None
+                 ) -> tuple[dict[str, list[tuple[int, Any, str]]], str]:
+    """The messages :func:`read_bag` uses, by topic: ``(bag time ns, message, type)`` in bag
+    order, and the pose topic (``/amcl_pose`` when not given and present, else ``/odom``).
+    An unreadable bag or an absent pose topic is a :class:`DataError` naming the bag."""
+    rb, ts, _ = _rosbags()
     topics: dict[str, list[tuple[int, Any, str]]] = {}
     try:
         with rb.Reader(path) as r:
@@ -722,31 +751,18 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     except _READ_FAILURES as exc:
         raise DataError(f"{path}: damaged bag, a message cannot be read "
                         f"({type(exc).__name__}: {exc})") from None
-    if not topics.get(pose_topic):
-        raise DataError(f"{path}: pose_topic: {pose_topic!r} has no messages")
-    if t0 is None and "simlab.time_origin_ns" in custom:
-        with contextlib.suppress(TypeError, ValueError):
-            t0 = int(custom["simlab.time_origin_ns"]) * 1e-9
-    try:
-        traj = _trajectory(topics, pose_topic, scan_topic, action_topic, t0, path)
-    except DataError:
-        raise
-    except _READ_FAILURES as exc:
-        raise DataError(f"{path}: damaged bag, a message does not hold what its type says "
-                        f"({type(exc).__name__}: {exc})") from None
-    action_set = None
-    if "simlab.action_set" in custom:
-        try:
-            action_set = json.loads(custom["simlab.action_set"])
-        except (TypeError, ValueError):
-            raise DataError(f"{path / 'metadata.yaml'}: custom_data: simlab.action_set is not "
-                            f"JSON") from None
-    pose_source = custom.get("simlab.pose_source")
-    from dataclasses import replace
+    return topics, pose_topic
 
-    return replace(traj, action_set=action_set,
-                   pose_source=None if pose_source is None else str(pose_source),
-                   custom={str(k): str(v) for k, v in custom.items()})
+
+def _recorded_action_set(custom: dict[str, Any], path: Path) -> Any:
+    """The action set the recorder stored in ``custom_data`` (parsed JSON; None without)."""
+    if "simlab.action_set" not in custom:
+        return None
+    try:
+        return json.loads(custom["simlab.action_set"])
+    except (TypeError, ValueError):
+        raise DataError(f"{path / 'metadata.yaml'}: custom_data: simlab.action_set is not "
+                        f"JSON") from None
 
 
 def _pose_of(msg: Any) -> tuple[float, float, float]:
