@@ -365,6 +365,13 @@ class ParticleFilter:
         self.initialised = False
         self._beam_subsets: dict[int, NDArray[np.int64]] = {}
 
+    def set_field(self, field: LikelihoodField) -> None:
+        """Localize against ``field`` from now on, keeping the particles (a map updated
+        while the robot runs, e.g. an obstacle added to the lab); same frame expected."""
+        self.field, self.map = field, field.map
+        free = (self.map.occupancy == 0) & (field.distance >= self.params.inject_clearance)
+        self._free_rc = np.argwhere(free)
+
     # ------------------------------------------------------------------ initialisation
     def _reset_stats(self) -> None:
         self.w_slow = self.nominal_fit

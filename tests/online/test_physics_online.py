@@ -8,7 +8,7 @@ import pytest
 from discretize.voronoi import Discretizer
 from simlab.base.errors import ConfigError
 from simlab.online import meta
-from simlab.online.physics import PhysicsChange, run_physics_online
+from simlab.online.physics import PhysicsChange, PhysicsTask, RunStreams, run_physics_online
 from simlab.physics.world import World
 
 
@@ -17,14 +17,13 @@ def _lattice() -> Discretizer:
     return Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g]))
 
 
-def _run(experts, criterion: str, n: int, changes=(), seed: int = 0):
+def _run(experts, criterion: str, n: int, changes=(), seed: int = 0, **task):
     mf, mb = experts
     ag = meta.make_meta_agent(mf, mb, 25, 16, criterion=criterion)
-    rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(3)]
     with World("table") as world:
-        run = run_physics_online(ag, world, _lattice(), goal=(11, 12, 13),
-                                 start_states=(6, 7, 8), decisions=n, changes=changes,
-                                 env_rng=rngs[0], agent_rng=rngs[1], noise_rng=rngs[2])
+        run = run_physics_online(ag, world, _lattice(),
+                                 PhysicsTask((11, 12, 13), (6, 7, 8), n, changes, **task),
+                                 RunStreams.from_seed(np.random.SeedSequence(seed)))
         bodies = list(world.static_bodies)
     return ag, run, bodies
 
@@ -44,9 +43,11 @@ def test_transitions_rewards_and_the_passive_observer(experts) -> None:
     assert run.boxes and run.boxes[0] in bodies  # the box was added to the world
     assert run.robot_seconds > 0 and np.all(log.backups >= 0)
     # MF learned exactly by Q-learning on the transitions MB decided
-    Q = np.full((25, 16), 1.0)
+    Q = np.full((25, 16), 1 / 1.9)
     for s, a, r, s2 in zip(log.s, log.a, log.reward, log.s_next, strict=True):
         Q[s, a] += 0.6 * (r + 0.9 * Q[s2].max() - Q[s, a])
+        if r > 0:
+            Q[s2] = 0.0
     np.testing.assert_allclose(ag.mf.Q, Q, rtol=0, atol=1e-12)
 
 
@@ -61,16 +62,34 @@ def test_same_seed_same_run(experts) -> None:
 
 def test_bad_sizes_are_refused(experts) -> None:
     mf, mb = experts
+    streams = RunStreams.from_seed(np.random.SeedSequence(0))
     with World("table") as world:
         with pytest.raises(ConfigError, match="expected \\(25, 16\\)"):
             run_physics_online(meta.make_meta_agent(mf, mb, 10, 16), world, _lattice(),
-                               goal=(1,), start_states=(0,), decisions=1,
-                               env_rng=np.random.default_rng(0),
-                               agent_rng=np.random.default_rng(0),
-                               noise_rng=np.random.default_rng(0))
+                               PhysicsTask((1,), (0,), 1), streams)
         with pytest.raises(ConfigError, match="goal"):
             run_physics_online(meta.make_meta_agent(mf, mb, 25, 16), world, _lattice(),
-                               goal=(30,), start_states=(0,), decisions=1,
-                               env_rng=np.random.default_rng(0),
-                               agent_rng=np.random.default_rng(0),
-                               noise_rng=np.random.default_rng(0))
+                               PhysicsTask((30,), (0,), 1), streams)
+    with pytest.raises(ConfigError, match="pose_source"):
+        PhysicsTask((1,), (0,), 1, pose_source="gps")
+    with pytest.raises(ConfigError, match="mcl_map"):
+        PhysicsTask((1,), (0,), 1, pose_source="mcl", mcl_map="sometimes")
+
+
+@pytest.mark.parametrize(("mcl_map", "inside"), [("updated", 0.0), ("stale", None)])
+def test_the_mcl_map_follows_the_box_or_stays_stale(experts, mcl_map, inside) -> None:
+    """A 0.4 x 0.2 m box at (0, -0.3) is added at decision 2 with the MCL pose source: in
+    the updated map the likelihood field's distance at the box's centre is 0 (an obstacle
+    there); in the stale map it is the distance to the nearest wall of the empty table
+    (the box's centre is 0.45 m from the table's 0.75 m half-width walls, no closer)."""
+    box = (0.0, -0.3, 0.4, 0.2)
+    _, run, _ = _run(experts, "mb", 4, (PhysicsChange(2, "box", box=box),),
+                     pose_source="mcl", mcl_map=mcl_map)
+    f = run.mcl_field
+    row, col = f.map.world_to_pixel(np.array(box[:2]))
+    d = float(f.distance[row, col])
+    if inside is not None:
+        assert d == inside
+    else:
+        assert d > 0.3
+    assert np.all(np.isfinite(run.log.s)) and run.boxes
