@@ -78,6 +78,35 @@ def level_metrics(goals: np.ndarray) -> dict[str, Any]:
             "trials_to_90pct": int(x[hit[0]]) if hit.size else None}
 
 
+def _carry_panels(carry: list[bool], humans: dict[str, Any],
+                  curves: dict[tuple[bool, str], list[np.ndarray]]
+                  ) -> tuple[dict[str, Any], list[Any], dict[str, Any]]:
+    """Per carry option (what continues: Q and model, or Q only) and human: the level
+    metrics and ratios to ``same`` (:func:`adaptability`'s names), the figure panel and the
+    curves' details, from ``curves[(carry, human)]`` = goals per trial of each seed."""
+    metrics: dict[str, Any] = {}
+    panels = []
+    legends = {"same": "same human", "slower": "2x slower human", "pointing": "pointing need"}
+    details: dict[str, Any] = {"curves": {}}
+    for c in carry:
+        suffix = "" if c == carry[0] else ("_model" if c else "_q_only")
+        panel = []
+        for name in humans:
+            g = np.stack(curves[(c, name)])
+            metrics.update({f"{name}_{k}{suffix}": v for k, v in level_metrics(g).items()})
+            panel.append((legends.get(name, humans[name].name), g))
+            details["curves"][f"{name}{suffix}"] = curve_details(name, g)
+        same = metrics.get(f"same_final{suffix}")
+        for name in humans:
+            if same is not None and name != "same":
+                metrics[f"{name}_over_same{suffix}"] = (metrics[f"{name}_final{suffix}"] / same
+                                                       if same > 0 else None)
+        title = ("Q table and model carried over" if c
+                 else "Q table only (model rebuilt from the new human)")
+        panels.append((title, panel))
+    return metrics, panels, details
+
+
 @runner("visitlab.adaptability")
 def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> RunResult:
     """Thesis Fig. 4.7: the social module trained with one human continues learning in
@@ -87,8 +116,8 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     humans :func:`simlab.visitlab.adaptability.thesis_humans` of the social module's
     human, or ``[params.humans]`` (name -> preset or table of Human fields; a human
     named ``same`` is the reference of the ratios); ``params.carry_model`` a list of
-    booleans (what continues: Q and model, or Q only; one figure panel each; the first is the one the metrics without suffix
-    describe). Metrics per human ``h`` (``same``, ``slower``, ``pointing``) and carry
+    booleans (what continues: Q and model, or Q only; one figure panel each; the first is
+    the one the metrics without suffix describe). Metrics per human ``h`` (``same``, ``slower``, ``pointing``) and carry
     option (suffix ``_q_only`` for Q only, ``_model`` for Q and model, on the options
     after the first): ``h_start`` (mean goals per trial over the
     first 10 % of trials), ``h_final`` (last 20 %), ``h_trials_to_90pct`` (first trial at
@@ -122,26 +151,7 @@ def adaptability(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext
     curves_: dict[tuple[bool, str], list[np.ndarray]] = {}
     for k, g in zip(keys, res, strict=True):
         curves_.setdefault(k, []).append(g)
-    metrics: dict[str, Any] = {}
-    panels = []
-    legends = {"same": "same human", "slower": "2x slower human", "pointing": "pointing need"}
-    details: dict[str, Any] = {"curves": {}}
-    for c in carry:
-        suffix = "" if c == carry[0] else ("_model" if c else "_q_only")
-        panel = []
-        for name in humans:
-            g = np.stack(curves_[(c, name)])
-            metrics.update({f"{name}_{k}{suffix}": v for k, v in level_metrics(g).items()})
-            panel.append((legends.get(name, humans[name].name), g))
-            details["curves"][f"{name}{suffix}"] = curve_details(name, g)
-        same = metrics.get(f"same_final{suffix}")
-        for name in humans:
-            if same is not None and name != "same":
-                metrics[f"{name}_over_same{suffix}"] = (metrics[f"{name}_final{suffix}"] / same
-                                                       if same > 0 else None)
-        title = ("Q table and model carried over" if c
-                 else "Q table only (model rebuilt from the new human)")
-        panels.append((title, panel))
+    metrics, panels, details = _carry_panels(carry, humans, curves_)
     fig = plot_curve_panels(panels, ctx.out / "adaptability.png",
                             ylabel="goal rooms reached per trial",
                             title=f"Continued learning with a new human ({n} seeds, "
