@@ -25,13 +25,24 @@ def _fig(out: Path, rel: str, caption: str) -> str:
     return f"![{caption}]({rel})\n\n*{caption}*\n"
 
 
+#: The figures of the report, in order: (path under the run's folder, caption).
+FIGURES = (
+    ("states/states.png", "Occupancy map and Voronoi states (thesis Fig. 3.5)"),
+    ("figures/states_visits.png", "Visits per state in the random walk (log10)"),
+    ("mdp/mdp_entropy.png", "Mean transition entropy per action (thesis Fig. 4.8)"),
+    ("qtables/curves.png", "Learning curves on the empirical MDP, per goal (thesis Fig. 4.9)"),
+    ("qtables/heatmaps.png", "max_a Q and argmax arrows per goal (thesis Fig. 4.3)"),
+    ("replay/cumulative_reward.png", "Cumulative reward over the replay (thesis Fig. 4.10)"),
+    ("replay/replay.gif",
+     "Top-down replay: map, values of the current goal, robot, trail (Fig. 4.11)"),
+)
+
+
 def write_report(out: Path, s: Any, seed: int, state: dict[str, Any]) -> Path:
     """Write ``out/report.md`` from the stage records in ``state`` (see
     :mod:`simlab.orchestration.pipeline`); ``s`` are the run's
     :class:`~simlab.orchestration.stages.PhysicsSettings`."""
     st = state["stages"]
-    m, d, mdp, tr, rp = (st.get(k, {}) for k in ("map", "dataset", "mdp", "train", "replay"))
-    n_states = st.get("states", {}).get("n_states")
     lines = [
         f"# simlab pipeline report: arena `{s.arena}`",
         "",
@@ -42,8 +53,29 @@ def write_report(out: Path, s: Any, seed: int, state: dict[str, Any]) -> Path:
         "",
         "| quantity | this run | thesis |",
         "|---|---|---|",
+        *_key_rows(s, st),
     ]
-    row = lines.append
+    lines += ["", "## Figures", ""]
+    lines += [_fig(out, rel, caption) for rel, caption in FIGURES]
+    lines += ["", "## Stages", "",
+              "| stage | folder | this run | wall time (s) |", "|---|---|---|---|"]
+    for name, rec in st.items():
+        how = "built" if rec.get("built") else "reused"
+        lines.append(f"| {name} | `{rec['folder']}/` | {how} | {rec.get('wall_seconds', 0):.1f} |")
+    lines += ["", f"Settings (seed {seed}): "
+              + ", ".join(f"{k}={v}" for k, v in state["settings"].items()), ""]
+    report = out / "report.md"
+    atomic_write_text(report, "\n".join(lines))
+    return report
+
+
+def _key_rows(s: Any, st: dict[str, Any]) -> list[str]:
+    """The rows of the key-numbers table (this run against the thesis) for the stages
+    ``st`` that ran; ``s`` are the run's settings."""
+    m, d, mdp, tr, rp = (st.get(k, {}) for k in ("map", "dataset", "mdp", "train", "replay"))
+    n_states = st.get("states", {}).get("n_states")
+    rows: list[str] = []
+    row = rows.append
     if m:
         row(f"| map accuracy vs arena geometry (walls / free space) | {m['wall_correct']:.1%} / "
             f"{m['free_correct']:.1%} after {s.map_minutes:g} robot-min | GMapping, 73.1 min "
@@ -76,28 +108,4 @@ def write_report(out: Path, s: Any, seed: int, state: dict[str, Any]) -> Path:
     if rp.get("position_error_mean_m") is not None:
         row(f"| localization ({s.pose_source}) mean position error | "
             f"{rp['position_error_mean_m'] * 100:.1f} cm | AMCL on the GMapping map |")
-    lines += ["", "## Figures", ""]
-    lines.append(_fig(out, "states/states.png",
-                      "Occupancy map and Voronoi states (thesis Fig. 3.5)"))
-    lines.append(_fig(out, "figures/states_visits.png",
-                      "Visits per state in the random walk (log10)"))
-    lines.append(_fig(out, "mdp/mdp_entropy.png",
-                      "Mean transition entropy per action (thesis Fig. 4.8)"))
-    lines.append(_fig(out, "qtables/curves.png",
-                      "Learning curves on the empirical MDP, per goal (thesis Fig. 4.9)"))
-    lines.append(_fig(out, "qtables/heatmaps.png",
-                      "max_a Q and argmax arrows per goal (thesis Fig. 4.3)"))
-    lines.append(_fig(out, "replay/cumulative_reward.png",
-                      "Cumulative reward over the replay (thesis Fig. 4.10)"))
-    lines.append(_fig(out, "replay/replay.gif",
-                      "Top-down replay: map, values of the current goal, robot, trail (Fig. 4.11)"))
-    lines += ["", "## Stages", "",
-              "| stage | folder | this run | wall time (s) |", "|---|---|---|---|"]
-    for name, rec in st.items():
-        how = "built" if rec.get("built") else "reused"
-        lines.append(f"| {name} | `{rec['folder']}/` | {how} | {rec.get('wall_seconds', 0):.1f} |")
-    lines += ["", f"Settings (seed {seed}): "
-              + ", ".join(f"{k}={v}" for k, v in state["settings"].items()), ""]
-    report = out / "report.md"
-    atomic_write_text(report, "\n".join(lines))
-    return report
+    return rows
