@@ -87,7 +87,26 @@ def sensor_pose(base_pose: np.ndarray, sensor_offset: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, kw_only=True)
 class MapConfig(CommandConfig):
-    """Options of ``simlab map`` / :func:`build_map` (lengths in m, times in minutes)."""
+    """Options of ``simlab map`` / :func:`build_map` (lengths in m, times in minutes).
+
+    The fields:
+
+    * ``arena``: built-in arena name, ``.toml`` path or ``ArenaConfig``.
+    * ``minutes``: robot time to explore (simulated driving + idle decision latency).
+    * ``seed``: one integer; ``SeedSequence(seed)`` is split into the action and the
+      LIDAR-noise streams. Same seed, same map.
+    * ``out``: output directory (``map.pgm``, ``map.yaml``, ``exploration.json``);
+      default ``maps/<arena name or file stem>``.
+    * ``resolution``: map cell side (m).
+    * ``pose_source``: ``"truth"`` (default) or ``"odometry"`` (drifts).
+    * ``margin``: map extent beyond the arena's inner area on each side (m); must
+      cover the walls.
+    * ``inf_free_range``: how far a no-return beam marks free space (m); 0 ignores
+      them (see the module docstring), None = up to the LIDAR's range_max.
+    * ``log_odds``: inverse sensor model (default :class:`LogOddsParams`).
+    * ``primitive_params``: :class:`simlab.physics.motion.PrimitiveParams` (default).
+    * ``overwrite``: replace existing outputs; ``progress``: a bar over robot time.
+    """
 
     COMMAND = "map"
 
@@ -125,23 +144,8 @@ class MapConfig(CommandConfig):
 def build_map(cfg: MapConfig) -> MapRun:
     """Explore ``arena`` at random for ``minutes`` of robot time and write its map.
 
-    Takes a :class:`MapConfig` or its fields (``build_map("table", minutes=3, out=d)``):
-
-    * ``arena``: built-in arena name, ``.toml`` path or ``ArenaConfig``.
-    * ``minutes``: robot time to explore (simulated driving + idle decision latency).
-    * ``seed``: one integer; ``SeedSequence(seed)`` is split into the action and the
-      LIDAR-noise streams. Same seed, same map.
-    * ``out``: output directory (``map.pgm``, ``map.yaml``, ``exploration.json``);
-      default ``maps/<arena name or file stem>``.
-    * ``resolution``: map cell side (m).
-    * ``pose_source``: ``"truth"`` (default) or ``"odometry"`` (drifts).
-    * ``margin``: map extent beyond the arena's inner area on each side (m); must
-      cover the walls.
-    * ``inf_free_range``: how far a no-return beam marks free space (m); 0 ignores
-      them (see the module docstring), None = up to the LIDAR's range_max.
-    * ``log_odds``: inverse sensor model (default :class:`LogOddsParams`).
-    * ``primitive_params``: :class:`simlab.physics.motion.PrimitiveParams` (default).
-    * ``overwrite``: replace existing outputs; ``progress``: a bar over robot time.
+    Takes a :class:`MapConfig` or its fields (``build_map("table", minutes=3, out=d)``);
+    the fields are documented there.
     """
     from discretize.mapio import write_map
     from discretize.occupancy import OccupancyGrid, map_accuracy
