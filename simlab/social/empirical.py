@@ -509,23 +509,10 @@ def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[Soc
     rho = float(y @ r_pi / y.sum()) if y.sum() > 0 else 0.0
     k = rho * sojourn
     to_engage = float(x.sum()) / p_engage if p_engage > 0 else np.inf
-    rewarded = np.concatenate([w.reward for w in walks]) > 0
-    moves = np.concatenate([np.hypot(*(w.human_next[:, :2] - w.human[:, :2]).T)
-                            for w in walks])
-    step = float(moves[rewarded].mean()) if rewarded.any() else float("nan")
-    centres = np.array([(g.x, g.y) for g in goals])
-    dist = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1))
-    lead = float(dist[~np.eye(len(goals), dtype=bool)].mean()
-                 - np.mean([g.radius for g in goals]))
-    a_all = np.concatenate([w.a for w in walks])
-    dur = np.concatenate([w.duration for w in walks])
-    tried = np.bincount(a_all, minlength=A)
-    per_action = np.bincount(a_all, weights=dur, minlength=A) / np.maximum(tried, 1)
-    per_action[tried == 0] = float(dur.mean())
-    mix = _action_mix(q, S, A, epsilon)
-    tau_s = mix @ per_action  # (S,) mean decision duration under the policy
-    tau_n = float(x @ tau_s / x.sum()) if x.sum() > 0 else float(dur.mean())
-    tau_e = float(y @ tau_s / y.sum()) if y.sum() > 0 else float(dur.mean())
+    step, lead = _step_and_lead(walks, goals)
+    tau_s, mean_dur = _decision_seconds(walks, q, S, A, epsilon)
+    tau_n = float(x @ tau_s / x.sum()) if x.sum() > 0 else mean_dur
+    tau_e = float(y @ tau_s / y.sum()) if y.sum() > 0 else mean_dur
     # fraction of decisions engaged: L / (T + L), 1 when the model never loses engagement
     frac = 0.0
     if p_engage > 0 and y.sum() > 0:
@@ -544,6 +531,34 @@ def predict_goal_rate(P: Any, q: ArrayLike | None, R: ArrayLike, walks: list[Soc
         p_lose_per_decision=p_lose,
         rewarded_per_engagement=k, step_m=step, lead_distance_m=lead, decision_s=tau,
         goals_per_hour=float(rate), progress_m=prog)
+
+
+def _step_and_lead(walks: list[SocialWalk], goals: tuple[Any, ...]) -> tuple[float, float]:
+    """The human's mean move (m) on the rewarded decisions of ``walks`` (NaN without one)
+    and the lead distance (m): the mean distance between two goal centres less the mean
+    goal radius."""
+    rewarded = np.concatenate([w.reward for w in walks]) > 0
+    moves = np.concatenate([np.hypot(*(w.human_next[:, :2] - w.human[:, :2]).T)
+                            for w in walks])
+    step = float(moves[rewarded].mean()) if rewarded.any() else float("nan")
+    centres = np.array([(g.x, g.y) for g in goals])
+    dist = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1))
+    lead = float(dist[~np.eye(len(goals), dtype=bool)].mean()
+                 - np.mean([g.radius for g in goals]))
+    return step, lead
+
+
+def _decision_seconds(walks: list[SocialWalk], q: ArrayLike | None, S: int, A: int,
+                      epsilon: float) -> tuple[NDArray[np.float64], float]:
+    """The mean decision duration (s) in each state under the policy of ``q`` (S,), from
+    the walks' mean duration per action (an untried action: the mean of all), and the
+    mean duration of all decisions (s)."""
+    a_all = np.concatenate([w.a for w in walks])
+    dur = np.concatenate([w.duration for w in walks])
+    tried = np.bincount(a_all, minlength=A)
+    per_action = np.bincount(a_all, weights=dur, minlength=A) / np.maximum(tried, 1)
+    per_action[tried == 0] = float(dur.mean())
+    return _action_mix(q, S, A, epsilon) @ per_action, float(dur.mean())
 
 
 def _long_run(M: Any, inside: NDArray[np.bool_], start: NDArray[np.float64],
