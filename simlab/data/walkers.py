@@ -79,6 +79,10 @@ def check_pose_source(name: str, simulator: str) -> None:
 # --------------------------------------------------------------------------------------
 
 
+#: Label grids of this process by the partition's content hash (see :func:`point_state_of`).
+_LABEL_GRIDS: dict[str, Any] = {}
+
+
 def point_state_of(discretizer: Any) -> Callable[[float, float], int]:
     """``state(x, y) -> int``: the state of one position (m) under ``discretizer``.
 
@@ -92,7 +96,15 @@ def point_state_of(discretizer: Any) -> Callable[[float, float], int]:
     from discretize.voronoi import Discretizer
 
     if isinstance(discretizer, Discretizer):
-        return LabelGrid.of(discretizer).state
+        # Kept per partition: a calibration walks many candidates over the same states,
+        # each with a walker of its own, and the cells labelled by one serve the next.
+        key = discretizer.content_hash()
+        grid = _LABEL_GRIDS.get(key)
+        if grid is None:
+            if len(_LABEL_GRIDS) >= 4:
+                _LABEL_GRIDS.clear()
+            grid = _LABEL_GRIDS[key] = LabelGrid.of(discretizer)
+        return grid.state
     state_of = discretizer.state_of
 
     def state(x: float, y: float) -> int:

@@ -97,6 +97,22 @@ class LidarScan:
         return np.stack([x + c * p[:, 0] - s * p[:, 1], y + s * p[:, 0] + c * p[:, 1]], axis=1)
 
 
+def _two_disc_cover(angles: NDArray[np.float64]) -> tuple[tuple[float, float, float], ...]:
+    """See :meth:`Lidar.ray_cover`: two discs (each smaller than the unit disc) for a cone
+    of less than 120 degrees each side of its mean bearing, else the unit disc."""
+    mx, my = float(np.cos(angles).mean()), float(np.sin(angles).mean())
+    if math.hypot(mx, my) < 1e-6:
+        return ((0.0, 0.0, 1.0),)
+    m = math.atan2(my, mx)
+    spread = float(np.abs((angles - m + math.pi) % (2 * math.pi) - math.pi).max()) + 1e-9
+    if spread >= math.radians(120.0):
+        return ((0.0, 0.0, 1.0),)
+    half = spread / 2
+    rho = 1.0 / (2.0 * math.cos(half))
+    return tuple((rho * math.cos(m + side * half), rho * math.sin(m + side * half), rho)
+                 for side in (-1.0, 1.0))
+
+
 class Lidar:
     """A LIDAR mounted on a body's base link at ``offset`` (x, y, z) in the base frame."""
 
@@ -111,6 +127,7 @@ class Lidar:
         self._angles = a
         self._dirs = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)  # sensor frame
         self._subsets: dict[tuple, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self._covers: dict[tuple, tuple[tuple[float, float, float], ...]] = {}
 
     def _subset(self, beams: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Directions and angles of a beam subset, kept by its index values: the obstacle
@@ -127,6 +144,30 @@ class Lidar:
             angles.setflags(write=False)
             hit = self._subsets[key] = (self._dirs[b], angles)
         return hit
+
+    def ray_cover(self, beams: NDArray[np.int64] | None) -> tuple[tuple[float, float, float], ...]:
+        """Discs that cover every ray of a scan of these beams, for a reach of 1 m:
+        ``(x, y, radius)`` in the sensor frame, to be scaled by the reach.
+
+        All beams: the disc of radius 1 around the sensor. A subset whose bearings lie
+        within ``A < 120`` degrees of their mean direction ``m`` (the obstacle detector's
+        cone, +-67 degrees): two discs, one per half cone. A half cone of half-angle
+        ``a = A / 2`` around the axis ``m +- a`` lies in the disc through the apex centred
+        ``1 / (2 cos a)`` along its axis (a point at angle ``phi <= a`` off the axis and
+        distance ``r <= 1`` is within that radius of the centre iff ``r <= cos(phi) /
+        cos(a)``); for the detector both radii are 0.6, so obstacles behind or beside the
+        robot no longer count.
+        """
+        if beams is None:
+            return ((0.0, 0.0, 1.0),)
+        b = np.asarray(beams)
+        key = (b.dtype.str, b.shape, b.tobytes())
+        cover = self._covers.get(key)
+        if cover is None:
+            if len(self._covers) >= 8:
+                self._covers.clear()
+            cover = self._covers[key] = _two_disc_cover(self._angles[b])
+        return cover
 
     def far(self, reach: float | None) -> float:
         """Where the rays of a scan of ``reach`` (m, None: ``range_max``) end (m from the

@@ -513,7 +513,7 @@ class _Detector:
         """:meth:`check`'s answer alone (the re-check at every control tick): when no ray
         can hit anything (:meth:`World.rays_miss`) the scan, all ``inf``, is not even built;
         its noise is drawn all the same, so ``rng`` goes on as after a cast."""
-        if world.rays_miss(self.reach):
+        if world.rays_miss(self.reach, self.beams):
             world.lidar.skip_noise(rng, self.beams.shape[0])
             return False
         return self.check(world, rng, distance)[0]

@@ -381,21 +381,25 @@ class World:
         """
         pos, rot = self._link_frame()
         pose = np.array([pos[0], pos[1], math.atan2(rot[1, 0], rot[0, 0])])
-        if self.rays_miss(reach):
+        if self.rays_miss(reach, beams):
             return self.lidar.missed_scan(pose, rng, stamp=self.time, beams=beams, reach=reach)
         return self.lidar.scan(pos, rot, pose, rng, stamp=self.time, beams=beams, reach=reach)
 
-    def rays_miss(self, reach: float | None) -> bool:
+    def rays_miss(self, reach: float | None, beams: NDArray[np.int64] | None = None) -> bool:
         """Whether every ray of a scan of ``reach`` (m from the sensor; None: the full
-        range) provably hits nothing now, so its ray test can be left out (the obstacle
-        detector's short scans, re-run at every control tick, are mostly far from
-        everything).
+        range) and ``beams`` (None: all) provably hits nothing now, so its ray test can be
+        left out (the obstacle detector's short scans, re-run at every control tick, are
+        mostly far from everything).
 
-        A ray of the scan runs from ``range_min`` to ``far`` along a unit direction in the
-        sensor's tilted plane: it stays within ``far`` of the sensor horizontally and within
-        ``far * sin(tilt)`` of its height. It can hit a static body only if one's footprint
-        lies within ``far`` (:class:`StaticClearance`), the floor only if that drop reaches
-        it, and the robot itself never (rays start ``range_min`` out, see
+        A ray of the scan runs from ``range_min`` to ``far`` along a unit direction
+        ``R (cos a, sin a, 0)`` of the sensor's tilted plane (``R`` the base's rotation).
+        Horizontally it is the image of the beam's segment in the sensor frame under the
+        top-left 2 x 2 block of ``R``, whose norm is at most 1: so the discs of
+        :meth:`Lidar.ray_cover` (scaled by ``far``), carried by that block, cover it, and it
+        can hit a static body only if one's footprint reaches into a disc
+        (:class:`StaticClearance` at the disc's centre). Vertically it stays within ``far *
+        sin(tilt)`` of the sensor's height, so it reaches the floor only if that drop does;
+        and it never hits the robot itself (rays start ``range_min`` out, see
         :mod:`simlab.physics.lidar`). Bodies added to or removed from the client after the
         last :meth:`reset` (a human's robot, a box of :mod:`simlab.physics.obstacles`) are
         unknown to the bound: the answer is then False. Plain floats: this runs at every
@@ -412,10 +416,15 @@ class World:
         sz = cz + r20 * dx + r21 * dy + (1.0 - 2.0 * (qx * qx + qy * qy)) * dz
         if sz - far * math.hypot(r20, r21) <= FLOOR_MARGIN:
             return False
-        sx = (cx + (1.0 - 2.0 * (qy * qy + qz * qz)) * dx + 2.0 * (qx * qy - qz * qw) * dy
-              + 2.0 * (qx * qz + qy * qw) * dz)
-        sy = (cy + 2.0 * (qx * qy + qz * qw) * dx + (1.0 - 2.0 * (qx * qx + qz * qz)) * dy
-              + 2.0 * (qy * qz - qx * qw) * dz)
+        r00, r01 = 1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy - qz * qw)
+        r10, r11 = 2.0 * (qx * qy + qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz)
+        sx = cx + r00 * dx + r01 * dy + 2.0 * (qx * qz + qy * qw) * dz
+        sy = cy + r10 * dx + r11 * dy + 2.0 * (qy * qz - qx * qw) * dz
         if self._clearance is None:
             self._clearance = StaticClearance(self.arena)
-        return self._clearance.at(sx, sy) > far + CLEAR_MARGIN
+        at = self._clearance.at
+        for ux, uy, radius in self.lidar.ray_cover(beams):
+            px, py = far * ux, far * uy
+            if at(sx + r00 * px + r01 * py, sy + r10 * px + r11 * py) <= far * radius + CLEAR_MARGIN:
+                return False
+        return True

@@ -108,7 +108,7 @@ def test_a_scan_left_out_equals_the_cast(arenas) -> None:
                 world.reset(pose=pose)
                 world.step(2)
                 for beams, reach in ((detector_beams, 0.37), (None, 0.3), (None, 1.0)):
-                    miss = world.rays_miss(reach)
+                    miss = world.rays_miss(reach, beams)
                     cast, scan, next_a, next_b = _scan_both_ways(world, i, beams, reach)
                     np.testing.assert_array_equal(scan.ranges, cast.ranges)
                     np.testing.assert_array_equal(scan.hit_ids, cast.hit_ids)
@@ -121,6 +121,22 @@ def test_a_scan_left_out_equals_the_cast(arenas) -> None:
                     else:
                         cast_needed += 1
     assert missed > 30 and cast_needed > 30, (missed, cast_needed)
+
+
+def test_a_wall_behind_the_detector_s_cone_does_not_count() -> None:
+    """The detector casts a +-67 degree cone of 0.37 m: backing onto a wall (0.2 m behind
+    the sensor) it still sees nothing, and the shortcut knows it; facing the wall it casts."""
+    detector_beams = _Detector.of(World("table"), PrimitiveParams()).beams
+    with World("table") as world:
+        world.reset(pose=(0.55, 0.0, math.pi))  # the wall x = 0.75 is behind
+        assert not world.rays_miss(0.37)      # all beams: the wall is within reach
+        assert world.rays_miss(0.37, detector_beams)
+        cast, scan, next_a, next_b = _scan_both_ways(world, 0, detector_beams, 0.37)
+        assert (cast.hit_ids == -1).all() and next_a == next_b
+        np.testing.assert_array_equal(scan.ranges, cast.ranges)
+        world.reset(pose=(0.55, 0.0, 0.0))    # facing it: it is seen
+        assert not world.rays_miss(0.37, detector_beams)
+        assert (world.scan(None, beams=detector_beams, reach=0.37).hit_ids >= 0).any()
 
 
 def test_a_tilted_robot_whose_rays_reach_the_floor_is_cast() -> None:
@@ -164,3 +180,26 @@ def test_the_per_tick_detector_answers_as_the_full_check(arenas) -> None:
                 assert rng_a.random() == rng_b.random()
                 answers.add(blocked)
             assert answers == {True, False}
+
+
+def test_the_ray_cover_holds_every_point_of_every_ray() -> None:
+    """Points at any distance <= 1 along any beam of a subset lie in one of its discs, and
+    the detector's discs are smaller than the unit disc (else the cover buys nothing)."""
+    with World("table") as world:
+        lidar = world.lidar
+        detector = _Detector.of(world, PrimitiveParams()).beams
+        rng = np.random.default_rng(8)
+        subsets = [detector, np.arange(10, 50), np.arange(100, 300), (detector + 90) % 360,
+                   np.arange(0, 360, 9), None]
+        for beams in subsets:
+            cover = np.array(lidar.ray_cover(beams))
+            angles = lidar.spec.angles if beams is None else lidar.spec.angles[beams]
+            r = rng.random((len(angles), 50))
+            r[:, 0] = 1.0  # the tips
+            px, py = r * np.cos(angles)[:, None], r * np.sin(angles)[:, None]
+            inside = np.zeros(px.shape, dtype=bool)
+            for ux, uy, radius in cover:
+                inside |= np.hypot(px - ux, py - uy) <= radius + 1e-12
+            assert inside.all()
+        assert max(c[2] for c in lidar.ray_cover(detector)) < 0.65
+        assert lidar.ray_cover(np.arange(0, 360, 9)) == ((0.0, 0.0, 1.0),)
