@@ -228,6 +228,52 @@ def social_reset(
 
 
 @njit(cache=True)
+def _social_action(action: int, e: int, level: int, appropriate: bool, hp: np.ndarray,
+                   rng: np.random.Generator) -> int:
+    """Step 3 of a social step (module docstring): the engagement ``e`` after the social
+    action ``action`` (hello, come, pointing) at perceived ``level``."""
+    if action == _HELLO:
+        if (level == 3 or level == 4) and appropriate:
+            u = rng.random()
+            if level == 4 or u >= hp[H_FAIL]:
+                e = 5
+    elif action == _COME:
+        if e == 5:
+            e = 7 if rng.random() >= hp[H_POINT] else 6
+    elif action == _POINTING:
+        if e == 6:
+            e = 7
+    return e
+
+
+@njit(cache=True)
+def _engaged_human(walls_h: np.ndarray, walls_v: np.ndarray, pcfg: np.ndarray, hp: np.ndarray,
+                   st: np.ndarray, e: int, action: int, follow_dir: int,
+                   rng: np.random.Generator) -> int:
+    """Step 5 of a social step for an engaged human (``e`` >= 5): it turns to the robot
+    and, following (``e`` == 7) after a non-social action, walks ``follow_dir``; updates
+    ``st``, returns the direction it moved (-1: none)."""
+    width = walls_h.shape[1]
+    share = pcfg[P_SHARE] != 0
+    moved = -1
+    gaze_before = pcfg[P_GAZE_BEFORE] != 0
+    if gaze_before:
+        st[S_HUMAN_ORI] = follow_dir
+    elif st[S_HUMAN] != st[S_ROBOT]:
+        st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
+    if e == 7 and not (_HELLO <= action <= _POINTING):
+        d = follow_dir
+        speed = draw_speed(rng, hp)
+        new = move(walls_h, walls_v, st[S_HUMAN], d, speed, -1 if share else st[S_ROBOT])
+        if new != st[S_HUMAN]:
+            moved = d
+            st[S_HUMAN] = new
+            if not gaze_before and new != st[S_ROBOT]:
+                st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
+    return moved
+
+
+@njit(cache=True)
 def social_step(
     walls_h: np.ndarray,
     walls_v: np.ndarray,
@@ -254,17 +300,7 @@ def social_step(
             e = 0
     level = e if e >= 5 else level_p
     # 3. social actions
-    if action == _HELLO:
-        if (level == 3 or level == 4) and appropriate:
-            u = rng.random()
-            if level == 4 or u >= hp[H_FAIL]:
-                e = 5
-    elif action == _COME:
-        if e == 5:
-            e = 7 if rng.random() >= hp[H_POINT] else 6
-    elif action == _POINTING:
-        if e == 6:
-            e = 7
+    e = _social_action(action, e, level, appropriate, hp, rng)
     # the human walks toward where it saw the robot at the start of the step
     follow_dir = direction_between(width, st[S_HUMAN], st[S_ROBOT])
     # 4. the robot acts
@@ -277,22 +313,8 @@ def social_step(
     elif action == _GO_TO_HUMAN:
         _go_to_human(walls_h, walls_v, pcfg, st, engaged_before, e, rng)
     # 5. the human reacts
-    moved = -1
     if e >= 5:
-        gaze_before = pcfg[P_GAZE_BEFORE] != 0
-        if gaze_before:
-            st[S_HUMAN_ORI] = follow_dir
-        elif st[S_HUMAN] != st[S_ROBOT]:
-            st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
-        if e == 7 and not (_HELLO <= action <= _POINTING):
-            d = follow_dir
-            speed = draw_speed(rng, hp)
-            new = move(walls_h, walls_v, st[S_HUMAN], d, speed, -1 if share else st[S_ROBOT])
-            if new != st[S_HUMAN]:
-                moved = d
-                st[S_HUMAN] = new
-                if not gaze_before and new != st[S_ROBOT]:
-                    st[S_HUMAN_ORI] = direction_between(width, st[S_HUMAN], st[S_ROBOT])
+        moved = _engaged_human(walls_h, walls_v, pcfg, hp, st, e, action, follow_dir, rng)
     else:
         moved = human_idle(walls_h, walls_v, st, hp, rng, share)
     st[S_ENGAGED] = e
