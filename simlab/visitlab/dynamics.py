@@ -227,7 +227,7 @@ def social_reset(
     st[S_HUMAN_MOVE] = -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _social_action(action: int, e: int, level: int, appropriate: bool, hp: np.ndarray,
                    rng: np.random.Generator) -> int:
     """Step 3 of a social step (module docstring): the engagement ``e`` after the social
@@ -246,7 +246,7 @@ def _social_action(action: int, e: int, level: int, appropriate: bool, hp: np.nd
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _engaged_human(walls_h: np.ndarray, walls_v: np.ndarray, pcfg: np.ndarray, hp: np.ndarray,
                    st: np.ndarray, e: int, action: int, follow_dir: int,
                    rng: np.random.Generator) -> int:
