@@ -128,6 +128,7 @@ class Lidar:
         self._dirs = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)  # sensor frame
         self._subsets: dict[tuple, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self._covers: dict[tuple, tuple[tuple[float, float, float], ...]] = {}
+        self._last_cover: tuple[object, tuple[tuple[float, float, float], ...]] = (None, ())
 
     def _subset(self, beams: NDArray[np.int64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Directions and angles of a beam subset, kept by its index values: the obstacle
@@ -160,6 +161,9 @@ class Lidar:
         """
         if beams is None:
             return ((0.0, 0.0, 1.0),)
+        last_beams, last_cover = self._last_cover
+        if beams is last_beams:  # the detector asks with one read-only array every tick
+            return last_cover
         b = np.asarray(beams)
         key = (b.dtype.str, b.shape, b.tobytes())
         cover = self._covers.get(key)
@@ -167,6 +171,8 @@ class Lidar:
             if len(self._covers) >= 8:
                 self._covers.clear()
             cover = self._covers[key] = _two_disc_cover(self._angles[b])
+        if isinstance(beams, np.ndarray) and not beams.flags.writeable:
+            self._last_cover = (beams, cover)
         return cover
 
     def far(self, reach: float | None) -> float:

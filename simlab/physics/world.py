@@ -107,6 +107,7 @@ class StaticClearance:
         #: (ny, nx) lower bounds (m) of the cells; rows are y.
         self.bounds = dist - resolution * math.sqrt(0.5) - 1e-9
         self.bounds.setflags(write=False)
+        self._rows = self.bounds.tolist()  # plain floats: at() runs at every control tick
         self.nx, self.ny = nx, ny
 
     def at(self, x: float, y: float) -> float:
@@ -114,7 +115,7 @@ class StaticClearance:
         u = (x - self.x0) * self.inv
         v = (y - self.y0) * self.inv
         if 0.0 <= u < self.nx and 0.0 <= v < self.ny:
-            return float(self.bounds[int(v), int(u)])
+            return self._rows[int(v)][int(u)]
         return 0.0
 
 
