@@ -13,8 +13,11 @@ transitions per wall second and CPU second of both and their ratio.
 entries by own time (ray tests, the per-tick state lookup, stepSimulation, Python overhead
 of the tick loop).
 
-Run: ``python benchmarks/walk_speed.py [--transitions 760] [--profile] [--top 25]``.
-The machine may be shared: the load average (``os.getloadavg``) is printed with the numbers.
+Run: ``python benchmarks/walk_speed.py [--transitions 760] [--repeat 3] [--profile]
+[--top 25]``. The machine may be shared: the load average (``os.getloadavg``) is printed with
+the numbers, and ``--repeat`` alternates the two walks and reports the best (least CPU) and
+the median of each. The old code can be measured by the same script with
+``PYTHONPATH=<a checkout of it>`` (the script imports ``simlab`` from there).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import argparse
 import cProfile
 import os
 import pstats
+import statistics
 import tempfile
 import time
 from pathlib import Path
@@ -70,32 +74,46 @@ def main() -> None:
     parser.add_argument("--transitions", type=int, default=760,
                         help="transitions of each walk (760 = 20 per start state of the lab)")
     parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--repeat", type=int, default=1, help="timed runs of each walk")
     parser.add_argument("--profile", action="store_true", help="cProfile the calibration walk")
     parser.add_argument("--top", type=int, default=25, help="profile entries to print")
     parser.add_argument("--calibration-transitions", type=int, default=77_000,
                         help="transitions of a calibration, for the wall-time estimate")
     args = parser.parse_args()
 
+    import simlab
+
+    print(f"simlab from {Path(simlab.__file__).parent}")
     with tempfile.TemporaryDirectory(prefix="simlab-walk-") as tmp:
         root = Path(tmp)
         lab = lab_walk(root, args.transitions, args.seed)
         table = table_walk(root, args.transitions, args.seed)
         load0 = os.getloadavg()[0]
-        lw, lc, ln = timed(lab, root / "lab-walk")
-        tw, tc, tn = timed(table, root / "table-walk")
+        runs: dict[str, list[tuple[float, float, int]]] = {"lab": [], "table": []}
+        for i in range(args.repeat):
+            runs["lab"].append(timed(lab, root / f"lab-walk-{i}"))
+            runs["table"].append(timed(table, root / f"table-walk-{i}"))
         load1 = os.getloadavg()[0]
         print(f"load average (1 min) {load0:.2f} before, {load1:.2f} after; "
-              f"{os.cpu_count()} cores")
-        print(f"calibration walk (lab, until_state_change + pose noise, 8 fast actions, all "
-              f"starts): {ln} transitions in {lw:.1f} s wall / {lc:.1f} s CPU = "
-              f"{ln / lw:.1f} /s wall, {ln / lc:.1f} /s CPU")
-        print(f"baseline (table, fixed 0.5 s, 16 primitives): {tn} transitions in {tw:.1f} s "
-              f"wall / {tc:.1f} s CPU = {tn / tw:.1f} /s wall, {tn / tc:.1f} /s CPU")
-        print(f"ratio calibration walk / baseline: {(ln / lw) / (tn / tw):.3f} wall, "
-              f"{(ln / lc) / (tn / tc):.3f} CPU")
+              f"{os.cpu_count()} cores; {args.repeat} run(s) of each walk")
+        rate = {}
+        for name, label in (("lab", "calibration walk (lab, until_state_change + pose noise, "
+                                    "8 fast actions, all starts)"),
+                            ("table", "baseline (table, fixed 0.5 s, 16 primitives)")):
+            n = runs[name][0][2]
+            cpu = sorted(r[1] for r in runs[name])
+            wall = sorted(r[0] for r in runs[name])
+            rate[name] = (n / wall[0], n / cpu[0])
+            print(f"{label}: {n} transitions; best {wall[0]:.1f} s wall / {cpu[0]:.1f} s CPU "
+                  f"= {n / wall[0]:.1f} /s wall, {n / cpu[0]:.1f} /s CPU; median "
+                  f"{n / statistics.median(cpu):.1f} /s CPU")
+        print(f"ratio calibration walk / baseline (best runs): "
+              f"{rate['lab'][0] / rate['table'][0]:.3f} wall, "
+              f"{rate['lab'][1] / rate['table'][1]:.3f} CPU")
         n = args.calibration_transitions
-        print(f"estimate: {n} calibration transitions = {n * lc / ln:.0f} CPU s, so about "
-              f"{n * lc / ln / 2:.0f} s wall on 2 idle cores (walks only)")
+        per = 1.0 / rate["lab"][1]
+        print(f"estimate: {n} calibration transitions = {n * per:.0f} CPU s, so about "
+              f"{n * per / 2:.0f} s wall on 2 idle cores (walks only)")
         if args.profile:
             prof = cProfile.Profile()
             prof.enable()
