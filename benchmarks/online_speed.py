@@ -78,7 +78,7 @@ def bench_mdp(decisions: int, repeats: int) -> None:
 def bench_physics(decisions: int, repeats: int) -> None:
     from discretize.voronoi import Discretizer
     from simlab.online import meta
-    from simlab.online.physics import run_physics_online
+    from simlab.online.physics import PhysicsTask, RunStreams, run_physics_online
     from simlab.physics.driver import DecisionDriver
     from simlab.physics.motion import PrimitiveParams
     from simlab.physics.world import World
@@ -94,10 +94,8 @@ def bench_physics(decisions: int, repeats: int) -> None:
             world.reset()
             ag = meta.make_meta_agent(mf, mb, 25, 16, criterion="entropy_and_cost")
             t0 = time.perf_counter()
-            run = run_physics_online(ag, world, disc, goal=(12,), start_states=(0, 24),
-                                     decisions=decisions, env_rng=np.random.default_rng(rep),
-                                     agent_rng=np.random.default_rng(rep + 1),
-                                     noise_rng=np.random.default_rng(rep + 2))
+            run = run_physics_online(ag, world, disc, PhysicsTask((12,), (0, 24), decisions),
+                                     RunStreams.from_seed(np.random.SeedSequence(rep)))
             wall = time.perf_counter() - t0
             Q = ag.mf.Q.copy()  # a frozen table for the replay-style loop
             world.reset()
