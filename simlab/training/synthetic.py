@@ -31,6 +31,41 @@ DIRECTIONS = np.array(
 )
 
 
+def _spread_centres(rng: np.random.Generator, n_states: int, side: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``(points (20 S, 2), centres (S, 2))`` in m: uniform points of the arena (0.1 m from
+    its sides) and cell centres spread evenly among them (30 Lloyd relaxations), numbered
+    row-major from the top-left as the discretizer numbers states."""
+    margin = 0.1
+    pts = rng.uniform(margin, side - margin, size=(20 * n_states, 2))
+    centres = pts[rng.choice(len(pts), n_states, replace=False)].copy()
+    for _ in range(30):  # Lloyd relaxation: evenly spread cells
+        owner = cKDTree(centres).query(pts)[1]
+        for k in range(n_states):
+            sel = pts[owner == k]
+            if len(sel):
+                centres[k] = sel.mean(axis=0)
+    row_h = side / max(1, round(np.sqrt(n_states)))
+    order = np.lexsort((centres[:, 0], np.floor((side - centres[:, 1]) / row_h)))
+    return pts, centres[order]
+
+
+def _goal_masks(tree: cKDTree, n_states: int, side: float, goal_cells: int) -> np.ndarray:
+    """(9, S) bool: goal ``g`` holds the ``goal_cells`` states nearest to its anchor, a 3 x 3
+    grid at 20, 50 and 80 % of ``side`` (m), row-major from the top-left."""
+    anchors = np.array(
+        [
+            [x, y]
+            for y in (0.8 * side, 0.5 * side, 0.2 * side)
+            for x in (0.2 * side, 0.5 * side, 0.8 * side)
+        ]
+    )
+    masks = np.zeros((9, n_states), dtype=bool)
+    for g, p in enumerate(anchors):
+        masks[g, tree.query(p, k=goal_cells)[1]] = True
+    return masks
+
+
 def synthetic_arena_mdp(
     rng: np.random.Generator,
     *,
@@ -50,19 +85,7 @@ def synthetic_arena_mdp(
     states nearest to its anchor point. Returns a validated :class:`EmpiricalMDP`
     with ``counts``, ``visited``, ``entropy``, ``centres`` (S, 2) m, goals and bounds.
     """
-    margin = 0.1
-    pts = rng.uniform(margin, side - margin, size=(20 * n_states, 2))
-    centres = pts[rng.choice(len(pts), n_states, replace=False)].copy()
-    for _ in range(30):  # Lloyd relaxation: evenly spread cells
-        owner = cKDTree(centres).query(pts)[1]
-        for k in range(n_states):
-            sel = pts[owner == k]
-            if len(sel):
-                centres[k] = sel.mean(axis=0)
-    # number states row-major from the top-left (as the discretizer does)
-    row_h = side / max(1, round(np.sqrt(n_states)))
-    order = np.lexsort((centres[:, 0], np.floor((side - centres[:, 1]) / row_h)))
-    centres = centres[order]
+    pts, centres = _spread_centres(rng, n_states, side)
     tree = cKDTree(centres)
     owner = tree.query(pts)[1]
 
@@ -82,16 +105,7 @@ def synthetic_arena_mdp(
     T = counts / counts.sum(axis=2, keepdims=True)
     with np.errstate(divide="ignore", invalid="ignore"):
         entropy = -np.where(T > 0, T * np.log2(T), 0.0).sum(axis=2)
-    anchors = np.array(
-        [
-            [x, y]
-            for y in (0.8 * side, 0.5 * side, 0.2 * side)
-            for x in (0.2 * side, 0.5 * side, 0.8 * side)
-        ]
-    )
-    masks = np.zeros((9, S), dtype=bool)
-    for g, p in enumerate(anchors):
-        masks[g, tree.query(p, k=goal_cells)[1]] = True
+    masks = _goal_masks(tree, S, side, goal_cells)
     return mdp_from_arrays(
         T,
         goals=GoalMasks(np.array([f"g{i + 1}" for i in range(9)]), masks),
