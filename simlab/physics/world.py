@@ -68,47 +68,54 @@ class StaticClearance:
     vertical prisms of unbounded height over their footprints, so the bound also holds
     for any ray that stays within it, at any height. The bound is kept on a grid of
     ``resolution`` (m) over the arena's bounds: a cell stores the exact distance from its
-    centre to the nearest footprint less its half-diagonal (distance is 1-Lipschitz, so
-    no point of the cell is nearer) and less ``1e-9`` m for the rounding of the cell
-    index. Outside the grid the bound is 0. The resolution is coarsened for large arenas
-    so that the grid keeps at most ``max_cells`` cells.
+    centre to the nearest footprint, capped at ``CAP`` m (longer than any ray), less its
+    half-diagonal (distance is 1-Lipschitz, so no point of the cell is nearer) and less
+    ``1e-9`` m for the rounding of the cell index. Outside the grid the bound is 0. The
+    resolution is coarsened for large arenas so that the grid keeps at most ``max_cells``
+    cells; each footprint updates only the cells within ``CAP`` of its bounding box.
 
     Used to leave out ray tests that provably hit nothing (:meth:`World.rays_miss`).
     """
 
+    #: m; distances are kept up to this (more than the LIDAR's 3.5 m range).
+    CAP = 4.0
+
     def __init__(self, arena: ArenaConfig, resolution: float = 0.02,
                  max_cells: int = 250_000) -> None:
         x0, y0, x1, y1 = arena.bounds
-        resolution = max(resolution, math.sqrt((x1 - x0) * (y1 - y0) / max_cells))
+        self.res = max(resolution, math.sqrt((x1 - x0) * (y1 - y0) / max_cells))
         self.x0, self.y0 = float(x0), float(y0)
-        self.inv = 1.0 / resolution
-        nx = max(1, math.ceil((x1 - x0) * self.inv))
-        ny = max(1, math.ceil((y1 - y0) * self.inv))
-        xs = self.x0 + (np.arange(nx) + 0.5) * resolution
-        ys = self.y0 + (np.arange(ny) + 0.5) * resolution
-        gx, gy = np.meshgrid(xs, ys)  # (ny, nx)
-        dist = np.full(gx.shape, np.inf)
-        boxes = [(x, y, ex, ey, 0.0) for x, y, ex, ey in _boundary_walls(arena)]
-        if arena.map_walls is not None:
-            boxes += [((bx0 + bx1) / 2, (by0 + by1) / 2, (bx1 - bx0) / 2, (by1 - by0) / 2, 0.0)
-                      for bx0, by0, bx1, by1 in arena.map_walls.boxes]
-        for ob in arena.obstacles:
-            if ob.kind == "box":
-                boxes.append((ob.x, ob.y, ob.size[0] / 2, ob.size[1] / 2, ob.yaw))
-            else:
-                dist = np.minimum(dist, np.maximum(np.hypot(gx - ob.x, gy - ob.y) - ob.radius,
-                                                   0.0))
-        for cx, cy, ex, ey, yaw in boxes:
-            c, s = math.cos(yaw), math.sin(yaw)
-            dx, dy = gx - cx, gy - cy
-            u = np.maximum(np.abs(c * dx + s * dy) - ex, 0.0)
-            v = np.maximum(np.abs(-s * dx + c * dy) - ey, 0.0)
-            dist = np.minimum(dist, np.hypot(u, v))
+        self.inv = 1.0 / self.res
+        self.nx = max(1, math.ceil((x1 - x0) * self.inv))
+        self.ny = max(1, math.ceil((y1 - y0) * self.inv))
+        dist = np.full((self.ny, self.nx), self.CAP)
+        for shape in _footprints(arena):
+            self._lower(dist, *shape)
         #: (ny, nx) lower bounds (m) of the cells; rows are y.
-        self.bounds = dist - resolution * math.sqrt(0.5) - 1e-9
+        self.bounds = dist - self.res * math.sqrt(0.5) - 1e-9
         self.bounds.setflags(write=False)
         self._rows = self.bounds.tolist()  # plain floats: at() runs at every control tick
-        self.nx, self.ny = nx, ny
+
+    def _lower(self, dist: NDArray[np.float64], cx: float, cy: float, ex: float, ey: float,
+               yaw: float, radius: float) -> None:
+        """Lower ``dist`` to the distance from the cell centres within ``CAP`` of the
+        footprint: a box of half extents ``(ex, ey)`` turned by ``yaw`` around ``(cx, cy)``,
+        rounded by ``radius`` (a cylinder is a box of no extent)."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        half_x = abs(c) * ex + abs(s) * ey + radius + self.CAP + self.res
+        half_y = abs(s) * ex + abs(c) * ey + radius + self.CAP + self.res
+        i0 = max(0, math.floor((cx - half_x - self.x0) * self.inv))
+        i1 = min(self.nx, math.ceil((cx + half_x - self.x0) * self.inv) + 1)
+        j0 = max(0, math.floor((cy - half_y - self.y0) * self.inv))
+        j1 = min(self.ny, math.ceil((cy + half_y - self.y0) * self.inv) + 1)
+        if i0 >= i1 or j0 >= j1:
+            return
+        dx = self.x0 + (np.arange(i0, i1) + 0.5) * self.res - cx
+        dy = (self.y0 + (np.arange(j0, j1) + 0.5) * self.res - cy)[:, None]
+        u = np.maximum(np.abs(c * dx + s * dy) - ex, 0.0)
+        v = np.maximum(np.abs(-s * dx + c * dy) - ey, 0.0)
+        block = dist[j0:j1, i0:i1]
+        np.minimum(block, np.maximum(np.hypot(u, v) - radius, 0.0), out=block)
 
     def at(self, x: float, y: float) -> float:
         """A lower bound (m) of the distance from ``(x, y)`` to every static footprint."""
@@ -118,6 +125,35 @@ class StaticClearance:
             return self._rows[int(v)][int(u)]
         return 0.0
 
+    @classmethod
+    def of(cls, arena: ArenaConfig) -> StaticClearance:
+        """The bounds of ``arena``, kept per arena in this process (a calibration builds a
+        world per candidate in the same lab)."""
+        grid = _CLEARANCES.get(arena)
+        if grid is None:
+            if len(_CLEARANCES) >= 4:
+                _CLEARANCES.clear()
+            grid = _CLEARANCES[arena] = cls(arena)
+        return grid
+
+
+_CLEARANCES: dict[ArenaConfig, StaticClearance] = {}
+
+
+def _footprints(arena: ArenaConfig) -> list[tuple[float, float, float, float, float, float]]:
+    """The static footprints of ``arena`` as ``(cx, cy, half x, half y, yaw, radius)`` (m,
+    rad): the boundary walls, the map walls, the box and cylinder obstacles."""
+    out = [(x, y, ex, ey, 0.0, 0.0) for x, y, ex, ey in _boundary_walls(arena)]
+    if arena.map_walls is not None:
+        out += [((bx0 + bx1) / 2, (by0 + by1) / 2, (bx1 - bx0) / 2, (by1 - by0) / 2, 0.0, 0.0)
+                for bx0, by0, bx1, by1 in arena.map_walls.boxes]
+    for ob in arena.obstacles:
+        if ob.kind == "box":
+            out.append((ob.x, ob.y, ob.size[0] / 2, ob.size[1] / 2, ob.yaw, 0.0))
+        else:
+            out.append((ob.x, ob.y, 0.0, 0.0, 0.0, ob.radius))
+    return out
+
 
 #: Margins (m) of the scan shortcut of :meth:`World.scan`: how much farther than a ray's
 #: length the nearest static footprint must be, and how high above the floor the rays
@@ -125,6 +161,24 @@ class StaticClearance:
 #: a ray never reports a hit outside a footprint; the margins are slack on top.
 CLEAR_MARGIN = 0.02
 FLOOR_MARGIN = 0.05
+#: The shortcut holds only while the base tilts less than this (sine; 1.1 degrees): a robot
+#: on a flat floor tilts ~1e-4 (measured on the benchmark lab's walk: at most 6e-4).
+MAX_TILT_SIN = 0.02
+
+
+def rays_clear_robot(robot: RobotSpec, lidar: LidarSpec) -> bool:
+    """Whether no ray can hit the robot itself while it tilts less than ``MAX_TILT_SIN``.
+
+    The robot's parts are taken to lie over its footprint (``robot.footprint``, base frame)
+    and below twice the sensor's height. A ray point is at least ``range_min * cos(tilt)``
+    from the sensor horizontally; a part at most its footprint corner's distance plus
+    ``sensor height * sin(tilt)`` (the top-left block of the rotation has norm <= 1, its
+    third column a horizontal length of ``sin(tilt)``). True for the Burger: 0.117 < 0.120 m.
+    """
+    ox, oy, oz = robot.lidar_offset
+    x0, x1, y0, y1 = robot.footprint
+    corner = max(math.hypot(x - ox, y - oy) for x in (x0, x1) for y in (y0, y1))
+    return corner + oz * MAX_TILT_SIN < lidar.range_min * math.sqrt(1.0 - MAX_TILT_SIN ** 2)
 
 
 class World:
@@ -215,6 +269,7 @@ class World:
         # What the scan shortcut knows of: any body added or removed afterwards turns it off.
         self._num_bodies = c.getNumBodies
         self._built_bodies = (c.getNumBodies(), list(self.static_bodies))
+        self._shortcut = rays_clear_robot(self.robot_spec, self.lidar_spec)
         self._sensor_from_com = tuple(float(o) - i for o, i in
                                       zip(self.robot_spec.lidar_offset, self._inertial_xyz,
                                           strict=True))
@@ -400,29 +455,32 @@ class World:
         can hit a static body only if one's footprint reaches into a disc
         (:class:`StaticClearance` at the disc's centre). Vertically it stays within ``far *
         sin(tilt)`` of the sensor's height, so it reaches the floor only if that drop does;
-        and it never hits the robot itself (rays start ``range_min`` out, see
-        :mod:`simlab.physics.lidar`). Bodies added to or removed from the client after the
+        and it never hits the robot itself while the tilt is below ``MAX_TILT_SIN``
+        (:func:`rays_clear_robot`; a robot for which that does not hold never takes the
+        shortcut). Bodies added to or removed from the client after the
         last :meth:`reset` (a human's robot, a box of :mod:`simlab.physics.obstacles`) are
         unknown to the bound: the answer is then False. Plain floats: this runs at every
         control tick.
         """
         far = self.lidar.far(reach)
         n_bodies, static = self._built_bodies
-        if self._num_bodies() != n_bodies or self.static_bodies != static:
+        if (not self._shortcut or self._num_bodies() != n_bodies
+                or self.static_bodies != static):
             return False
         (cx, cy, cz), (qx, qy, qz, qw) = self._get_base(self.body)
         dx, dy, dz = self._sensor_from_com
         # rows of the base's rotation matrix (the sensor is at com + R @ (dx, dy, dz))
         r20, r21 = 2.0 * (qx * qz - qy * qw), 2.0 * (qy * qz + qx * qw)
+        tilt = math.hypot(r20, r21)
         sz = cz + r20 * dx + r21 * dy + (1.0 - 2.0 * (qx * qx + qy * qy)) * dz
-        if sz - far * math.hypot(r20, r21) <= FLOOR_MARGIN:
+        if tilt >= MAX_TILT_SIN or sz - far * tilt <= FLOOR_MARGIN:
             return False
         r00, r01 = 1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy - qz * qw)
         r10, r11 = 2.0 * (qx * qy + qz * qw), 1.0 - 2.0 * (qx * qx + qz * qz)
         sx = cx + r00 * dx + r01 * dy + 2.0 * (qx * qz + qy * qw) * dz
         sy = cy + r10 * dx + r11 * dy + 2.0 * (qy * qz - qx * qw) * dz
         if self._clearance is None:
-            self._clearance = StaticClearance(self.arena)
+            self._clearance = StaticClearance.of(self.arena)
         at = self._clearance.at
         for ux, uy, radius in self.lidar.ray_cover(beams):
             px, py = far * ux, far * uy

@@ -154,6 +154,25 @@ def test_a_tilted_robot_whose_rays_reach_the_floor_is_cast() -> None:
         assert next_a == next_b
 
 
+def test_the_shortcut_needs_a_robot_inside_the_rays_start() -> None:
+    """The Burger's outline lies within 0.117 m of its LIDAR, inside the rays' 0.12 m
+    start; a robot twice as wide does not, and its world never leaves a scan out."""
+    import dataclasses
+
+    from simlab.physics.lidar import LidarSpec
+    from simlab.physics.world import rays_clear_robot
+
+    with World("table") as world:
+        spec = world.robot_spec
+        assert rays_clear_robot(spec, world.lidar_spec) and world.rays_miss(0.37)
+        x0, x1, y0, y1 = spec.footprint
+        wide = dataclasses.replace(spec, footprint=(x0, x1, 2 * y0, 2 * y1))
+        assert not rays_clear_robot(wide, world.lidar_spec)
+        assert not rays_clear_robot(spec, LidarSpec(range_min=0.1))
+    with World("table", robot=wide) as world:
+        assert not world.rays_miss(0.37)
+
+
 def test_a_body_the_world_did_not_build_turns_the_shortcut_off() -> None:
     with World("table") as world:
         assert world.rays_miss(0.37)
