@@ -583,6 +583,33 @@ def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 
     return path
 
 
+def _set_custom_data(w: Any, traj: BagTrajectory, origin_ns: int) -> None:
+    """The bag's ``custom_data``: the trajectory's own, then simlab's writer mark, time
+    origin (ns), action set (JSON) and pose source (these win over same-named own keys)."""
+    for key, value in (traj.custom or {}).items():
+        w.set_custom_data(str(key), str(value))
+    w.set_custom_data("simlab.writer", WRITER_MARK)
+    w.set_custom_data("simlab.time_origin_ns", str(origin_ns))
+    if traj.action_set is not None:
+        w.set_custom_data("simlab.action_set", json.dumps(traj.action_set))
+    if traj.pose_source is not None:
+        w.set_custom_data("simlab.pose_source", str(traj.pose_source))
+
+
+def _put_actions(put: Any, types: Any, traj: BagTrajectory, t0: float) -> None:
+    """One ``/simlab/action`` message per decision (at ``t0 + action_t``, s), with its
+    ``/simlab/blocked`` and ``/simlab/duration`` when the trajectory has them."""
+    action_t = np.asarray(traj.action_t, dtype=np.float64)  # _check: (k,)
+    for k, (a, ta) in enumerate(zip(traj.actions, action_t, strict=True)):
+        ns = round((t0 + float(ta)) * 1e9)
+        put("/simlab/action", ns, types["std_msgs/msg/Int32"](data=int(a)))
+        if traj.blocked is not None:
+            put("/simlab/blocked", ns, types["std_msgs/msg/Bool"](data=bool(traj.blocked[k])))
+        if traj.duration is not None:
+            put("/simlab/duration", ns,
+                types["std_msgs/msg/Float64"](data=float(traj.duration[k])))
+
+
 def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: float) -> None:
     m = _Msgs(ts)
     latched = [_latched_qos()]
@@ -601,14 +628,7 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                     offered_qos_profiles=latched if topic in LATCHED else ())
             w.write(conns[topic], ns, ts.serialize_cdr(msg, _TYPES[topic]))
 
-        for key, value in (traj.custom or {}).items():
-            w.set_custom_data(str(key), str(value))
-        w.set_custom_data("simlab.writer", WRITER_MARK)
-        w.set_custom_data("simlab.time_origin_ns", str(origin_ns))
-        if traj.action_set is not None:
-            w.set_custom_data("simlab.action_set", json.dumps(traj.action_set))
-        if traj.pose_source is not None:
-            w.set_custom_data("simlab.pose_source", str(traj.pose_source))
+        _set_custom_data(w, traj, origin_ns)
         t = np.asarray(traj.t, dtype=np.float64)
         stamps = [round((t0 + float(ti)) * 1e9) for ti in t]
         pose = np.asarray(traj.pose, dtype=np.float64)
@@ -645,17 +665,7 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                 put("/simlab/true_pose", ns, ts.types["geometry_msgs/msg/PoseStamped"](
                     header=m.header(ns, "map"), pose=m.pose(*traj.truth[i])))
         if traj.actions is not None:
-            types = ts.types
-            action_t = np.asarray(traj.action_t, dtype=np.float64)  # _check: (k,)
-            for k, (a, ta) in enumerate(zip(traj.actions, action_t, strict=True)):
-                ns = round((t0 + float(ta)) * 1e9)
-                put("/simlab/action", ns, types["std_msgs/msg/Int32"](data=int(a)))
-                if traj.blocked is not None:
-                    put("/simlab/blocked", ns,
-                        types["std_msgs/msg/Bool"](data=bool(traj.blocked[k])))
-                if traj.duration is not None:
-                    put("/simlab/duration", ns,
-                        types["std_msgs/msg/Float64"](data=float(traj.duration[k])))
+            _put_actions(put, ts.types, traj, t0)
 
 
 def _stamp_ns(header: Any) -> int:
