@@ -20,6 +20,27 @@ from simlab.experiments.visitlab.modules import (
 from simlab.experiments.visitlab.runs import cache_note, get_runs, param_notes, visitlab_seed
 
 
+def _combined_notes(specs: dict[str, Any], task: Any) -> list[str]:
+    """What :func:`combined`'s notes say of its modules, the GIF and a greedy social
+    module's loops."""
+    return [f"Modules (seed i of each): navigation {specs['nav'].agent} "
+            f"({specs['nav'].trials:,} trials, random start and goal), go-to-human "
+            f"{specs['gotohuman'].agent} ({specs['gotohuman'].trials:,} trials), social "
+            f"{specs['social'].agent} with human '{task.human.name}' "
+            f"({specs['social'].trials:,} trials). World {task.layout.name}, "
+            f"{task.max_steps}-step trials, speed weights {task.speed_weights}.",
+            "The GIF is the first evaluation trial of seed 0 in which at least two goal "
+            "rooms were reached (the goal room is blue; the caption gives the social "
+            "module's action, the delegated go-to-human move after '->', the interaction "
+            "level and the required direction).",
+            "A greedy social module can loop: in social training action 29 jumped two "
+            "cells ahead of the human's gaze with a random orientation, here it is one "
+            "go-to-human move, which does nothing once the robot stands in the facing "
+            "field; trials_with_a_goal and the eps-greedy evaluation "
+            "(egreedy_goals_per_trial, the module's own exploration rate) show how much "
+            "this costs."]
+
+
 @runner("visitlab.combined")
 def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> RunResult:
     """The combined architecture (thesis 3.1.1, 4.4): goal rooms reached per trial.
@@ -72,23 +93,7 @@ def combined(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) ->
                "trials_with_a_goal": float((goals > 0).mean()),
                **module_metrics(runs, task), "gif_goals": pick.goals,
                "trials": trials, "seeds": n, "max_steps": task.max_steps}
-    notes = [cache_note(got),
-             f"Modules (seed i of each): navigation {specs['nav'].agent} "
-             f"({specs['nav'].trials:,} trials, random start and goal), go-to-human "
-             f"{specs['gotohuman'].agent} ({specs['gotohuman'].trials:,} trials), social "
-             f"{specs['social'].agent} with human '{task.human.name}' "
-             f"({specs['social'].trials:,} trials). World {task.layout.name}, "
-             f"{task.max_steps}-step trials, speed weights {task.speed_weights}.",
-             "The GIF is the first evaluation trial of seed 0 in which at least two goal "
-             "rooms were reached (the goal room is blue; the caption gives the social "
-             "module's action, the delegated go-to-human move after '->', the interaction "
-             "level and the required direction).",
-             "A greedy social module can loop: in social training action 29 jumped two "
-             "cells ahead of the human's gaze with a random orientation, here it is one "
-             "go-to-human move, which does nothing once the robot stands in the facing "
-             "field; trials_with_a_goal and the eps-greedy evaluation "
-             "(egreedy_goals_per_trial, the module's own exploration rate) show how much "
-             "this costs."]
+    notes = [cache_note(got), *_combined_notes(specs, task)]
     details = {"goals_per_seed": per_seed.round(4).tolist(),
                "random_goals_per_seed": rand.mean(axis=1).round(4).tolist()}
     return RunResult(metrics=metrics, figures=figures, notes=notes + param_notes(params),
