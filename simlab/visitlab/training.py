@@ -5,8 +5,8 @@ workers) and ``simlab visitlab train`` (:func:`train_command`: every agent and h
 :class:`~simlab.visitlab.options.VisitlabTrainConfig`, saved together).
 
 The loops, the agents' variant settings (``thesis``, ``paper``) and the learner records
-are :mod:`simlab.visitlab.fused`; the options :mod:`simlab.visitlab.options`; the files
-:mod:`simlab.visitlab.results`. Their names are importable from here too.
+are :mod:`simlab.visitlab.fused`, the options :mod:`simlab.visitlab.options` (the names of
+both are importable from here too); the files are :mod:`simlab.visitlab.results`.
 
 Randomness: each seeded run draws two generators from
 ``SeedSequence(seed).spawn(n_seeds)[i].spawn(2)`` — the environment's and the
