@@ -6,10 +6,14 @@ goal state and then restarts from a start state; the task changes at a given dec
 either the goal moves (18 -> 34) or passages close (the transitions 20 <-> 21 and 6 <-> 7
 are removed). The agent is not told of a change.
 
-Decision for a closed passage ``u <-> v`` on an MDP: every ``T(u, a, v)`` and
-``T(v, a, u)`` is moved onto the self-loop of its state (the robot that tried to pass is
-stopped where it was, as the obstacle detector stops it in physics), so every row stays a
-distribution. Closing a passage the MDP never used changes nothing (and is allowed).
+Decision for a closed passage ``u <-> v`` on an MDP, as the authors' published
+simulation of the protocol does it (the transition is deleted from the model the robot's
+moves are drawn from): every ``T(u, a, v)`` and ``T(v, a, u)`` is removed and the row
+renormalised over the outcomes that remain (the robot that tried to pass ends where that
+action's other recorded outcomes went: mostly staying, sometimes slipping to a
+neighbour); a row with no other outcome becomes the self-loop (stopped where it was, as
+the obstacle detector stops it in physics). Every row stays a distribution. Closing a
+passage the MDP never used changes nothing (and is allowed).
 
 The compiled form :class:`OnlineMdp` holds one ``(S, A, S)`` cumulative ``T`` and one
 ``(S,)`` reward per phase; phase ``i`` runs from decision ``phase_start[i]`` on.
@@ -55,13 +59,17 @@ def parse_passages(items: Sequence[Any], *, key: str = "passages") -> tuple[tupl
 
 
 def close_passages(T: np.ndarray, passages: Sequence[tuple[int, int]]) -> np.ndarray:
-    """A copy of ``T`` (S, A, S) with every ``u <-> v`` transition moved onto the self-loop
-    (module docstring); rows stay distributions."""
+    """A copy of ``T`` (S, A, S) with every ``u <-> v`` transition removed and its rows
+    renormalised over the other outcomes, or made self-loops when none is left (module
+    docstring); rows stay distributions."""
     T = np.array(T, dtype=np.float64)
     for u, v in passages:
         for x, y in ((u, v), (v, u)):
-            T[x, :, x] += T[x, :, y]
             T[x, :, y] = 0.0
+            rest = T[x].sum(axis=1)
+            left = rest > 0.0
+            T[x, left] /= rest[left, None]
+            T[x, ~left, x] = 1.0
     return T
 
 

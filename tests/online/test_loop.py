@@ -60,7 +60,16 @@ def test_closed_passages_are_never_crossed_and_rows_stay_distributions(experts) 
     closed = close_passages(T, [(2, 3)])
     np.testing.assert_allclose(closed.sum(axis=2), 1.0)
     assert np.all(closed[2, :, 3] == 0) and np.all(closed[3, :, 2] == 0)
-    assert closed[2, 1, 2] == pytest.approx(1.0)  # the blocked move stays, with the slip
+    assert closed[2, 1, 2] == pytest.approx(1.0)  # the blocked move's other outcome: stay
+    # hand-worked: a row with outcomes 3 (0.5), 1 (0.3), 2 (0.2) loses 3 and keeps the
+    # others in proportion, 0.6 and 0.4; a row whose only outcome was 3 stays put
+    T2 = np.zeros((4, 2, 4))
+    T2[2, 0, [3, 1, 2]] = (0.5, 0.3, 0.2)
+    T2[2, 1, 3] = 1.0
+    T2[[0, 1, 3], :, 0] = 1.0
+    c2 = close_passages(T2, [(2, 3)])
+    np.testing.assert_allclose(c2[2, 0], [0.0, 0.6, 0.4, 0.0])
+    np.testing.assert_allclose(c2[2, 1], [0.0, 0.0, 1.0, 0.0])
     np.testing.assert_array_equal(np.delete(closed, [2, 3], axis=0), np.delete(T, [2, 3], 0))
     # the goal (5) is beyond the passage: rewards stop once it closes
     task = OnlineTask(goal=(5,), start_states=(0,),
