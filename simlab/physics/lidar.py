@@ -11,7 +11,11 @@ Conventions:
 * beams that hit nothing within ``range_max`` read ``inf`` (the REP-117 convention); so
   does a noisy reading that would fall outside ``[range_min, range_max]``;
 * the scan is instantaneous (no rotation skew) and taken in the full 3-D pose of the
-  base link, so a tilted robot scans a tilted plane.
+  base link, so a tilted robot scans a tilted plane;
+* a scan whose rays provably hit nothing need not be cast: :meth:`Lidar.missed_scan`
+  returns what the cast would (all ``inf``, the same noise draws), and
+  :meth:`Lidar.ray_cover` gives discs that hold every ray of a beam subset, for the
+  world's proof (:meth:`simlab.physics.world.World.rays_miss`).
 """
 
 from __future__ import annotations

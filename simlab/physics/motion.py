@@ -11,7 +11,9 @@ RIGHT, UP-LEFT, UP-RIGHT, DOWN-LEFT, DOWN-RIGHT, with UP = +y of the map. A prim
    the primitive is *blocked* if any return lies in the corridor the robot would sweep,
    i.e. from the robot's front edge to ``drive distance + detector_margin`` ahead, as wide
    as the robot plus ``detector_side_margin`` on each side. A blocked primitive skips the
-   translation and is logged as such;
+   translation and is logged as such (a drive until the state changes re-runs the check
+   at every control tick; a tick whose rays provably reach nothing is answered without a
+   ray test, with the same result and noise draws: :meth:`World.rays_miss`);
 3. **drives straight** for ``drive_time`` (0.5 s) at the slow (0.10 m/s) or fast speed
    (fast = v_max = 0.22 m/s), holding the heading with a proportional correction at
    ``hold_hz``; so a slow move covers 0.05 m and a fast one 0.11 m;
