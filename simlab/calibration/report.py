@@ -131,6 +131,9 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
                       for c in result.confirmed],
         "transfer": None if result.transfer is None else {
             "overview": transfer_overview(result.transfer),
+            "data_curve": [{**row, "mean_ratio": _fin(row["mean_ratio"]),
+                            "worst_ratio": _fin(row["worst_ratio"])}
+                           for row in result.transfer_curve],
             **result.transfer.to_json()},
     }
 
@@ -154,11 +157,12 @@ def transfer_overview(transfer: Any) -> dict[str, Any]:
     twins = []
     opt = np.array([g.optimum_mean for g in transfer.goals])
     ok = np.isfinite(opt) & (opt > 0)
+    overall = transfer.overall_ratios()
     for k, name in enumerate(transfer.twin_names):
         steps = np.array([g.twins[k].mean_steps for g in transfer.goals])
         ratios = np.where(ok, steps / np.where(ok, opt, 1.0), np.nan)
         never = int(np.sum(ok & ~np.isfinite(steps)))
-        total = float(steps[ok].sum() / opt[ok].sum()) if ok.any() else math.nan
+        total = float(overall[k])
         worst_i = int(np.nanargmax(ratios)) if np.isfinite(ratios).any() or never else -1
         twins.append({"twin": name, "ratio": _fin(total),
                       "worst_goal": transfer.goals[worst_i].name if worst_i >= 0 else None,
@@ -341,6 +345,19 @@ def _transfer_section(result: CalibrationResult) -> str:
               "transitions of the sample), so 1.000 is out of reach even for the true robot. "
               "The figure shows the goal where the twins do worst.\n\n"
               "![transfer](transfer.png)\n\n")
+    if len(result.transfer_curve) > 1:
+        out.write("A twin's policy is as good as the data it is planned on. The same twin "
+                  "walks pooled into fewer, larger twins (same score):\n\n"
+                  "| walks per twin | twins | transitions per twin | steps / real optimum "
+                  "(mean) | worst |\n|---|---|---|---|---|\n")
+        for row in result.transfer_curve:
+            mean, worst = (("never" if math.isinf(row[k]) else _cell(row[k]))
+                           for k in ("mean_ratio", "worst_ratio"))
+            out.write(f"| {row['walks']} | {row['pools']} | {row['transitions']} | {mean} | "
+                      f"{worst} |\n")
+        out.write("\nCollect at least the transitions of the row that reaches the "
+                  "perfect-twin score before training the policy you take to the robot "
+                  "(`simlab collect --hours` with the calibrated primitives).\n\n")
     return out.getvalue()
 
 

@@ -445,6 +445,10 @@ class CalibrationResult:
     confirmed: list[Candidate] = field(default_factory=list)
     twins: list[Candidate] = field(default_factory=list)
     transfer: Any = None
+    #: transfer against the twin's data: the twin walks pooled 1, 2, ... at a time, each
+    #: pool's policies scored on the real model (``walks``, ``pools``, ``transitions`` per
+    #: pool, ``mean_ratio``, ``worst_ratio`` of summed steps over the optimum's)
+    transfer_curve: list[dict[str, Any]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     #: the screening's own best (its winner before confirmation)
     screen_best: int = 0
@@ -782,6 +786,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     if late is not None:
         warn(late)
         setup.warnings.append(late)
+    transfer, curve = _transfer(real, done.twins, setup, config)
     return CalibrationResult(
         config=config, space=setup.space, base=setup.base, params=params, candidates=cands,
         best=done.best, final=final, floor=floor, matched_floor=matched, real=real,
@@ -792,9 +797,8 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         entropy_sim=entropy_per_action(final.sim.counts),
         latency_fitted=fitted, wall_seconds=time.perf_counter() - t0, notes=done.notes,
         start_confirmed=done.start, signature=setup.signature, budgets=budgets,
-        confirmed=done.confirmed, twins=done.twins,
-        transfer=_transfer(real, done.twins, setup, config), warnings=setup.warnings,
-        screen_best=screen_best,
+        confirmed=done.confirmed, twins=done.twins, transfer=transfer,
+        transfer_curve=curve, warnings=setup.warnings, screen_best=screen_best,
     )
 
 
@@ -884,23 +888,45 @@ def _confirm_stage(runner: _Runner, cands: list[Candidate], screen_best: int,
 
 
 def _transfer(real: RealTable, twins: list[Candidate], setup: _Setup,
-              config: CalibrationConfig) -> Any:
+              config: CalibrationConfig) -> tuple[Any, list[dict[str, Any]]]:
     """The transfer report of the twin walks on the real model (None without twins), every
     goal of ``setup.goals`` with its perfect-twin floor (the real optimum of an estimated
-    model is biased low)."""
+    model is biased low); and the transfer against the twins' own data
+    (:func:`_data_curve`)."""
     if not twins:
-        return None
+        return None, []
     from simlab.calibration.transfer import TransferModel, transfer_report
 
     def model(counts: NDArray[np.int64], name: str) -> TransferModel:
         return TransferModel.from_counts(counts, name=name, action_set=real.action_set,
                                          centres=setup.disc.centres)
 
-    return transfer_report(
-        model(real.counts, real.source or "real"),
-        [model(t.sim.counts, f"twin seed {t.seed}") for t in twins],
-        {f"s{g}": [g] for g in setup.goals}, n_boot=TRANSFER_BOOT,
+    real_model = model(real.counts, real.source or "real")
+    goals = {f"s{g}": [g] for g in setup.goals}
+    report = transfer_report(
+        real_model, [model(t.sim.counts, f"twin seed {t.seed}") for t in twins], goals,
+        n_boot=TRANSFER_BOOT,
         rng=np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(11,))))
+    curve = []
+    for k in _pool_sizes(len(twins)):
+        pools = [twins[i:i + k] for i in range(0, len(twins) - k + 1, k)]
+        counts = [sum(t.sim.counts for t in pool) for pool in pools]
+        ratios = transfer_report(real_model, [model(c, f"{k} walks") for c in counts],
+                                 goals).overall_ratios()
+        curve.append({"walks": k, "pools": len(pools),
+                      "transitions": int(sum(int(c.sum()) for c in counts) // len(counts)),
+                      "mean_ratio": float(np.mean(ratios)),
+                      "worst_ratio": float(np.max(ratios))})
+    return report, curve
+
+
+def _pool_sizes(n: int) -> list[int]:
+    """Twin walks pooled per twin in the data curve: 1, 2, 4, ... below ``n``, then ``n``."""
+    sizes, k = [], 1
+    while k < n:
+        sizes.append(k)
+        k *= 2
+    return [*sizes, n]
 
 
 #: Resamples of the transfer report's perfect-twin floor (per goal).

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import tomllib
 from pathlib import Path
@@ -55,6 +56,13 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     assert len(overview["twins"]) == 5 and overview["goals"] == 9
     assert all(t["ratio"] is None or t["ratio"] >= 1.0 - 1e-9 for t in overview["twins"])
     assert f"{len(overview['twins'])} twin seeds" in printed
+    # the same five walks pooled 1, 2, 4 and 5 at a time; one walk per twin is the overview
+    curve = report["transfer"]["data_curve"]
+    assert [(r["walks"], r["pools"]) for r in curve] == [(1, 5), (2, 2), (4, 1), (5, 1)]
+    sizes = [r["transitions"] for r in curve]
+    assert all(a < b for a, b in itertools.pairwise(sizes))
+    assert curve[0]["mean_ratio"] == pytest.approx(overview["mean_ratio"])
+    assert curve[0]["worst_ratio"] == pytest.approx(overview["worst_ratio"])
     cov = report["coverage"]
     assert cov["real_pairs_tried"] <= cov["real_pairs"] == report["real"]["pairs_visited"]
     assert report["real"]["action_set"]["convention"] == "ccw-east"

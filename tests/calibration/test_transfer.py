@@ -434,3 +434,23 @@ def test_perfect_twin_floor() -> None:
     assert res.goals[0].floor is not None and "perfect twin" in res.summary_line()
     with pytest.raises(ConfigError, match="Generator"):
         transfer_report(real, [real], {"corner": [8]}, n_boot=10)
+
+
+def test_overall_ratio_sums_steps_over_goals_before_dividing() -> None:
+    """A 3-state chain 0 -> 1 -> 2 (action 0 moves right, action 1 stays; state 2 moves
+    back left with action 0): goals {2} and {1}. Real optimum from the other states: goal 2
+    steps (2 + 1) / 2 = 1.5, goal 1 steps (1 + 1) / 2 = 1. A twin identical to the real
+    robot scores 1.0; a twin whose state-0 action is a stay never arrives (inf)."""
+    T = np.zeros((3, 2, 3))
+    T[0, 0, 1] = T[1, 0, 2] = T[2, 0, 1] = 1.0
+    for s in range(3):
+        T[s, 1, s] = 1.0
+    real = TransferModel(T=T, allowed=np.ones((3, 2), bool), name="real")
+    wrong = T.copy()
+    wrong[0, 0] = [1.0, 0.0, 0.0]  # the twin believes moving right from 0 stays
+    wrong[0, 1] = [0.0, 1.0, 0.0]  # ... and that "stay" moves right
+    twin_wrong = TransferModel(T=wrong, allowed=np.ones((3, 2), bool), name="wrong")
+    res = transfer_report(real, [real, twin_wrong], {"g2": [2], "g1": [1]})
+    assert [g.optimum_mean for g in res.goals] == pytest.approx([1.5, 1.0])
+    ratios = res.overall_ratios()
+    assert ratios[0] == pytest.approx(1.0) and np.isinf(ratios[1])

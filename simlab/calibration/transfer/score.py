@@ -127,6 +127,21 @@ class TransferResult:
             "goals": [_goal_json(g) for g in self.goals],
         }
 
+    def overall_ratios(self) -> NDArray[np.float64]:
+        """(n_twins,) each twin's expected steps summed over the goals, over the real
+        optimum summed over the same goals (a random start and a random goal: long trips
+        weigh more than a start next to its goal); goals the real optimum cannot reach are
+        left out, ``inf`` when the twin never arrives for some goal, NaN without goals."""
+        opt = np.array([g.optimum_mean for g in self.goals], dtype=np.float64)
+        ok = np.isfinite(opt) & (opt > 0)
+        out = np.full(len(self.twin_names), math.nan)
+        if not ok.any():
+            return out
+        for k in range(len(self.twin_names)):
+            steps = np.array([g.twins[k].mean_steps for g in self.goals], dtype=np.float64)
+            out[k] = steps[ok].sum() / opt[ok].sum()
+        return out
+
     def summary_line(self) -> str:
         """``twin policy: mean X steps, worst Y, real optimum Z (+N %)``, one such clause
         per goal (prefixed by its name when there are several); a mean over twins of which
