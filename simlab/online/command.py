@@ -4,7 +4,7 @@ Every *arm* (a criterion; ``entropy_and_cost`` once per ``kappa``) runs ``seeds`
 independent runs of ``decisions`` decisions on the task of
 :mod:`simlab.online.task` (start states, goal, one change at ``change_at``), through the
 fused loop of :mod:`simlab.online.loop`; jobs run in parallel through
-:mod:`simlab.base.parallel`. Seeding: ``SeedSequence(seed).spawn(seeds)[i].spawn(2)`` gives
+:mod:`simlab.base.parallel`. Seeding: ``SeedSequence(seed).spawn(seeds)[i]``, children 0 and 1, give
 run ``i`` its environment and agent streams, the same for every arm (common random
 numbers: arms differ by their decisions, not by their luck).
 
@@ -227,8 +227,9 @@ def run_arm(T: np.ndarray, task: Any, mf_config: Any, mb_config: Any, arbitratio
     ``arbitration`` (:class:`~simlab.online.meta.Arbitration`), ``decisions`` decisions on
     the compiled ``task`` of ``T`` (S, A, S). Returns the log columns."""
     from simlab.online.loop import run_online
+    from simlab.online.physics import children
 
-    env_seed, agent_seed = seed.spawn(2)
+    env_seed, agent_seed = children(seed, 2)
     S, A = T.shape[:2]
     agent = arbitration.agent(mf_config, mb_config, S, A, valid=valid)
     log = run_online(agent, task.compile(T), decisions, np.random.default_rng(env_seed),

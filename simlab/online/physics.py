@@ -42,7 +42,7 @@ from simlab.online import meta
 from simlab.online.loop import OnlineLog
 
 __all__ = ["MCL_MAPS", "POSE_SOURCES", "PhysicsChange", "PhysicsRun", "PhysicsTask",
-           "RunStreams", "run_physics_online"]
+           "RunStreams", "children", "run_physics_online"]
 
 #: Pose sources of the physics runs, and what the MCL's map does when a box is added.
 POSE_SOURCES = ("truth", "mcl")
@@ -111,8 +111,17 @@ class RunStreams:
 
     @classmethod
     def from_seed(cls, seed: np.random.SeedSequence) -> RunStreams:
-        """The four streams of ``seed.spawn(4)`` (the first three as ``spawn(3)`` gives)."""
-        return cls(*(np.random.default_rng(s) for s in seed.spawn(4)))
+        """The four streams of the children 0-3 of ``seed`` (:func:`children`)."""
+        return cls(*(np.random.default_rng(s) for s in children(seed, 4)))
+
+
+def children(seed: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
+    """The first ``n`` children of ``seed``, as a fresh ``seed.spawn(n)`` gives them, without
+    spawning: ``SeedSequence.spawn`` counts the children it has made, so one seed shared by
+    the runs of several arms in one process would hand each arm other streams (and the
+    results would depend on the executor). This is the same for every call."""
+    return [np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, k),
+                                   pool_size=seed.pool_size) for k in range(n)]
 
 
 @dataclass

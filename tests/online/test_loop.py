@@ -124,3 +124,21 @@ def test_valid_mask_limits_actions_and_entropies(experts) -> None:
                   n=200, valid=valid)
     assert not np.any(log.a == 0)
     assert core.as_mask(valid, 3, 3).shape == (3, 3)
+
+
+def test_an_arm_draws_the_same_streams_whatever_runs_beside_it() -> None:
+    """Common random numbers, in one process too: the seed of run i is shared by every
+    arm's job, and an arm's results do not depend on the arms run before it."""
+    from simlab.data.mdp import mdp_from_arrays
+    from simlab.online.command import OnlineConfig, online
+
+    m = mdp_from_arrays(chain(6, p=0.7))
+    common = dict(mdp=m, goal=(5,), start_states=(0,), decisions=150, seeds=2, workers=1,
+                  progress=False, plots=False)
+    both = online(OnlineConfig(criteria=("mb", "entropy_and_cost"), **common)).logs
+    alone = online(OnlineConfig(criteria=("entropy_and_cost",), **common)).logs
+    for a, b in zip(both["entropy_and_cost_k1"], alone["entropy_and_cost_k1"], strict=True):
+        np.testing.assert_array_equal(a["s"], b["s"])
+        np.testing.assert_array_equal(a["expert"], b["expert"])
+    # and the two arms of one run start in the same state (the same environment stream)
+    assert both["mb"][0]["s"][0] == both["entropy_and_cost_k1"][0]["s"][0]
