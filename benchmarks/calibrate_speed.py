@@ -71,12 +71,9 @@ def main() -> None:
     args = parser.parse_args()
 
     from simlab.base.actions import parse_action_set
-    from simlab.calibration.search import (
-        CalibrationConfig,
-        RealTable,
-        calibrate,
-        simulate_counts,
-    )
+    from simlab.calibration.config import CalibrationConfig, RealTable
+    from simlab.calibration.stages import calibrate
+    from simlab.calibration.walks import simulate_counts
     from simlab.data.counts import load_counts
     from simlab.physics.inputs import load_discretizer
     from simlab.physics.motion import PrimitiveParams

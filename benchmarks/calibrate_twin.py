@@ -71,7 +71,7 @@ def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float,
                 workers: int) -> dict:
     """Collect the hidden robot's walk and write its counts (CSV); returns a summary."""
     from simlab.base.actions import parse_action_set
-    from simlab.calibration.search import simulate_counts
+    from simlab.calibration.walks import simulate_counts
     from simlab.data.collect import collect
     from simlab.data.dataset import read_dataset
     from simlab.data.estimate import count_transitions

@@ -8,10 +8,17 @@ made to move like the real robot whose transitions thesis 3.2.5 counted.
   gives;
 * :mod:`simlab.calibration.space` — the searched parameters as data (name, bounds, scale,
   or choices);
-* :mod:`simlab.calibration.search` — candidates simulated with ``collect`` and a seeded
-  derivative-free search, the best confirmed on fresh seeds;
+* :mod:`simlab.calibration.config` — what a calibration is given: the real table and the
+  options;
+* :mod:`simlab.calibration.walks` — a candidate's walk (``collect``) as a count table in the
+  real action set, on the parallel layer;
+* :mod:`simlab.calibration.budget` — how many transitions each stage walks, sized from the
+  matched floor;
+* :mod:`simlab.calibration.search` — the seeded derivative-free search over the space;
+* :mod:`simlab.calibration.stages` — :func:`~simlab.calibration.stages.calibrate`: screen,
+  confirm the best on fresh seeds, walk the twins and score their transfer;
 * :mod:`simlab.calibration.transfer` — twin policies scored on the real model
-  (``simlab transfer``);
+  (``simlab transfer``): shortest-path solvers, models, the score, its report and command;
 * :mod:`simlab.calibration.report` — the calibrated ``[primitives]`` TOML, JSON/markdown
   reports and the figure;
 * :mod:`simlab.calibration.command` — ``simlab calibrate`` as a function of files

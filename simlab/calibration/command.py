@@ -19,15 +19,10 @@ from simlab.base import validation
 from simlab.base.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.base.options import command, option
+from simlab.calibration.config import CalibrationConfig, RealTable
 from simlab.calibration.report import check_outputs, write_outputs
-from simlab.calibration.search import (
-    CalibrationConfig,
-    CalibrationResult,
-    RealTable,
-    calibrate,
-    default_base,
-)
 from simlab.calibration.space import ParameterSpace, load_space
+from simlab.calibration.stages import CalibrationResult, calibrate, default_base
 
 
 def load_base(path: str | os.PathLike[str] | None, simulator: str) -> Any:

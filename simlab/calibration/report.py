@@ -37,7 +37,7 @@ from simlab.base.io import (
     ensure_new,
     output_transaction,
 )
-from simlab.calibration.search import CalibrationResult
+from simlab.calibration.stages import CalibrationResult
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
 

@@ -10,7 +10,8 @@ import pytest
 
 from discretize.voronoi import Discretizer
 from simlab.base.actions import ActionSet
-from simlab.calibration.search import RealTable, SimTable, simulate_counts
+from simlab.calibration.config import RealTable
+from simlab.calibration.walks import SimTable, simulate_counts
 
 
 @pytest.fixture(scope="session")

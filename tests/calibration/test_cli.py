@@ -153,7 +153,7 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
     import argparse
 
     from simlab.calibration.command import CalibrateConfig
-    from simlab.calibration.search import CalibrationConfig
+    from simlab.calibration.config import CalibrationConfig
     from simlab.cli.calibrate import add_arguments
 
     real, states, _ = inputs
@@ -178,7 +178,7 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
 
 def test_calibrate_command_takes_the_config_or_its_fields(inputs, tmp_path) -> None:
     from simlab.calibration.command import CalibrateConfig, calibrate_command, calibrate_files
-    from simlab.calibration.search import CalibrationConfig
+    from simlab.calibration.config import CalibrationConfig
 
     real, states, _ = inputs
     calibrate_command(CalibrateConfig(real=real, states=states, out=tmp_path / "a", **FAST))

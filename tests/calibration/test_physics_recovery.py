@@ -10,8 +10,9 @@ import math
 import pytest
 
 from simlab.base.actions import SIMLAB16
-from simlab.calibration.search import CalibrationConfig, calibrate
+from simlab.calibration.config import CalibrationConfig
 from simlab.calibration.space import ParameterSpace, ParamSpec
+from simlab.calibration.stages import calibrate
 from simlab.physics.motion import PrimitiveParams
 from tests.calibration.conftest import hidden_walk, real_table
 

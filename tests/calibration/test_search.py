@@ -11,8 +11,9 @@ import pytest
 
 from simlab.base.actions import SIMLAB16, parse_action_set
 from simlab.base.errors import ConfigError
-from simlab.calibration.search import CalibrationConfig, RealTable, calibrate
+from simlab.calibration.config import CalibrationConfig, RealTable
 from simlab.calibration.space import ParameterSpace, ParamSpec
+from simlab.calibration.stages import calibrate
 from simlab.data.walkers import KinematicParams
 from tests.calibration.conftest import hidden_walk, real_table
 

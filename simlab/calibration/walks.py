@@ -1,0 +1,157 @@
+"""A candidate's walk: parameters in, a count table in the real action set out.
+
+Each evaluation is a random walk with :func:`simlab.data.collect.collect` into a temporary
+directory, drawing only the primitives of the real actions
+(:meth:`~simlab.base.actions.ActionSet.primitives`, recorded in the real numbering), by
+default from every state's centre in turn (one walk per state, the budget split evenly).
+Walks run on :mod:`simlab.base.parallel` (local processes, or Ray with an address).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.base.actions import SIMLAB16, ActionSet
+
+
+@dataclass(frozen=True)
+class WalkJob:
+    index: int
+    arena: Any
+    states: Any
+    params: Any
+    hours: float | None
+    transitions: int | None
+    seed: int
+    simulator: str
+    pose_source: str
+    action_set: ActionSet
+    start_states: Any
+    n_states: int
+
+
+
+@dataclass(frozen=True)
+class SimTable:
+    """A candidate's walk, in the real action set.
+
+    Attributes:
+        counts: ``(S, A_real, S)`` counts.
+        rows: transitions of the walk; ``walk_rows`` the same (the walk draws only the
+            real actions' primitives).
+        blocked: blocked transitions.
+        mean_duration: mean stepped duration (s) of a transition (no idle time).
+        hours: time of the walk with the decision latency (h).
+        wall_seconds: wall time of the evaluation.
+    """
+
+    counts: NDArray[np.int64]
+    rows: int
+    walk_rows: int
+    blocked: int
+    mean_duration: float
+    hours: float
+    wall_seconds: float
+
+
+
+def action_set_options(aset: ActionSet) -> dict[str, Any]:
+    """``collect``'s action-set fields for ``aset`` (none for simlab's 16)."""
+    if aset == SIMLAB16:
+        return {}
+    return {"n_actions": aset.n_actions, "speed": aset.speed,
+            "convention": ",".join(str(d) for d in aset.directions)}
+
+
+
+def simulate_table(job: WalkJob) -> SimTable:
+    """Collect one walk into a temporary directory and count it (runs in a worker)."""
+    from simlab.data.collect import collect
+    from simlab.data.dataset import read_dataset
+    from simlab.data.estimate import count_transitions
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="simlab-cal-") as tmp:
+        collect(job.arena, job.states, out=Path(tmp) / "walk", hours=job.hours,
+                transitions=job.transitions, seed=job.seed, workers=1,
+                simulator=job.simulator, pose_source=job.pose_source, params=job.params,
+                start_states=job.start_states, progress=False,
+                **action_set_options(job.action_set))
+        table = read_dataset(Path(tmp) / "walk", validate=False)
+        s = table.column("s").to_numpy()
+        a = table.column("a").to_numpy()
+        s_next = table.column("s_next").to_numpy()
+        blocked = table.column("blocked").to_numpy(zero_copy_only=False)
+        duration = table.column("duration").to_numpy()
+    counts = count_transitions(s, a, s_next, job.n_states, job.action_set.n_actions)
+    latency = float(job.params.decision_latency)
+    rows = int(a.size)
+    return SimTable(counts=counts, rows=rows, walk_rows=rows, blocked=int(blocked.sum()),
+                    mean_duration=float(duration.mean()) if rows else float("nan"),
+                    hours=float((duration + latency).sum()) / 3600.0,
+                    wall_seconds=time.perf_counter() - t0)
+
+
+
+def simulate_counts(arena: Any, states: Any, params: Any, *, hours: float | None = None,
+                    transitions: int | None = None, seed: int, action_set: ActionSet,
+                    simulator: str = "physics", pose_source: str = "truth",
+                    start_states: Any = None) -> SimTable:
+    """One walk of ``hours`` simulated hours (or ``transitions``) in ``action_set``, in
+    this process.
+
+    What a candidate's evaluation does; also a way to make a synthetic "real" table with
+    hidden parameters (tests, benchmarks).
+    """
+    from simlab.physics.inputs import load_arena_config, load_discretizer
+
+    disc = load_discretizer(states)
+    return simulate_table(WalkJob(index=0, arena=load_arena_config(arena), states=disc,
+                               params=params, hours=None if hours is None else float(hours),
+                               transitions=None if transitions is None else int(transitions),
+                               seed=int(seed), simulator=simulator, pose_source=pose_source,
+                               action_set=action_set, start_states=start_states,
+                               n_states=int(disc.n_states)))
+
+
+
+def pool_tables(tables: list[SimTable]) -> SimTable:
+    """The walks of ``tables`` as one table (counts and rows summed)."""
+    rows = sum(t.rows for t in tables)
+    dur = sum(t.mean_duration * t.rows for t in tables if t.rows)
+    return SimTable(counts=sum(t.counts for t in tables), rows=rows,
+                    walk_rows=sum(t.walk_rows for t in tables),
+                    blocked=sum(t.blocked for t in tables),
+                    mean_duration=dur / rows if rows else float("nan"),
+                    hours=sum(t.hours for t in tables),
+                    wall_seconds=sum(t.wall_seconds for t in tables))
+
+
+
+class WalkRunner:
+    """Simulates candidate tables on the one parallel layer (:mod:`simlab.base.parallel`): in
+    this process for one worker, else a pool of ``workers`` processes (one arena per
+    process, workers exit with us), or Ray tasks on ``address``; tables come back in job
+    order."""
+
+    def __init__(self, workers: int, address: str | None = None) -> None:
+        from simlab.base.parallel import make_executor
+
+        if address is not None:
+            self._executor = make_executor("ray", address=address)
+        else:
+            self._executor = make_executor("local", workers=workers)
+
+    def map(self, jobs: list[WalkJob]) -> list[SimTable]:
+        return self._executor.map(simulate_table, [{"job": j} for j in jobs])
+
+    def close(self) -> None:
+        self._executor.close()
+
