@@ -74,8 +74,8 @@ def action_set_options(aset: ActionSet) -> dict[str, Any]:
 def simulate_table(job: WalkJob) -> SimTable:
     """Collect one walk into a temporary directory and count it (runs in a worker)."""
     from simlab.data.collect import collect
+    from simlab.data.count_model import count_transitions
     from simlab.data.dataset import read_dataset
-    from simlab.data.estimate import count_transitions
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="simlab-cal-") as tmp:

@@ -69,7 +69,7 @@ class TransferModel:
                     action_set: ActionSet | None = None,
                     centres: ArrayLike | None = None) -> TransferModel:
         """From counts n(s, a, s') (S, A, S): T the frequencies, an untried pair a stay."""
-        from simlab.data.estimate import transition_matrix
+        from simlab.data.count_model import transition_matrix
 
         c = np.asarray(counts)
         T, visited = transition_matrix(c)

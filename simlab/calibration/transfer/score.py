@@ -421,7 +421,7 @@ def transfer_floor(real: TransferModel, goal: ArrayLike, starts: ArrayLike,
         starts: (n,) start states; weights: (n,) their weights.
         n_boot: resamples (>= 1); rng: their Generator.
     """
-    from simlab.data.estimate import transition_matrix
+    from simlab.data.count_model import transition_matrix
 
     if real.counts is None:
         raise ConfigError("the real model has no counts", path=real.name, key="counts",
