@@ -37,7 +37,7 @@ from simlab.base.io import (
     ensure_new,
     output_transaction,
 )
-from simlab.calibration.stages import CalibrationResult
+from simlab.calibration.stages import CalibrationResult, data_need
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
 
@@ -134,6 +134,7 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
             "data_curve": [{**row, "mean_ratio": _fin(row["mean_ratio"]),
                             "worst_ratio": _fin(row["worst_ratio"])}
                            for row in result.transfer_curve],
+            "data_need": policy_data(result),
             **result.transfer.to_json()},
     }
 
@@ -355,10 +356,33 @@ def _transfer_section(result: CalibrationResult) -> str:
                            for k in ("mean_ratio", "worst_ratio"))
             out.write(f"| {row['walks']} | {row['pools']} | {row['transitions']} | {mean} | "
                       f"{worst} |\n")
-        out.write("\nCollect at least the transitions of the row that reaches the "
-                  "perfect-twin score before training the policy you take to the robot "
-                  "(`simlab collect --hours` with the calibrated primitives).\n\n")
+        need = policy_data(result)
+        if need is None:
+            out.write("\nCollect at least the transitions of the row that reaches the "
+                      "perfect-twin score before training the policy you take to the robot "
+                      "(`simlab collect --hours` with the calibrated primitives).\n\n")
+        else:
+            hours = ("" if need["hours"] is None else
+                     f" (about {need['hours']:.0f} h of robot time at the real rate)")
+            out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + "
+                      f"{need['c']:.0f} / transitions: a twin of unlimited data would score "
+                      f"about {need['limit']:.3f}, and **{need['transitions']:,.0f} twin "
+                      f"transitions**{hours} bring a policy within {need['tolerance']} of "
+                      "it. Collect that much with the calibrated primitives (`simlab collect "
+                      "--primitives primitives.toml --start-states all`) before training the "
+                      "policy you take to the robot.\n\n")
     return out.getvalue()
+
+
+def policy_data(result: CalibrationResult) -> dict[str, Any] | None:
+    """:func:`~simlab.calibration.stages.data_need` of the transfer's data curve, with the
+    robot hours of those transitions at the real table's rate (None when unknown)."""
+    need = data_need(result.transfer_curve)
+    if need is None:
+        return None
+    n_real = int(result.real.counts.sum())
+    hours = None if result.real.hours is None else need["transitions"] * result.real.hours / n_real
+    return {**need, "transitions": round(need["transitions"]), "hours": _fin(hours)}
 
 
 def worst_goal(transfer: Any) -> Any:

@@ -359,8 +359,9 @@ def _transfer(real: RealTable, twins: list[Candidate], setup: _Setup,
               config: CalibrationConfig) -> tuple[Any, list[dict[str, Any]]]:
     """The transfer report of the twin walks on the real model (None without twins), every
     goal of ``setup.goals`` with its perfect-twin floor (the real optimum of an estimated
-    model is biased low); and the transfer against the twins' own data
-    (:func:`_data_curve`)."""
+    model is biased low); and the transfer against the twins' own data: the twin walks
+    pooled k = 1, 2, 4, ... at a time (disjoint pools), each pool's policies scored the
+    same way (:meth:`~simlab.calibration.transfer.TransferResult.overall_ratios`)."""
     if not twins:
         return None, []
     from simlab.calibration.transfer import TransferModel, transfer_report
@@ -387,6 +388,35 @@ def _transfer(real: RealTable, twins: list[Candidate], setup: _Setup,
                       "worst_ratio": float(np.max(ratios))})
     return report, curve
 
+
+#: How close to a twin of unlimited data the recommended policy data come (steps over the
+#: real optimum, absolute).
+DATA_NEED_TOLERANCE = 0.01
+
+
+def data_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANCE
+              ) -> dict[str, float] | None:
+    """How many twin transitions a policy needs, from the transfer's data curve.
+
+    A policy planned on a model estimated from ``N`` transitions exploits that sample's
+    noise; its excess over what unlimited data would give shrinks about as ``1/N`` (each
+    transition probability's error variance does). Fits ``ratio(N) = limit + c / N`` by
+    least squares to the curve's mean ratios and returns ``limit`` (a twin with unlimited
+    data), ``c`` and ``transitions`` = ``c / tolerance`` (the data at which the excess is
+    ``tolerance``); None with fewer than two sizes, a non-finite ratio, or a curve that
+    does not fall with more data (``c <= 0``).
+    """
+    rows = [r for r in curve if math.isfinite(r["mean_ratio"])]
+    if len(rows) < 2 or len(rows) < len(curve):
+        return None
+    x = np.array([1.0 / r["transitions"] for r in rows])
+    y = np.array([r["mean_ratio"] for r in rows])
+    A = np.stack([np.ones_like(x), x], axis=1)
+    (limit, c), *_ = np.linalg.lstsq(A, y, rcond=None)
+    if not c > 0:
+        return None
+    return {"limit": float(limit), "c": float(c), "tolerance": float(tolerance),
+            "transitions": float(c / tolerance)}
 
 
 def _pool_sizes(n: int) -> list[int]:

@@ -63,6 +63,8 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     assert all(a < b for a, b in itertools.pairwise(sizes))
     assert curve[0]["mean_ratio"] == pytest.approx(overview["mean_ratio"])
     assert curve[0]["worst_ratio"] == pytest.approx(overview["worst_ratio"])
+    need = report["transfer"]["data_need"]
+    assert ("policy data:" in printed) == (need is not None)
     cov = report["coverage"]
     assert cov["real_pairs_tried"] <= cov["real_pairs"] == report["real"]["pairs_visited"]
     assert report["real"]["action_set"]["convention"] == "ccw-east"

@@ -117,3 +117,27 @@ def test_inconsistent_inputs_are_refused_before_simulating(lattice9) -> None:
                   config=CalibrationConfig(simulator="kinematic", progress=False))
     with pytest.raises(ConfigError, match=r"calibration\.candidates"):
         CalibrationConfig(candidates=1)
+
+
+def test_data_need_recovers_limit_and_slope_of_a_one_over_n_curve() -> None:
+    """Rows lying exactly on ratio = 1.05 + 500 / N give back the limit and the slope, and
+    the transitions at which the excess is the tolerance: 500 / 0.01 = 50,000."""
+    from simlab.calibration.stages import data_need
+
+    curve = [{"transitions": n, "mean_ratio": 1.05 + 500 / n} for n in (8000, 16000, 40000)]
+    need = data_need(curve, tolerance=0.01)
+    assert need is not None
+    assert need["limit"] == pytest.approx(1.05) and need["c"] == pytest.approx(500)
+    assert need["transitions"] == pytest.approx(50_000)
+
+
+@pytest.mark.parametrize("ratios", [
+    [1.10, 1.12],                 # more data, worse: no 1/N law to extrapolate
+    [1.10, float("inf")],         # a pool that never arrives
+    [1.10],                       # one size only
+])
+def test_data_need_refuses_curves_it_cannot_extrapolate(ratios: list[float]) -> None:
+    from simlab.calibration.stages import data_need
+
+    curve = [{"transitions": 8000 * (k + 1), "mean_ratio": r} for k, r in enumerate(ratios)]
+    assert data_need(curve) is None
