@@ -173,6 +173,15 @@ def main() -> None:
         print(f"transfer over {len(ratios)} twin seeds, {ov['goals']} goals: steps / real "
               f"optimum mean {np.mean(ratios):.3f}, worst {max(ratios):.3f} (target: every "
               f"seed <= 1.05); per seed " + ", ".join(f"{r:.3f}" for r in ratios))
+    if rep["transfer"] and rep["transfer"].get("data_curve"):
+        print("transfer against the twin's data (the twin walks pooled): " + "; ".join(
+            f"{r['transitions']} transitions {r['mean_ratio']:.3f} (worst {r['worst_ratio']:.3f})"
+            for r in rep["transfer"]["data_curve"] if r["mean_ratio"] is not None))
+        need = rep["transfer"].get("data_need")
+        if need:
+            print(f"  fitted limit (unlimited twin data) {need['limit']:.3f}; "
+                  f"{need['transitions']} twin transitions bring a policy within "
+                  f"{need['tolerance']} of it")
     hidden = {k: v for k, v in HIDDEN.items() if k in rep["params"]}
     found = {k: rep["params"][k] for k in hidden}
     print(f"hidden {hidden}\nfound  {found}")
