@@ -30,6 +30,10 @@ text leaves implicit):
   after the goal moves, the old route still leads to a state worth ``q_init`` and MF's
   distribution along it stays certain, so the entropy criteria never hand control back
   to MB.
+* **MB's reward is the arrival state's** (``state_reward``): the reward last seen on
+  arriving in a state, so one unrewarded arrival at the old goal forgets it; and **both
+  experts plan at a state's first visit** (``plan_both_first``), so both have a
+  distribution there (:mod:`simlab.online.meta`).
 * **Filtered action distributions** (``prob_alpha`` 0.6): the criterion reads each
   expert's action distribution at ``s`` low-pass filtered over its visits, and weighs the
   cost term by ``exp(-kappa * H_MF)`` with MF's entropy in bits
@@ -143,6 +147,11 @@ class OnlineConfig(CommandConfig):
                                "action distribution, in (0, 1] (1: the last softmax)")
     reward_ends: bool = option(True, "a reward ends the episode: the rewarded state's values "
                                "are reset to 0 (--no-reward-ends keeps them)")
+    state_reward: bool = option(True, "MB's reward model is the reward last seen on arriving "
+                                "in each state, as published (--no-state-reward: the mean "
+                                "reward of each pair's window)")
+    plan_both_first: bool = option(True, "both experts plan at a state's first visit, as "
+                                   "published (--no-plan-both-first: only the chosen one)")
     window: int = option(200, "decisions per bin of the MB-share curve and of recovery")
     workers: int | None = option(None, "local worker processes (default: the cores; 1: in "
                                  "this process)")
@@ -200,7 +209,8 @@ class OnlineConfig(CommandConfig):
 
         return Arbitration(criterion=criterion, kappa=float(kappa), cost_alpha=self.cost_alpha,
                            use_time=self.cost == "seconds", prob_alpha=self.prob_alpha,
-                           reward_ends=self.reward_ends)
+                           reward_ends=self.reward_ends, state_reward=self.state_reward,
+                           plan_both_first=self.plan_both_first)
 
     def expert_configs(self) -> tuple[Any, Any]:
         """The agent configs of the MF and MB experts (published defaults, then overrides)."""

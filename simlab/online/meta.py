@@ -44,6 +44,22 @@ Decisions made here (the papers leave them to the implementation):
   the goal moves, the old goal's state stops being rewarded, its values are learned
   again from the transitions that leave it, and MF's values along the old route fall
   (its entropy there rises) instead of staying propped up by the goal's initial value.
+* **MB's reward belongs to the arrival state** (``state_reward``, default; Dromnelle et
+  al. 2022, sec. 2, the MB expert's reward model, as their published code
+  ``meta-control-decision-making-agent`` implements it): MB keeps,
+  per state, the reward last seen on arriving there, and its model's reward of a pair is
+  the expectation of that state reward over the pair's outcomes, ``R(s, a) = sum_s'
+  T(s, a, s') r(s')``. One unrewarded arrival at the old goal therefore forgets the goal
+  for every pair leading there (the next plan no longer values the old route). Without
+  ``state_reward`` the model averages the rewards seen per pair over its window (10
+  outcomes), and the old goal fades over the next visits of each pair.
+* **Both experts plan at a state's first visit** (``plan_both_first``, default; the
+  published loop of the same code, ``agentSimulator.py``, gives a state first met both
+  experts' plans, so each has a distribution
+  there from the start). The criterion still picks the expert whose action is taken;
+  at a first visit the other expert plans too, its cost is filtered into its own cost
+  table, and the decision's logged cost is the sum of both plans (both were computed).
+  Later visits plan only the chosen expert.
 * **Costs per state**, low-pass filtered (``C <- C + alpha_c (c - C)``, alpha_c 0.6), start
   at 0 and are updated for the expert that planned only; ``C_e / max_e C_e`` is 0 when both
   are 0.
@@ -59,9 +75,12 @@ from typing import Any
 
 import numpy as np
 from numba import njit, objmode
+from numba.extending import overload
 
 from simlab.agents import core
 from simlab.agents.kernels import ALL_VALID, n_valid
+from simlab.agents.sparse_model import CountModel, CountModelType
+from simlab.agents.window_model import WindowModel, WindowModelType
 
 __all__ = [
     "CRITERIA",
@@ -80,6 +99,7 @@ __all__ = [
     "make_expert",
     "make_meta_agent",
     "normalised_entropy",
+    "set_arrival_reward",
     "softmax_into",
 ]
 
@@ -96,17 +116,22 @@ EXPERT_MF, EXPERT_MB = 0, 1
 #: MF's certainty on the cost term), ``cost_alpha`` (low-pass rate of the per-state costs),
 #: ``use_time`` (decide on wall-clock seconds instead of backups), ``prob_alpha``
 #: (low-pass rate of the per-state action distributions), ``reward_ends`` (a reward ends
-#: the episode: the rewarded state's values are reset to 0).
+#: the episode: the rewarded state's values are reset to 0), ``state_reward`` (MB's reward
+#: model is the reward last seen on arriving in each state), ``plan_both_first`` (both
+#: experts plan at a state's first visit).
 MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time",
-                                       "prob_alpha", "reward_ends"])
+                                       "prob_alpha", "reward_ends", "state_reward",
+                                       "plan_both_first"])
 
 #: The meta-controlled pair: ``mf`` and ``mb`` (:class:`simlab.agents.core.Learner`),
 #: ``cost`` (2, S) float64 filtered backups per expert and state, ``cost_time`` (2, S)
 #: float64 filtered seconds, ``probs`` (2, S, A) float64 filtered action distributions
 #: per expert and state, ``params`` (:class:`MetaParams`), ``valid`` (S, A) bool or
-#: ``core.NO_MASK``. Built by :func:`make_meta_agent`.
+#: ``core.NO_MASK``, ``arrival_reward`` (S,) float64 the reward last seen on arriving in
+#: each state (MB's reward model under ``state_reward``; 0 before any arrival), ``seen``
+#: (S,) bool states where a decision was made. Built by :func:`make_meta_agent`.
 MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "probs", "params",
-                                     "valid"])
+                                     "valid", "arrival_reward", "seen"])
 
 
 def criterion_code(name: str) -> int:
@@ -250,6 +275,52 @@ def expert_plan(lr, valid):
 
 
 @njit(cache=True)
+def _window_arrival_reward(m, s_next, new):
+    for k in range(m.n_slots):
+        for i in range(m.win_fill[k]):
+            if m.win_state[k, i] == s_next:
+                m.win_reward[k, i] = new
+
+
+@njit(cache=True)
+def _count_arrival_reward(m, s_next, old, new):
+    A = m.n_actions
+    for j in range(m.n_pairs):
+        s = m.pairs[j] // A
+        a = m.pairs[j] - s * A
+        k = m.head[s, a]
+        while k != -1:
+            if m.succ_state[k] == s_next:
+                m.r_sum[s, a] += m.succ_count[k] * (new - old)
+            k = m.succ_link[k]
+
+
+def set_arrival_reward(model, s_next, old, new):
+    """Make ``new`` the reward of arriving in ``s_next`` in a count or window model whose
+    every recorded arrival there carries ``old``: a window model's rewards of the outcomes
+    ending in ``s_next`` become ``new``; a count model's reward sums move by
+    ``n(s, a, s_next) * (new - old)``. The model's reward of a pair is then ``sum_s'
+    T(s, a, s') r(s')`` with ``r`` the reward last seen on arriving in each state (module
+    docstring, ``state_reward``). O(observed outcomes); called only when ``r(s_next)``
+    changes (a goal found or lost)."""
+    if isinstance(model, WindowModel):
+        _window_arrival_reward(model, s_next, new)
+    elif isinstance(model, CountModel):
+        _count_arrival_reward(model, s_next, old, new)
+    else:
+        raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
+
+
+@overload(set_arrival_reward, jit_options={"cache": True})
+def _ov_set_arrival_reward(model, s_next, old, new):
+    if isinstance(model, WindowModelType):
+        return lambda model, s_next, old, new: _window_arrival_reward(model, s_next, new)
+    if isinstance(model, CountModelType):
+        return lambda model, s_next, old, new: _count_arrival_reward(model, s_next, old, new)
+    return None
+
+
+@njit(cache=True)
 def _now():
     with objmode(t="float64"):
         t = _perf_counter()
@@ -280,14 +351,32 @@ def _lowpass_row(old, new, alpha):
 
 
 @njit(cache=True)
+def _plan_and_filter_cost(ag, e, s):
+    """Expert ``e`` plans now; its cost at ``s`` is low-pass filtered into its rows of
+    ``ag.cost`` / ``ag.cost_time``. Returns ``(backups, seconds)`` of the plan."""
+    t0 = _now()
+    if e == EXPERT_MB:
+        backups = expert_plan(ag.mb, ag.valid)
+    else:
+        backups = expert_plan(ag.mf, ag.valid)
+    seconds = _now() - t0
+    alpha = ag.params.cost_alpha
+    ag.cost[e, s] = lowpass(ag.cost[e, s], float(backups), alpha)
+    ag.cost_time[e, s] = lowpass(ag.cost_time[e, s], seconds, alpha)
+    return backups, seconds
+
+
+@njit(cache=True)
 def decide(ag, s, rng):
     """One decision of :class:`MetaAgent` ``ag`` in state ``s``.
 
     Returns ``(action, expert, h_mf, h_mb, c_mf, c_mb, backups, seconds)``: the
     normalised entropies of the filtered distributions and the filtered costs the
     criterion read, and the chosen expert's planning cost in backups and wall-clock
-    seconds (both recorded; the filter of the one the criterion uses decides). After the
-    plan both experts filter their softmax at ``s`` (module docstring). Draws from
+    seconds (both recorded; the filter of the one the criterion uses decides). At a
+    state's first visit under ``plan_both_first`` the other expert plans too and the
+    returned cost is the sum of both plans. After the plan(s) both experts filter their
+    softmax at ``s`` (module docstring). Draws from
     ``rng``: the criterion's (``random`` only), then the chosen expert's action selection.
     """
     vrow = ALL_VALID if ag.valid.shape[0] == 0 else ag.valid[s]
@@ -298,15 +387,13 @@ def decide(ag, s, rng):
     c_mb = table[EXPERT_MB, s]
     e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
                       h_max_bits, rng)
-    t0 = _now()
-    if e == EXPERT_MB:
-        backups = expert_plan(ag.mb, ag.valid)
-    else:
-        backups = expert_plan(ag.mf, ag.valid)
-    seconds = _now() - t0
-    alpha = ag.params.cost_alpha
-    ag.cost[e, s] = lowpass(ag.cost[e, s], float(backups), alpha)
-    ag.cost_time[e, s] = lowpass(ag.cost_time[e, s], seconds, alpha)
+    both = ag.params.plan_both_first and not ag.seen[s]
+    ag.seen[s] = True
+    backups, seconds = _plan_and_filter_cost(ag, e, s)
+    if both:
+        other_backups, other_seconds = _plan_and_filter_cost(ag, 1 - e, s)
+        backups += other_backups
+        seconds += other_seconds
     _filter_probs(ag, s, vrow)
     if e == EXPERT_MB:
         a = core.act(ag.mb.Q, s, ag.mb.params, ag.valid, rng)
@@ -319,10 +406,17 @@ def decide(ag, s, rng):
 def learn(ag, s, a, r, s_next):
     """Both experts learn from ``(s, a, r, s_next)`` (no randomness): MF's Q-learning
     update, MB's model count and incremental backup (:func:`simlab.agents.core.learn`;
-    experts never plan here). With ``reward_ends`` a rewarded transition then resets
-    both experts' values of ``s_next`` to 0 (module docstring)."""
+    experts never plan here). Under ``state_reward`` a reward on arriving in ``s_next``
+    that differs from the last one seen there first rewrites MB's model rewards of every
+    outcome ending in ``s_next`` (:func:`set_arrival_reward`). With ``reward_ends`` a
+    rewarded transition then resets both experts' values of ``s_next`` to 0 (module
+    docstring)."""
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
+    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF \
+            and r != ag.arrival_reward[s_next]:
+        set_arrival_reward(ag.mb.model, s_next, ag.arrival_reward[s_next], r)
+        ag.arrival_reward[s_next] = r
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
     if ag.params.reward_ends and r > 0.0:
@@ -364,13 +458,14 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
                     criterion: str = "entropy_and_cost", kappa: float = 1.0,
                     cost_alpha: float = 0.6, use_time: bool = False,
                     prob_alpha: float = 0.6, reward_ends: bool = True,
+                    state_reward: bool = True, plan_both_first: bool = True,
                     valid: np.ndarray | None = None) -> MetaAgent:
     """A fresh :class:`MetaAgent`: experts of the two agent configs, per-state costs at 0,
     per-state action distributions uniform over the valid actions.
 
     ``criterion`` one of :data:`CRITERIA`; ``kappa`` >= 0; ``cost_alpha`` and
-    ``prob_alpha`` in (0, 1]; ``reward_ends`` (module docstring); ``valid`` (S, A) bool
-    actions allowed per state (None: all).
+    ``prob_alpha`` in (0, 1]; ``reward_ends``, ``state_reward``, ``plan_both_first``
+    (module docstring); ``valid`` (S, A) bool actions allowed per state (None: all).
     """
     from simlab.base import validation
     from simlab.base.errors import ConfigError
@@ -392,8 +487,9 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
         probs[:] = rows[None]
     return MetaAgent(mf, mb, np.zeros((2, n_states)), np.zeros((2, n_states)), probs,
                      MetaParams(criterion_code(criterion), float(kappa), float(cost_alpha),
-                                bool(use_time), float(prob_alpha), bool(reward_ends)),
-                     mask)
+                                bool(use_time), float(prob_alpha), bool(reward_ends),
+                                bool(state_reward), bool(plan_both_first)),
+                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_))
 
 
 @dataclass(frozen=True)
@@ -401,7 +497,8 @@ class Arbitration:
     """How the meta-controller arbitrates (the arguments of :func:`make_meta_agent` that
     travel together from a command to its parallel runs): ``criterion`` one of
     :data:`CRITERIA`, ``kappa`` >= 0, ``cost_alpha`` and ``prob_alpha`` in (0, 1],
-    ``use_time`` (decide on seconds), ``reward_ends`` (module docstring)."""
+    ``use_time`` (decide on seconds), ``reward_ends``, ``state_reward``,
+    ``plan_both_first`` (module docstring)."""
 
     criterion: str = "entropy_and_cost"
     kappa: float = 1.0
@@ -409,6 +506,8 @@ class Arbitration:
     use_time: bool = False
     prob_alpha: float = 0.6
     reward_ends: bool = True
+    state_reward: bool = True
+    plan_both_first: bool = True
 
     def agent(self, mf_config: Any, mb_config: Any, n_states: int, n_actions: int,
               valid: np.ndarray | None = None) -> MetaAgent:
@@ -417,4 +516,5 @@ class Arbitration:
                                criterion=self.criterion, kappa=self.kappa,
                                cost_alpha=self.cost_alpha, use_time=self.use_time,
                                prob_alpha=self.prob_alpha, reward_ends=self.reward_ends,
-                               valid=valid)
+                               state_reward=self.state_reward,
+                               plan_both_first=self.plan_both_first, valid=valid)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from simlab.agents.kernels import ALL_VALID
+from simlab.agents.registry import agent_config
 from simlab.base.errors import ConfigError
 from simlab.online import meta
 from simlab.online.loop import run_online
@@ -139,7 +140,8 @@ def test_costs_are_filtered_per_state_for_the_deciding_expert(experts) -> None:
     mf, mb = experts
     T = chain(4)
     task = OnlineTask(goal=(3,), start_states=(0,)).compile(T)
-    ag = meta.make_meta_agent(mf, mb, 4, 2, criterion="mf")
+    # only the deciding expert plans (first visits: test_both_experts_plan_at_a_first_visit)
+    ag = meta.make_meta_agent(mf, mb, 4, 2, criterion="mf", plan_both_first=False)
     log = run_online(ag, task, 50, np.random.default_rng(0), np.random.default_rng(1))
     assert np.all(log.backups == 1) and np.all(log.expert == meta.EXPERT_MF)
     # every visit of s filters 1 into C_MF(s): after k visits 1 - 0.4^k; MB never plans
@@ -181,3 +183,106 @@ def test_bad_arbitration_settings_are_refused(experts) -> None:
         meta.make_meta_agent(mf, mb, 3, 2, kappa=-1.0)
     with pytest.raises(ConfigError, match="prob_alpha"):
         meta.make_meta_agent(mf, mb, 3, 2, prob_alpha=1.5)
+
+
+# ------------------------------------------------------------------ MB's reward model
+def _mb_experts(mb_name: str):
+    mf = agent_config("q-softmax", {"alpha": 0.6, "tau": 0.02, "q_init": 1 / 1.9})
+    mb = agent_config(mb_name, {"tau": 0.02, "q_init": 1 / 1.9, "max_sweeps": 100,
+                                "tol": 1e-4, "plan_every": 0})
+    return mf, mb
+
+
+def _mb_reward(ag, s: int, a: int) -> float:
+    from simlab.agents.kernels import model_reward
+
+    return float(model_reward(ag.mb.model, s, a))
+
+
+@pytest.mark.parametrize("mb_name", ["sliding-window", "vi-softmax"])
+@pytest.mark.parametrize("state_reward", [True, False])
+def test_one_unrewarded_arrival_forgets_the_old_goal(mb_name, state_reward) -> None:
+    # 4 states, 2 actions: (0, 1) and (3, 1) lead to state 1, the goal; (0, 0) leads to 2.
+    ag = meta.make_meta_agent(*_mb_experts(mb_name), 4, 2, state_reward=state_reward,
+                              reward_ends=False)
+    for _ in range(3):
+        meta.learn(ag, 0, 1, 1.0, 1)
+    meta.learn(ag, 3, 1, 1.0, 1)
+    meta.learn(ag, 0, 0, 0.0, 2)
+    meta.learn(ag, 0, 0, 0.0, 2)
+    assert _mb_reward(ag, 0, 1) == 1.0 and _mb_reward(ag, 3, 1) == 1.0
+    meta.learn(ag, 0, 1, 0.0, 1)  # the goal moved: one arrival at 1 without reward
+    if state_reward:  # the reward of arriving in 1 is now 0, for every pair leading there
+        assert _mb_reward(ag, 0, 1) == 0.0 and _mb_reward(ag, 3, 1) == 0.0
+    else:  # each pair averages its own rewards: 3 of 4 rewarded; (3, 1) never saw the change
+        assert _mb_reward(ag, 0, 1) == pytest.approx(0.75) and _mb_reward(ag, 3, 1) == 1.0
+    meta.learn(ag, 3, 0, 1.0, 2)  # the new goal 2 is found from 3
+    expect = 1.0 if state_reward else 0.0  # (0, 0) reached 2 twice, unrewarded then
+    assert _mb_reward(ag, 0, 0) == pytest.approx(expect)
+    assert _mb_reward(ag, 3, 0) == 1.0
+    np.testing.assert_array_equal(ag.arrival_reward,
+                                  [0.0, 0.0, 1.0, 0.0] if state_reward else 0.0)
+    # MB's next plan values the old route by the state reward: Q(0, 1) = r(1) + 0.9 V(1)
+    # with V(1) = 1/1.9 (no move from 1 known)
+    meta.expert_plan(ag.mb, ag.valid)
+    r1 = 0.0 if state_reward else 0.75
+    assert ag.mb.Q[0, 1] == pytest.approx(r1 + 0.9 / 1.9, abs=1e-3)
+
+
+def test_the_arrival_reward_leaves_mf_alone(experts) -> None:
+    mf, mb = experts
+    on = meta.make_meta_agent(mf, mb, 3, 2, reward_ends=False)
+    off = meta.make_meta_agent(mf, mb, 3, 2, reward_ends=False, state_reward=False)
+    for ag in (on, off):
+        meta.learn(ag, 0, 1, 1.0, 1)
+        meta.learn(ag, 0, 1, 0.0, 1)
+    np.testing.assert_array_equal(on.mf.Q, off.mf.Q)
+
+
+# ------------------------------------------------------------- first visit: both plan
+@pytest.mark.parametrize("both", [True, False])
+def test_both_experts_plan_at_a_first_visit(experts, both) -> None:
+    mf, mb = experts
+    ag = meta.make_meta_agent(mf, mb, 3, 2, criterion="mf", plan_both_first=both)
+    q0 = 1 / 1.9
+    meta.learn(ag, 0, 1, 0.0, 1)  # MB's incremental backup: Q(0, 1) = 0.9 q0
+    meta.learn(ag, 1, 1, 1.0, 2)  # Q(1, 1) = 1 + 0.9 q0, then the goal's values reset to 0
+    assert ag.mb.Q[0, 1] == pytest.approx(0.9 * q0)
+    out = meta.decide(ag, 0, np.random.default_rng(0))  # MF decides (criterion mf)
+    assert out[1] == meta.EXPERT_MF
+    # a plan of MB: Q(1, 1) = 1 + 0.9 * 0, Q(0, 1) = 0.9 * 1; Q(0, 0) unknown: q0
+    q_mb0 = np.array([q0, 0.9]) if both else np.array([q0, 0.9 * q0])
+    np.testing.assert_allclose(ag.mb.Q[0], q_mb0, atol=1e-4)
+    p = np.exp((q_mb0 - q_mb0.max()) / 0.02)
+    np.testing.assert_allclose(ag.probs[meta.EXPERT_MB, 0], 0.4 * 0.5 + 0.6 * p / p.sum(),
+                               atol=1e-3)
+    mb_backups = out[6] - 1  # MF's plan costs 1
+    if both:  # sweeps x the 2 known pairs, filtered into MB's own cost at 0
+        assert mb_backups >= 2 and mb_backups % 2 == 0
+        assert ag.cost[meta.EXPERT_MB, 0] == pytest.approx(0.6 * mb_backups)
+    else:
+        assert mb_backups == 0 and ag.cost[meta.EXPERT_MB, 0] == 0.0
+    c_mb = ag.cost[meta.EXPERT_MB, 0]
+    again = meta.decide(ag, 0, np.random.default_rng(1))  # second visit: MF plans alone
+    assert again[6] == 1 and ag.cost[meta.EXPERT_MB, 0] == c_mb
+
+
+@pytest.mark.parametrize("both", [True, False])
+def test_mb_has_a_cost_exactly_where_a_decision_was_made(experts, both) -> None:
+    mf, mb = experts
+    T = chain(6, 0.8)
+    ag = meta.make_meta_agent(mf, mb, 6, 2, criterion="mf", plan_both_first=both)
+    task = OnlineTask(goal=(5,), start_states=(0,)).compile(T)
+    log = run_online(ag, task, 60, np.random.default_rng(3), np.random.default_rng(4))
+    visited = np.zeros(6, dtype=bool)
+    visited[log.s] = True
+    np.testing.assert_array_equal(ag.seen, visited)
+    planned = visited.copy()
+    planned[log.s[0]] = False  # the first decision: MB knows no pair, its plan costs 0
+    np.testing.assert_array_equal(ag.cost[meta.EXPERT_MB] > 0, planned if both else False)
+    # the logged cost adds MB's plan at the first visit of each state
+    first = np.zeros(log.n, dtype=bool)
+    first[np.unique(log.s, return_index=True)[1]] = True
+    first[0] = False
+    assert log.backups[0] == 1 and np.all(log.backups[~first] == 1)
+    assert np.all(log.backups[first] > 1) if both else np.all(log.backups == 1)
