@@ -59,7 +59,8 @@ Decisions made here (the papers leave them to the implementation):
   there from the start). The criterion still picks the expert whose action is taken;
   at a first visit the other expert plans too, its cost is filtered into its own cost
   table, and the decision's logged cost is the sum of both plans (both were computed).
-  Later visits plan only the chosen expert.
+  Later visits plan only the chosen expert. The single-expert baselines ``mf`` / ``mb``
+  (one expert alone) never plan the other one: their cost is that expert's.
 * **Costs per state**, low-pass filtered (``C <- C + alpha_c (c - C)``, alpha_c 0.6), start
   at 0 and are updated for the expert that planned only; ``C_e / max_e C_e`` is 0 when both
   are 0.
@@ -374,7 +375,8 @@ def decide(ag, s, rng):
     normalised entropies of the filtered distributions and the filtered costs the
     criterion read, and the chosen expert's planning cost in backups and wall-clock
     seconds (both recorded; the filter of the one the criterion uses decides). At a
-    state's first visit under ``plan_both_first`` the other expert plans too and the
+    state's first visit under ``plan_both_first`` (arbitrating criteria: ``random``,
+    ``entropy``, ``entropy_and_cost``) the other expert plans too and the
     returned cost is the sum of both plans. After the plan(s) both experts filter their
     softmax at ``s`` (module docstring). Draws from
     ``rng``: the criterion's (``random`` only), then the chosen expert's action selection.
@@ -387,7 +389,7 @@ def decide(ag, s, rng):
     c_mb = table[EXPERT_MB, s]
     e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
                       h_max_bits, rng)
-    both = ag.params.plan_both_first and not ag.seen[s]
+    both = ag.params.plan_both_first and ag.params.criterion >= C_RANDOM and not ag.seen[s]
     ag.seen[s] = True
     backups, seconds = _plan_and_filter_cost(ag, e, s)
     if both:
