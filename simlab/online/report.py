@@ -4,8 +4,9 @@ Definitions (per arm, each a mean over runs, with the standard deviation beside 
 
 * ``reward`` — total reward over the run; ``reward_before`` / ``reward_after`` — before and
   from the change on (None without a change);
-* ``backups`` / ``seconds`` — total planning cost of the deciding experts (deterministic,
-  wall clock); ``cost_vs_mb`` / ``seconds_vs_mb`` — divided by the ``mb`` arm's (None
+* ``backups`` / ``seconds`` — total planning cost of the deciding experts, and of the
+  other expert at a state's first visit under ``plan_both_first`` (deterministic, wall
+  clock); ``cost_vs_mb`` / ``seconds_vs_mb`` — divided by the ``mb`` arm's (None
   without an ``mb`` arm); the same before / after the change;
 * ``mb_share`` — fraction of decisions planned by MB; ``mb_share_windows`` — per window of
   ``window`` decisions;
@@ -146,8 +147,9 @@ def _markdown(summary: dict[str, Any]) -> str:
             row += (f" {a['reward_before']['mean']:.1f} | {a['reward_after']['mean']:.1f} | "
                     f"{f(a['recovery_decisions'], 'd')} |")
         lines.append(row)
-    lines += ["", "Costs are planning costs of the deciding expert (value-iteration backups; "
-              "wall-clock seconds beside them), relative to MB deciding alone."]
+    lines += ["", "Costs are planning costs of the deciding expert, and of both experts at a "
+              "state's first visit when both plan there (value-iteration backups; wall-clock "
+              "seconds beside them), relative to MB deciding alone."]
     return "\n".join(lines) + "\n"
 
 

@@ -74,3 +74,28 @@ def test_online_cli_end_to_end(mdp_file: Path, tmp_path: Path, capsys) -> None:
     cols = [c for c in again.columns if c != "seconds"]
     assert again[cols].equals(table[cols])
     assert len(before) > 0
+
+
+def test_the_published_reward_and_first_visit_rules_can_be_switched_off(
+        mdp_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "off"
+    argv = ["online", str(mdp_file), "--out", str(out), "--decisions", "120", "--seeds", "1",
+            "--criteria", "entropy", "--workers", "1", "--no-progress", "--no-plots"]
+    assert main([*argv, "--no-state-reward", "--no-plan-both-first"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["state_reward"] is False and summary["plan_both_first"] is False
+    assert main([*argv[:3], str(tmp_path / "on"), *argv[4:]]) == 0
+    on = json.loads((tmp_path / "on" / "summary.json").read_text())
+    assert on["state_reward"] is True and on["plan_both_first"] is True
+    # an MF decision costs 1 backup, but at a first visit (after the first decision, when
+    # MB knows a pair) MB plans too; switched off, every MF decision costs 1
+    import pyarrow.parquet as pq
+
+    for folder, both in ((tmp_path / "on", True), (out, False)):
+        rows = pq.read_table(folder / "decisions.parquet").to_pandas()
+        first = ~rows.s.duplicated() & (rows.t > 0)
+        mf = rows.expert == "MF"
+        assert (rows.backups[mf & ~first] == 1).all()
+        assert (rows.backups[mf & first] > 1).all() if both else \
+            (rows.backups[mf & first] == 1).all()
+        assert (mf & first).sum() >= 3
