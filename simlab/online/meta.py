@@ -456,44 +456,6 @@ def make_expert(config: Any, n_states: int, n_actions: int) -> core.Learner:
     return core.Learner(Q, model, p, core.Observer(core.NO_OBSERVER_Q, p, -1))
 
 
-def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: int, *,
-                    criterion: str = "entropy_and_cost", kappa: float = 1.0,
-                    cost_alpha: float = 0.6, use_time: bool = False,
-                    prob_alpha: float = 0.6, reward_ends: bool = True,
-                    state_reward: bool = True, plan_both_first: bool = True,
-                    valid: np.ndarray | None = None) -> MetaAgent:
-    """A fresh :class:`MetaAgent`: experts of the two agent configs, per-state costs at 0,
-    per-state action distributions uniform over the valid actions.
-
-    ``criterion`` one of :data:`CRITERIA`; ``kappa`` >= 0; ``cost_alpha`` and
-    ``prob_alpha`` in (0, 1]; ``reward_ends``, ``state_reward``, ``plan_both_first``
-    (module docstring); ``valid`` (S, A) bool actions allowed per state (None: all).
-    """
-    from simlab.base import validation
-    from simlab.base.errors import ConfigError
-
-    if criterion not in CRITERIA:
-        raise ConfigError(f"unknown criterion {criterion!r}", key="criterion",
-                          fix=f"choose one of {', '.join(CRITERIA)}")
-    validation.positive(kappa, "kappa", allow_zero=True)
-    for key, rate in (("cost_alpha", cost_alpha), ("prob_alpha", prob_alpha)):
-        if not (isinstance(rate, int | float) and 0.0 < rate <= 1.0):
-            raise ConfigError(f"expected a rate in (0, 1], got {rate!r}", key=key)
-    mf = make_expert(mf_config, n_states, n_actions)
-    mb = make_expert(mb_config, n_states, n_actions)
-    mask = core.as_mask(valid, n_states, n_actions)
-    probs = np.full((2, n_states, n_actions), 1.0 / n_actions)
-    if mask.shape[0] > 0:
-        k = np.maximum(mask.sum(axis=1, keepdims=True), 1)
-        rows = np.where(mask.any(axis=1, keepdims=True), mask / k, 1.0 / n_actions)
-        probs[:] = rows[None]
-    return MetaAgent(mf, mb, np.zeros((2, n_states)), np.zeros((2, n_states)), probs,
-                     MetaParams(criterion_code(criterion), float(kappa), float(cost_alpha),
-                                bool(use_time), float(prob_alpha), bool(reward_ends),
-                                bool(state_reward), bool(plan_both_first)),
-                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_))
-
-
 @dataclass(frozen=True)
 class Arbitration:
     """How the meta-controller arbitrates (the arguments of :func:`make_meta_agent` that
@@ -511,12 +473,44 @@ class Arbitration:
     state_reward: bool = True
     plan_both_first: bool = True
 
+    def __post_init__(self) -> None:
+        from simlab.base import validation
+        from simlab.base.errors import ConfigError
+
+        if self.criterion not in CRITERIA:
+            raise ConfigError(f"unknown criterion {self.criterion!r}", key="criterion",
+                              fix=f"choose one of {', '.join(CRITERIA)}")
+        validation.positive(self.kappa, "kappa", allow_zero=True)
+        for key, rate in (("cost_alpha", self.cost_alpha), ("prob_alpha", self.prob_alpha)):
+            if not (isinstance(rate, int | float) and 0.0 < rate <= 1.0):
+                raise ConfigError(f"expected a rate in (0, 1], got {rate!r}", key=key)
+
     def agent(self, mf_config: Any, mb_config: Any, n_states: int, n_actions: int,
               valid: np.ndarray | None = None) -> MetaAgent:
         """A fresh :class:`MetaAgent` arbitrating this way (:func:`make_meta_agent`)."""
-        return make_meta_agent(mf_config, mb_config, n_states, n_actions,
-                               criterion=self.criterion, kappa=self.kappa,
-                               cost_alpha=self.cost_alpha, use_time=self.use_time,
-                               prob_alpha=self.prob_alpha, reward_ends=self.reward_ends,
-                               state_reward=self.state_reward,
-                               plan_both_first=self.plan_both_first, valid=valid)
+        return make_meta_agent(mf_config, mb_config, n_states, n_actions, self, valid=valid)
+
+
+def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: int,
+                    arbitration: Arbitration | None = None, *,
+                    valid: np.ndarray | None = None) -> MetaAgent:
+    """A fresh :class:`MetaAgent`: experts of the two agent configs, arbitrating as
+    ``arbitration`` says (default :class:`Arbitration`), per-state costs at 0, per-state
+    action distributions uniform over the ``valid`` (S, A) bool actions (None: all)."""
+    arb = Arbitration() if arbitration is None else arbitration
+    mf = make_expert(mf_config, n_states, n_actions)
+    mb = make_expert(mb_config, n_states, n_actions)
+    mask = core.as_mask(valid, n_states, n_actions)
+    probs = np.full((2, n_states, n_actions), 1.0 / n_actions)
+    if mask.shape[0] > 0:
+        k = np.maximum(mask.sum(axis=1, keepdims=True), 1)
+        rows = np.where(mask.any(axis=1, keepdims=True), mask / k, 1.0 / n_actions)
+        probs[:] = rows[None]
+    return MetaAgent(mf, mb, np.zeros((2, n_states)), np.zeros((2, n_states)), probs,
+                     MetaParams(criterion_code(arb.criterion), float(arb.kappa),
+                                float(arb.cost_alpha), bool(arb.use_time),
+                                float(arb.prob_alpha), bool(arb.reward_ends),
+                                bool(arb.state_reward), bool(arb.plan_both_first)),
+                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_))
+
+

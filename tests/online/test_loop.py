@@ -16,7 +16,9 @@ from .conftest import chain
 
 def _run(experts, T, task, criterion="mb", n=400, seed=0, **kw):
     mf, mb = experts
-    ag = meta.make_meta_agent(mf, mb, T.shape[0], T.shape[1], criterion=criterion, **kw)
+    valid = kw.pop("valid", None)
+    ag = meta.make_meta_agent(mf, mb, T.shape[0], T.shape[1],
+                              meta.Arbitration(criterion=criterion, **kw), valid=valid)
     ss = np.random.SeedSequence(seed).spawn(2)
     log = run_online(ag, task.compile(T), n, np.random.default_rng(ss[0]),
                      np.random.default_rng(ss[1]))

@@ -97,7 +97,7 @@ def test_decisions_read_the_filtered_distributions_of_the_state(experts) -> None
     The first decision reads the uniform start (entropy 1); after it both filters hold
     0.6 * softmax + 0.4 * the old value, and the second decision reads those."""
     mf, mb = experts
-    ag = meta.make_meta_agent(mf, mb, 3, 2, criterion="mf")
+    ag = meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(criterion="mf"))
     ag.mf.Q[0] = (0.02 * math.log(3), 0.0)
     ag.mb.Q[0] = (0.5, 0.5)
     rng = np.random.default_rng(0)
@@ -116,7 +116,7 @@ def test_decisions_read_the_filtered_distributions_of_the_state(experts) -> None
 @pytest.mark.parametrize("reward_ends", [True, False])
 def test_a_reward_resets_the_values_of_the_rewarded_state(experts, reward_ends) -> None:
     mf, mb = experts
-    ag = meta.make_meta_agent(mf, mb, 3, 2, reward_ends=reward_ends)
+    ag = meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(reward_ends=reward_ends))
     ag.mf.Q[2] = 0.7
     ag.mb.Q[2] = 0.7
     meta.learn(ag, 1, 1, 1.0, 2)
@@ -140,7 +140,7 @@ def test_costs_are_filtered_per_state_for_the_deciding_expert(experts) -> None:
     mf, mb = experts
     T = chain(4)
     task = OnlineTask(goal=(3,), start_states=(0,)).compile(T)
-    ag = meta.make_meta_agent(mf, mb, 4, 2, criterion="mf")  # MF alone: MB never plans
+    ag = meta.make_meta_agent(mf, mb, 4, 2, meta.Arbitration(criterion="mf"))  # MF alone: MB never plans
     log = run_online(ag, task, 50, np.random.default_rng(0), np.random.default_rng(1))
     assert np.all(log.backups == 1) and np.all(log.expert == meta.EXPERT_MF)
     # every visit of s filters 1 into C_MF(s): after k visits 1 - 0.4^k; MB never plans
@@ -175,13 +175,13 @@ def test_model_based_cost_is_sweeps_times_known_pairs(experts) -> None:
 def test_bad_arbitration_settings_are_refused(experts) -> None:
     mf, mb = experts
     with pytest.raises(ConfigError, match="criterion"):
-        meta.make_meta_agent(mf, mb, 3, 2, criterion="coin")
+        meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(criterion="coin"))
     with pytest.raises(ConfigError, match="cost_alpha"):
-        meta.make_meta_agent(mf, mb, 3, 2, cost_alpha=0.0)
+        meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(cost_alpha=0.0))
     with pytest.raises(ConfigError, match="kappa"):
-        meta.make_meta_agent(mf, mb, 3, 2, kappa=-1.0)
+        meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(kappa=-1.0))
     with pytest.raises(ConfigError, match="prob_alpha"):
-        meta.make_meta_agent(mf, mb, 3, 2, prob_alpha=1.5)
+        meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(prob_alpha=1.5))
 
 
 # ------------------------------------------------------------------ MB's reward model
@@ -202,8 +202,8 @@ def _mb_reward(ag, s: int, a: int) -> float:
 @pytest.mark.parametrize("state_reward", [True, False])
 def test_one_unrewarded_arrival_forgets_the_old_goal(mb_name, state_reward) -> None:
     # 4 states, 2 actions: (0, 1) and (3, 1) lead to state 1, the goal; (0, 0) leads to 2.
-    ag = meta.make_meta_agent(*_mb_experts(mb_name), 4, 2, state_reward=state_reward,
-                              reward_ends=False)
+    ag = meta.make_meta_agent(*_mb_experts(mb_name), 4, 2,
+                              meta.Arbitration(state_reward=state_reward, reward_ends=False))
     for _ in range(3):
         meta.learn(ag, 0, 1, 1.0, 1)
     meta.learn(ag, 3, 1, 1.0, 1)
@@ -230,8 +230,8 @@ def test_one_unrewarded_arrival_forgets_the_old_goal(mb_name, state_reward) -> N
 
 def test_the_arrival_reward_leaves_mf_alone(experts) -> None:
     mf, mb = experts
-    on = meta.make_meta_agent(mf, mb, 3, 2, reward_ends=False)
-    off = meta.make_meta_agent(mf, mb, 3, 2, reward_ends=False, state_reward=False)
+    on = meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(reward_ends=False))
+    off = meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(reward_ends=False, state_reward=False))
     for ag in (on, off):
         meta.learn(ag, 0, 1, 1.0, 1)
         meta.learn(ag, 0, 1, 0.0, 1)
@@ -242,7 +242,7 @@ def test_the_arrival_reward_leaves_mf_alone(experts) -> None:
 @pytest.mark.parametrize("both", [True, False])
 def test_both_experts_plan_at_a_first_visit(experts, both) -> None:
     mf, mb = experts
-    ag = meta.make_meta_agent(mf, mb, 3, 2, criterion="entropy", plan_both_first=both)
+    ag = meta.make_meta_agent(mf, mb, 3, 2, meta.Arbitration(criterion="entropy", plan_both_first=both))
     q0 = 1 / 1.9
     meta.learn(ag, 0, 1, 0.0, 1)  # MB's incremental backup: Q(0, 1) = 0.9 q0
     meta.learn(ag, 1, 1, 1.0, 2)  # Q(1, 1) = 1 + 0.9 q0, then the goal's values reset to 0
@@ -274,7 +274,7 @@ def test_both_experts_plan_at_a_first_visit(experts, both) -> None:
 def test_mb_has_a_cost_exactly_where_it_planned(experts, criterion, both) -> None:
     mf, mb = experts
     T = chain(6, 0.8)
-    ag = meta.make_meta_agent(mf, mb, 6, 2, criterion=criterion, plan_both_first=both)
+    ag = meta.make_meta_agent(mf, mb, 6, 2, meta.Arbitration(criterion=criterion, plan_both_first=both))
     task = OnlineTask(goal=(5,), start_states=(0,)).compile(T)
     log = run_online(ag, task, 60, np.random.default_rng(3), np.random.default_rng(4))
     visited = np.zeros(6, dtype=bool)

@@ -19,7 +19,7 @@ def _lattice() -> Discretizer:
 
 def _run(experts, criterion: str, n: int, changes=(), seed: int = 0, **task):
     mf, mb = experts
-    ag = meta.make_meta_agent(mf, mb, 25, 16, criterion=criterion)
+    ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration(criterion=criterion))
     with World("table") as world:
         run = run_physics_online(ag, world, _lattice(),
                                  PhysicsTask((11, 12, 13), (6, 7, 8), n, changes, **task),
