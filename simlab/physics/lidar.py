@@ -194,21 +194,21 @@ class Lidar:
         """The scan :meth:`scan` returns when no ray hits anything, without casting them:
         every range ``inf``, every hit id -1, and the same range-noise draws from ``rng``
         (discarded), so the generator's stream goes on as after a cast."""
-        spec = self.spec
         self.far(reach)
         angles = self._angles if beams is None else self._subset(beams)[1]
         n = angles.shape[0]
         self.skip_noise(rng, n)
-        return LidarScan(
-            ranges=np.full(n, np.inf),
-            angles=angles,
-            range_min=spec.range_min,
-            range_max=spec.range_max,
-            sensor_offset=self.offset[:2].copy(),
-            pose=np.asarray(pose, dtype=float).copy(),
-            stamp=stamp,
-            hit_ids=np.full(n, -1, dtype=np.int64),
-        )
+        return self._reading(np.full(n, np.inf), angles, pose, stamp,
+                             np.full(n, -1, dtype=np.int64))
+
+    def _reading(self, ranges: NDArray[np.float64], angles: NDArray[np.float64],
+                 pose: NDArray[np.float64], stamp: float, hit_ids: NDArray[np.int64]
+                 ) -> LidarScan:
+        """The scan record of these beams' readings, taken at ``pose`` and ``stamp``."""
+        return LidarScan(ranges=ranges, angles=angles, range_min=self.spec.range_min,
+                         range_max=self.spec.range_max, sensor_offset=self.offset[:2].copy(),
+                         pose=np.asarray(pose, dtype=float).copy(), stamp=stamp,
+                         hit_ids=hit_ids)
 
     def skip_noise(self, rng: np.random.Generator | None, n: int) -> None:
         """Draw (and drop) the range noise of a scan of ``n`` beams: what a scan whose
@@ -249,13 +249,4 @@ class Lidar:
             ranges = ranges + rng.normal(0.0, spec.noise_sigma, size=ranges.shape)
         miss = (hit_ids < 0) | (ranges < spec.range_min) | (ranges > spec.range_max)
         ranges[miss] = np.inf
-        return LidarScan(
-            ranges=ranges,
-            angles=angles,
-            range_min=spec.range_min,
-            range_max=spec.range_max,
-            sensor_offset=self.offset[:2].copy(),
-            pose=np.asarray(pose, dtype=float).copy(),
-            stamp=stamp,
-            hit_ids=hit_ids,
-        )
+        return self._reading(ranges, angles, pose, stamp, hit_ids)
