@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from simlab.base.actions import SIMLAB16, ActionSet
 from simlab.base.io import (
     atomic_write,
     atomic_write_json,
@@ -368,9 +369,9 @@ def _transfer_section(result: CalibrationResult) -> str:
                       f"{need['c']:.0f} / transitions: a twin of unlimited data would score "
                       f"about {need['limit']:.3f}, and **{need['transitions']:,.0f} twin "
                       f"transitions**{hours} bring a policy within {need['tolerance']} of "
-                      "it. Collect that much with the calibrated primitives (`simlab collect "
-                      "--primitives primitives.toml --start-states all`) before training the "
-                      "policy you take to the robot.\n\n")
+                      "it. Collect that much with the calibrated primitives before training "
+                      "the policy you take to the robot: "
+                      f"`{collect_line(result.real.action_set, need)}`.\n\n")
     return out.getvalue()
 
 
@@ -383,6 +384,21 @@ def policy_data(result: CalibrationResult) -> dict[str, Any] | None:
     n_real = int(result.real.counts.sum())
     hours = None if result.real.hours is None else need["transitions"] * result.real.hours / n_real
     return {**need, "transitions": round(need["transitions"]), "hours": _fin(hours)}
+
+
+def collect_line(action_set: ActionSet, need: dict[str, Any]) -> str:
+    """The ``simlab collect`` command of the policy data (:func:`policy_data`): the
+    calibrated primitives, the real ``action_set``, every state a start, ``--hours`` (whole
+    hours, rounded up) or, when the real duration is unknown, ``--transitions``."""
+    aset = action_set.to_json()
+    convention = (aset["convention"] if aset["convention"] != "custom" else
+                  ",".join(str(d) for d in aset["directions"]))
+    flags = "" if action_set == SIMLAB16 else (
+        f" --n-actions {aset['n_actions']} --convention {convention} --speed {aset['speed']}")
+    size = (f"--hours {math.ceil(need['hours'])}" if need["hours"] is not None else
+            f"--transitions {need['transitions']}")
+    return (f"simlab collect --arena ARENA --states STATES --primitives primitives.toml"
+            f"{flags} --start-states all {size} --out DIR")
 
 
 def worst_goal(transfer: Any) -> Any:

@@ -193,3 +193,18 @@ def test_calibrate_command_takes_the_config_or_its_fields(inputs, tmp_path) -> N
     assert a["real"]["action_set"]["convention"] == "ccw-east"
     with pytest.raises(ConfigError, match=r"calibration\.n_boot"):  # CalibrationConfig's check
         CalibrateConfig(real=real, states=states, out=tmp_path / "d", n_boot=0)
+
+
+@pytest.mark.parametrize("aset, need, expected", [
+    (parse_action_set(8, "ccw-east", "fast"), {"hours": 143.2, "transitions": 59073},
+     "--primitives primitives.toml --n-actions 8 --convention ccw-east --speed fast "
+     "--start-states all --hours 144 "),
+    (parse_action_set(8, "3,5,1,4,2,6,0,7"), {"hours": None, "transitions": 59073},
+     "--n-actions 8 --convention 3,5,1,4,2,6,0,7 --speed slow --start-states all "
+     "--transitions 59073 "),
+])
+def test_the_policy_data_collect_line_walks_in_the_real_actions(aset, need, expected) -> None:
+    from simlab.calibration.report import collect_line
+
+    line = collect_line(aset, need)
+    assert line.startswith("simlab collect ") and expected in line
