@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import tomllib
 from pathlib import Path
 
@@ -208,3 +209,25 @@ def test_the_policy_data_collect_line_walks_in_the_real_actions(aset, need, expe
 
     line = collect_line(aset, need)
     assert line.startswith("simlab collect ") and expected in line
+
+
+def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_path, capsys,
+                                                                  monkeypatch) -> None:
+    """With a fitted need of 50,000 transitions (stubbed: the tiny walk's curve need not
+    fall), the summary line and report.md say it, with the robot hours at the real rate and
+    the collect command of that data."""
+    import simlab.calibration.report as report_mod
+
+    need = {"limit": 1.06, "c": 500.0, "tolerance": 0.01, "transitions": 50_000.0}
+    monkeypatch.setattr(report_mod, "data_need", lambda curve: dict(need))
+    real, states, hours = inputs
+    out = tmp_path / "cal"
+    assert main(argv(real, states, out, "--real-hours", f"{hours}")) == 0
+    printed = capsys.readouterr().out
+    n_real = int(np.loadtxt(real, delimiter=",", skiprows=1)[:, 3].sum())
+    h = 50_000 * hours / n_real
+    assert f"policy data: 50,000 twin transitions ({h:.0f} h)" in printed
+    md = (out / "report.md").read_text()
+    assert "**50,000 twin transitions**" in md and f"--hours {math.ceil(h)} " in md
+    report = json.loads((out / "report.json").read_text())
+    assert report["transfer"]["data_need"]["hours"] == pytest.approx(h)
