@@ -86,7 +86,7 @@ class CalibrationConfig:
         screen_share: screening walk size as a share of the real transitions (> 0; used
             when ``hours_per_candidate`` is None).
         confirm_hours: simulated hours of each confirming walk; None (default) sizes it
-            from the matched floor (:func:`size_budgets`).
+            from the matched floor (:func:`~simlab.calibration.budget.size_budgets`).
         confirm_top: screened candidates confirmed (>= 1), besides the starting point.
         confirm_seeds: fresh seeds each confirmed candidate walks (>= 1).
         transfer_seeds: twin seeds of the transfer report (0 = no transfer report).

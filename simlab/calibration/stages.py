@@ -9,7 +9,8 @@ state, the budget split evenly), so that the walk covers the lab as the real dat
 Every real ``(s, a)`` pair counts in the distance: a pair the walk never tried is a full
 miss (``unvisited = "max"``), so a candidate cannot win by covering less.
 
-**Budgets** are sized from the real table (:func:`size_budgets`): the screening walks have
+**Budgets** are sized from the real table
+(:func:`~simlab.calibration.budget.size_budgets`): the screening walks have
 ``screen_share`` of the real transitions (cheap and noisy), the confirming walks the
 smallest multiple of them whose *matched floor* (the distance at which a perfect simulator
 with that many transitions would still lie from the real table) is within 35 % of the
