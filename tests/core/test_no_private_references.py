@@ -76,6 +76,17 @@ def test_no_private_references_in_the_readme() -> None:
     assert private_references((ROOT / "README.md").read_text(encoding="utf-8")) == []
 
 
+def test_no_private_references_in_the_experiments_and_docs() -> None:
+    """The experiment files (their comments, references and claims reach the reports) and
+    the documentation pages."""
+    files = [*sorted((ROOT / "experiments").glob("*.toml")),
+             *sorted((ROOT / "docs").rglob("*.md"))]
+    assert len(files) > 10
+    found = {str(p.relative_to(ROOT)): hits for p in files
+             if (hits := private_references(p.read_text(encoding="utf-8")))}
+    assert found == {}
+
+
 def _help_texts(parser: argparse.ArgumentParser, prog: str) -> list[tuple[str, str]]:
     """``(where, text)`` of a parser's description, epilog and every option's and
     subcommand's help, recursing into subparsers."""
