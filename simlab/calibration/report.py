@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from simlab.base.actions import SIMLAB16, ActionSet
+from simlab.base.actions import ActionSet
 from simlab.base.io import (
     atomic_write,
     atomic_write_json,
@@ -39,6 +39,7 @@ from simlab.base.io import (
     output_transaction,
 )
 from simlab.calibration.stages import CalibrationResult, data_need
+from simlab.calibration.walks import action_set_options
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
 
@@ -390,11 +391,8 @@ def collect_line(action_set: ActionSet, need: dict[str, Any]) -> str:
     """The ``simlab collect`` command of the policy data (:func:`policy_data`): the
     calibrated primitives, the real ``action_set``, every state a start, ``--hours`` (whole
     hours, rounded up) or, when the real duration is unknown, ``--transitions``."""
-    aset = action_set.to_json()
-    convention = (aset["convention"] if aset["convention"] != "custom" else
-                  ",".join(str(d) for d in aset["directions"]))
-    flags = "" if action_set == SIMLAB16 else (
-        f" --n-actions {aset['n_actions']} --convention {convention} --speed {aset['speed']}")
+    flags = "".join(f" --{k.replace('_', '-')} {v}"
+                    for k, v in action_set_options(action_set).items())
     size = (f"--hours {math.ceil(need['hours'])}" if need["hours"] is not None else
             f"--transitions {need['transitions']}")
     return (f"simlab collect --arena ARENA --states STATES --primitives primitives.toml"

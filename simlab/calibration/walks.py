@@ -63,11 +63,15 @@ class SimTable:
 
 
 def action_set_options(aset: ActionSet) -> dict[str, Any]:
-    """``collect``'s action-set fields for ``aset`` (none for simlab's 16)."""
+    """``collect``'s action-set fields for ``aset`` (none for simlab's 16): the convention
+    by name when it has one (``ccw-east``), else its directions (``3,5,1,...``)."""
     if aset == SIMLAB16:
         return {}
-    return {"n_actions": aset.n_actions, "speed": aset.speed,
-            "convention": ",".join(str(d) for d in aset.directions)}
+    name = aset.to_json()["convention"]
+    return {"n_actions": aset.n_actions,
+            "convention": name if name != "custom" else
+            ",".join(str(d) for d in aset.directions),
+            "speed": aset.speed}
 
 
 
