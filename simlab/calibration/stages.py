@@ -381,8 +381,8 @@ def _transfer(real: RealTable, twins: list[Candidate], setup: _Setup,
     for k in _pool_sizes(len(twins)):
         pools = [twins[i:i + k] for i in range(0, len(twins) - k + 1, k)]
         counts = [sum(t.sim.counts for t in pool) for pool in pools]
-        ratios = transfer_report(real_model, [model(c, f"{k} walks") for c in counts],
-                                 goals).overall_ratios()
+        ratios = report.overall_ratios() if k == 1 else transfer_report(
+            real_model, [model(c, f"{k} walks") for c in counts], goals).overall_ratios()
         curve.append({"walks": k, "pools": len(pools),
                       "transitions": int(sum(int(c.sum()) for c in counts) // len(counts)),
                       "mean_ratio": float(np.mean(ratios)),
