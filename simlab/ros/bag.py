@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import json
 import math
 import os
@@ -129,7 +130,9 @@ class BagTrajectory:
     map-frame pose of a human (None: no human); ``truth`` (n, 3) the true map-frame pose
     when ``pose`` is an estimate (a particle filter's; None: ``pose`` is the truth or
     unknown); ``custom`` further ``custom_data`` entries
-    of the bag's metadata (written as given; read back: every entry).
+    of the bag's metadata (written as given; read back: every entry); ``walk_starts`` (w,)
+    the sample index where each independent walk begins (several workers' walks laid one
+    after the other: the odometry's twist and covariance restart there; None: one walk).
     """
 
     t: NDArray[np.float64]
@@ -152,6 +155,7 @@ class BagTrajectory:
     human: NDArray[np.float64] | None = None
     truth: NDArray[np.float64] | None = None
     custom: dict[str, str] | None = None
+    walk_starts: NDArray[np.int64] | None = None
 
 
 def _rosbags() -> tuple[Any, Any, Any]:
@@ -264,6 +268,22 @@ def odometry_covariance(t: NDArray[np.float64], odom: NDArray[np.float64],
         twist_cov[i, 0, 0] = m[1, 1] / dt2
         twist_cov[i, 2, 2] = (m[0, 0] + m[2, 2]) / dt2
     return pose_cov, twist_cov
+
+
+def _odometry_motion(t: NDArray[np.float64], odom: NDArray[np.float64],
+                     walk_starts: NDArray[np.int64] | None
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`odometry_twist` and :func:`odometry_covariance` of each walk on its own (a
+    new walk starts at rest, from a known pose)."""
+    bounds = [0, *sorted(set(int(i) for i in (walk_starts if walk_starts is not None else [])
+                             if 0 < int(i) < len(t))), len(t)]
+    twist, pose_cov, twist_cov = [], [], []
+    for a, b in itertools.pairwise(bounds):
+        twist.append(odometry_twist(t[a:b], odom[a:b]))
+        pc, tc = odometry_covariance(t[a:b], odom[a:b])
+        pose_cov.append(pc)
+        twist_cov.append(tc)
+    return np.concatenate(twist), np.concatenate(pose_cov), np.concatenate(twist_cov)
 
 
 def _cov6(c3: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -634,8 +654,7 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         pose = np.asarray(traj.pose, dtype=np.float64)
         odom = pose if traj.odom is None else np.asarray(traj.odom, dtype=np.float64)
         map_odom = compose(pose, inverse(odom))
-        twist = odometry_twist(t, odom)
-        pose_cov, twist_cov = odometry_covariance(t, odom)
+        twist, pose_cov, twist_cov = _odometry_motion(t, odom, traj.walk_starts)
         sx, sy, sz = traj.scan_offset
         bx, by, bz = traj.base_offset
         put("/tf_static", stamps[0], m.tf_message([

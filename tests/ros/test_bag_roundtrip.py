@@ -5,6 +5,7 @@ draw the Voronoi cells."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +50,78 @@ def walks(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     collect(arena="table", states=root / "states.json", out=root / "mcl", transitions=16,
             seed=4, part_size=50, progress=False, pose_source="mcl")
     out["mcl"] = root / "mcl"
+    collect(arena="table", states=root / "states.json", out=root / "two", transitions=255,
+            seed=4, part_size=50, simulator="kinematic", progress=False, workers=2)
+    out["two"] = root / "two"
     return out
+
+
+def _assert_same_columns(a, b) -> None:
+    """Column for column: exact, but for times (whole nanoseconds in a bag) and yaws
+    (through a quaternion)."""
+    assert a.column_names == b.column_names and a.num_rows == b.num_rows
+    for name in a.column_names:
+        x, y = a.column(name).to_pylist(), b.column(name).to_pylist()
+        if name in ("t", "duration"):
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-9, err_msg=name)
+        elif name.startswith("yaw"):
+            d = (np.asarray(y) - np.asarray(x) + np.pi) % (2 * np.pi) - np.pi
+            assert np.abs(d).max() < 1e-12, name
+        else:
+            assert y == x, name
+
+
+def test_a_two_worker_dataset_comes_back_whole_and_exports_again(walks, tmp_path: Path,
+                                                                 capsys) -> None:
+    ds = walks["two"]
+    a = read_dataset(ds)
+    workers = a.column("worker").to_numpy()
+    assert a.num_rows == 255 and (workers == 0).sum() == 128 and (workers == 1).sum() == 127
+    assert main(["export-bag", str(ds), "--out", str(tmp_path / "bag"), "--no-scans"]) == 0
+    assert main(["import-bag", str(tmp_path / "bag"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "back")]) == 0
+    _assert_same_columns(a, read_dataset(tmp_path / "back"))
+    assert open_dataset(tmp_path / "back").manifest["workers"] == 2
+    # the imported dataset knows its arena: exported again without --arena, then imported
+    assert main(["export-bag", str(tmp_path / "back"), "--out", str(tmp_path / "bag2"),
+                 "--no-scans"]) == 0
+    assert main(["import-bag", str(tmp_path / "bag2"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "back2")]) == 0
+    _assert_same_columns(a, read_dataset(tmp_path / "back2"))
+    # one worker on request: worker 1's walk, as the one walk of the bag
+    assert main(["export-bag", str(ds), "--worker", "1", "--out", str(tmp_path / "bag1"),
+                 "--no-scans"]) == 0
+    assert main(["import-bag", str(tmp_path / "bag1"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "one")]) == 0
+    one = read_dataset(tmp_path / "one")
+    mine = a.filter(a.column("worker").to_numpy() == 1)
+    assert one.num_rows == 127
+    np.testing.assert_array_equal(one.column("a").to_numpy(), mine.column("a").to_numpy())
+    np.testing.assert_allclose(one.column("t").to_numpy(), mine.column("t").to_numpy(),
+                               rtol=0, atol=1e-9)
+
+
+def test_walks_laid_end_to_end_restart_the_odometry_at_rest(walks, tmp_path: Path) -> None:
+    from simlab.ros.export import export_bag
+
+    export_bag(walks["two"], tmp_path / "bag", scans=False)
+    info = read_metadata(tmp_path / "bag")
+    offsets = [w["offset"] for w in json.loads(info["custom_data"]["simlab.walks"])]
+    assert offsets[0] == 0.0 and offsets[1] == int(offsets[1])  # whole seconds
+    back = read_bag(tmp_path / "bag", action_topic=None)
+    first = int(np.searchsorted(back.t, offsets[1]))
+    assert back.t[first - 1] + 1.0 <= back.t[first]  # a gap of at least a second
+    # the second walk starts from rest: no velocity across the jump between the walks
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    with Reader(tmp_path / "bag") as r:
+        odom = [ts.deserialize_cdr(raw, c.msgtype) for c, _, raw in
+                r.messages(connections=[c for c in r.connections if c.topic == "/odom"])]
+    twist = odom[first].twist
+    assert twist.twist.linear.x == 0.0 and twist.twist.angular.z == 0.0
+    assert not np.any(twist.covariance) and not np.any(odom[first].pose.covariance)
 
 
 @pytest.mark.parametrize("source", ["truth", "odometry", "mcl"])
