@@ -6,13 +6,17 @@ stamp is ``t0 + t`` with ``t`` the trajectory's seconds):
 =====================  ====================================  ===============================
 topic                  type                                  content
 =====================  ====================================  ===============================
-``/tf_static``         ``tf2_msgs/msg/TFMessage``            ``base_footprint -> base_link``
-                                                             and ``base_link -> base_scan``
-                                                             (the URDF's joints), once,
-                                                             latched
+``/tf_static``         ``tf2_msgs/msg/TFMessage``            every fixed joint of the URDF
+                                                             (``base_footprint -> base_link
+                                                             -> base_scan, caster_back_link,
+                                                             imu_link``), once, latched
 ``/tf``                ``tf2_msgs/msg/TFMessage``            ``map -> odom`` (= pose * odom
-                                                             ^-1) and ``odom ->
-                                                             base_footprint`` per sample
+                                                             ^-1), ``odom ->
+                                                             base_footprint`` and ``base_link
+                                                             -> wheel_{left,right}_link``
+                                                             per sample
+``/joint_states``      ``sensor_msgs/msg/JointState``        the wheel joints' angles (rad)
+                                                             and rates (rad/s) per sample
 ``/odom``              ``nav_msgs/msg/Odometry``             odometry pose (frame ``odom``),
                                                              twist and covariances
 ``/amcl_pose``         ``geometry_msgs/msg/                  map-frame pose (the pose a
@@ -45,8 +49,12 @@ the writer (``simlab.writer``: what ``--overwrite`` may replace), the action set
 ``/simlab/action`` (``simlab.action_set``, JSON), the pose source of the map pose and the
 time origin (``simlab.time_origin_ns``: the stamp of ``t = 0``).
 
-Poses are float64 in the messages (exact); yaw goes through a quaternion (exact to ~1e-16
-rad); scans are float32 as in ``LaserScan``.
+The robot's frames and wheel angles are those :mod:`simlab.ros.frames` derives from the
+URDF and the motion (``robot``); without them, ``/tf_static`` holds the two transforms of
+``base_offset`` and ``scan_offset`` and there is no ``/joint_states``.
+
+Poses are float64 in the messages (exact); yaw goes through a quaternion (scipy's
+``Rotation``; exact to ~1e-16 rad); scans are float32 as in ``LaserScan``.
 """
 
 from __future__ import annotations
@@ -66,8 +74,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from simlab.base.errors import ConfigError, DataError
+from simlab.ros.frames import RobotFrames, wheel_angles
 from simlab.ros.markers import SceneMarkers, voronoi_cells
 
 TOPICS = {
@@ -75,7 +85,7 @@ TOPICS = {
     "scan": "/scan", "map": "/map", "state": "/simlab/state", "goal": "/simlab/goal",
     "action": "/simlab/action", "blocked": "/simlab/blocked", "duration": "/simlab/duration",
     "cells": "/simlab/cells", "goals": "/simlab/goals", "human": "/simlab/human",
-    "true_pose": "/simlab/true_pose",
+    "true_pose": "/simlab/true_pose", "joint_states": "/joint_states",
 }
 _TYPES = {
     "/tf_static": "tf2_msgs/msg/TFMessage", "/tf": "tf2_msgs/msg/TFMessage",
@@ -88,6 +98,7 @@ _TYPES = {
     "/simlab/goals": "visualization_msgs/msg/MarkerArray",
     "/simlab/human": "visualization_msgs/msg/MarkerArray",
     "/simlab/true_pose": "geometry_msgs/msg/PoseStamped",
+    "/joint_states": "sensor_msgs/msg/JointState",
 }
 #: Topics published once and latched: ``static_transform_broadcaster`` and ``map_server``
 #: offer them transient-local (REP-105 tooling; ROS 2 docs "About Quality of Service
@@ -132,7 +143,9 @@ class BagTrajectory:
     unknown); ``custom`` further ``custom_data`` entries
     of the bag's metadata (written as given; read back: every entry); ``walk_starts`` (w,)
     the sample index where each independent walk begins (several workers' walks laid one
-    after the other: the odometry's twist and covariance restart there; None: one walk).
+    after the other: the odometry's twist and covariance restart there; None: one walk);
+    ``robot`` the :class:`~simlab.ros.frames.RobotFrames` to publish (every fixed joint,
+    the wheels and ``/joint_states``; None: only the two offsets above, no wheels).
     """
 
     t: NDArray[np.float64]
@@ -156,6 +169,7 @@ class BagTrajectory:
     truth: NDArray[np.float64] | None = None
     custom: dict[str, str] | None = None
     walk_starts: NDArray[np.int64] | None = None
+    robot: RobotFrames | None = None
 
 
 def _rosbags() -> tuple[Any, Any, Any]:
@@ -189,12 +203,15 @@ def _latched_qos() -> Any:
 
 
 def _quat(yaw: float) -> tuple[float, float, float, float]:
-    return 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)
+    """The quaternion (x, y, z, w) of a rotation by ``yaw`` (rad) about z."""
+    x, y, z, w = Rotation.from_euler("z", yaw).as_quat()
+    return float(x), float(y), float(z), float(w)
 
 
 def yaw_of(q: Any) -> float:
-    """Yaw (rad) of a quaternion message (roll and pitch ignored)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """Yaw (rad) of a quaternion message: the first angle of its intrinsic z-y'-x''
+    (yaw, pitch, roll) decomposition."""
+    return float(Rotation.from_quat([q.x, q.y, q.z, q.w]).as_euler("ZYX")[0])
 
 
 def compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -325,6 +342,24 @@ class _Msgs:
             transform=t["geometry_msgs/msg/Transform"](
                 translation=self.Vec(x=float(x), y=float(y), z=float(z)),
                 rotation=self.Quat(*_quat(float(yaw)))))
+
+    def tf_q(self, ns: int, parent: str, child: str, xyz: tuple[float, float, float],
+             quat: tuple[float, float, float, float]) -> Any:
+        """A transform given by its translation (m) and quaternion (x, y, z, w)."""
+        t = self.ts.types
+        return t["geometry_msgs/msg/TransformStamped"](
+            header=self.header(ns, parent), child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=self.Vec(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+                rotation=self.Quat(*(float(v) for v in quat))))
+
+    def joint_state(self, ns: int, names: list[str], position: NDArray[np.float64],
+                    velocity: NDArray[np.float64]) -> Any:
+        return self.ts.types["sensor_msgs/msg/JointState"](
+            header=self.header(ns, ""), name=names,
+            position=np.asarray(position, dtype=np.float64),
+            velocity=np.asarray(velocity, dtype=np.float64),
+            effort=np.zeros(0, dtype=np.float64))
 
     def tf_message(self, transforms: list[Any]) -> Any:
         return self.ts.types["tf2_msgs/msg/TFMessage"](transforms=transforms)
@@ -655,11 +690,12 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         odom = pose if traj.odom is None else np.asarray(traj.odom, dtype=np.float64)
         map_odom = compose(pose, inverse(odom))
         twist, pose_cov, twist_cov = _odometry_motion(t, odom, traj.walk_starts)
-        sx, sy, sz = traj.scan_offset
-        bx, by, bz = traj.base_offset
-        put("/tf_static", stamps[0], m.tf_message([
-            m.tf(stamps[0], "base_footprint", "base_link", bx, by, 0.0, bz),
-            m.tf(stamps[0], "base_link", "base_scan", sx, sy, 0.0, sz)]))
+        put("/tf_static", stamps[0], m.tf_message(_static_transforms(m, stamps[0], traj)))
+        robot = traj.robot
+        if robot is not None:
+            wheels, rates = wheel_angles(t, odom, robot.wheel_radius, robot.wheel_separation,
+                                         traj.walk_starts)
+            wheel_names = [j.name for j in robot.wheels]
         if traj.map is not None:
             put("/map", stamps[0], m.grid(stamps[0], traj.map))
         scene = traj.scene
@@ -668,8 +704,14 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         if scene is not None and scene.goals:
             put("/simlab/goals", stamps[0], m.goals(stamps[0], scene))
         for i, ns in enumerate(stamps):
-            put("/tf", ns, m.tf_message([m.tf(ns, "map", "odom", *map_odom[i]),
-                                         m.tf(ns, "odom", "base_footprint", *odom[i])]))
+            transforms = [m.tf(ns, "map", "odom", *map_odom[i]),
+                          m.tf(ns, "odom", "base_footprint", *odom[i])]
+            if robot is not None:
+                transforms += [m.tf_q(ns, j.parent, j.child,
+                                      *robot.wheel_transform(k, wheels[i, k]))
+                               for k, j in enumerate(robot.wheels)]
+                put("/joint_states", ns, m.joint_state(ns, wheel_names, wheels[i], rates[i]))
+            put("/tf", ns, m.tf_message(transforms))
             put("/odom", ns, m.odometry(ns, odom[i], twist[i], pose_cov[i], twist_cov[i]))
             put("/amcl_pose", ns, m.amcl(ns, pose[i]))
             if traj.scans is not None:
@@ -685,6 +727,17 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                     header=m.header(ns, "map"), pose=m.pose(*traj.truth[i])))
         if traj.actions is not None:
             _put_actions(put, ts.types, traj, t0)
+
+
+def _static_transforms(m: _Msgs, ns: int, traj: BagTrajectory) -> list[Any]:
+    """``/tf_static``: every fixed joint of ``traj.robot``, or (without it) base_link and
+    base_scan from the trajectory's offsets."""
+    if traj.robot is not None:
+        return [m.tf_q(ns, j.parent, j.child, j.xyz, j.quat) for j in traj.robot.fixed]
+    sx, sy, sz = traj.scan_offset
+    bx, by, bz = traj.base_offset
+    return [m.tf(ns, "base_footprint", "base_link", bx, by, 0.0, bz),
+            m.tf(ns, "base_link", "base_scan", sx, sy, 0.0, sz)]
 
 
 def _stamp_ns(header: Any) -> int:

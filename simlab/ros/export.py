@@ -345,6 +345,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
     from simlab.physics.arena import load_arena
     from simlab.physics.robot import load_robot_spec
     from simlab.ros.bag import BagTrajectory, ScanGeometry, check_bag_target, write_bag
+    from simlab.ros.frames import robot_frames
     from simlab.ros.markers import SceneMarkers
 
     source, out = Path(cfg.source), Path(cfg.out)
@@ -384,8 +385,8 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
         grid = read_map(cfg.map)
     else:
         grid = arena_map(arena_cfg, cfg.resolution)
-    # tf_static: the URDF's joints as the robot spec reads them (positions in the root
-    # frame base_footprint; the tree base_footprint -> base_link -> base_scan)
+    # the URDF's frames (every fixed joint on tf_static, the wheels on tf and joint_states);
+    # the scan and base offsets as the robot spec reads them (root frame base_footprint)
     robot = load_robot_spec()
     bx, by, bz = (float(v) for v in robot.base_link_offset)
     sx, sy, sz = (float(v) for v in robot.lidar_offset)
@@ -402,6 +403,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
                          action_set=rec["action_set"], pose_source=rec["pose_source"],
                          map=grid, scan_offset=(sx - bx, sy - by, sz - bz),
                          base_offset=(bx, by, bz),
-                         scene=scene, custom=rec["custom"], walk_starts=rec["walk_starts"])
+                         scene=scene, custom=rec["custom"], walk_starts=rec["walk_starts"],
+                         robot=robot_frames(robot.urdf_path))
     path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)
