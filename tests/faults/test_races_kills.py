@@ -246,32 +246,80 @@ def test_ctrl_c_in_a_terminal_stops_jobs_and_idle_workers_print_nothing() -> Non
     assert "busy job: KeyboardInterrupt" in res.stdout  # the job stopped, not waited for
 
 
-def test_export_minari_removes_the_staging_a_killed_export_left(work: Path, capsys,
-                                                               monkeypatch) -> None:
-    import fcntl
+def _dead_pid() -> int:
+    """The id of a process that has exited (and been reaped)."""
+    proc = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    return int(proc.stdout)
+
+
+def test_export_minari_removes_only_the_staging_of_dead_exports(work: Path, capsys,
+                                                                 monkeypatch) -> None:
+    from filelock import FileLock
 
     pytest.importorskip("minari")
     home = work / "minari"
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(home))
     old = time.time() - 3600
+    me, dead = os.getpid(), _dead_pid()
+    names = {"killed": f"{dead}-abc", "live": f"{me}-def", "starting": f"{me}-ghi",
+             "reused-pid": f"{me}-jkl", "legacy-old": "mno", "legacy-young": "pqr"}
     dirs = {}
-    for name in ("dead", "live", "young"):
-        d = work / f".minari{'.simlab-'}{name}"
+    for case, rest in names.items():
+        d = work / f".minari.simlab-{rest}"
         (d / "simlab").mkdir(parents=True)
         (d / "simlab" / "half.hdf5").write_bytes(b"\0" * 10)
-        if name != "young":
+        if case in ("live", "reused-pid", "legacy-old"):
             os.utime(d, (old, old))
-        dirs[name] = d
-    live = os.open(dirs["live"], os.O_RDONLY | os.O_DIRECTORY)
-    fcntl.flock(live, fcntl.LOCK_EX)  # another export, still running
+        dirs[case] = d
+    foreign = work / ".minari.other-1"  # not simlab's
+    foreign.mkdir()
+    os.utime(foreign, (old, old))
+    live = FileLock(dirs["live"] / ".owner.lock")
+    live.acquire()  # another export, still running
     try:
         res = run_cli(f"export-minari {work}/data --id simlab/faults-v0".split(), capsys)
     finally:
-        os.close(live)
+        live.release()
     assert res.code == 0, res.stderr
-    assert not dirs["dead"].exists()  # SIGKILLed: removed by this export
-    assert dirs["live"].exists() and dirs["young"].exists()  # maybe running: kept
+    gone = {case for case, d in dirs.items() if not d.exists()}
+    # a killed export's root goes at once; one whose id is in use again once it is old
+    assert gone == {"killed", "reused-pid", "legacy-old"}
+    assert foreign.is_dir()
     assert (home / "simlab" / "faults-v0").is_dir()
+
+
+_KILLED_EXPORT = """
+import sys, time
+import minari
+from simlab.cli import main
+def hang(*args, **kwargs):  # the export's long write, where the SIGKILL lands
+    print("writing", flush=True)
+    time.sleep(600)
+minari.create_dataset_from_buffers = hang
+main(["export-minari", sys.argv[1], "--id", "simlab/killed-v0"])
+"""
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
+def test_an_export_right_after_a_sigkilled_one_leaves_no_staging(work: Path, capsys,
+                                                                 monkeypatch) -> None:
+    pytest.importorskip("minari")
+    home = work / "minari_store"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(home))
+    proc = subprocess.Popen([sys.executable, "-c", _KILLED_EXPORT, str(work / "data")],
+                            stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "writing"
+        assert list(work.glob(".minari_store.simlab-*"))  # the killed export's staging
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    res = run_cli(f"export-minari {work}/data --id simlab/after-v0".split(), capsys)
+    assert res.code == 0, res.stderr
+    assert not list(work.glob(".minari_store.simlab-*"))
+    assert (home / "simlab" / "after-v0").is_dir()
 
 
 def test_visitlab_sees_ctrl_c_between_short_chunks_that_change_no_result(monkeypatch) -> None:
