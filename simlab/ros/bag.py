@@ -67,7 +67,6 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -77,6 +76,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import exclusive_directory
 from simlab.ros.frames import RobotFrames, wheel_angles
 from simlab.ros.markers import SceneMarkers, voronoi_cells
 
@@ -564,24 +564,6 @@ def check_bag_target(path: str | os.PathLike[str], *, overwrite: bool = False) -
     return path
 
 
-@contextlib.contextmanager
-def _lock(directory: Path) -> Iterator[None]:
-    """Hold an exclusive flock on ``directory`` (released when the block ends or the
-    process dies); a second holder gets a :class:`ConfigError` at once."""
-    import fcntl
-
-    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise ConfigError("another simlab process is writing a bag here", path=directory,
-                              fix="wait for it to finish, or choose another --out") from None
-        yield
-    finally:
-        os.close(fd)
-
-
 def _remove_stale_staging(parent: Path, name: str) -> None:
     """Staging directories of ``name`` left by a killed writer (the caller holds the lock
     of ``parent``, so none of them is in use)."""
@@ -614,7 +596,9 @@ def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 
     created = [p for p in [parent, *parent.parents] if not p.exists()]
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        with _lock(parent):
+        with exclusive_directory(parent, what="folder (a bag is being written into it)",
+                                 fix="wait for the other export to finish, or choose "
+                                     "another --out"):
             _remove_stale_staging(parent, path.name)
             path = check_bag_target(path, overwrite=overwrite)  # the lock is ours now
             staging = Path(tempfile.mkdtemp(prefix=f".{path.name}{STAGING_PREFIX}", dir=parent))
