@@ -280,3 +280,31 @@ def unstaged_error(exc: OSError, out: Path) -> OSError:
     k = next(i for i, p in enumerate(parts) if p.startswith(STAGING_PREFIX))
     final = out.joinpath(*parts[k + 1:]) if k + 1 < len(parts) else out
     return type(exc)(exc.errno, exc.strerror or str(exc), str(final))
+
+
+#: The first bytes of a zip archive (an ``.npz``) and of a single ``.npy`` array.
+_ZIP_MAGIC, _NPY_MAGIC = b"PK\x03\x04", b"\x93NUMPY"
+
+
+def npz_problem(path: str | os.PathLike[str], exc: BaseException) -> str:
+    """What is wrong with ``path``, which ``np.load(path, allow_pickle=False)`` failed to
+    read with ``exc``, in the user's terms: not an npz at all (a text file, other bytes),
+    a damaged archive, or arrays of Python objects (which simlab never unpickles). NumPy
+    says "contains pickled (object) data ... load it unsafely" for any file that is
+    neither a zip nor an ``.npy``, advice that must not reach a user."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(512)
+    except OSError as err:
+        return f"cannot be read ({err.strerror or err})"
+    if not head:
+        return "the file is empty, not an npz archive"
+    if not head.startswith((_ZIP_MAGIC, _NPY_MAGIC)):
+        text = head.decode("utf-8", errors="replace")[:-2]  # a character cut at 512 bytes
+        printable = all(c.isprintable() or c in "\r\n\t" for c in text) and "\ufffd" not in text
+        kind = "a text file" if printable else "not a zip archive"
+        return f"not an npz archive ({kind}; an .npz is a zip of .npy arrays)"
+    if "pickle" in str(exc).lower() or "object" in str(exc).lower():
+        return ("holds arrays of Python objects, which simlab never loads (unpickling runs "
+                "code); only numeric and text arrays are read")
+    return f"a damaged npz archive ({' '.join(str(exc).split())})"
