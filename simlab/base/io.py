@@ -18,6 +18,10 @@ from typing import IO, Any
 
 from simlab.base.errors import ConfigError
 
+#: The problem of a file whose parser ran out of stack: what a user can do about it.
+NESTED_TOO_DEEPLY = ("nested too deeply to read (brackets or tables inside each other "
+                     "thousands of levels deep)")
+
 # The process umask, read once (os.umask can only be read by setting it). Temporary files
 # from mkstemp are created 0600; outputs get the mode a plain open() would give them.
 _UMASK = os.umask(0o022)
@@ -108,6 +112,8 @@ def read_toml(path: str | os.PathLike[str], *, what: str = "file",
                           key=key, fix="check the path") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=path) from None
+    except RecursionError:
+        raise ConfigError(NESTED_TOO_DEEPLY, path=path, key=key) from None
 
 
 def ensure_new(path: str | os.PathLike[str], *, overwrite: bool = False, what: str = "output") -> Path:

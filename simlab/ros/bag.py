@@ -76,7 +76,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from simlab.base.errors import ConfigError, DataError
-from simlab.base.io import exclusive_directory
+from simlab.base.io import NESTED_TOO_DEEPLY, exclusive_directory
 from simlab.ros.frames import RobotFrames, wheel_angles
 from simlab.ros.markers import SceneMarkers, voronoi_cells
 
@@ -511,6 +511,8 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise DataError(f"{meta}: not a text file") from None
     try:
         data = YAML(typ="safe", pure=True).load(text)
+    except RecursionError:
+        raise DataError(f"{meta}: {NESTED_TOO_DEEPLY}") from None
     except YAMLError as exc:
         line = " ".join(str(exc).split())
         raise DataError(f"{meta}: not valid YAML ({line})") from None

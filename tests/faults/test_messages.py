@@ -30,6 +30,9 @@ def _imported_log(w: Path) -> None:
     import_log(w / "log.txt", states=w / "states.json", out=w / "robot")
 
 
+_DEEP_JSON = "[" * 100_000 + "]" * 100_000
+_DEEP_TOML = f"a = {_DEEP_JSON}\n"
+
 NO = None
 # (id, setup, argv ({w}: the work folder), words the one error line must contain)
 CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
@@ -45,6 +48,18 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
     ("replay-qtable-text", _write("q/q_NE.npz", "Q = [[0, 1]]\n"), "replay --states "
      "{w}/states.json --qtables {w}/q --hours 0.01 --out {w}/r --no-progress",
      ("q_NE.npz", "not an npz archive", "text file")),
+    # ---- files nested too deeply for the parser: the file named, not "an input"
+    ("drive-config-nested", _write("c.toml", _DEEP_TOML), "drive --config {w}/c.toml "
+     "--steps 1", ("c.toml", "nested too deeply")),
+    ("drive-arena-nested", _write("a.toml", _DEEP_TOML), "drive --arena {w}/a.toml "
+     "--steps 1", ("a.toml", "nested too deeply")),
+    ("collect-states-nested", _write("s.json", _DEEP_JSON), "collect --states {w}/s.json "
+     "--transitions 5 --simulator kinematic --out {w}/o --no-progress",
+     ("s.json", "nested too deeply")),
+    ("estimate-counts-nested", _write("c.json", _DEEP_JSON), "estimate --counts {w}/c.json "
+     "--out {w}/m.npz --no-plot", ("c.json", "nested too deeply")),
+    ("discretize-map-nested", _write("m.yaml", "image: " + _DEEP_JSON + "\n"),
+     "discretize --map {w}/m.yaml --out {w}/s2.json", ("m.yaml", "nested too deeply")),
     ("visitlab-show-q-binary", _write("c.npz", b"\x00\x01\xfe\xffgarbage"), "visitlab show "
      "--task nav --q {w}/c.npz", ("c.npz", "not an npz archive", "not a zip archive")),
 ]
