@@ -87,6 +87,20 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         fh.write(data)
 
 
+def write_npy(fh: IO[bytes], array: Any) -> None:
+    """``np.save(fh, array)`` (no pickle) through Python's file layer. NumPy writes an
+    array to a real file with C stdio, and a full disk then surfaces as "N requested and M
+    written" without an errno; written here, the OSError keeps ``ENOSPC`` and says "No
+    space left on device"."""
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.save(buf, array, allow_pickle=False)
+    fh.write(buf.getbuffer())
+
+
 def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> None:
     """Write ``obj`` as indented JSON to ``path`` atomically."""
     atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
