@@ -194,6 +194,22 @@ def test_estimate_warns_on_an_incomplete_dataset(work: Path, capsys) -> None:
     assert quiet.code == 0 and "incomplete" not in quiet.stderr
 
 
+def test_estimate_warns_on_a_dataset_whose_manifest_lists_no_parts(work: Path, capsys) -> None:
+    """``parts: []`` (and no part files): a complete dataset of 0 transitions; the MDP is
+    still written (it is what the data say) but one warning line says so."""
+    import shutil
+
+    m = json.loads((work / "data" / "_manifest.json").read_text())
+    m["parts"] = []
+    (work / "data" / "_manifest.json").write_text(json.dumps(m))
+    shutil.rmtree(work / "data" / "parts")
+    res = run_cli(f"estimate {work}/data --out {work}/m.npz --no-plot".split(), capsys)
+    assert res.code == 0, res.stderr
+    warnings = [ln for ln in res.stderr.splitlines() if ": warning: " in ln]
+    assert len(warnings) == 1 and "no transitions" in warnings[0], res.stderr
+    assert f"{work}/data" in warnings[0] and "0 parts" in warnings[0]
+
+
 def test_train_warns_on_an_mdp_from_zero_transitions(work: Path, capsys) -> None:
     (work / "zero.csv").write_text("s,a,s_next,count\n0,0,1,0\n1,0,0,0\n")
     res = run_cli(f"estimate --counts {work}/zero.csv --states {work}/states.json --arena table "
