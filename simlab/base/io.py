@@ -194,8 +194,11 @@ class OutputTransaction:
         write again, e.g. the Q-table of a goal no longer trained) at :meth:`commit`, after
         the renames: a failed run removes nothing."""
         final = Path(final)
-        target = final if final.is_absolute() else self.out / final
-        if not _is_inside(target, self.out) or ".." in target.relative_to(self.out).parts:
+        # a path inside ``out`` as given (``out/q_NE.npz``, also when ``out`` is relative),
+        # or a name relative to it, as :meth:`path` takes them
+        target = final if _is_inside(final, self.out) else self.out / final
+        if (final.is_absolute() and not _is_inside(final, self.out)) or \
+                ".." in target.relative_to(self.out).parts:
             raise ValueError(f"{final} is not inside the output directory {self.out}")
         self.retired.append(target)
 
