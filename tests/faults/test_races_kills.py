@@ -3,6 +3,7 @@ and the warnings promised for suspicious but legal inputs."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -73,6 +74,13 @@ def _children(pid: int) -> list[int]:
         except OSError:
             pass
     return kids
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
 
 
 def _alive(pid: int) -> bool:
@@ -374,4 +382,34 @@ def test_ctrl_c_during_visitlab_is_130_and_leaves_no_output(work: Path) -> None:
         raise AssertionError("simlab visitlab ignored Ctrl-C for 120 s") from None
     assert proc.returncode == 130, (proc.returncode, err)
     assert "interrupted" in err and "Traceback" not in err
+    assert not (work / "v").exists()
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
+def test_ctrl_c_of_visitlab_with_workers_ends_the_running_seeds(work: Path) -> None:
+    """``visitlab train --workers 2``: SIGINT to the driver alone (as ``kill -INT`` or a
+    job control that does not reach the workers) while both workers train their seeds.
+    The driver ends its workers and exits 130; before, the interpreter's exit waited for
+    the running seeds to finish (24 s for 4,000,000 trials; these take far longer)."""
+    proc = _simlab("visitlab", "train", "--task", "social", "--agent", "q-learning",
+                   "--trials", "50000000", "--seeds", "2", "--workers", "2",
+                   "--out", str(work / "v"), "--no-progress", cwd=work)
+    def workers() -> list[int]:  # the pool's processes (not multiprocessing's tracker)
+        return [p for p in _children(proc.pid) if "spawn_main" in _cmdline(p)]
+
+    _wait_for(lambda: len(workers()) == 2, "the workers", limit=300.0)
+    pool = workers()
+    time.sleep(3.0)  # both seeds running
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)  # a hang guard, not a speed check
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        for pid in pool:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        raise AssertionError("visitlab --workers 2 waited for its seeds after Ctrl-C") from None
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "interrupted" in err and "Traceback" not in err
+    assert not any(_alive(p) for p in pool)  # ended by the driver, not left to finish
     assert not (work / "v").exists()
