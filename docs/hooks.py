@@ -32,11 +32,25 @@ _state: dict[str, Any] = {}
 
 
 def on_pre_build(config: Any) -> None:
+    """The parsers of the commands, and the guide's figures made in a scratch folder. A
+    figure that cannot be made (a full disk, a failing command) stops the build with one
+    line (mkdocs' ``PluginError``, no traceback) and leaves no scratch folder behind."""
+    from mkdocs.exceptions import PluginError
+
     _state["commands"] = simlab_docs.command_parsers()
-    scratch = tempfile.TemporaryDirectory(prefix="simlab-docs-")
-    _state["scratch"] = scratch
     start = time.perf_counter()
-    _state["figures"] = simlab_docs.make_figures(Path(scratch.name))
+    scratch = None
+    try:
+        scratch = tempfile.TemporaryDirectory(prefix="simlab-docs-")
+        _state["figures"] = simlab_docs.make_figures(Path(scratch.name))
+    except (OSError, simlab_docs.FigureError) as exc:
+        if scratch is not None:
+            scratch.cleanup()
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        where = f" ({exc.filename})" if isinstance(exc, OSError) and exc.filename else ""
+        raise PluginError(f"simlab: the guide's figures could not be made: {what}{where} "
+                          "(free space in the temporary directory, or set TMPDIR)") from None
+    _state["scratch"] = scratch
     log.info("simlab: figures made by their commands in %.1f s", time.perf_counter() - start)
 
 

@@ -278,22 +278,34 @@ FIGURES: dict[str, list[list[str]]] = {
 }
 
 
+class FigureError(RuntimeError):
+    """A command of :data:`FIGURES` failed (its message is the command's own line)."""
+
+
 def make_figures(folder: Path) -> dict[str, Path]:
     """Run :data:`FIGURES`'s commands in ``folder`` (``python -m simlab``); ``{name: file}``.
 
     The figures' command chains run side by side (each chain in order); text outputs
-    (``.txt``) are the command's standard output.
+    (``.txt``) are the command's standard output. The commands' temporary files (the
+    merged robot URDF simlab caches in the temporary directory) go to ``folder/tmp``, so
+    that removing ``folder`` leaves nothing behind. A command that fails raises
+    :class:`FigureError` with its own one-line message.
     """
+    import os
     from concurrent.futures import ThreadPoolExecutor
 
     folder.mkdir(parents=True, exist_ok=True)
+    tmp = folder / "tmp"
+    tmp.mkdir(exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(tmp)}
 
     def chain(name: str) -> Path:
         for argv in FIGURES[name]:
             done = subprocess.run([sys.executable, "-m", "simlab", "-q", *argv], cwd=folder,
-                                  capture_output=True, text=True)
+                                  capture_output=True, text=True, env=env)
             if done.returncode != 0:
-                raise RuntimeError(f"simlab {' '.join(argv)} failed: {done.stderr.strip()}")
+                raise FigureError(f"simlab {' '.join(argv)} failed: "
+                                  f"{' '.join(done.stderr.split())}")
             if name.endswith(".txt"):
                 (folder / name).write_text(done.stdout)
         return folder / name
