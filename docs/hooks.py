@@ -1,7 +1,8 @@
 """MkDocs hooks of the documentation site (``mkdocs.yml``: ``hooks``).
 
 * A page line ``<!-- simlab:NAME -->`` is replaced by the page generated from the code
-  (``commands``, ``envs``, ``dataset``; :mod:`simlab_docs`).
+  (``commands``, ``envs``, ``dataset``; :mod:`simlab_docs`), ``<!-- simlab:api:PAGE -->``
+  by the ``:::`` lines of every public module of the API page's packages.
 * Every ``simlab ...`` line of a code block must name a real subcommand and real options:
   otherwise a warning, which ``mkdocs build --strict`` turns into a failed build.
 * The guide's figures are made by the commands it shows (:data:`simlab_docs.FIGURES`),
@@ -69,6 +70,10 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         marker = f"<!-- simlab:{name} -->"
         if marker in markdown:
             markdown = markdown.replace(marker, make())
+    for name in simlab_docs.API_PAGES:
+        marker = f"<!-- simlab:api:{name} -->"
+        if marker in markdown:
+            markdown = markdown.replace(marker, simlab_docs.api_markdown(name))
     for name, path in _state.get("figures", {}).items():
         marker = f"<!-- simlab:figure:{name} -->"
         if marker in markdown:
