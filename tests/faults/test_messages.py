@@ -60,6 +60,11 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      "--out {w}/m.npz --no-plot", ("c.json", "nested too deeply")),
     ("discretize-map-nested", _write("m.yaml", "image: " + _DEEP_JSON + "\n"),
      "discretize --map {w}/m.yaml --out {w}/s2.json", ("m.yaml", "nested too deeply")),
+    # ---- a value of the wrong kind for a field that takes a file or an object
+    ("drive-config-params-table", _write("c.toml", "params = {drive_time = 0.5}\n"),
+     "drive --config {w}/c.toml --steps 1", ("c.toml", "params", "[primitives] TOML path")),
+    ("drive-config-params-number", _write("c.toml", "params = 3\n"), "drive --config "
+     "{w}/c.toml --steps 1", ("c.toml", "params", "[primitives] TOML path")),
     ("visitlab-show-q-binary", _write("c.npz", b"\x00\x01\xfe\xffgarbage"), "visitlab show "
      "--task nav --q {w}/c.npz", ("c.npz", "not an npz archive", "not a zip archive")),
 ]
