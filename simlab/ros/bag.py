@@ -202,16 +202,28 @@ def _latched_qos() -> Any:
                avoid_ros_namespace_conventions=False)
 
 
+def yaw_quats(yaw: Any) -> NDArray[np.float64]:
+    """Quaternions ``(..., 4)`` (x, y, z, w) of rotations by ``yaw`` (...,) rad about z (one
+    scipy call for a whole trajectory: a ``Rotation`` per message costs ~60 us)."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    return Rotation.from_euler("z", yaw.reshape(-1, 1)).as_quat().reshape(*yaw.shape, 4)
+
+
+def quat_yaws(quats: Any) -> NDArray[np.float64]:
+    """Yaws ``(...,)`` (rad) of quaternions ``(..., 4)`` (x, y, z, w): the first angle of
+    the intrinsic z-y'-x'' (yaw, pitch, roll) decomposition."""
+    q = np.asarray(quats, dtype=np.float64)
+    return Rotation.from_quat(q.reshape(-1, 4)).as_euler("ZYX")[:, 0].reshape(q.shape[:-1])
+
+
 def _quat(yaw: float) -> tuple[float, float, float, float]:
-    """The quaternion (x, y, z, w) of a rotation by ``yaw`` (rad) about z."""
-    x, y, z, w = Rotation.from_euler("z", yaw).as_quat()
+    x, y, z, w = yaw_quats(float(yaw))
     return float(x), float(y), float(z), float(w)
 
 
 def yaw_of(q: Any) -> float:
-    """Yaw (rad) of a quaternion message: the first angle of its intrinsic z-y'-x''
-    (yaw, pitch, roll) decomposition."""
-    return float(Rotation.from_quat([q.x, q.y, q.z, q.w]).as_euler("ZYX")[0])
+    """Yaw (rad) of a quaternion message (:func:`quat_yaws`)."""
+    return float(quat_yaws([q.x, q.y, q.z, q.w]))
 
 
 def compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -330,9 +342,11 @@ class _Msgs:
     def header(self, ns: int, frame: str) -> Any:
         return self.Header(stamp=self.Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
 
-    def pose(self, x: float, y: float, yaw: float, z: float = 0.0) -> Any:
+    def pose(self, x: float, y: float, yaw: float, z: float = 0.0, quat: Any = None) -> Any:
+        """A pose message; ``quat`` (x, y, z, w), when given, is ``yaw``'s quaternion."""
+        q = _quat(float(yaw)) if quat is None else (float(v) for v in quat)
         return self.Pose(position=self.Point(x=float(x), y=float(y), z=float(z)),
-                         orientation=self.Quat(*_quat(float(yaw))))
+                         orientation=self.Quat(*q))
 
     def tf(self, ns: int, parent: str, child: str, x: float, y: float, yaw: float,
            z: float = 0.0) -> Any:
@@ -365,11 +379,12 @@ class _Msgs:
         return self.ts.types["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
     def odometry(self, ns: int, pose: NDArray[np.float64], twist: NDArray[np.float64],
-                 pose_cov: NDArray[np.float64], twist_cov: NDArray[np.float64]) -> Any:
+                 pose_cov: NDArray[np.float64], twist_cov: NDArray[np.float64],
+                 quat: Any = None) -> Any:
         t = self.ts.types
         return t["nav_msgs/msg/Odometry"](
             header=self.header(ns, "odom"), child_frame_id="base_footprint",
-            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose),
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose, quat=quat),
                                                           covariance=_cov6(pose_cov)),
             twist=t["geometry_msgs/msg/TwistWithCovariance"](
                 twist=t["geometry_msgs/msg/Twist"](
@@ -377,11 +392,11 @@ class _Msgs:
                     angular=self.Vec(x=0.0, y=0.0, z=float(twist[2]))),
                 covariance=_cov6(twist_cov)))
 
-    def amcl(self, ns: int, pose: NDArray[np.float64]) -> Any:
+    def amcl(self, ns: int, pose: NDArray[np.float64], quat: Any = None) -> Any:
         t = self.ts.types
         return t["geometry_msgs/msg/PoseWithCovarianceStamped"](
             header=self.header(ns, "map"),
-            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose),
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose, quat=quat),
                                                           covariance=np.zeros(36)))
 
     def scan(self, ns: int, ranges: NDArray[np.float32], g: ScanGeometry) -> Any:
@@ -677,11 +692,14 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         map_odom = compose(pose, inverse(odom))
         twist, pose_cov, twist_cov = _odometry_motion(t, odom, traj.walk_starts)
         put("/tf_static", stamps[0], m.tf_message(_static_transforms(m, stamps[0], traj)))
+        q_map_odom, q_odom, q_pose = (yaw_quats(a[:, 2]) for a in (map_odom, odom, pose))
+        q_truth = None if traj.truth is None else yaw_quats(np.asarray(traj.truth)[:, 2])
         robot = traj.robot
         if robot is not None:
             wheels, rates = wheel_angles(t, odom, robot.wheel_radius, robot.wheel_separation,
                                          traj.walk_starts)
             wheel_names = [j.name for j in robot.wheels]
+            q_wheels = [robot.wheel_quats(k, wheels[:, k]) for k in range(2)]
         if traj.map is not None:
             put("/map", stamps[0], m.grid(stamps[0], traj.map))
         scene = traj.scene
@@ -690,16 +708,16 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         if scene is not None and scene.goals:
             put("/simlab/goals", stamps[0], m.goals(stamps[0], scene))
         for i, ns in enumerate(stamps):
-            transforms = [m.tf(ns, "map", "odom", *map_odom[i]),
-                          m.tf(ns, "odom", "base_footprint", *odom[i])]
+            transforms = [m.tf_q(ns, "map", "odom", (*map_odom[i, :2], 0.0), q_map_odom[i]),
+                          m.tf_q(ns, "odom", "base_footprint", (*odom[i, :2], 0.0), q_odom[i])]
             if robot is not None:
-                transforms += [m.tf_q(ns, j.parent, j.child,
-                                      *robot.wheel_transform(k, wheels[i, k]))
+                transforms += [m.tf_q(ns, j.parent, j.child, j.xyz, q_wheels[k][i])
                                for k, j in enumerate(robot.wheels)]
                 put("/joint_states", ns, m.joint_state(ns, wheel_names, wheels[i], rates[i]))
             put("/tf", ns, m.tf_message(transforms))
-            put("/odom", ns, m.odometry(ns, odom[i], twist[i], pose_cov[i], twist_cov[i]))
-            put("/amcl_pose", ns, m.amcl(ns, pose[i]))
+            put("/odom", ns, m.odometry(ns, odom[i], twist[i], pose_cov[i], twist_cov[i],
+                                        q_odom[i]))
+            put("/amcl_pose", ns, m.amcl(ns, pose[i], q_pose[i]))
             if traj.scans is not None:
                 put("/scan", ns, m.scan(ns, traj.scans[i], traj.scan_geometry))
             if traj.state is not None:
@@ -710,7 +728,7 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                 put("/simlab/human", ns, m.human(ns, traj.human[i]))
             if traj.truth is not None:
                 put("/simlab/true_pose", ns, ts.types["geometry_msgs/msg/PoseStamped"](
-                    header=m.header(ns, "map"), pose=m.pose(*traj.truth[i])))
+                    header=m.header(ns, "map"), pose=m.pose(*traj.truth[i], quat=q_truth[i])))
         if traj.actions is not None:
             _put_actions(put, ts.types, traj, t0)
 
@@ -833,16 +851,24 @@ def _recorded_action_set(custom: dict[str, Any], path: Path) -> Any:
                         f"JSON") from None
 
 
-def _pose_of(msg: Any) -> tuple[float, float, float]:
+def _pose_of(msg: Any) -> tuple[float, float, float, float, float, float]:
+    """``(x, y, qx, qy, qz, qw)`` of a pose message (:func:`_planar` makes the yaws)."""
     p = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
-    return p.position.x, p.position.y, yaw_of(p.orientation)
+    q = p.orientation
+    return p.position.x, p.position.y, q.x, q.y, q.z, q.w
+
+
+def _planar(rows: Any) -> NDArray[np.float64]:
+    """``(n, 3)`` poses (x, y, yaw) of :func:`_pose_of` rows, the yaws in one call."""
+    a = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+    return np.column_stack([a[:, :2], quat_yaws(a[:, 2:])])
 
 
 def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str | None,
                 action_topic: str | None, t0: float | None, path: Path) -> BagTrajectory:
     try:
         msgs = sorted(topics[pose_topic], key=lambda e: _stamp_ns(e[1].header))
-        pose = np.array([_pose_of(m) for _, m, _ in msgs], dtype=np.float64)
+        pose = _planar([_pose_of(m) for _, m, _ in msgs])
     except AttributeError:
         raise DataError(f"{path}: pose_topic: {pose_topic!r} carries "
                         f"{topics[pose_topic][0][2]}, not a pose (give a "
@@ -898,12 +924,12 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                 base = (v.x, v.y, v.z)
     return BagTrajectory(
         t=((np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9).astype(np.float64), pose=pose,
-        odom=None if odom is None else np.array(odom),
+        odom=None if odom is None else _planar(odom),
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),
         goal=None if goal is None else np.array(goal), actions=actions, action_t=action_t,
         blocked=blocked, duration=duration, map=grid, scan_offset=offset, base_offset=base,
-        truth=None if truth is None else np.array(truth, dtype=np.float64))
+        truth=None if truth is None else _planar(truth))
 
 
 def _grid_of(msg: Any) -> Any:

@@ -55,14 +55,14 @@ class RobotFrames:
     wheel_radius: float
     wheel_separation: float
 
-    def wheel_transform(self, k: int, angle: float) -> tuple[tuple[float, float, float],
-                                                               tuple[float, float, float, float]]:
-        """``(xyz, quat)`` of wheel ``k`` (0 left, 1 right) turned by ``angle`` (rad) about
-        its axis: the joint's origin, then the rotation about the axis."""
+    def wheel_quats(self, k: int, angles: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``(n, 4)`` quaternions (x, y, z, w) of wheel ``k`` (0 left, 1 right) turned by
+        ``angles`` (n,) rad about its axis: the joint's origin rotation, then the turn (its
+        translation is the joint's ``xyz``)."""
         j = self.wheels[k]
-        turn = Rotation.from_rotvec(np.asarray(j.axis, dtype=np.float64) * float(angle))
-        q = (Rotation.from_quat(j.quat) * turn).as_quat()
-        return j.xyz, (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        axis = np.asarray(j.axis, dtype=np.float64)
+        turns = Rotation.from_rotvec(np.asarray(angles, dtype=np.float64)[:, None] * axis)
+        return (Rotation.from_quat(j.quat) * turns).as_quat()
 
 
 def robot_frames(urdf_path: str | os.PathLike[str] | None = None) -> RobotFrames:
