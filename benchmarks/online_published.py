@@ -54,18 +54,19 @@ FILES = {"base": "realisticNavWorld.json", "goal": "realisticNavWorld_newGoal.js
          "20-21": "realisticNavWorld_noTrans20-21.json",
          "6-7": "realisticNavWorld_noTrans6-7.json"}
 
-#: One ablation per published rule: the option set back to simlab's value.
+#: One ablation per published rule: the option set back to simlab's value (and the early
+#: published simulator's restart, which the published protocol leaves out).
 ABLATIONS = {
     "reset teleport": {"reset": "teleport"},
     "change pays": {"change_pays": True},
     "first state drawn": {"first_state": "drawn"},
-    "no restart": {"restart_after": 0},
     "no phantom start": {"phantom_start": False},
     "ties to MF": {"ties": "mf"},
-    "restart after 200 (v1.0)": {"restart_after": 200},
     "goal moves kept": {"forget_goal_moves": False},
+    "goal reward to every move": {"reward_links": False},
     "MB incremental backups": {"mb_params": {"incremental": True}},
     "tau 0.02": {"mf_params": {"tau": 0.02}, "mb_params": {"tau": 0.02}},
+    "restart after 200 (first simulator)": {"restart_after": 200},
 }
 
 

@@ -9,7 +9,9 @@ run ``i`` its environment and agent streams, the same for every arm (common rand
 numbers: arms differ by their decisions, not by their luck).
 
 Defaults are the published ones (Dromnelle et al. 2022, sec. 3-4): MF Q-learning alpha
-0.6, gamma 0.9, softmax inverse temperature beta 50 (``tau = 0.02``); MB value iteration
+0.6, gamma 0.9, softmax inverse temperature beta 50 (``tau = 0.02`` on simlab's reward of
+1; ``--protocol published`` uses the published code's ``1 / (1.9 * 50)``, its beta on
+rewards of 1.9: :data:`PUBLISHED_TAU`); MB value iteration
 on the learned model, gamma 0.9, beta 50, planning until a sweep changes no Q by more than
 1e-4 (at most 100 sweeps); cost filter alpha 0.6; start states 0 and 32, goal 18, change at
 decision 1,601 (index 1600): goal -> 34, or passages 20 <-> 21 and 6 <-> 7 closed.
@@ -39,6 +41,27 @@ text leaves implicit):
   cost term by ``exp(-kappa * H_MF)`` with MF's entropy in bits
   (:mod:`simlab.online.meta`).
 
+**Protocol.** ``--protocol`` sets every rule of the run at once: ``simlab`` (default), the
+rules above with simlab's own cleaner environment (teleport to a start after a reward, ...),
+or ``published``, the authors' simulator and experts as their code runs them (the
+environment's rules in :mod:`simlab.online.protocol`, the agent's in
+:mod:`simlab.online.meta` ``AGENT_RULES``, the experts' in :data:`EXPERT_RULES`). Each rule
+is also an option (``--reset``, ``--change-pays``, ``--passage-choice``, ``--first-state``,
+``--restart-after``, ``--phantom-start``, ``--ties``, ``--forget-goal-moves``,
+``--learn-from-goal``, ``--reward-links``; ``mb_params`` / ``mf_params`` for the experts):
+decision: an option given beside the switch wins over it (it is not refused), and
+``summary.json`` records the protocol, every rule as applied and the rules given against it.
+The cost the criterion reads stays ``backups`` under ``--protocol published`` (runs stay
+bit-identical by seed; the published code measured seconds: ``--cost seconds``).
+
+**Changes.** ``--change goal`` / ``passages`` change the task within the run's model;
+``--after MODEL`` makes the world another model from ``--change-at`` on (``--change model``,
+or with a goal change or passages closed in it): the published goal change and closed
+passages are files of the whole lab after the change. Several ``--after`` models (or
+``--passages`` under ``--passage-choice more-used``) are alternatives: the one whose
+``--use-states`` state saw the most decisions before the change happens (the first listed
+on ties), and the summary records, per run, which one and the counts.
+
 Outputs in ``out`` (one output transaction: all or nothing):
 
 * ``decisions.parquet`` — one row per decision: ``arm``, ``seed`` (run index), ``t``,
@@ -50,7 +73,8 @@ Outputs in ``out`` (one output transaction: all or nothing):
   change marked);
 * ``summary.json`` and ``summary.md`` — per arm: reward (total, before / after the
   change), cost in backups and seconds (absolute and relative to ``mb``), MB share (total
-  and per window), recovery after the change.
+  and per window), recovery after the change, restarts and the alternative chosen by use;
+  the protocol and its rules.
 """
 
 from __future__ import annotations
@@ -95,7 +119,7 @@ EXPERT_RULES: dict[str, dict[str, dict[str, Any]]] = {
 CHANGES = ("none", "goal", "passages", "model")
 #: The options that override one rule of ``--protocol`` (environment, then agent).
 RULE_OPTIONS = ("reset", "change_pays", "passage_choice", "first_state", "restart_after",
-                "phantom_start", "ties", "forget_goal_moves", "learn_from_goal")
+                "phantom_start", "ties", "forget_goal_moves", "learn_from_goal", "reward_links")
 FILES = ("decisions.parquet", "cumulative_reward.png", "cumulative_cost.png", "mb_share.png",
          "summary.json", "summary.md")
 _PLOTS = FILES[1:4]
@@ -165,9 +189,10 @@ class OnlineConfig(CommandConfig):
                            "simlab's own, or the published experiment's (Dromnelle et al. "
                            "2022: a decision in the goal before the restart, the change's "
                            "decision unrewarded, the more used passage closed, first state "
-                           "the first start state, a restart without reward in 200 "
-                           "decisions, a phantom first transition, coin-tossed ties, the "
-                           "goal's moves forgotten, MB planning only when it decides)",
+                           "the first start state, a phantom first transition, coin-tossed "
+                           "ties, the goal's moves forgotten, MB's goal reward only for the "
+                           "moves rewarded into it, MB planning only when it decides, the "
+                           "published temperature)",
                            choices=tuple(PROTOCOLS))
     reset: str | None = option(None, "after a reward: teleport to a start state (simlab) or "
                                "one more decision in the goal whose move goes to a start "
@@ -183,7 +208,8 @@ class OnlineConfig(CommandConfig):
                                      "published)", choices=FIRST_STATES)
     restart_after: int | None = option(None, "a run without reward in its first N decisions "
                                        "starts again, the experts keeping what they learned "
-                                       "(published 200; simlab 0: never)", metavar="N")
+                                       "(0: never, simlab and published; 200: the first "
+                                       "version of the published simulator)", metavar="N")
     phantom_start: bool | None = option(None, "the experts learn (first state, action 0, "
                                         "reward 0, first state) before the first decision, "
                                         "the published simulator's fictitious previous "
@@ -197,6 +223,9 @@ class OnlineConfig(CommandConfig):
                                           "reward was just obtained, the goal-decision "
                                           "reset's move (published: no; simlab: yes, and its "
                                           "teleport makes none)")
+    reward_links: bool | None = option(None, "MB's reward of arriving in a goal counts only "
+                                       "for the moves once rewarded into it (published); "
+                                       "simlab: for every move that reached it")
     mf: str = option("q-softmax", "agent of the MF expert (simlab agent name)")
     mb: str = option("sliding-window", "agent of the MB expert (simlab agent name)")
     mf_params: Any | None = option(None, "overrides of the MF expert {name: value} (over "
@@ -325,7 +354,8 @@ class OnlineConfig(CommandConfig):
                            reward_ends=self.reward_ends, state_reward=self.state_reward,
                            plan_both_first=self.plan_both_first, ties=self._rule("ties"),
                            forget_goal_moves=self._rule("forget_goal_moves"),
-                           learn_from_goal=self._rule("learn_from_goal"))
+                           learn_from_goal=self._rule("learn_from_goal"),
+                           reward_links=self._rule("reward_links"))
 
     def expert_configs(self) -> tuple[Any, Any]:
         """The agent configs of the MF and MB experts (published defaults, the protocol's

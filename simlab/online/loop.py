@@ -27,6 +27,7 @@ decisions starts again (the experts keep what they learned).
 from __future__ import annotations
 
 import dataclasses
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +44,9 @@ COLUMNS = ("s", "a", "s_next", "expert", "h_mf", "h_mb", "c_mf", "c_mb", "backup
            "reward", "phase")
 #: The fields of :class:`OnlineLog` that describe the whole run, not one decision.
 RUN_FIELDS = ("restarts", "use_counts")
+
+#: The columns as the compiled loop writes them (one record of arrays).
+_Columns = namedtuple("_Columns", COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -122,8 +126,7 @@ def _choose_phase(task, visits, nxt, use_counts):
 
 
 @njit(cache=True)
-def _loop(ag, task, rules, n, env_rng, agent_rng, s_log, a_log, s2_log, e_log, hmf_log,
-          hmb_log, cmf_log, cmb_log, b_log, sec_log, r_log, ph_log, use_counts):
+def _loop(ag, task, rules, n, env_rng, agent_rng, log, use_counts):
     n_phases = task.phase_start.shape[0]
     visits = np.zeros(task.start_cdf.shape[0], dtype=np.int64)
     s = _first_state(task, rules, env_rng)
@@ -147,18 +150,18 @@ def _loop(ag, task, rules, n, env_rng, agent_rng, s_log, a_log, s2_log, e_log, h
         if t == rules.silent_at:
             r = 0.0
         meta.learn(ag, s, a, r, s_next)
-        s_log[t] = s
-        a_log[t] = a
-        s2_log[t] = s_next
-        e_log[t] = e
-        hmf_log[t] = h_mf
-        hmb_log[t] = h_mb
-        cmf_log[t] = c_mf
-        cmb_log[t] = c_mb
-        b_log[t] = backups
-        sec_log[t] = seconds
-        r_log[t] = r
-        ph_log[t] = phase
+        log.s[t] = s
+        log.a[t] = a
+        log.s_next[t] = s_next
+        log.expert[t] = e
+        log.h_mf[t] = h_mf
+        log.h_mb[t] = h_mb
+        log.c_mf[t] = c_mf
+        log.c_mb[t] = c_mb
+        log.backups[t] = backups
+        log.seconds[t] = seconds
+        log.reward[t] = r
+        log.phase[t] = phase
         visits[s] += 1
         got += r
         t += 1
@@ -190,5 +193,5 @@ def run_online(agent: meta.MetaAgent, task: object, n_decisions: int,
     log = OnlineLog.empty(int(n_decisions))
     use_counts = np.full(task.phase_start.shape[0], -1, dtype=np.int64)  # type: ignore[attr-defined]
     restarts = _loop(agent, task, rules, int(n_decisions), env_rng, agent_rng,
-                     *log.columns().values(), use_counts)
+                     _Columns(**log.columns()), use_counts)
     return dataclasses.replace(log, restarts=int(restarts), use_counts=use_counts)

@@ -132,6 +132,9 @@ C_MF, C_MB, C_RANDOM, C_ENTROPY, C_ENTROPY_COST = range(5)
 #: Expert indices (rows of the cost tables, values of the ``expert`` log column).
 EXPERT_MF, EXPERT_MB = 0, 1
 
+#: No link table (``reward_links`` off): every pair's arrivals carry the state's reward.
+NO_LINKS = np.zeros((0, 0), dtype=np.int64)
+
 #: Arbitration parameters: ``criterion`` (code of :data:`CRITERIA`), ``kappa`` (weight of
 #: MF's certainty on the cost term), ``cost_alpha`` (low-pass rate of the per-state costs),
 #: ``use_time`` (decide on wall-clock seconds instead of backups), ``prob_alpha``
@@ -140,11 +143,12 @@ EXPERT_MF, EXPERT_MB = 0, 1
 #: model is the reward last seen on arriving in each state), ``plan_both_first`` (both
 #: experts plan at a state's first visit), ``ties_random`` (a tie of the entropy criteria is a
 #: coin), ``forget_goal_moves`` (MB forgets the rewarded state's moves at its first reward),
-#: ``learn_from_goal`` (the transition starting where a reward was just obtained is learned).
+#: ``learn_from_goal`` (the transition starting where a reward was just obtained is learned),
+#: ``reward_links`` (MB's arrival reward counts only for the pairs once rewarded into it).
 MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time",
                                        "prob_alpha", "reward_ends", "state_reward",
                                        "plan_both_first", "ties_random", "forget_goal_moves",
-                                       "learn_from_goal"])
+                                       "learn_from_goal", "reward_links"])
 
 #: How ties of ``entropy`` and ``entropy_and_cost`` are broken: ``mf`` (simlab) or a fair
 #: ``random`` coin (published).
@@ -154,7 +158,8 @@ TIES = ("mf", "random")
 #: :class:`Arbitration` fields that differ from its defaults (simlab's).
 AGENT_RULES: dict[str, dict[str, Any]] = {
     "simlab": {},
-    "published": {"ties": "random", "forget_goal_moves": True, "learn_from_goal": False},
+    "published": {"ties": "random", "forget_goal_moves": True, "learn_from_goal": False,
+                  "reward_links": True},
 }
 
 #: The meta-controlled pair: ``mf`` and ``mb`` (:class:`simlab.agents.core.Learner`),
@@ -165,9 +170,12 @@ AGENT_RULES: dict[str, dict[str, Any]] = {
 #: each state (MB's reward model under ``state_reward``; 0 before any arrival), ``seen``
 #: (S,) bool states where a decision was made, ``paid`` (S,) bool states that were rewarded
 #: once, ``after_reward`` (1,) int64 the state a reward was obtained on arriving in by the
-#: last transition learned (-1: none). Built by :func:`make_meta_agent`.
+#: last transition learned (-1: none), ``link`` (S, A) int64 the goal state each pair was last
+#: rewarded into (-1: none; :data:`NO_LINKS` without ``reward_links``). Built by
+#: :func:`make_meta_agent`.
 MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "probs", "params",
-                                     "valid", "arrival_reward", "seen", "paid", "after_reward"])
+                                     "valid", "arrival_reward", "seen", "paid", "after_reward",
+                                     "link"])
 
 
 def criterion_code(name: str) -> int:
@@ -315,18 +323,34 @@ def expert_plan(lr, valid):
     return sweeps * per_sweep
 
 
+@njit(cache=True, inline="always")
+def _rewritten(pair, A, s_next, link, only):
+    """Whether the arrivals of ``pair`` in ``s_next`` take the new reward: every pair, or
+    (``link`` given) the pairs linked to ``s_next``; ``only >= 0``: that pair alone."""
+    if only >= 0 and pair != only:
+        return False
+    if link.shape[0] == 0:
+        return True
+    s = pair // A
+    return link[s, pair - s * A] == s_next
+
+
 @njit(cache=True)
-def _window_arrival_reward(m, s_next, new):
+def _window_arrival_reward(m, s_next, new, link, only):
     for k in range(m.n_slots):
+        if not _rewritten(m.slot_pair[k], m.n_actions, s_next, link, only):
+            continue
         for i in range(m.win_fill[k]):
             if m.win_state[k, i] == s_next:
                 m.win_reward[k, i] = new
 
 
 @njit(cache=True)
-def _count_arrival_reward(m, s_next, old, new):
+def _count_arrival_reward(m, s_next, old, new, link, only):
     A = m.n_actions
     for j in range(m.n_pairs):
+        if not _rewritten(m.pairs[j], A, s_next, link, only):
+            continue
         s = m.pairs[j] // A
         a = m.pairs[j] - s * A
         k = m.head[s, a]
@@ -336,29 +360,50 @@ def _count_arrival_reward(m, s_next, old, new):
             k = m.succ_link[k]
 
 
-def set_arrival_reward(model, s_next, old, new):
+def set_arrival_reward(model, s_next, old, new, link=NO_LINKS, only=-1):
     """Make ``new`` the reward of arriving in ``s_next`` in a count or window model whose
-    every recorded arrival there carries ``old``: a window model's rewards of the outcomes
-    ending in ``s_next`` become ``new``; a count model's reward sums move by
-    ``n(s, a, s_next) * (new - old)``. The model's reward of a pair is then ``sum_s'
-    T(s, a, s') r(s')`` with ``r`` the reward last seen on arriving in each state (module
-    docstring, ``state_reward``). O(observed outcomes); called only when ``r(s_next)``
-    changes (a goal found or lost)."""
+    recorded arrivals there carry ``old``: a window model's rewards of the outcomes ending in
+    ``s_next`` become ``new``; a count model's reward sums move by ``n(s, a, s_next) * (new -
+    old)``. The model's reward of a pair is then ``sum_s' T(s, a, s') r(s')`` with ``r`` the
+    reward last seen on arriving in each state (module docstring, ``state_reward``).
+    ``link`` (S, A) int64 (:data:`NO_LINKS`: every pair): only the pairs linked to ``s_next``
+    (``reward_links``); ``only``: that pair index ``s * A + a`` alone. O(observed outcomes);
+    called only when ``r(s_next)`` changes (a goal found or lost) or a pair is linked."""
     if isinstance(model, WindowModel):
-        _window_arrival_reward(model, s_next, new)
+        _window_arrival_reward(model, s_next, new, link, only)
     elif isinstance(model, CountModel):
-        _count_arrival_reward(model, s_next, old, new)
+        _count_arrival_reward(model, s_next, old, new, link, only)
     else:
         raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
 
 
 @overload(set_arrival_reward, jit_options={"cache": True})
-def _ov_set_arrival_reward(model, s_next, old, new):
+def _ov_set_arrival_reward(model, s_next, old, new, link, only):  # compiled: every argument
     if isinstance(model, WindowModelType):
-        return lambda model, s_next, old, new: _window_arrival_reward(model, s_next, new)
+        return lambda model, s_next, old, new, link, only: _window_arrival_reward(
+            model, s_next, new, link, only)
     if isinstance(model, CountModelType):
-        return lambda model, s_next, old, new: _count_arrival_reward(model, s_next, old, new)
+        return lambda model, s_next, old, new, link, only: _count_arrival_reward(
+            model, s_next, old, new, link, only)
     return None
+
+
+@njit(cache=True)
+def _mb_reward_model(ag, s, a, r, s_next):
+    """MB's reward model learns the arrival ``(s, a) -> s_next`` with reward ``r`` before its
+    model counts it (module docstring, ``state_reward`` and ``reward_links``)."""
+    old = ag.arrival_reward[s_next]
+    if not ag.params.reward_links:
+        if r != old:
+            set_arrival_reward(ag.mb.model, s_next, old, r, NO_LINKS, -1)
+            ag.arrival_reward[s_next] = r
+        return
+    if r != old:  # the pairs linked to s_next so far
+        set_arrival_reward(ag.mb.model, s_next, old, r, ag.link, -1)
+        ag.arrival_reward[s_next] = r
+    if r != 0.0 and ag.link[s, a] != s_next:  # a new way into a goal: its arrivals pay too
+        ag.link[s, a] = s_next
+        set_arrival_reward(ag.mb.model, s_next, 0.0, r, ag.link, s * ag.mb.Q.shape[1] + a)
 
 
 @njit(cache=True)
@@ -506,10 +551,8 @@ def learn(ag, s, a, r, s_next):
     ag.after_reward[0] = s_next if r > 0.0 else -1
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF \
-            and r != ag.arrival_reward[s_next]:
-        set_arrival_reward(ag.mb.model, s_next, ag.arrival_reward[s_next], r)
-        ag.arrival_reward[s_next] = r
+    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF:
+        _mb_reward_model(ag, s, a, r, s_next)
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
     if r > 0.0:
@@ -558,7 +601,7 @@ class Arbitration:
     :data:`CRITERIA`, ``kappa`` >= 0, ``cost_alpha`` and ``prob_alpha`` in (0, 1],
     ``use_time`` (decide on seconds), ``reward_ends``, ``state_reward``,
     ``plan_both_first``, ``ties`` (one of :data:`TIES`), ``forget_goal_moves``,
-    ``learn_from_goal`` (module docstring). Defaults: simlab's; :data:`AGENT_RULES` holds
+    ``learn_from_goal``, ``reward_links`` (module docstring). Defaults: simlab's; :data:`AGENT_RULES` holds
     the published values."""
 
     criterion: str = "entropy_and_cost"
@@ -572,6 +615,7 @@ class Arbitration:
     ties: str = "mf"
     forget_goal_moves: bool = False
     learn_from_goal: bool = True
+    reward_links: bool = False
 
     def __post_init__(self) -> None:
         from simlab.base import validation
@@ -615,8 +659,10 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
                                 float(arb.prob_alpha), bool(arb.reward_ends),
                                 bool(arb.state_reward), bool(arb.plan_both_first),
                                 arb.ties == "random", bool(arb.forget_goal_moves),
-                                bool(arb.learn_from_goal)),
+                                bool(arb.learn_from_goal), bool(arb.reward_links)),
                      mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_),
-                     np.zeros(n_states, dtype=np.bool_), np.full(1, -1, dtype=np.int64))
+                     np.zeros(n_states, dtype=np.bool_), np.full(1, -1, dtype=np.int64),
+                     np.full((n_states, n_actions), -1, dtype=np.int64) if arb.reward_links
+                     else NO_LINKS)
 
 

@@ -29,9 +29,13 @@ The rules (``simlab`` / ``published``):
   (the published run always starts in state 0, the first of its start states 0 and 32).
 * ``restart_after`` — when no reward came in the first ``restart_after`` decisions the run
   starts again from its first state with the experts as they are (what they learned is
-  kept), the decision counter at 0, the first-visit memory cleared (0: never; published
-  200). At most :data:`MAX_RESTARTS` times (the published simulator would loop forever on
-  a task whose goal cannot be reached).
+  kept), the decision counter at 0, the first-visit memory cleared (0: never). The first
+  version of the published simulator did so after 200 decisions (``agentSimulator.py``
+  1.0, its counter checked after 199 decisions, then 200); the version that reads the
+  published after-change files (2.0, with ``loadFiles.py``) has the rule commented out, so
+  the published protocol keeps 0 and ``restart_after = 200`` is the early simulator. At
+  most :data:`MAX_RESTARTS` times (the simulator would loop forever on a task whose goal
+  cannot be reached).
 * ``phantom_start`` — the published run begins as if a decision had just been taken in the
   first state: its "previous state" is that state, its "previous action" 0 and its
   "previous reward" 0, so both experts learn the transition ``(s0, 0, 0, s0)`` before the
@@ -108,5 +112,5 @@ class Protocol:
 PROTOCOLS = {
     "simlab": Protocol(),
     "published": Protocol(reset="goal-decision", change_pays=False, passage_choice="more-used",
-                          first_state="first", restart_after=200, phantom_start=True),
+                          first_state="first", restart_after=0, phantom_start=True),
 }

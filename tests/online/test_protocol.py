@@ -277,3 +277,30 @@ def test_published_runs_are_deterministic_by_seed(experts, criterion) -> None:
             np.testing.assert_array_equal(x, b.columns()[col], err_msg=col)
     np.testing.assert_array_equal(a.use_counts, b.use_counts)
     assert not np.array_equal(a.s, c.s)
+
+
+@pytest.mark.parametrize("mb_name", ["sliding-window", "vi-softmax"])
+def test_the_goals_reward_counts_for_the_moves_once_rewarded_into_it(mb_name) -> None:
+    """Published: MB's reward of arriving in a goal counts only for the moves (pairs) through
+    which a reward was obtained there; simlab: for every move that reached it. (0, 1) and
+    (3, 1) both reached 1 before 1 paid; then 1 pays through (0, 1)."""
+    from simlab.agents.kernels import model_reward
+    from simlab.agents.registry import agent_config
+
+    mf = agent_config("q-softmax", {"q_init": Q0})
+    mb = agent_config(mb_name, {"q_init": Q0, "plan_every": 0})
+    for links in (True, False):
+        ag = meta.make_meta_agent(mf, mb, 4, 2, meta.Arbitration(reward_links=links,
+                                                                 reward_ends=False))
+        meta.learn(ag, 0, 1, 0.0, 1)
+        meta.learn(ag, 3, 1, 0.0, 1)
+        meta.learn(ag, 0, 1, 1.0, 1)  # 1 pays, through (0, 1)
+        assert model_reward(ag.mb.model, 0, 1) == 1.0  # both its arrivals in 1 now pay
+        assert model_reward(ag.mb.model, 3, 1) == (0.0 if links else 1.0)
+        meta.learn(ag, 3, 1, 1.0, 1)  # now (3, 1) too
+        assert model_reward(ag.mb.model, 3, 1) == 1.0
+        meta.learn(ag, 0, 1, 0.0, 1)  # the goal stopped paying: every linked move forgets it
+        assert model_reward(ag.mb.model, 0, 1) == 0.0 and model_reward(ag.mb.model, 3, 1) == 0.0
+        if links:
+            np.testing.assert_array_equal(ag.link[[0, 3], 1], [1, 1])
+            assert (ag.link == -1).sum() == 6
