@@ -109,6 +109,7 @@ __all__ = [
     "MetaAgent",
     "MetaParams",
     "choose_expert",
+    "choose_expert_ties",
     "criterion_code",
     "decide",
     "distribution_entropy",
@@ -260,16 +261,15 @@ def softmax_into(q, vrow, tau, out):
 
 
 @njit(cache=True)
-def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng, ties_random=False):
+def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
     """The expert that plans: :data:`EXPERT_MF` (0) or :data:`EXPERT_MB` (1).
 
     ``h_*`` normalised entropies in [0, 1], ``c_*`` the experts' (filtered) costs at this
     state (any unit, >= 0), ``h_max_bits`` the largest entropy in bits (``log2`` of the
     number of valid actions). ``entropy_and_cost`` (Dromnelle et al. 2022, sec. 2.3):
     value of expert e ``-(h_e + exp(-kappa * H_MF) * c_e / max(c_mf, c_mb))`` with MF's
-    entropy in bits ``H_MF = h_mf * h_max_bits``; the larger wins. Ties of ``entropy`` and
-    ``entropy_and_cost`` go to MF, or with ``ties_random`` to a fair coin from ``rng``;
-    otherwise only ``random`` draws from ``rng``.
+    entropy in bits ``H_MF = h_mf * h_max_bits``; the larger wins. Ties go to MF; only
+    ``random`` draws from ``rng`` (:func:`choose_expert_ties` tosses a coin on ties).
     """
     if criterion == C_MF:
         return EXPERT_MF
@@ -277,10 +277,27 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng, tie
         return EXPERT_MB
     if criterion == C_RANDOM:
         return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
+    v_mf, v_mb = _criterion_values(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits)
+    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+
+
+@njit(cache=True)
+def choose_expert_ties(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
+    """:func:`choose_expert`, but a tie of ``entropy`` or ``entropy_and_cost`` is a fair coin
+    from ``rng`` (MB below 0.5; module docstring, ``ties = "random"``)."""
+    if criterion < C_ENTROPY:
+        return choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng)
+    v_mf, v_mb = _criterion_values(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits)
+    if v_mb == v_mf:
+        return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
+    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+
+
+@njit(cache=True, inline="always")
+def _criterion_values(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits):
+    """``(value of MF, value of MB)`` of ``entropy`` or ``entropy_and_cost``."""
     if criterion == C_ENTROPY:
-        if h_mb == h_mf and ties_random:
-            return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
-        return EXPERT_MB if h_mb < h_mf else EXPERT_MF
+        return -h_mf, -h_mb
     c_max = max(c_mf, c_mb)
     w = np.exp(-kappa * h_mf * h_max_bits)
     v_mf = -h_mf
@@ -288,9 +305,7 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng, tie
     if c_max > 0.0:
         v_mf -= w * c_mf / c_max
         v_mb -= w * c_mb / c_max
-    if v_mb == v_mf and ties_random:
-        return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
-    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+    return v_mf, v_mb
 
 
 @njit(cache=True, inline="always")
@@ -389,21 +404,24 @@ def _ov_set_arrival_reward(model, s_next, old, new, link, only):  # compiled: ev
 
 
 @njit(cache=True)
-def _mb_reward_model(ag, s, a, r, s_next):
-    """MB's reward model learns the arrival ``(s, a) -> s_next`` with reward ``r`` before its
-    model counts it (module docstring, ``state_reward`` and ``reward_links``)."""
-    old = ag.arrival_reward[s_next]
-    if not ag.params.reward_links:
+def _mb_reward_model(model, arrival_reward, link, s, a, r, s_next):
+    """MB's reward model (``model``) learns the arrival ``(s, a) -> s_next`` with reward
+    ``r`` before it counts it (module docstring, ``state_reward``; with a ``link`` table,
+    ``reward_links``). ``arrival_reward`` (S,) and ``link`` (S, A) are updated in place.
+    Takes the arrays, not the agent: a call with the whole agent record costs more than
+    the rest of a model-free decision."""
+    old = arrival_reward[s_next]
+    if link.shape[0] == 0:
         if r != old:
-            set_arrival_reward(ag.mb.model, s_next, old, r, NO_LINKS, -1)
-            ag.arrival_reward[s_next] = r
+            set_arrival_reward(model, s_next, old, r, NO_LINKS, -1)
+            arrival_reward[s_next] = r
         return
     if r != old:  # the pairs linked to s_next so far
-        set_arrival_reward(ag.mb.model, s_next, old, r, ag.link, -1)
-        ag.arrival_reward[s_next] = r
-    if r != 0.0 and ag.link[s, a] != s_next:  # a new way into a goal: its arrivals pay too
-        ag.link[s, a] = s_next
-        set_arrival_reward(ag.mb.model, s_next, 0.0, r, ag.link, s * ag.mb.Q.shape[1] + a)
+        set_arrival_reward(model, s_next, old, r, link, -1)
+        arrival_reward[s_next] = r
+    if r != 0.0 and link[s, a] != s_next:  # a new way into a goal: its arrivals pay too
+        link[s, a] = s_next
+        set_arrival_reward(model, s_next, 0.0, r, link, s * link.shape[1] + a)
 
 
 @njit(cache=True)
@@ -464,14 +482,16 @@ def _perf_counter() -> float:
 
 
 @njit(cache=True)
-def _filter_probs(ag, s, vrow):
-    """Both experts filter their current softmax at ``s`` into ``ag.probs[:, s]``."""
-    new = np.empty(ag.probs.shape[2])
-    alpha = ag.params.prob_alpha
-    softmax_into(ag.mf.Q[s], vrow, ag.mf.params.tau, new)
-    _lowpass_row(ag.probs[EXPERT_MF, s], new, alpha)
-    softmax_into(ag.mb.Q[s], vrow, ag.mb.params.tau, new)
-    _lowpass_row(ag.probs[EXPERT_MB, s], new, alpha)
+def _filter_probs(probs, q_mf, q_mb, tau_mf, tau_mb, alpha, s, vrow):
+    """Both experts filter their current softmax at ``s`` (their Q tables ``q_mf`` /
+    ``q_mb``) into ``probs[:, s]`` at rate ``alpha``. The hot steps of a decision take the
+    arrays they need, not the whole agent record: passing the record costs more than the
+    rest of a model-free decision."""
+    new = np.empty(probs.shape[2])
+    softmax_into(q_mf[s], vrow, tau_mf, new)
+    _lowpass_row(probs[EXPERT_MF, s], new, alpha)
+    softmax_into(q_mb[s], vrow, tau_mb, new)
+    _lowpass_row(probs[EXPERT_MB, s], new, alpha)
 
 
 @njit(cache=True, inline="always")
@@ -481,19 +501,25 @@ def _lowpass_row(old, new, alpha):
 
 
 @njit(cache=True)
-def _plan_and_filter_cost(ag, e, s):
-    """Expert ``e`` plans now; its cost at ``s`` is low-pass filtered into its rows of
-    ``ag.cost`` / ``ag.cost_time``. Returns ``(backups, seconds)`` of the plan."""
+def _plan_and_filter_cost(lr, valid, cost, cost_time, alpha, e, s):
+    """Expert ``lr`` (row ``e`` of the cost tables) plans now; its cost at ``s`` is low-pass
+    filtered into ``cost`` / ``cost_time``. Returns ``(backups, seconds)`` of the plan."""
     t0 = _now()
-    if e == EXPERT_MB:
-        backups = expert_plan(ag.mb, ag.valid)
-    else:
-        backups = expert_plan(ag.mf, ag.valid)
+    backups = expert_plan(lr, valid)
     seconds = _now() - t0
-    alpha = ag.params.cost_alpha
-    ag.cost[e, s] = lowpass(ag.cost[e, s], float(backups), alpha)
-    ag.cost_time[e, s] = lowpass(ag.cost_time[e, s], seconds, alpha)
+    cost[e, s] = lowpass(cost[e, s], float(backups), alpha)
+    cost_time[e, s] = lowpass(cost_time[e, s], seconds, alpha)
     return backups, seconds
+
+
+@njit(cache=True, inline="always")
+def _plan(ag, e, s):
+    """:func:`_plan_and_filter_cost` of expert ``e`` of ``ag``."""
+    if e == EXPERT_MB:
+        return _plan_and_filter_cost(ag.mb, ag.valid, ag.cost, ag.cost_time,
+                                     ag.params.cost_alpha, e, s)
+    return _plan_and_filter_cost(ag.mf, ag.valid, ag.cost, ag.cost_time,
+                                 ag.params.cost_alpha, e, s)
 
 
 @njit(cache=True)
@@ -516,16 +542,21 @@ def decide(ag, s, rng):
     table = ag.cost_time if ag.params.use_time else ag.cost
     c_mf = table[EXPERT_MF, s]
     c_mb = table[EXPERT_MB, s]
-    e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
-                      h_max_bits, rng, ag.params.ties_random)
+    if ag.params.ties_random:
+        e = choose_expert_ties(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
+                               h_max_bits, rng)
+    else:
+        e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
+                          h_max_bits, rng)
     both = ag.params.plan_both_first and ag.params.criterion >= C_RANDOM and not ag.seen[s]
     ag.seen[s] = True
-    backups, seconds = _plan_and_filter_cost(ag, e, s)
+    backups, seconds = _plan(ag, e, s)
     if both:
-        other_backups, other_seconds = _plan_and_filter_cost(ag, 1 - e, s)
+        other_backups, other_seconds = _plan(ag, 1 - e, s)
         backups += other_backups
         seconds += other_seconds
-    _filter_probs(ag, s, vrow)
+    _filter_probs(ag.probs, ag.mf.Q, ag.mb.Q, ag.mf.params.tau, ag.mb.params.tau,
+                  ag.params.prob_alpha, s, vrow)
     if e == EXPERT_MB:
         a = core.act(ag.mb.Q, s, ag.mb.params, ag.valid, rng)
     else:
@@ -551,8 +582,9 @@ def learn(ag, s, a, r, s_next):
     ag.after_reward[0] = s_next if r > 0.0 else -1
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF:
-        _mb_reward_model(ag, s, a, r, s_next)
+    if p.state_reward and ag.mb.params.kind != core.KIND_MF and (
+            r != ag.arrival_reward[s_next] or (r != 0.0 and p.reward_links)):
+        _mb_reward_model(ag.mb.model, ag.arrival_reward, ag.link, s, a, r, s_next)
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
     if r > 0.0:

@@ -249,14 +249,24 @@ def test_no_learning_from_the_rewarded_state(experts, learn_from_goal) -> None:
 def test_ties_of_the_entropy_criteria_can_be_a_coin(criterion) -> None:
     code = meta.criterion_code(criterion)
     rng = np.random.default_rng(5)
-    picks = [meta.choose_expert(code, 0.5, 0.5, 0.0, 0.0, 1.0, 3.0, rng, True)
+    picks = [meta.choose_expert_ties(code, 0.5, 0.5, 0.0, 0.0, 1.0, 3.0, rng)
              for _ in range(2000)]
     expect = np.random.default_rng(5).random(2000) < 0.5  # one draw per tie, MB below 0.5
     np.testing.assert_array_equal(np.array(picks) == meta.EXPERT_MB, expect)
     rng = np.random.default_rng(5)
     assert meta.choose_expert(code, 0.5, 0.5, 0.0, 0.0, 1.0, 3.0, rng) == meta.EXPERT_MF
-    assert meta.choose_expert(code, 0.6, 0.5, 0.0, 0.0, 1.0, 3.0, rng, True) == meta.EXPERT_MB
-    assert rng.random() == np.random.default_rng(5).random()  # no draw without a tie
+    assert meta.choose_expert_ties(code, 0.6, 0.5, 0.0, 0.0, 1.0, 3.0, rng) == meta.EXPERT_MB
+    # equal entropies, costs apart: no tie for entropy_and_cost (MF, the cheaper), a coin
+    # for entropy
+    tie = meta.choose_expert_ties(code, 0.5, 0.5, 1.0, 300.0, 1.0, 3.0, rng)
+    assert rng.random() == np.random.default_rng(5).random(2 if criterion == "entropy"
+                                                             else 1)[-1]
+    if criterion == "entropy_and_cost":
+        assert tie == meta.EXPERT_MF
+    # every criterion chooses as choose_expert when there is no tie
+    for h_mf, h_mb, c_mf, c_mb in ((0.9, 0.2, 1.0, 300.0), (0.3, 0.2, 1.0, 300.0)):
+        assert meta.choose_expert_ties(code, h_mf, h_mb, c_mf, c_mb, 1.0, 3.0, rng) == \
+            meta.choose_expert(code, h_mf, h_mb, c_mf, c_mb, 1.0, 3.0, rng)
 
 
 # ------------------------------------------------------------------------ whole runs
