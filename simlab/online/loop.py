@@ -27,7 +27,6 @@ decisions starts again (the experts keep what they learned).
 from __future__ import annotations
 
 import dataclasses
-from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,8 +44,6 @@ COLUMNS = ("s", "a", "s_next", "expert", "h_mf", "h_mb", "c_mf", "c_mb", "backup
 #: The fields of :class:`OnlineLog` that describe the whole run, not one decision.
 RUN_FIELDS = ("restarts", "use_counts")
 
-#: The columns as the compiled loop writes them (one record of arrays).
-_Columns = namedtuple("_Columns", COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -126,9 +123,16 @@ def _choose_phase(task, visits, nxt, use_counts):
 
 
 @njit(cache=True)
-def _loop(ag, task, rules, n, env_rng, agent_rng, log, use_counts):
+def _loop(ag, task, rules, n, env_rng, agent_rng, s_log, a_log, s2_log, e_log, hmf_log,
+          hmb_log, cmf_log, cmb_log, b_log, sec_log, r_log, ph_log, use_counts):
+    # the log arrays are separate arguments and the task's arrays are read out of their
+    # record once: each read of an array from a record costs a reference count (the
+    # model-free loop ran at half its speed with the log as one record)
+    cdf, reward_next, start_cdf = task.cdf, task.reward_next, task.start_cdf
+    goal_decision, silent_at, restart_after = (rules.goal_decision, rules.silent_at,
+                                               rules.restart_after)
     n_phases = task.phase_start.shape[0]
-    visits = np.zeros(task.start_cdf.shape[0], dtype=np.int64)
+    visits = np.zeros(start_cdf.shape[0], dtype=np.int64)
     s = _first_state(task, rules, env_rng)
     if rules.phantom_start:
         _phantom_start(ag, s)
@@ -141,35 +145,35 @@ def _loop(ag, task, rules, n, env_rng, agent_rng, log, use_counts):
         while nxt < n_phases and task.phase_start[nxt] <= t:
             phase, nxt = _choose_phase(task, visits, nxt, use_counts)
         a, e, h_mf, h_mb, c_mf, c_mb, backups, seconds = meta.decide(ag, s, agent_rng)
-        if rules.goal_decision and task.reward_next[phase, s] > 0.0:
-            s_next = sample_from_cdf(task.start_cdf, env_rng)
+        if goal_decision and reward_next[phase, s] > 0.0:
+            s_next = sample_from_cdf(start_cdf, env_rng)
         else:
-            s_next = sample_from_cdf(task.cdf[phase, s, a], env_rng)
-        r = task.reward_next[phase, s_next]
+            s_next = sample_from_cdf(cdf[phase, s, a], env_rng)
+        r = reward_next[phase, s_next]
         arrived = r > 0.0  # in a goal: the episode ends even when its reward is silenced
-        if t == rules.silent_at:
+        if t == silent_at:
             r = 0.0
         meta.learn(ag, s, a, r, s_next)
-        log.s[t] = s
-        log.a[t] = a
-        log.s_next[t] = s_next
-        log.expert[t] = e
-        log.h_mf[t] = h_mf
-        log.h_mb[t] = h_mb
-        log.c_mf[t] = c_mf
-        log.c_mb[t] = c_mb
-        log.backups[t] = backups
-        log.seconds[t] = seconds
-        log.reward[t] = r
-        log.phase[t] = phase
+        s_log[t] = s
+        a_log[t] = a
+        s2_log[t] = s_next
+        e_log[t] = e
+        hmf_log[t] = h_mf
+        hmb_log[t] = h_mb
+        cmf_log[t] = c_mf
+        cmb_log[t] = c_mb
+        b_log[t] = backups
+        sec_log[t] = seconds
+        r_log[t] = r
+        ph_log[t] = phase
         visits[s] += 1
         got += r
         t += 1
-        if arrived and not rules.goal_decision:
-            s = sample_from_cdf(task.start_cdf, env_rng)
+        if arrived and not goal_decision:
+            s = sample_from_cdf(start_cdf, env_rng)
         else:
             s = s_next
-        if t == rules.restart_after and got == 0.0 and restarts < rules.max_restarts:
+        if t == restart_after and got == 0.0 and restarts < rules.max_restarts:
             restarts += 1
             t = 0
             phase = 0
@@ -193,5 +197,5 @@ def run_online(agent: meta.MetaAgent, task: object, n_decisions: int,
     log = OnlineLog.empty(int(n_decisions))
     use_counts = np.full(task.phase_start.shape[0], -1, dtype=np.int64)  # type: ignore[attr-defined]
     restarts = _loop(agent, task, rules, int(n_decisions), env_rng, agent_rng,
-                     _Columns(**log.columns()), use_counts)
+                     *log.columns().values(), use_counts)
     return dataclasses.replace(log, restarts=int(restarts), use_counts=use_counts)

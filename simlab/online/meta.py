@@ -576,24 +576,34 @@ def learn(ag, s, a, r, s_next):
     moves (:func:`forget_moves`). Without ``learn_from_goal`` a transition that starts
     where the last learned one was rewarded is not learned (module docstring)."""
     p = ag.params
-    if not p.learn_from_goal and ag.after_reward[0] == s:
-        ag.after_reward[0] = s_next if r > 0.0 else -1
+    after = ag.after_reward
+    skip = not p.learn_from_goal and after[0] == s
+    after[0] = s_next if r > 0.0 else -1
+    if skip:
         return
-    ag.after_reward[0] = s_next if r > 0.0 else -1
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if p.state_reward and ag.mb.params.kind != core.KIND_MF and (
+    model_based = ag.mb.params.kind != core.KIND_MF
+    if p.state_reward and model_based and (
             r != ag.arrival_reward[s_next] or (r != 0.0 and p.reward_links)):
         _mb_reward_model(ag.mb.model, ag.arrival_reward, ag.link, s, a, r, s_next)
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
     if r > 0.0:
-        if p.forget_goal_moves and not ag.paid[s_next] and ag.mb.params.kind != core.KIND_MF:
-            forget_moves(ag.mb.model, s_next)
-        ag.paid[s_next] = True
-        if p.reward_ends:
-            ag.mf.Q[s_next, :] = 0.0
-            ag.mb.Q[s_next, :] = 0.0
+        _rewarded(ag.mb.model, ag.mf.Q, ag.mb.Q, ag.paid, s_next, p.reward_ends,
+                  p.forget_goal_moves and model_based)
+
+
+@njit(cache=True)
+def _rewarded(mb_model, q_mf, q_mb, paid, s, reward_ends, forget):
+    """A reward in ``s`` (module docstring): MB forgets the moves of ``s`` at its first
+    reward (``forget``), both experts' values of ``s`` go to 0 (``reward_ends``)."""
+    if forget and not paid[s]:
+        forget_moves(mb_model, s)
+    paid[s] = True
+    if reward_ends:
+        q_mf[s, :] = 0.0
+        q_mb[s, :] = 0.0
 
 
 # --------------------------------------------------------------------------- builders
