@@ -53,6 +53,13 @@ Decisions made here (the papers leave them to the implementation):
   for every pair leading there (the next plan no longer values the old route). Without
   ``state_reward`` the model averages the rewards seen per pair over its window (10
   outcomes), and the old goal fades over the next visits of each pair.
+* **MB's goal reward counts only for the moves once rewarded into it** (``reward_links``,
+  published; ``modelBased.py`` keeps, per goal, the (state, action) pairs through which a
+  reward was obtained, and only those carry ``T(s, a, goal) r(goal)``): a pair that reached
+  a state before that state paid (the new goal after a goal change) brings MB no reward
+  until a reward comes through it, so MB funnels to the ways it was paid through. Without
+  it (simlab) every pair whose model reaches the goal carries its reward. A pair is linked
+  to the last goal it was rewarded into (a pair of two goals at once keeps the last).
 * **Both experts plan at a state's first visit** (``plan_both_first``, default; the
   published loop of the same code, ``agentSimulator.py``, gives a state first met both
   experts' plans, so each has a distribution
