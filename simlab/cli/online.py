@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 HELP = "learn online on an empirical MDP with MB/MF meta-control (criteria, costs, changes)"
+MEMORY_FIX = "fewer --seeds or --decisions, fewer --criteria or --kappas, or --no-plots"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -53,6 +53,13 @@ Decisions made here (the papers leave them to the implementation):
   for every pair leading there (the next plan no longer values the old route). Without
   ``state_reward`` the model averages the rewards seen per pair over its window (10
   outcomes), and the old goal fades over the next visits of each pair.
+* **MB's goal reward counts only for the moves once rewarded into it** (``reward_links``,
+  published; ``modelBased.py`` keeps, per goal, the (state, action) pairs through which a
+  reward was obtained, and only those carry ``T(s, a, goal) r(goal)``): a pair that reached
+  a state before that state paid (the new goal after a goal change) brings MB no reward
+  until a reward comes through it, so MB funnels to the ways it was paid through. Without
+  it (simlab) every pair whose model reaches the goal carries its reward. A pair is linked
+  to the last goal it was rewarded into (a pair of two goals at once keeps the last).
 * **Both experts plan at a state's first visit** (``plan_both_first``, default; the
   published loop of the same code, ``agentSimulator.py``, gives a state first met both
   experts' plans, so each has a distribution
@@ -65,7 +72,23 @@ Decisions made here (the papers leave them to the implementation):
   at 0 and are updated for the expert that planned only; ``C_e / max_e C_e`` is 0 when both
   are 0.
 * **Ties** of the criteria go to the first expert (MF, the cheap one): no random draw.
-  ``random`` draws one uniform number per decision from the agent's Generator.
+  ``random`` draws one uniform number per decision from the agent's Generator. With
+  ``ties = "random"`` a tie of ``entropy`` or ``entropy_and_cost`` is a fair coin from the
+  same Generator (the published arbitration's, ``metaControllerSystem.py``: at a state's
+  first visit both distributions are uniform and both costs 0, so the first decision there
+  is MB's half of the time).
+* **The goal's moves are forgotten at its first reward** (``forget_goal_moves``; the
+  published MB expert, ``modelBased.py``, deletes the transitions of a state the first time
+  it pays): MB's model of the rewarded state's own moves is emptied once, so its values stay
+  0 under planning (a goal ends the episode: nothing follows it). Without it a state that
+  was left before it first paid (the new goal after a goal change) keeps its known moves,
+  and MB's next plan values the goal again at ``gamma`` times its neighbours.
+* **No learning from the rewarded state** (``learn_from_goal = False``, published; both
+  published experts skip the transition that starts where a reward was just obtained): with
+  the published reset (a decision in the goal whose move goes to a start state,
+  :mod:`simlab.online.protocol`) that move is no move of the world and is not learned.
+  Under simlab's teleport no transition starts in the goal right after its reward, so the
+  rule never fires in its loops; the default (``True``) learns every transition given.
 """
 
 from __future__ import annotations
@@ -84,17 +107,21 @@ from simlab.agents.sparse_model import CountModel, CountModelType
 from simlab.agents.window_model import WindowModel, WindowModelType
 
 __all__ = [
+    "AGENT_RULES",
     "CRITERIA",
     "EXPERT_MB",
     "EXPERT_MF",
+    "TIES",
     "Arbitration",
     "MetaAgent",
     "MetaParams",
     "choose_expert",
+    "choose_expert_ties",
     "criterion_code",
     "decide",
     "distribution_entropy",
     "expert_plan",
+    "forget_moves",
     "learn",
     "lowpass",
     "make_expert",
@@ -113,16 +140,35 @@ C_MF, C_MB, C_RANDOM, C_ENTROPY, C_ENTROPY_COST = range(5)
 #: Expert indices (rows of the cost tables, values of the ``expert`` log column).
 EXPERT_MF, EXPERT_MB = 0, 1
 
+#: No link table (``reward_links`` off): every pair's arrivals carry the state's reward.
+NO_LINKS = np.zeros((0, 0), dtype=np.int64)
+
 #: Arbitration parameters: ``criterion`` (code of :data:`CRITERIA`), ``kappa`` (weight of
 #: MF's certainty on the cost term), ``cost_alpha`` (low-pass rate of the per-state costs),
 #: ``use_time`` (decide on wall-clock seconds instead of backups), ``prob_alpha``
 #: (low-pass rate of the per-state action distributions), ``reward_ends`` (a reward ends
 #: the episode: the rewarded state's values are reset to 0), ``state_reward`` (MB's reward
 #: model is the reward last seen on arriving in each state), ``plan_both_first`` (both
-#: experts plan at a state's first visit).
+#: experts plan at a state's first visit), ``ties_random`` (a tie of the entropy criteria is a
+#: coin), ``forget_goal_moves`` (MB forgets the rewarded state's moves at its first reward),
+#: ``learn_from_goal`` (the transition starting where a reward was just obtained is learned),
+#: ``reward_links`` (MB's arrival reward counts only for the pairs once rewarded into it).
 MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time",
                                        "prob_alpha", "reward_ends", "state_reward",
-                                       "plan_both_first"])
+                                       "plan_both_first", "ties_random", "forget_goal_moves",
+                                       "learn_from_goal", "reward_links"])
+
+#: How ties of ``entropy`` and ``entropy_and_cost`` are broken: ``mf`` (simlab) or a fair
+#: ``random`` coin (published).
+TIES = ("mf", "random")
+
+#: The agent's side of each protocol (:data:`simlab.online.protocol.PROTOCOLS`): values of
+#: :class:`Arbitration` fields that differ from its defaults (simlab's).
+AGENT_RULES: dict[str, dict[str, Any]] = {
+    "simlab": {},
+    "published": {"ties": "random", "forget_goal_moves": True, "learn_from_goal": False,
+                  "reward_links": True},
+}
 
 #: The meta-controlled pair: ``mf`` and ``mb`` (:class:`simlab.agents.core.Learner`),
 #: ``cost`` (2, S) float64 filtered backups per expert and state, ``cost_time`` (2, S)
@@ -130,9 +176,14 @@ MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_
 #: per expert and state, ``params`` (:class:`MetaParams`), ``valid`` (S, A) bool or
 #: ``core.NO_MASK``, ``arrival_reward`` (S,) float64 the reward last seen on arriving in
 #: each state (MB's reward model under ``state_reward``; 0 before any arrival), ``seen``
-#: (S,) bool states where a decision was made. Built by :func:`make_meta_agent`.
+#: (S,) bool states where a decision was made, ``paid`` (S,) bool states that were rewarded
+#: once, ``after_reward`` (1,) int64 the state a reward was obtained on arriving in by the
+#: last transition learned (-1: none), ``link`` (S, A) int64 the goal state each pair was last
+#: rewarded into (-1: none; :data:`NO_LINKS` without ``reward_links``). Built by
+#: :func:`make_meta_agent`.
 MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "probs", "params",
-                                     "valid", "arrival_reward", "seen"])
+                                     "valid", "arrival_reward", "seen", "paid", "after_reward",
+                                     "link"])
 
 
 def criterion_code(name: str) -> int:
@@ -225,7 +276,7 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
     number of valid actions). ``entropy_and_cost`` (Dromnelle et al. 2022, sec. 2.3):
     value of expert e ``-(h_e + exp(-kappa * H_MF) * c_e / max(c_mf, c_mb))`` with MF's
     entropy in bits ``H_MF = h_mf * h_max_bits``; the larger wins. Ties go to MF; only
-    ``random`` draws from ``rng``.
+    ``random`` draws from ``rng`` (:func:`choose_expert_ties` tosses a coin on ties).
     """
     if criterion == C_MF:
         return EXPERT_MF
@@ -233,8 +284,27 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
         return EXPERT_MB
     if criterion == C_RANDOM:
         return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
+    v_mf, v_mb = _criterion_values(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits)
+    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+
+
+@njit(cache=True)
+def choose_expert_ties(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
+    """:func:`choose_expert`, but a tie of ``entropy`` or ``entropy_and_cost`` is a fair coin
+    from ``rng`` (MB below 0.5; module docstring, ``ties = "random"``)."""
+    if criterion < C_ENTROPY:
+        return choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng)
+    v_mf, v_mb = _criterion_values(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits)
+    if v_mb == v_mf:
+        return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
+    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+
+
+@njit(cache=True, inline="always")
+def _criterion_values(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits):
+    """``(value of MF, value of MB)`` of ``entropy`` or ``entropy_and_cost``."""
     if criterion == C_ENTROPY:
-        return EXPERT_MB if h_mb < h_mf else EXPERT_MF
+        return -h_mf, -h_mb
     c_max = max(c_mf, c_mb)
     w = np.exp(-kappa * h_mf * h_max_bits)
     v_mf = -h_mf
@@ -242,7 +312,7 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
     if c_max > 0.0:
         v_mf -= w * c_mf / c_max
         v_mb -= w * c_mb / c_max
-    return EXPERT_MB if v_mb > v_mf else EXPERT_MF
+    return v_mf, v_mb
 
 
 @njit(cache=True, inline="always")
@@ -275,18 +345,34 @@ def expert_plan(lr, valid):
     return sweeps * per_sweep
 
 
+@njit(cache=True, inline="always")
+def _rewritten(pair, A, s_next, link, only):
+    """Whether the arrivals of ``pair`` in ``s_next`` take the new reward: every pair, or
+    (``link`` given) the pairs linked to ``s_next``; ``only >= 0``: that pair alone."""
+    if only >= 0 and pair != only:
+        return False
+    if link.shape[0] == 0:
+        return True
+    s = pair // A
+    return link[s, pair - s * A] == s_next
+
+
 @njit(cache=True)
-def _window_arrival_reward(m, s_next, new):
+def _window_arrival_reward(m, s_next, new, link, only):
     for k in range(m.n_slots):
+        if not _rewritten(m.slot_pair[k], m.n_actions, s_next, link, only):
+            continue
         for i in range(m.win_fill[k]):
             if m.win_state[k, i] == s_next:
                 m.win_reward[k, i] = new
 
 
 @njit(cache=True)
-def _count_arrival_reward(m, s_next, old, new):
+def _count_arrival_reward(m, s_next, old, new, link, only):
     A = m.n_actions
     for j in range(m.n_pairs):
+        if not _rewritten(m.pairs[j], A, s_next, link, only):
+            continue
         s = m.pairs[j] // A
         a = m.pairs[j] - s * A
         k = m.head[s, a]
@@ -296,28 +382,96 @@ def _count_arrival_reward(m, s_next, old, new):
             k = m.succ_link[k]
 
 
-def set_arrival_reward(model, s_next, old, new):
+def set_arrival_reward(model, s_next, old, new, link=NO_LINKS, only=-1):
     """Make ``new`` the reward of arriving in ``s_next`` in a count or window model whose
-    every recorded arrival there carries ``old``: a window model's rewards of the outcomes
-    ending in ``s_next`` become ``new``; a count model's reward sums move by
-    ``n(s, a, s_next) * (new - old)``. The model's reward of a pair is then ``sum_s'
-    T(s, a, s') r(s')`` with ``r`` the reward last seen on arriving in each state (module
-    docstring, ``state_reward``). O(observed outcomes); called only when ``r(s_next)``
-    changes (a goal found or lost)."""
+    recorded arrivals there carry ``old``: a window model's rewards of the outcomes ending in
+    ``s_next`` become ``new``; a count model's reward sums move by ``n(s, a, s_next) * (new -
+    old)``. The model's reward of a pair is then ``sum_s' T(s, a, s') r(s')`` with ``r`` the
+    reward last seen on arriving in each state (module docstring, ``state_reward``).
+    ``link`` (S, A) int64 (:data:`NO_LINKS`: every pair): only the pairs linked to ``s_next``
+    (``reward_links``); ``only``: that pair index ``s * A + a`` alone. O(observed outcomes);
+    called only when ``r(s_next)`` changes (a goal found or lost) or a pair is linked."""
     if isinstance(model, WindowModel):
-        _window_arrival_reward(model, s_next, new)
+        _window_arrival_reward(model, s_next, new, link, only)
     elif isinstance(model, CountModel):
-        _count_arrival_reward(model, s_next, old, new)
+        _count_arrival_reward(model, s_next, old, new, link, only)
     else:
         raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
 
 
 @overload(set_arrival_reward, jit_options={"cache": True})
-def _ov_set_arrival_reward(model, s_next, old, new):
+def _ov_set_arrival_reward(model, s_next, old, new, link, only):  # compiled: every argument
     if isinstance(model, WindowModelType):
-        return lambda model, s_next, old, new: _window_arrival_reward(model, s_next, new)
+        return lambda model, s_next, old, new, link, only: _window_arrival_reward(
+            model, s_next, new, link, only)
     if isinstance(model, CountModelType):
-        return lambda model, s_next, old, new: _count_arrival_reward(model, s_next, old, new)
+        return lambda model, s_next, old, new, link, only: _count_arrival_reward(
+            model, s_next, old, new, link, only)
+    return None
+
+
+@njit(cache=True)
+def _mb_reward_model(model, arrival_reward, link, s, a, r, s_next):
+    """MB's reward model (``model``) learns the arrival ``(s, a) -> s_next`` with reward
+    ``r`` before it counts it (module docstring, ``state_reward``; with a ``link`` table,
+    ``reward_links``). ``arrival_reward`` (S,) and ``link`` (S, A) are updated in place.
+    Takes the arrays, not the agent: a call with the whole agent record costs more than
+    the rest of a model-free decision."""
+    old = arrival_reward[s_next]
+    if link.shape[0] == 0:
+        if r != old:
+            set_arrival_reward(model, s_next, old, r, NO_LINKS, -1)
+            arrival_reward[s_next] = r
+        return
+    if r != old:  # the pairs linked to s_next so far
+        set_arrival_reward(model, s_next, old, r, link, -1)
+        arrival_reward[s_next] = r
+    if r != 0.0 and link[s, a] != s_next:  # a new way into a goal: its arrivals pay too
+        link[s, a] = s_next
+        set_arrival_reward(model, s_next, 0.0, r, link, s * link.shape[1] + a)
+
+
+@njit(cache=True)
+def _window_forget(m, s):
+    A = m.n_actions
+    for a in range(A):
+        k = m.slot[s, a]
+        if k != -1:
+            m.win_fill[k] = 0
+            m.win_pos[k] = 0
+        m.n_sa[s, a] = 0
+
+
+@njit(cache=True)
+def _count_forget(m, s):
+    # the pool entries stay linked (a later visit reuses them) with count 0
+    for a in range(m.n_actions):
+        k = m.head[s, a]
+        while k != -1:
+            m.succ_count[k] = 0
+            k = m.succ_link[k]
+        m.n_sa[s, a] = 0
+        m.r_sum[s, a] = 0.0
+
+
+def forget_moves(model, s):
+    """Forget every recorded outcome of the moves of state ``s`` in a count or window model
+    (module docstring, ``forget_goal_moves``): its pairs become unvisited (no model, planning
+    leaves their Q alone) and a later visit starts their model afresh."""
+    if isinstance(model, WindowModel):
+        _window_forget(model, s)
+    elif isinstance(model, CountModel):
+        _count_forget(model, s)
+    else:
+        raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
+
+
+@overload(forget_moves, jit_options={"cache": True})
+def _ov_forget_moves(model, s):
+    if isinstance(model, WindowModelType):
+        return lambda model, s: _window_forget(model, s)
+    if isinstance(model, CountModelType):
+        return lambda model, s: _count_forget(model, s)
     return None
 
 
@@ -335,14 +489,16 @@ def _perf_counter() -> float:
 
 
 @njit(cache=True)
-def _filter_probs(ag, s, vrow):
-    """Both experts filter their current softmax at ``s`` into ``ag.probs[:, s]``."""
-    new = np.empty(ag.probs.shape[2])
-    alpha = ag.params.prob_alpha
-    softmax_into(ag.mf.Q[s], vrow, ag.mf.params.tau, new)
-    _lowpass_row(ag.probs[EXPERT_MF, s], new, alpha)
-    softmax_into(ag.mb.Q[s], vrow, ag.mb.params.tau, new)
-    _lowpass_row(ag.probs[EXPERT_MB, s], new, alpha)
+def _filter_probs(probs, q_mf, q_mb, tau_mf, tau_mb, alpha, s, vrow):
+    """Both experts filter their current softmax at ``s`` (their Q tables ``q_mf`` /
+    ``q_mb``) into ``probs[:, s]`` at rate ``alpha``. The hot steps of a decision take the
+    arrays they need, not the whole agent record: passing the record costs more than the
+    rest of a model-free decision."""
+    new = np.empty(probs.shape[2])
+    softmax_into(q_mf[s], vrow, tau_mf, new)
+    _lowpass_row(probs[EXPERT_MF, s], new, alpha)
+    softmax_into(q_mb[s], vrow, tau_mb, new)
+    _lowpass_row(probs[EXPERT_MB, s], new, alpha)
 
 
 @njit(cache=True, inline="always")
@@ -352,19 +508,25 @@ def _lowpass_row(old, new, alpha):
 
 
 @njit(cache=True)
-def _plan_and_filter_cost(ag, e, s):
-    """Expert ``e`` plans now; its cost at ``s`` is low-pass filtered into its rows of
-    ``ag.cost`` / ``ag.cost_time``. Returns ``(backups, seconds)`` of the plan."""
+def _plan_and_filter_cost(lr, valid, cost, cost_time, alpha, e, s):
+    """Expert ``lr`` (row ``e`` of the cost tables) plans now; its cost at ``s`` is low-pass
+    filtered into ``cost`` / ``cost_time``. Returns ``(backups, seconds)`` of the plan."""
     t0 = _now()
-    if e == EXPERT_MB:
-        backups = expert_plan(ag.mb, ag.valid)
-    else:
-        backups = expert_plan(ag.mf, ag.valid)
+    backups = expert_plan(lr, valid)
     seconds = _now() - t0
-    alpha = ag.params.cost_alpha
-    ag.cost[e, s] = lowpass(ag.cost[e, s], float(backups), alpha)
-    ag.cost_time[e, s] = lowpass(ag.cost_time[e, s], seconds, alpha)
+    cost[e, s] = lowpass(cost[e, s], float(backups), alpha)
+    cost_time[e, s] = lowpass(cost_time[e, s], seconds, alpha)
     return backups, seconds
+
+
+@njit(cache=True, inline="always")
+def _plan(ag, e, s):
+    """:func:`_plan_and_filter_cost` of expert ``e`` of ``ag``."""
+    if e == EXPERT_MB:
+        return _plan_and_filter_cost(ag.mb, ag.valid, ag.cost, ag.cost_time,
+                                     ag.params.cost_alpha, e, s)
+    return _plan_and_filter_cost(ag.mf, ag.valid, ag.cost, ag.cost_time,
+                                 ag.params.cost_alpha, e, s)
 
 
 @njit(cache=True)
@@ -387,16 +549,21 @@ def decide(ag, s, rng):
     table = ag.cost_time if ag.params.use_time else ag.cost
     c_mf = table[EXPERT_MF, s]
     c_mb = table[EXPERT_MB, s]
-    e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
-                      h_max_bits, rng)
+    if ag.params.ties_random:
+        e = choose_expert_ties(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
+                               h_max_bits, rng)
+    else:
+        e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
+                          h_max_bits, rng)
     both = ag.params.plan_both_first and ag.params.criterion >= C_RANDOM and not ag.seen[s]
     ag.seen[s] = True
-    backups, seconds = _plan_and_filter_cost(ag, e, s)
+    backups, seconds = _plan(ag, e, s)
     if both:
-        other_backups, other_seconds = _plan_and_filter_cost(ag, 1 - e, s)
+        other_backups, other_seconds = _plan(ag, 1 - e, s)
         backups += other_backups
         seconds += other_seconds
-    _filter_probs(ag, s, vrow)
+    _filter_probs(ag.probs, ag.mf.Q, ag.mb.Q, ag.mf.params.tau, ag.mb.params.tau,
+                  ag.params.prob_alpha, s, vrow)
     if e == EXPERT_MB:
         a = core.act(ag.mb.Q, s, ag.mb.params, ag.valid, rng)
     else:
@@ -411,19 +578,39 @@ def learn(ag, s, a, r, s_next):
     experts never plan here). Under ``state_reward`` a reward on arriving in ``s_next``
     that differs from the last one seen there first rewrites MB's model rewards of every
     outcome ending in ``s_next`` (:func:`set_arrival_reward`). With ``reward_ends`` a
-    rewarded transition then resets both experts' values of ``s_next`` to 0 (module
-    docstring)."""
+    rewarded transition then resets both experts' values of ``s_next`` to 0; with
+    ``forget_goal_moves`` the first reward in ``s_next`` also empties MB's model of its
+    moves (:func:`forget_moves`). Without ``learn_from_goal`` a transition that starts
+    where the last learned one was rewarded is not learned (module docstring)."""
+    p = ag.params
+    after = ag.after_reward
+    skip = not p.learn_from_goal and after[0] == s
+    after[0] = s_next if r > 0.0 else -1
+    if skip:
+        return
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF \
-            and r != ag.arrival_reward[s_next]:
-        set_arrival_reward(ag.mb.model, s_next, ag.arrival_reward[s_next], r)
-        ag.arrival_reward[s_next] = r
+    model_based = ag.mb.params.kind != core.KIND_MF
+    if p.state_reward and model_based and (
+            r != ag.arrival_reward[s_next] or (r != 0.0 and p.reward_links)):
+        _mb_reward_model(ag.mb.model, ag.arrival_reward, ag.link, s, a, r, s_next)
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if ag.params.reward_ends and r > 0.0:
-        ag.mf.Q[s_next, :] = 0.0
-        ag.mb.Q[s_next, :] = 0.0
+    if r > 0.0:
+        _rewarded(ag.mb.model, ag.mf.Q, ag.mb.Q, ag.paid, s_next, p.reward_ends,
+                  p.forget_goal_moves and model_based)
+
+
+@njit(cache=True)
+def _rewarded(mb_model, q_mf, q_mb, paid, s, reward_ends, forget):
+    """A reward in ``s`` (module docstring): MB forgets the moves of ``s`` at its first
+    reward (``forget``), both experts' values of ``s`` go to 0 (``reward_ends``)."""
+    if forget and not paid[s]:
+        forget_moves(mb_model, s)
+    paid[s] = True
+    if reward_ends:
+        q_mf[s, :] = 0.0
+        q_mb[s, :] = 0.0
 
 
 # --------------------------------------------------------------------------- builders
@@ -462,7 +649,9 @@ class Arbitration:
     travel together from a command to its parallel runs): ``criterion`` one of
     :data:`CRITERIA`, ``kappa`` >= 0, ``cost_alpha`` and ``prob_alpha`` in (0, 1],
     ``use_time`` (decide on seconds), ``reward_ends``, ``state_reward``,
-    ``plan_both_first`` (module docstring)."""
+    ``plan_both_first``, ``ties`` (one of :data:`TIES`), ``forget_goal_moves``,
+    ``learn_from_goal``, ``reward_links`` (module docstring). Defaults: simlab's; :data:`AGENT_RULES` holds
+    the published values."""
 
     criterion: str = "entropy_and_cost"
     kappa: float = 1.0
@@ -472,6 +661,10 @@ class Arbitration:
     reward_ends: bool = True
     state_reward: bool = True
     plan_both_first: bool = True
+    ties: str = "mf"
+    forget_goal_moves: bool = False
+    learn_from_goal: bool = True
+    reward_links: bool = False
 
     def __post_init__(self) -> None:
         from simlab.base import validation
@@ -480,6 +673,9 @@ class Arbitration:
         if self.criterion not in CRITERIA:
             raise ConfigError(f"unknown criterion {self.criterion!r}", key="criterion",
                               fix=f"choose one of {', '.join(CRITERIA)}")
+        if self.ties not in TIES:
+            raise ConfigError(f"unknown tie rule {self.ties!r}", key="ties",
+                              fix=f"choose one of {', '.join(TIES)}")
         validation.positive(self.kappa, "kappa", allow_zero=True)
         for key, rate in (("cost_alpha", self.cost_alpha), ("prob_alpha", self.prob_alpha)):
             if not (isinstance(rate, int | float) and 0.0 < rate <= 1.0):
@@ -510,7 +706,12 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
                      MetaParams(criterion_code(arb.criterion), float(arb.kappa),
                                 float(arb.cost_alpha), bool(arb.use_time),
                                 float(arb.prob_alpha), bool(arb.reward_ends),
-                                bool(arb.state_reward), bool(arb.plan_both_first)),
-                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_))
+                                bool(arb.state_reward), bool(arb.plan_both_first),
+                                arb.ties == "random", bool(arb.forget_goal_moves),
+                                bool(arb.learn_from_goal), bool(arb.reward_links)),
+                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_),
+                     np.zeros(n_states, dtype=np.bool_), np.full(1, -1, dtype=np.int64),
+                     np.full((n_states, n_actions), -1, dtype=np.int64) if arb.reward_links
+                     else NO_LINKS)
 
 
