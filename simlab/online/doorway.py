@@ -59,6 +59,7 @@ def doorway(occupied: Callable[[np.ndarray], np.ndarray], state_of: Callable[[np
     ``occupied(xy (N, 2)) -> (N,)`` bool (an arena's :meth:`occupied`), ``state_of(xy (N, 2))
     -> (N,)`` the states of positions, ``centres`` (S, 2) m; the bisector is searched
     ``reach`` m either side of the midpoint."""
+    u, v = min(u, v), max(u, v)  # one passage, whichever way it is named
     cu, cv = np.asarray(centres[u], float), np.asarray(centres[v], float)
     d = cv - cu
     if not np.linalg.norm(d) > 0:

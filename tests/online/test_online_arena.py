@@ -1,0 +1,162 @@
+"""``simlab online --arena``: the online experiment in physics from the command line.
+
+Analytic doorways, the robot's own action set in physics, boxes that survive a restart, and
+the command end to end (outputs, the physics summary and its agreement with the log)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from discretize.voronoi import Discretizer
+from simlab.base.errors import ConfigError
+from simlab.cli import main
+from simlab.online import meta
+from simlab.online.doorway import doorway
+from simlab.online.physics import (
+    PhysicsChange,
+    PhysicsLab,
+    PhysicsTask,
+    RunStreams,
+    run_physics_online,
+)
+from simlab.physics.arena import load_arena
+from simlab.physics.motion import PrimitiveParams
+
+
+def _lattice(n: int = 5, half: float = 0.6) -> Discretizer:
+    g = np.linspace(-half, half, n)
+    return Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g]))
+
+
+# ----------------------------------------------------------------------------- doorways
+def _corridor(xy: np.ndarray) -> np.ndarray:
+    """Free inside the corridor 0 < x < 4, |y| < 0.4 m, and nowhere else."""
+    p = np.asarray(xy, dtype=float)
+    return ~((p[..., 0] > 0) & (p[..., 0] < 4) & (np.abs(p[..., 1]) < 0.4))
+
+
+def test_a_doorway_spans_the_corridor_on_the_bisector() -> None:
+    """Two centres along a 0.8 m wide corridor: the doorway is the cross-section at their
+    midpoint, 0.8 m of free width (to the 0.01 m sampling), a box 2 x 0.03 m longer, turned
+    across the corridor."""
+    d = Discretizer(centres=np.array([[1.0, 0.0], [2.0, 0.0], [3.0, 0.0]]))
+    door = doorway(_corridor, d.state_of, d.centres, 0, 1)
+    assert door.x == pytest.approx(1.5) and door.y == pytest.approx(0.0, abs=0.01)
+    assert door.free_width == pytest.approx(0.8, abs=0.011)
+    assert door.length == pytest.approx(door.free_width + 0.06)
+    assert abs(math.cos(door.yaw)) < 1e-9  # its length runs along y, across the corridor
+    # the order of the two states does not move the box
+    other = doorway(_corridor, d.state_of, d.centres, 1, 0)
+    assert (other.x, other.y, other.free_width) == pytest.approx((door.x, door.y,
+                                                                  door.free_width))
+
+
+def test_cells_that_do_not_touch_have_no_doorway() -> None:
+    d = Discretizer(centres=np.array([[1.0, 0.0], [2.0, 0.0], [3.0, 0.0]]))
+    with pytest.raises(ConfigError, match="share no free boundary"):
+        doorway(_corridor, d.state_of, d.centres, 0, 2)  # state 1 lies between them
+
+
+# ----------------------------------------------------------------------------- the runs
+def _run(experts, n: int, lab: PhysicsLab, task: PhysicsTask, criterion: str = "mb",
+         seed: int = 0):
+    mf, mb = experts
+    ag = meta.make_meta_agent(mf, mb, lab.n_states, lab.n_actions,
+                              meta.Arbitration(criterion=criterion))
+    return ag, run_physics_online(ag, lab, task, RunStreams.from_seed(
+        np.random.SeedSequence(seed)))
+
+
+def test_a_real_robots_eight_actions_drive_their_headings(experts) -> None:
+    """8 actions numbered counter-clockwise from East: every unblocked move heads where its
+    action says (within 10 degrees, truth pose), and the agent's tables are (25, 8)."""
+    from simlab.base.actions import parse_action_set
+
+    aset = parse_action_set(8, "ccw-east", "fast")
+    lab = PhysicsLab(load_arena("table"), _lattice(), PrimitiveParams(),
+                     tuple(int(p) for p in aset.primitives()))
+    ag, run = _run(experts, 40, lab, PhysicsTask((24,), (12,), 40))
+    assert ag.mf.Q.shape == (25, 8)
+    log = run.log
+    x, y = run.xy[:, 0], run.xy[:, 1]
+    prev = np.vstack([[0.0, 0.0], run.xy[:-1]])  # the first decision starts at state 12
+    moved = ~run.blocked & (np.hypot(x - prev[:, 0], y - prev[:, 1]) > 0.05)
+    moved[1:] &= log.reward[:-1] == 0  # a restart teleports: no move to measure
+    heading = np.arctan2(y - prev[:, 1], x - prev[:, 0])
+    want = np.radians(45.0) * log.a
+    err = np.abs(np.angle(np.exp(1j * (heading - want))))
+    assert moved.sum() >= 10 and np.all(np.degrees(err[moved]) < 10)
+
+
+def test_a_box_stays_through_restarts(experts) -> None:
+    """A wall across the whole table at y = -0.3 m from decision 0; start and goal both
+    below it (states 22 and 21 of the lower row, y = -0.6 m), moves that drive until the
+    state changes: the robot is rewarded and put back at the start again and again, and
+    never passes the wall."""
+    lab = PhysicsLab(load_arena("table"), _lattice(),
+                     PrimitiveParams(mode="until_state_change"))
+    task = PhysicsTask((21,), (22,), 80, (PhysicsChange(0, "box",
+                                                        box=(0.0, -0.3, 1.6, 0.05)),))
+    _, run = _run(experts, 80, lab, task)
+    assert run.boxes == [(0.0, -0.3, 1.6, 0.05, 0.0)]
+    assert run.log.reward.sum() >= 2  # restarts happened
+    assert np.all(run.xy[:, 1] < -0.3)
+
+
+# ----------------------------------------------------------------------------- the command
+@pytest.fixture(scope="module")
+def table_states(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _lattice().save(tmp_path_factory.mktemp("arena") / "states.json")
+
+
+def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys) -> None:
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "run"
+    argv = ["online", "--arena", "table", "--states", str(table_states), "--out", str(out),
+            "--decisions", "24", "--seeds", "1", "--criteria", "mb", "entropy_and_cost",
+            "--goal", "12", "--start-states", "0", "24", "--change", "passages",
+            "--passages", "11-12", "--change-at", "8", "--workers", "1", "--no-progress"]
+    assert main(argv) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {"decisions.parquet", "cumulative_reward.png", "cumulative_cost.png",
+                     "mb_share.png", "summary.json", "summary.md", "physics.png",
+                     "visits.png"}
+    table = pq.read_table(out / "decisions.parquet").to_pandas()
+    assert len(table) == 2 * 24 and {"blocked", "duration", "x", "y"} <= set(table.columns)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["states"] == 25 and summary["actions"] == 16
+    phys = summary["physics"]
+    for arm, rec in phys["arms"].items():
+        rows = table[table.arm == arm]
+        assert rec["blocked"] == pytest.approx(rows.blocked.mean())
+        assert rec["blocked_after"] == pytest.approx(rows[rows.t >= 8].blocked.mean())
+        assert rec["robot_hours"]["mean"] == pytest.approx(rows.duration.sum() / 3600)
+    # the box stands on the doorway between the centres of 11 (-0.3, 0) and 12 (0, 0)
+    (x, y, length, thick, yaw), = phys["boxes"]
+    assert x == pytest.approx(-0.15, abs=0.01) and abs(math.cos(yaw)) < 1e-6
+    assert length == pytest.approx(0.3 + 0.06, abs=0.02)  # the cell's side, 0.3 m
+    assert "## In physics" in (out / "summary.md").read_text()
+
+
+@pytest.mark.parametrize(("argv", "key"), [
+    (["--arena", "table"], "states"),
+    (["MDP", "--arena", "table", "--states", "S"], "mdp"),
+    (["MDP", "--primitives", "p.toml"], "primitives"),
+    (["MDP", "--n-actions", "8"], "n_actions"),
+    (["--arena", "table", "--states", "S", "--change", "passages", "--passages", "0-24"],
+     "passages"),
+])
+def test_bad_arena_options_are_refused(table_states: Path, tmp_path: Path, capsys, argv,
+                                       key) -> None:
+    argv = [str(table_states) if a == "S" else str(tmp_path / "m.npz") if a == "MDP" else a
+            for a in argv]
+    assert main(["online", *argv, "--out", str(tmp_path / "o"), "--no-progress"]) != 0
+    err = capsys.readouterr().err
+    assert key in err
+    assert not (tmp_path / "o").exists()
