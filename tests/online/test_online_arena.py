@@ -150,8 +150,9 @@ def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys
     (["MDP", "--arena", "table", "--states", "S"], "mdp"),
     (["MDP", "--primitives", "p.toml"], "primitives"),
     (["MDP", "--n-actions", "8"], "n_actions"),
-    (["--arena", "table", "--states", "S", "--change", "passages", "--passages", "0-24"],
-     "passages"),
+    (["--arena", "table", "--states", "S", "--goal", "12", "--start-states", "0", "--change",
+      "passages", "--passages", "0-24"], "passages"),
+    (["--arena", "table", "--states", "S"], "start_states"),  # the default 0, 32 of 38
 ])
 def test_bad_arena_options_are_refused(table_states: Path, tmp_path: Path, capsys, argv,
                                        key) -> None:
