@@ -181,22 +181,39 @@ def run_physics_job(job: PhysicsJob, seed: np.random.SeedSequence, progress: Any
     return cols
 
 
-class _DecisionBar:
-    """A tqdm bar of the decisions of every run, fed by the workers through a queue."""
+class _Direct:
+    """The bar's queue when the runs are in this process: a put updates the bar."""
 
-    def __init__(self, total: int, enabled: bool) -> None:
+    def __init__(self, bar: Any) -> None:
+        self.bar = bar
+
+    def put(self, k: int) -> None:
+        self.bar.update(int(k))
+
+
+class _DecisionBar:
+    """A tqdm bar of the decisions of every run: fed directly by runs in this process,
+    through a manager queue by local worker processes; Ray tasks get no queue (the
+    executor's bar of finished runs is shown instead)."""
+
+    def __init__(self, total: int, enabled: bool, where: str) -> None:
         self.queue: Any = None
         self._thread: threading.Thread | None = None
-        if not enabled:
+        self._manager: Any = None
+        self._bar: Any = None
+        if not enabled or where not in ("in-process", "local"):
+            return
+        from tqdm.auto import tqdm
+
+        self._bar = tqdm(total=total, desc="online decisions (physics)", unit="dec",
+                         dynamic_ncols=True)
+        if where == "in-process":
+            self.queue = _Direct(self._bar)
             return
         import multiprocessing
 
-        from tqdm.auto import tqdm
-
         self._manager = multiprocessing.get_context("spawn").Manager()
         self.queue = self._manager.Queue()
-        self._bar = tqdm(total=total, desc="online decisions (physics)", unit="dec",
-                         dynamic_ncols=True)
         self._thread = threading.Thread(target=self._drain, daemon=True)
         self._thread.start()
 
@@ -208,20 +225,19 @@ class _DecisionBar:
             self._bar.update(int(k))
 
     def close(self) -> None:
-        if self._thread is None:
-            return
-        self.queue.put(None)
-        self._thread.join(timeout=5)
-        self._bar.close()
-        self._manager.shutdown()
+        if self._thread is not None:
+            self.queue.put(None)
+            self._thread.join(timeout=5)
+            self._manager.shutdown()
+        if self._bar is not None:
+            self._bar.close()
 
 
 def run_physics_jobs(jobs: list[dict[str, Any]], executor: Any, progress: bool,
                      total: int) -> list[dict[str, np.ndarray]]:
     """Every physics run of ``jobs`` (keyword arguments of :func:`run_physics_job`) on
     ``executor``, with a bar of decisions (``total``) when ``progress``."""
-    bar = _DecisionBar(total, progress and executor.describe().startswith(("local",
-                                                                            "in-process")))
+    bar = _DecisionBar(total, progress, getattr(executor, "name", ""))
     try:
         if bar.queue is not None:
             jobs = [{**j, "progress": bar.queue} for j in jobs]
