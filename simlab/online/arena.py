@@ -319,8 +319,13 @@ def _visits_figure(logs: dict[str, list[dict[str, np.ndarray]]], lab: Any, task:
     occ = lab.arena.rasterize(res, (x0, y0), shape)
     n = len(logs)
     aspect = (y1 - y0) / max(x1 - x0, 1e-9)
-    fig = Figure(figsize=(6.4, max(2.0, 6.4 * aspect) * n / 1.6 + 0.6), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(n, 1))
+    if aspect > 1:  # a tall lab: panels side by side
+        fig = Figure(figsize=(2.2 + 3.0 * n / aspect ** 0.5, 3.0 * aspect ** 0.5 + 0.6),
+                     layout="constrained")
+        axes = np.atleast_1d(fig.subplots(1, n))
+    else:
+        fig = Figure(figsize=(7.0, (7.0 * aspect + 0.5) * n + 0.3), layout="constrained")
+        axes = np.atleast_1d(fig.subplots(n, 1))
     centres = np.asarray(lab.discretizer.centres, dtype=float)
     boxes = next((r["boxes"] for runs in logs.values() for r in runs[:1]), np.zeros((0, 5)))
     for ax, (name, runs) in zip(axes, logs.items(), strict=True):
@@ -328,8 +333,8 @@ def _visits_figure(logs: dict[str, list[dict[str, np.ndarray]]], lab: Any, task:
                   vmin=0, vmax=1.6, interpolation="nearest")
         xs = np.concatenate([r["x"] for r in runs])
         ys = np.concatenate([r["y"] for r in runs])
-        ax.hexbin(xs, ys, gridsize=int(max(10, (x1 - x0) / 0.1)), mincnt=1, cmap="viridis",
-                  bins="log", alpha=0.85)
+        ax.hexbin(xs, ys, gridsize=int(max(8, (x1 - x0) / 0.15)), mincnt=1, cmap="viridis",
+                  bins="log", alpha=0.85, extent=(x0, x1, y0, y1))
         ax.plot(*centres[list(task.start_states)].T, "o", ms=6, mfc="none", mec="tab:blue")
         ax.plot(*centres[list(task.goal)].T, "*", ms=11, color="tab:red")
         for c in task.changes:

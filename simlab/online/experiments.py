@@ -282,3 +282,7 @@ def physics(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> 
              "self-loops), not from the agents' own transitions."]
     return RunResult(metrics=metrics, figures=[pth for k, pth in res.files.items()
                                                if k.endswith(".png")], notes=notes)
+
+
+# The twin experiment's runner lives in its own module; importing it registers it.
+from simlab.online import twin as _twin  # noqa: E402, F401
