@@ -40,7 +40,7 @@ from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 
-__all__ = ["LabFiles", "TASKS", "real_lab", "stand_in_lab", "twin"]
+__all__ = ["TASKS", "LabFiles", "real_lab", "stand_in_lab", "twin"]
 
 TASKS = ("stable", "goal", "passages")
 #: The ISIR arena's public files (module docstring).
@@ -131,7 +131,7 @@ def stand_in_lab(out: Path, seed: int) -> LabFiles:
     from simlab.physics.map_arena import ArenaFromMapConfig, arena_from_map
 
     out.mkdir(parents=True, exist_ok=True)
-    res, px, border = 0.05, int(round(CELL / 0.05)), 2
+    res, px, border = 0.05, round(CELL / 0.05), 2
     rows, cols = len(LAYOUT), len(LAYOUT[0])
     occ = np.full((rows * px + 2 * border, cols * px + 2 * border), 100, dtype=np.int8)
     for y, row in enumerate(LAYOUT):
