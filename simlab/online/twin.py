@@ -253,7 +253,34 @@ def _comparison_figure(rows: list[dict[str, Any]], path: Path) -> Path:
         ax.set_title(row["task"], fontsize=10)
     axes[0].set_ylabel("total reward per run")
     axes[0].legend(fontsize=7)
-    path.write_bytes(b"")  # reserve the name; replaced below
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def _curves_figure(rows: list[dict[str, Any]], path: Path) -> Path:
+    """Per task, each arm's mean cumulative reward on the real model (solid) and in the twin
+    (dashed), the change marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(3.6 * len(rows), 3.4), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(rows), sharey=True))
+    for ax, row in zip(axes, rows, strict=True):
+        for k, arm in enumerate(row["real_logs"]):
+            colour = f"C{k}"
+            for side, style in (("real_logs", "-"), ("twin_logs", "--")):
+                y = np.cumsum(np.stack([r["reward"] for r in row[side][arm]]), axis=1).mean(0)
+                ax.plot(np.arange(1, y.size + 1), y, style, color=colour,
+                        label=arm if side == "real_logs" else None)
+        changes = row["real"]["task"]["changes"]
+        if changes:
+            ax.axvline(changes[0]["at"], color="k", lw=1, ls=":")
+        ax.set_title(f"{row['task']} (solid: real model, dashed: twin)", fontsize=9)
+        ax.set_xlabel("decision")
+    axes[0].set_ylabel("cumulative reward")
+    axes[0].legend(fontsize=7)
     fig.savefig(path, dpi=90)
     return path
 
@@ -295,12 +322,14 @@ def twin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
             "arena": lab.arena, "states": lab.states, "primitives": primitives, "n_actions": 8,
             "convention": "ccw-east", "speed": "fast", "out": ctx.out / task / "twin"}),
             executor=ctx.executor)
-        rows.append({"task": task, "real": real.summary, "twin": sim.summary})
+        rows.append({"task": task, "real": real.summary, "twin": sim.summary,
+                     "real_logs": real.logs, "twin_logs": sim.logs})
         metrics.update(_arm_metrics(task, real.summary, sim.summary, task != "stable"))
-    figure = _comparison_figure(rows, ctx.out / "twin_vs_real.png")
+    figures = [_comparison_figure(rows, ctx.out / "twin_vs_real.png"),
+               _curves_figure(rows, ctx.out / "twin_vs_real_curves.png")]
     notes = [f"Lab: {lab.name}; twin: {primitives}; {common['seeds']} runs x "
              f"{common['decisions']} decisions per arm and task; change at decision "
              f"{lab.change_at + 1}."]
-    return RunResult(metrics=metrics, figures=[figure], notes=notes,
+    return RunResult(metrics=metrics, figures=figures, notes=notes,
                      details={r["task"]: {"real": r["real"]["arms"], "twin": r["twin"]["arms"]}
                               for r in rows})
