@@ -225,11 +225,13 @@ def window_model_visits(m, s, a):
 
 @njit(cache=True)
 def window_model_reward(m, s, a):
-    """Mean reward over the window of ``(s, a)``; 0.0 if unvisited."""
+    """Mean reward over the window of ``(s, a)``; 0.0 if unvisited or emptied."""
     k = m.slot[s, a]
     if k == -1:
         return 0.0
     h = m.win_fill[k]
+    if h == 0:
+        return 0.0
     acc = 0.0
     for i in range(h):
         acc += m.win_reward[k, i]
@@ -276,7 +278,7 @@ def window_model_backup(m, Q, s, a, gamma, m_known):
     if k == -1:
         return 0.0
     h = m.win_fill[k]
-    if h < m_known:
+    if h == 0 or h < m_known:
         return 0.0
     acc = 0.0
     for i in range(h):

@@ -15,6 +15,8 @@ and everything else is generated from them:
   for a bool that defaults to true, ``--n-states`` for ``n_states``), each with its help
   text and default, plus ``--config FILE`` (a TOML file of the same fields; options given
   on the command line win over the file, the file over the defaults);
+  a ``bool | None`` field that defaults to None (unset: decided elsewhere) gets both
+  ``--name`` and ``--no-name``;
 * ``EstimateConfig.from_args(namespace)`` and ``EstimateConfig.from_toml(path)``;
 * :func:`command` — the Python function takes the config (``estimate(cfg)``) or the same
   fields as arguments (``estimate(dataset, out=..., plot=False)``), so the function's
@@ -364,6 +366,12 @@ def _add_field(parser: argparse.ArgumentParser, f: dataclasses.Field, tp: Any) -
         kw["choices"] = meta["choices"]
     if base is bool:
         kw.pop("metavar", None)
+        if default is None and _optional:  # unset unless given: both spellings
+            name = meta.get("flag") or f.name.replace("_", "-")
+            parser.add_argument(_flag_name(f), dest=f.name, action="store_true", **kw)
+            parser.add_argument(f"--no-{name}", dest=f.name, action="store_false",
+                                default=_UNSET, help=f"the opposite of --{name}")
+            return
         if default is True:
             flag = "--no-" + (meta.get("flag") or f.name.replace("_", "-"))
             if flag not in kw["help"]:  # the field's help says what "on" does

@@ -7,6 +7,8 @@ Each subcommand lives in its own module ``simlab/cli/<name>.py`` defining
   stays fast);
 * ``run(args) -> int | None`` — calls the library function (the same one exposed
   in :mod:`simlab.commands`) and prints a short summary.
+* ``MEMORY_FIX`` (optional) — how to ask that command for less when it runs out of
+  memory, in its own options.
 
 Library code raises; this module alone turns :class:`~simlab.base.errors.SimlabError`,
 the operating system's errors (missing files, permissions, a full disk, a read-only
@@ -25,6 +27,10 @@ import sys
 from collections.abc import Sequence
 
 from simlab.base.errors import SimlabError
+
+#: How to ask for less when a command runs out of memory; a subcommand module may define its
+#: own ``MEMORY_FIX`` naming its options.
+MEMORY_FIX = "fewer hours, trials, states or a coarser grid"
 
 #: Subcommand name -> module under simlab.cli. Order is the order of --help.
 SUBCOMMANDS: dict[str, str] = {
@@ -78,7 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
-        p.set_defaults(_run=module.run)
+        p.set_defaults(_run=module.run, _memory_fix=getattr(module, "MEMORY_FIX", MEMORY_FIX))
     return parser
 
 
@@ -198,8 +204,9 @@ def _run(args: argparse.Namespace, verbosity: int) -> int:
         print(f"simlab {args.command}: error: {describe_os_error(exc)}", file=sys.stderr)
         return 2
     except MemoryError:
-        print(f"simlab {args.command}: error: out of memory (ask for less: fewer hours, "
-              "trials, states or a coarser grid)", file=sys.stderr)
+        fix = getattr(args, "_memory_fix", MEMORY_FIX)
+        print(f"simlab {args.command}: error: out of memory (ask for less: {fix})",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"simlab {args.command}: interrupted", file=sys.stderr)

@@ -10,6 +10,7 @@ import argparse
 
 HELP = ("learn online with MB/MF meta-control (criteria, costs, changes) on an empirical MDP, "
         "or in physics on an arena")
+MEMORY_FIX = "fewer --seeds or --decisions, fewer --criteria or --kappas, or --no-plots"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

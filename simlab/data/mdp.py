@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from simlab.base.actions import ActionSet, action_set_from_metadata
-from simlab.base.errors import ConfigError
+from simlab.base.errors import ConfigError, DataError
 from simlab.data.goals import GoalMasks
 
 __all__ = ["EmpiricalMDP", "SparseEmpiricalMDP", "load_mdp", "load_sparse_mdp",
@@ -291,7 +291,11 @@ def load_mdp(path: str | os.PathLike[str]) -> EmpiricalMDP:
     """
     from simlab.agents.storage import load_npz
 
-    arrays, meta = load_npz(path)
+    try:
+        arrays, meta = load_npz(path)
+    except DataError as exc:
+        raise DataError(f"{path}: not an mdp.npz written by simlab estimate "
+                        f"({str(exc).removeprefix(f'{path}: ')})") from exc
     path = Path(path)
     if meta.get("storage") == "sparse-csr" and "T" not in arrays:
         return _densified(load_sparse_mdp(path))

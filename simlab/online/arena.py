@@ -47,6 +47,8 @@ __all__ = [
 REPORT_EVERY = 25
 #: The physics runs' own figures, beside the MDP runs' outputs.
 PHYSICS_FILES = ("physics.png", "visits.png")
+#: What a physics run returns per run, not per decision (not columns of decisions.parquet).
+PHYSICS_RUN_FIELDS = ("wall_seconds", "boxes")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

@@ -65,7 +65,23 @@ Decisions made here (the papers leave them to the implementation):
   at 0 and are updated for the expert that planned only; ``C_e / max_e C_e`` is 0 when both
   are 0.
 * **Ties** of the criteria go to the first expert (MF, the cheap one): no random draw.
-  ``random`` draws one uniform number per decision from the agent's Generator.
+  ``random`` draws one uniform number per decision from the agent's Generator. With
+  ``ties = "random"`` a tie of ``entropy`` or ``entropy_and_cost`` is a fair coin from the
+  same Generator (the published arbitration's, ``metaControllerSystem.py``: at a state's
+  first visit both distributions are uniform and both costs 0, so the first decision there
+  is MB's half of the time).
+* **The goal's moves are forgotten at its first reward** (``forget_goal_moves``; the
+  published MB expert, ``modelBased.py``, deletes the transitions of a state the first time
+  it pays): MB's model of the rewarded state's own moves is emptied once, so its values stay
+  0 under planning (a goal ends the episode: nothing follows it). Without it a state that
+  was left before it first paid (the new goal after a goal change) keeps its known moves,
+  and MB's next plan values the goal again at ``gamma`` times its neighbours.
+* **No learning from the rewarded state** (``learn_from_goal = False``, published; both
+  published experts skip the transition that starts where a reward was just obtained): with
+  the published reset (a decision in the goal whose move goes to a start state,
+  :mod:`simlab.online.protocol`) that move is no move of the world and is not learned.
+  Under simlab's teleport no transition starts in the goal right after its reward, so the
+  rule never fires in its loops; the default (``True``) learns every transition given.
 """
 
 from __future__ import annotations
@@ -84,9 +100,11 @@ from simlab.agents.sparse_model import CountModel, CountModelType
 from simlab.agents.window_model import WindowModel, WindowModelType
 
 __all__ = [
+    "AGENT_RULES",
     "CRITERIA",
     "EXPERT_MB",
     "EXPERT_MF",
+    "TIES",
     "Arbitration",
     "MetaAgent",
     "MetaParams",
@@ -95,6 +113,7 @@ __all__ = [
     "decide",
     "distribution_entropy",
     "expert_plan",
+    "forget_moves",
     "learn",
     "lowpass",
     "make_expert",
@@ -113,16 +132,35 @@ C_MF, C_MB, C_RANDOM, C_ENTROPY, C_ENTROPY_COST = range(5)
 #: Expert indices (rows of the cost tables, values of the ``expert`` log column).
 EXPERT_MF, EXPERT_MB = 0, 1
 
+#: No link table (``reward_links`` off): every pair's arrivals carry the state's reward.
+NO_LINKS = np.zeros((0, 0), dtype=np.int64)
+
 #: Arbitration parameters: ``criterion`` (code of :data:`CRITERIA`), ``kappa`` (weight of
 #: MF's certainty on the cost term), ``cost_alpha`` (low-pass rate of the per-state costs),
 #: ``use_time`` (decide on wall-clock seconds instead of backups), ``prob_alpha``
 #: (low-pass rate of the per-state action distributions), ``reward_ends`` (a reward ends
 #: the episode: the rewarded state's values are reset to 0), ``state_reward`` (MB's reward
 #: model is the reward last seen on arriving in each state), ``plan_both_first`` (both
-#: experts plan at a state's first visit).
+#: experts plan at a state's first visit), ``ties_random`` (a tie of the entropy criteria is a
+#: coin), ``forget_goal_moves`` (MB forgets the rewarded state's moves at its first reward),
+#: ``learn_from_goal`` (the transition starting where a reward was just obtained is learned),
+#: ``reward_links`` (MB's arrival reward counts only for the pairs once rewarded into it).
 MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_time",
                                        "prob_alpha", "reward_ends", "state_reward",
-                                       "plan_both_first"])
+                                       "plan_both_first", "ties_random", "forget_goal_moves",
+                                       "learn_from_goal", "reward_links"])
+
+#: How ties of ``entropy`` and ``entropy_and_cost`` are broken: ``mf`` (simlab) or a fair
+#: ``random`` coin (published).
+TIES = ("mf", "random")
+
+#: The agent's side of each protocol (:data:`simlab.online.protocol.PROTOCOLS`): values of
+#: :class:`Arbitration` fields that differ from its defaults (simlab's).
+AGENT_RULES: dict[str, dict[str, Any]] = {
+    "simlab": {},
+    "published": {"ties": "random", "forget_goal_moves": True, "learn_from_goal": False,
+                  "reward_links": True},
+}
 
 #: The meta-controlled pair: ``mf`` and ``mb`` (:class:`simlab.agents.core.Learner`),
 #: ``cost`` (2, S) float64 filtered backups per expert and state, ``cost_time`` (2, S)
@@ -130,9 +168,14 @@ MetaParams = namedtuple("MetaParams", ["criterion", "kappa", "cost_alpha", "use_
 #: per expert and state, ``params`` (:class:`MetaParams`), ``valid`` (S, A) bool or
 #: ``core.NO_MASK``, ``arrival_reward`` (S,) float64 the reward last seen on arriving in
 #: each state (MB's reward model under ``state_reward``; 0 before any arrival), ``seen``
-#: (S,) bool states where a decision was made. Built by :func:`make_meta_agent`.
+#: (S,) bool states where a decision was made, ``paid`` (S,) bool states that were rewarded
+#: once, ``after_reward`` (1,) int64 the state a reward was obtained on arriving in by the
+#: last transition learned (-1: none), ``link`` (S, A) int64 the goal state each pair was last
+#: rewarded into (-1: none; :data:`NO_LINKS` without ``reward_links``). Built by
+#: :func:`make_meta_agent`.
 MetaAgent = namedtuple("MetaAgent", ["mf", "mb", "cost", "cost_time", "probs", "params",
-                                     "valid", "arrival_reward", "seen"])
+                                     "valid", "arrival_reward", "seen", "paid", "after_reward",
+                                     "link"])
 
 
 def criterion_code(name: str) -> int:
@@ -217,15 +260,16 @@ def softmax_into(q, vrow, tau, out):
 
 
 @njit(cache=True)
-def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
+def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng, ties_random=False):
     """The expert that plans: :data:`EXPERT_MF` (0) or :data:`EXPERT_MB` (1).
 
     ``h_*`` normalised entropies in [0, 1], ``c_*`` the experts' (filtered) costs at this
     state (any unit, >= 0), ``h_max_bits`` the largest entropy in bits (``log2`` of the
     number of valid actions). ``entropy_and_cost`` (Dromnelle et al. 2022, sec. 2.3):
     value of expert e ``-(h_e + exp(-kappa * H_MF) * c_e / max(c_mf, c_mb))`` with MF's
-    entropy in bits ``H_MF = h_mf * h_max_bits``; the larger wins. Ties go to MF; only
-    ``random`` draws from ``rng``.
+    entropy in bits ``H_MF = h_mf * h_max_bits``; the larger wins. Ties of ``entropy`` and
+    ``entropy_and_cost`` go to MF, or with ``ties_random`` to a fair coin from ``rng``;
+    otherwise only ``random`` draws from ``rng``.
     """
     if criterion == C_MF:
         return EXPERT_MF
@@ -234,6 +278,8 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
     if criterion == C_RANDOM:
         return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
     if criterion == C_ENTROPY:
+        if h_mb == h_mf and ties_random:
+            return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
         return EXPERT_MB if h_mb < h_mf else EXPERT_MF
     c_max = max(c_mf, c_mb)
     w = np.exp(-kappa * h_mf * h_max_bits)
@@ -242,6 +288,8 @@ def choose_expert(criterion, h_mf, h_mb, c_mf, c_mb, kappa, h_max_bits, rng):
     if c_max > 0.0:
         v_mf -= w * c_mf / c_max
         v_mb -= w * c_mb / c_max
+    if v_mb == v_mf and ties_random:
+        return EXPERT_MB if rng.random() < 0.5 else EXPERT_MF
     return EXPERT_MB if v_mb > v_mf else EXPERT_MF
 
 
@@ -275,18 +323,34 @@ def expert_plan(lr, valid):
     return sweeps * per_sweep
 
 
+@njit(cache=True, inline="always")
+def _rewritten(pair, A, s_next, link, only):
+    """Whether the arrivals of ``pair`` in ``s_next`` take the new reward: every pair, or
+    (``link`` given) the pairs linked to ``s_next``; ``only >= 0``: that pair alone."""
+    if only >= 0 and pair != only:
+        return False
+    if link.shape[0] == 0:
+        return True
+    s = pair // A
+    return link[s, pair - s * A] == s_next
+
+
 @njit(cache=True)
-def _window_arrival_reward(m, s_next, new):
+def _window_arrival_reward(m, s_next, new, link, only):
     for k in range(m.n_slots):
+        if not _rewritten(m.slot_pair[k], m.n_actions, s_next, link, only):
+            continue
         for i in range(m.win_fill[k]):
             if m.win_state[k, i] == s_next:
                 m.win_reward[k, i] = new
 
 
 @njit(cache=True)
-def _count_arrival_reward(m, s_next, old, new):
+def _count_arrival_reward(m, s_next, old, new, link, only):
     A = m.n_actions
     for j in range(m.n_pairs):
+        if not _rewritten(m.pairs[j], A, s_next, link, only):
+            continue
         s = m.pairs[j] // A
         a = m.pairs[j] - s * A
         k = m.head[s, a]
@@ -296,28 +360,93 @@ def _count_arrival_reward(m, s_next, old, new):
             k = m.succ_link[k]
 
 
-def set_arrival_reward(model, s_next, old, new):
+def set_arrival_reward(model, s_next, old, new, link=NO_LINKS, only=-1):
     """Make ``new`` the reward of arriving in ``s_next`` in a count or window model whose
-    every recorded arrival there carries ``old``: a window model's rewards of the outcomes
-    ending in ``s_next`` become ``new``; a count model's reward sums move by
-    ``n(s, a, s_next) * (new - old)``. The model's reward of a pair is then ``sum_s'
-    T(s, a, s') r(s')`` with ``r`` the reward last seen on arriving in each state (module
-    docstring, ``state_reward``). O(observed outcomes); called only when ``r(s_next)``
-    changes (a goal found or lost)."""
+    recorded arrivals there carry ``old``: a window model's rewards of the outcomes ending in
+    ``s_next`` become ``new``; a count model's reward sums move by ``n(s, a, s_next) * (new -
+    old)``. The model's reward of a pair is then ``sum_s' T(s, a, s') r(s')`` with ``r`` the
+    reward last seen on arriving in each state (module docstring, ``state_reward``).
+    ``link`` (S, A) int64 (:data:`NO_LINKS`: every pair): only the pairs linked to ``s_next``
+    (``reward_links``); ``only``: that pair index ``s * A + a`` alone. O(observed outcomes);
+    called only when ``r(s_next)`` changes (a goal found or lost) or a pair is linked."""
     if isinstance(model, WindowModel):
-        _window_arrival_reward(model, s_next, new)
+        _window_arrival_reward(model, s_next, new, link, only)
     elif isinstance(model, CountModel):
-        _count_arrival_reward(model, s_next, old, new)
+        _count_arrival_reward(model, s_next, old, new, link, only)
     else:
         raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
 
 
 @overload(set_arrival_reward, jit_options={"cache": True})
-def _ov_set_arrival_reward(model, s_next, old, new):
+def _ov_set_arrival_reward(model, s_next, old, new, link, only):  # compiled: every argument
     if isinstance(model, WindowModelType):
-        return lambda model, s_next, old, new: _window_arrival_reward(model, s_next, new)
+        return lambda model, s_next, old, new, link, only: _window_arrival_reward(
+            model, s_next, new, link, only)
     if isinstance(model, CountModelType):
-        return lambda model, s_next, old, new: _count_arrival_reward(model, s_next, old, new)
+        return lambda model, s_next, old, new, link, only: _count_arrival_reward(
+            model, s_next, old, new, link, only)
+    return None
+
+
+@njit(cache=True)
+def _mb_reward_model(ag, s, a, r, s_next):
+    """MB's reward model learns the arrival ``(s, a) -> s_next`` with reward ``r`` before its
+    model counts it (module docstring, ``state_reward`` and ``reward_links``)."""
+    old = ag.arrival_reward[s_next]
+    if not ag.params.reward_links:
+        if r != old:
+            set_arrival_reward(ag.mb.model, s_next, old, r, NO_LINKS, -1)
+            ag.arrival_reward[s_next] = r
+        return
+    if r != old:  # the pairs linked to s_next so far
+        set_arrival_reward(ag.mb.model, s_next, old, r, ag.link, -1)
+        ag.arrival_reward[s_next] = r
+    if r != 0.0 and ag.link[s, a] != s_next:  # a new way into a goal: its arrivals pay too
+        ag.link[s, a] = s_next
+        set_arrival_reward(ag.mb.model, s_next, 0.0, r, ag.link, s * ag.mb.Q.shape[1] + a)
+
+
+@njit(cache=True)
+def _window_forget(m, s):
+    A = m.n_actions
+    for a in range(A):
+        k = m.slot[s, a]
+        if k != -1:
+            m.win_fill[k] = 0
+            m.win_pos[k] = 0
+        m.n_sa[s, a] = 0
+
+
+@njit(cache=True)
+def _count_forget(m, s):
+    # the pool entries stay linked (a later visit reuses them) with count 0
+    for a in range(m.n_actions):
+        k = m.head[s, a]
+        while k != -1:
+            m.succ_count[k] = 0
+            k = m.succ_link[k]
+        m.n_sa[s, a] = 0
+        m.r_sum[s, a] = 0.0
+
+
+def forget_moves(model, s):
+    """Forget every recorded outcome of the moves of state ``s`` in a count or window model
+    (module docstring, ``forget_goal_moves``): its pairs become unvisited (no model, planning
+    leaves their Q alone) and a later visit starts their model afresh."""
+    if isinstance(model, WindowModel):
+        _window_forget(model, s)
+    elif isinstance(model, CountModel):
+        _count_forget(model, s)
+    else:
+        raise TypeError(f"expected a CountModel or WindowModel, got {type(model).__name__}")
+
+
+@overload(forget_moves, jit_options={"cache": True})
+def _ov_forget_moves(model, s):
+    if isinstance(model, WindowModelType):
+        return lambda model, s: _window_forget(model, s)
+    if isinstance(model, CountModelType):
+        return lambda model, s: _count_forget(model, s)
     return None
 
 
@@ -388,7 +517,7 @@ def decide(ag, s, rng):
     c_mf = table[EXPERT_MF, s]
     c_mb = table[EXPERT_MB, s]
     e = choose_expert(ag.params.criterion, h_mf, h_mb, c_mf, c_mb, ag.params.kappa,
-                      h_max_bits, rng)
+                      h_max_bits, rng, ag.params.ties_random)
     both = ag.params.plan_both_first and ag.params.criterion >= C_RANDOM and not ag.seen[s]
     ag.seen[s] = True
     backups, seconds = _plan_and_filter_cost(ag, e, s)
@@ -411,19 +540,28 @@ def learn(ag, s, a, r, s_next):
     experts never plan here). Under ``state_reward`` a reward on arriving in ``s_next``
     that differs from the last one seen there first rewrites MB's model rewards of every
     outcome ending in ``s_next`` (:func:`set_arrival_reward`). With ``reward_ends`` a
-    rewarded transition then resets both experts' values of ``s_next`` to 0 (module
-    docstring)."""
+    rewarded transition then resets both experts' values of ``s_next`` to 0; with
+    ``forget_goal_moves`` the first reward in ``s_next`` also empties MB's model of its
+    moves (:func:`forget_moves`). Without ``learn_from_goal`` a transition that starts
+    where the last learned one was rewarded is not learned (module docstring)."""
+    p = ag.params
+    if not p.learn_from_goal and ag.after_reward[0] == s:
+        ag.after_reward[0] = s_next if r > 0.0 else -1
+        return
+    ag.after_reward[0] = s_next if r > 0.0 else -1
     core.learn(ag.mf.model, ag.mf.Q, s, a, r, s_next, ag.mf.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF \
-            and r != ag.arrival_reward[s_next]:
-        set_arrival_reward(ag.mb.model, s_next, ag.arrival_reward[s_next], r)
-        ag.arrival_reward[s_next] = r
+    if ag.params.state_reward and ag.mb.params.kind != core.KIND_MF:
+        _mb_reward_model(ag, s, a, r, s_next)
     core.learn(ag.mb.model, ag.mb.Q, s, a, r, s_next, ag.mb.params, ag.valid,
                core.NO_TERMINAL, 0)
-    if ag.params.reward_ends and r > 0.0:
-        ag.mf.Q[s_next, :] = 0.0
-        ag.mb.Q[s_next, :] = 0.0
+    if r > 0.0:
+        if p.forget_goal_moves and not ag.paid[s_next] and ag.mb.params.kind != core.KIND_MF:
+            forget_moves(ag.mb.model, s_next)
+        ag.paid[s_next] = True
+        if p.reward_ends:
+            ag.mf.Q[s_next, :] = 0.0
+            ag.mb.Q[s_next, :] = 0.0
 
 
 # --------------------------------------------------------------------------- builders
@@ -462,7 +600,9 @@ class Arbitration:
     travel together from a command to its parallel runs): ``criterion`` one of
     :data:`CRITERIA`, ``kappa`` >= 0, ``cost_alpha`` and ``prob_alpha`` in (0, 1],
     ``use_time`` (decide on seconds), ``reward_ends``, ``state_reward``,
-    ``plan_both_first`` (module docstring)."""
+    ``plan_both_first``, ``ties`` (one of :data:`TIES`), ``forget_goal_moves``,
+    ``learn_from_goal``, ``reward_links`` (module docstring). Defaults: simlab's; :data:`AGENT_RULES` holds
+    the published values."""
 
     criterion: str = "entropy_and_cost"
     kappa: float = 1.0
@@ -472,6 +612,10 @@ class Arbitration:
     reward_ends: bool = True
     state_reward: bool = True
     plan_both_first: bool = True
+    ties: str = "mf"
+    forget_goal_moves: bool = False
+    learn_from_goal: bool = True
+    reward_links: bool = False
 
     def __post_init__(self) -> None:
         from simlab.base import validation
@@ -480,6 +624,9 @@ class Arbitration:
         if self.criterion not in CRITERIA:
             raise ConfigError(f"unknown criterion {self.criterion!r}", key="criterion",
                               fix=f"choose one of {', '.join(CRITERIA)}")
+        if self.ties not in TIES:
+            raise ConfigError(f"unknown tie rule {self.ties!r}", key="ties",
+                              fix=f"choose one of {', '.join(TIES)}")
         validation.positive(self.kappa, "kappa", allow_zero=True)
         for key, rate in (("cost_alpha", self.cost_alpha), ("prob_alpha", self.prob_alpha)):
             if not (isinstance(rate, int | float) and 0.0 < rate <= 1.0):
@@ -510,7 +657,12 @@ def make_meta_agent(mf_config: Any, mb_config: Any, n_states: int, n_actions: in
                      MetaParams(criterion_code(arb.criterion), float(arb.kappa),
                                 float(arb.cost_alpha), bool(arb.use_time),
                                 float(arb.prob_alpha), bool(arb.reward_ends),
-                                bool(arb.state_reward), bool(arb.plan_both_first)),
-                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_))
+                                bool(arb.state_reward), bool(arb.plan_both_first),
+                                arb.ties == "random", bool(arb.forget_goal_moves),
+                                bool(arb.learn_from_goal), bool(arb.reward_links)),
+                     mask, np.zeros(n_states), np.zeros(n_states, dtype=np.bool_),
+                     np.zeros(n_states, dtype=np.bool_), np.full(1, -1, dtype=np.int64),
+                     np.full((n_states, n_actions), -1, dtype=np.int64) if arb.reward_links
+                     else NO_LINKS)
 
 

@@ -13,7 +13,16 @@ Definitions (per arm, each a mean over runs, with the standard deviation beside 
 * ``recovery_decisions`` — decisions after the change until the reward rate of a window
   (mean over runs) first reaches 80 % of the rate over the last ``3 * window`` decisions
   before it (None: not within the run). ``rate_after_vs_before`` — reward rate after the
-  change over the rate before (whole phases).
+  change over the rate before (whole phases);
+* ``restarts`` — runs that started again for want of a reward (``restart_after``): mean
+  restarts per run and the runs concerned;
+* ``chosen`` — for a change chosen by use, per run the alternative that happened and
+  ``use_counts`` the decisions each counting state saw before the change.
+
+The run-level ``protocol`` records the rules applied (:meth:`OnlineConfig.rules_summary`).
+``decisions.parquet`` carries each column's ``unit`` and ``description`` in its Parquet
+field metadata (and all of them as JSON under the schema key ``simlab.columns``), as the
+datasets of ``simlab collect`` do.
 """
 
 from __future__ import annotations
@@ -26,13 +35,45 @@ import numpy as np
 
 from simlab.base.io import atomic_write, atomic_write_bytes, atomic_write_json, atomic_write_text
 
-__all__ = ["MARKER", "summarize", "write_outputs"]
+__all__ = ["DECISION_DOCS", "MARKER", "decision_docs", "summarize", "write_outputs"]
 
 #: ``summary.json``'s ``command`` value: what ``--overwrite`` recognises as its own.
 MARKER = "simlab online"
 
 #: Recovery threshold (fraction of the pre-change reward rate).
 RECOVERY = 0.8
+
+#: Unit and meaning of every column of ``decisions.parquet`` (``COST`` stands for the unit
+#: of the cost the criterion reads: backups, or s with ``--cost seconds``).
+DECISION_DOCS: dict[str, tuple[str, str]] = {
+    "arm": ("1", "arm: the criterion (entropy_and_cost once per kappa, named _k<kappa>)"),
+    "seed": ("1", "run index within the arm (runs of one index share their random streams)"),
+    "t": ("1", "decision index within the run, from 0"),
+    "s": ("1", "state of the decision"),
+    "a": ("1", "action taken"),
+    "s_next": ("1", "state after the action"),
+    "expert": ("1", "expert whose plan gave the action: MF or MB"),
+    "h_mf": ("1", "MF's normalised entropy read by the criterion, in [0, 1]"),
+    "h_mb": ("1", "MB's normalised entropy read by the criterion, in [0, 1]"),
+    "c_mf": ("COST", "MF's filtered planning cost at the state read by the criterion"),
+    "c_mb": ("COST", "MB's filtered planning cost at the state read by the criterion"),
+    "backups": ("backups", "Bellman backups of the plan(s) of this decision"),
+    "seconds": ("s", "wall-clock time of the plan(s) of this decision"),
+    "reward": ("1", "reward of the decision (on arriving in s_next)"),
+    "phase": ("1", "task phase: 0 before the change, then the change (the alternative "
+                   "chosen by use)"),
+    # a run in physics (simlab online --arena)
+    "blocked": ("1", "the obstacle detector stopped the primitive before it drove"),
+    "duration": ("s", "simulated time of the decision: the primitive and the decision latency"),
+    "x": ("m", "true x of the robot after the decision (map frame)"),
+    "y": ("m", "true y of the robot after the decision (map frame)"),
+}
+
+
+def decision_docs(cost: str) -> dict[str, tuple[str, str]]:
+    """:data:`DECISION_DOCS` with the cost unit of ``cost`` (``backups`` or ``seconds``)."""
+    unit = "s" if cost == "seconds" else "backups"
+    return {k: (unit if u == "COST" else u, text) for k, (u, text) in DECISION_DOCS.items()}
 
 
 def _ms(x: np.ndarray) -> dict[str, float]:
@@ -106,9 +147,12 @@ def summarize(logs: dict[str, list[dict[str, np.ndarray]]], cfg: Any, task: Any,
             if at is not None:
                 rec["cost_vs_mb_before"] = float(t["bb"].mean() / ref["bb"].mean())
                 rec["cost_vs_mb_after"] = float(t["ba"].mean() / ref["ba"].mean())
+    for name, runs in logs.items():
+        arms[name].update(_run_fields(runs, task))
     return {
         "command": MARKER,
         "simlab_version": simlab.__version__,
+        "protocol": cfg.rules_summary(),
         "mdp": None if m.source is None else str(m.source),
         "states": m.n_states, "actions": m.n_actions,
         "task": task.as_dict(),
@@ -123,11 +167,37 @@ def summarize(logs: dict[str, list[dict[str, np.ndarray]]], cfg: Any, task: Any,
     }
 
 
+def _alternatives(task: Any) -> list[str]:
+    """Labels of the alternatives of the task's change chosen by use (empty: none)."""
+    c = task.changes[-1] if task.changes else None
+    if c is None or not getattr(c, "use_states", ()):  # (a physics task has none)
+        return []
+    if c.kind == "model":
+        return list(c.names) or [f"model {k + 1}" for k in range(len(c.after))]
+    return [f"{u}-{v}" for u, v in c.passages]
+
+
+def _run_fields(runs: list[dict[str, np.ndarray]], task: Any) -> dict[str, Any]:
+    """Per arm: restarts, and for a change chosen by use the alternative of each run."""
+    restarts = [int(r.get("restarts", 0)) for r in runs]
+    out: dict[str, Any] = {"restarts": {"mean": float(np.mean(restarts)),
+                                        "runs": int(np.count_nonzero(restarts))}}
+    labels = _alternatives(task)
+    if labels:
+        first = len(runs[0]["use_counts"]) - len(labels)  # the alternatives' first phase
+        at = task.changes[-1].at
+        out["chosen"] = [labels[int(r["phase"][at]) - first] for r in runs]
+        out["use_counts"] = [dict(zip(labels, (int(x) for x in r["use_counts"][first:]),
+                                      strict=True)) for r in runs]
+    return out
+
+
 def _markdown(summary: dict[str, Any]) -> str:
     lines = [f"# simlab online: {summary['seeds']} runs x {summary['decisions']} decisions",
              "", f"MDP: {summary['mdp'] or '(in memory)'} ({summary['states']} states, "
              f"{summary['actions']} actions); change: {summary['change'] or 'none'}; cost "
-             f"measure deciding: {summary['cost']}.", ""]
+             f"measure deciding: {summary['cost']}.", "", _protocol_line(summary["protocol"]),
+             ""]
     change = summary["change"] is not None
     head = "| arm | reward | cost vs MB | wall time vs MB | MB share |"
     sep = "|---|---|---|---|---|"
@@ -147,6 +217,14 @@ def _markdown(summary: dict[str, Any]) -> str:
             row += (f" {a['reward_before']['mean']:.1f} | {a['reward_after']['mean']:.1f} | "
                     f"{f(a['recovery_decisions'], 'd')} |")
         lines.append(row)
+    for name, a in summary["arms"].items():
+        if a["restarts"]["runs"]:
+            lines.append(f"- {name}: {a['restarts']['runs']} run(s) restarted for want of a "
+                         f"reward ({a['restarts']['mean']:.2f} restarts per run)")
+        if "chosen" in a:
+            tally = {c: a["chosen"].count(c) for c in dict.fromkeys(a["chosen"])}
+            lines.append(f"- {name}: the more used of the alternatives happened: " + ", ".join(
+                f"{c} in {k} run(s)" for c, k in tally.items()))
     lines += ["", "Costs are planning costs of the deciding expert, and of both experts at a "
               "state's first visit when both plan there (value-iteration backups; wall-clock "
               "seconds beside them), relative to MB deciding alone."]
@@ -168,6 +246,13 @@ def _physics_markdown(phys: dict[str, Any], change: bool) -> list[str]:
         lines.append(f"\nBox added: centre ({x:.2f}, {y:.2f}) m, {sx:.2f} x {sy:.2f} m, yaw "
                      f"{np.degrees(yaw):.0f} degrees.")
     return lines
+
+
+def _protocol_line(protocol: dict[str, Any]) -> str:
+    rules = ", ".join(f"{k} {v}" for k, v in protocol["rules"].items())
+    given = protocol["overridden"]
+    return (f"Protocol: {protocol['name']} ({rules})"
+            + (f"; given against it: {', '.join(given)}." if given else "."))
 
 
 def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, Any],
@@ -192,7 +277,8 @@ def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, An
                 t = np.arange(1, y.shape[1] + 1)
                 mean, std = y.mean(0), y.std(0)
                 ax.plot(t, mean, label=name)
-                ax.fill_between(t, mean - std, mean + std, alpha=0.15)
+                # a cumulative sum is >= 0: the band of one std is clipped there
+                ax.fill_between(t, np.maximum(mean - std, 0.0), mean + std, alpha=0.15)
             else:
                 y = windows(x, window).mean(0)
                 t = (np.arange(y.shape[0]) + 0.5) * window
@@ -216,8 +302,13 @@ def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[s
     """Write every output to its staged path of the transaction ``txn``; a run in physics
     (``lab`` and ``task`` given) adds its per-decision columns and figures
     (:mod:`simlab.online.arena`)."""
+    import json
+
     import pyarrow as pa
     import pyarrow.parquet as pq
+
+    from simlab.online.arena import PHYSICS_RUN_FIELDS
+    from simlab.online.loop import RUN_FIELDS
 
     cols: dict[str, list[np.ndarray]] = {}
     for name, runs in logs.items():
@@ -226,12 +317,20 @@ def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[s
             extra = {"arm": np.full(n, name, dtype=object), "seed": np.full(n, i, np.int32),
                      "t": np.arange(n, dtype=np.int32)}
             for k, val in {**extra, **lg}.items():
-                if np.ndim(val) != 1 or len(val) != n:  # per-run figures of a physics run
+                if k in RUN_FIELDS or k in PHYSICS_RUN_FIELDS:
                     continue
                 if k == "expert":
                     val = np.where(val == 1, "MB", "MF").astype(object)
                 cols.setdefault(k, []).append(val)
-    table = pa.table({k: pa.array(np.concatenate(v)) for k, v in cols.items()})
+    docs = decision_docs(cfg.cost)
+    arrays = {k: pa.array(np.concatenate(v)) for k, v in cols.items()}
+    fields = [pa.field(k, a.type).with_metadata(
+        {b"unit": docs[k][0].encode(), b"description": docs[k][1].encode()} if k in docs else {})
+        for k, a in arrays.items()]
+    schema = pa.schema(fields, metadata={b"simlab.columns": json.dumps(
+        {k: {"unit": u, "description": d} for k, (u, d) in docs.items() if k in arrays}
+    ).encode()})
+    table = pa.Table.from_arrays(list(arrays.values()), schema=schema)
     with atomic_write(txn.path(finals["decisions.parquet"]), "wb") as fh:
         pq.write_table(table, fh)
     if cfg.plots:

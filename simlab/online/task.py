@@ -15,8 +15,21 @@ neighbour); a row with no other outcome becomes the self-loop (stopped where it 
 the obstacle detector stops it in physics). Every row stays a distribution. Closing a
 passage the MDP never used changes nothing (and is allowed).
 
+A change may also replace the whole model (``after``: "from this decision the world is this
+other model", e.g. the published files of the goal change and of the closed passages, whose
+every row is the lab's after the change), and may offer *alternatives* chosen by use: several
+``after`` models, or several passages closed one at a time, each with a counting state
+(``use_states``); the alternative whose counting state saw the most decisions before the
+change is the one that happens (the first listed on ties). This is how the published
+simulator chooses the passage it closes (Dromnelle et al. 2022; their code counts the
+decisions in state 19, towards 20-21, and in state 7, towards 6-7).
+
+A start state that is a goal is refused: after a reward the run would restart in the goal
+and be rewarded for standing still.
+
 The compiled form :class:`OnlineMdp` holds one ``(S, A, S)`` cumulative ``T`` and one
-``(S,)`` reward per phase; phase ``i`` runs from decision ``phase_start[i]`` on.
+``(S,)`` reward per phase; phase ``i`` runs from decision ``phase_start[i]`` on; phases
+that start at the same decision are the alternatives of one change.
 """
 
 from __future__ import annotations
@@ -34,10 +47,12 @@ __all__ = ["Change", "OnlineMdp", "OnlineTask", "close_passages", "parse_passage
 
 #: The compiled task: ``cdf`` (P, S, A, S) cumulative T per phase, ``reward_next`` (P, S)
 #: reward on arriving in each state, ``phase_start`` (P,) int64 first decision of each phase
-#: (``phase_start[0] == 0``), ``start_cdf`` (S,) cumulative start distribution.
-OnlineMdp = namedtuple("OnlineMdp", ["cdf", "reward_next", "phase_start", "start_cdf"])
+#: (``phase_start[0] == 0``), ``start_cdf`` (S,) cumulative start distribution, ``use_state``
+#: (P,) int64 the counting state of an alternative phase (-1: not chosen by use).
+OnlineMdp = namedtuple("OnlineMdp", ["cdf", "reward_next", "phase_start", "start_cdf",
+                                     "use_state"])
 
-CHANGE_KINDS = ("goal", "passages")
+CHANGE_KINDS = ("goal", "passages", "model")
 
 
 def parse_passages(items: Sequence[Any], *, key: str = "passages") -> tuple[tuple[int, int], ...]:
@@ -73,16 +88,25 @@ def close_passages(T: np.ndarray, passages: Sequence[tuple[int, int]]) -> np.nda
     return T
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Change:
     """A change of the task at decision ``at`` (0-based: decision ``at`` is the first in
-    the changed world): ``kind`` ``goal`` (the goal becomes ``goal``) or ``passages``
-    (``passages`` close)."""
+    the changed world): ``kind`` ``goal`` (the goal becomes ``goal``), ``passages``
+    (``passages`` close) or ``model`` (the world becomes the ``after`` model).
+
+    ``after`` (``(S, A, S)`` arrays): the model of the world from ``at`` on (a goal change
+    or a passage closing then applies to it); several are alternatives of a ``model``
+    change. ``use_states``: one counting state per alternative (several ``after`` models,
+    or the ``passages`` closed one at a time); empty: a single outcome (every passage
+    closes). ``names`` name the ``after`` models in descriptions (their files)."""
 
     at: int
     kind: str
     goal: tuple[int, ...] = ()
     passages: tuple[tuple[int, int], ...] = ()
+    after: tuple[Any, ...] = ()
+    use_states: tuple[int, ...] = ()
+    names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in CHANGE_KINDS:
@@ -95,12 +119,46 @@ class Change:
         if self.kind == "passages" and not self.passages:
             raise ConfigError("a passage closing needs the passages", key="passages",
                               fix="e.g. passages = ['20-21', '6-7']")
+        if self.kind == "model" and not self.after:
+            raise ConfigError("a model change needs the model of the world after it",
+                              key="after", fix="give --after MODEL (an mdp.npz)")
+        if len(self.after) > 1 and self.kind != "model":
+            raise ConfigError(f"{len(self.after)} --after models for a {self.kind} change: "
+                              "only a model change chooses among several", key="after",
+                              fix="give one --after model, or --change model")
+        n = self.alternatives()
+        if self.use_states and len(self.use_states) != n:
+            what = "--after models" if self.kind == "model" else "passages"
+            raise ConfigError(f"{len(self.use_states)} counting states for {n} {what}",
+                              key="use_states", fix=f"give one counting state per {what[:-1]}")
+        if n > 1 and self.kind == "model" and not self.use_states:
+            raise ConfigError(f"{n} --after models and no counting state to choose among "
+                              "them", key="use_states",
+                              fix="give --use-states S (one per model: the model whose "
+                              "state saw the most decisions before the change is applied)")
+
+    def alternatives(self) -> int:
+        """How many outcomes the change offers (1: no choice)."""
+        if self.kind == "model":
+            return len(self.after)
+        if self.kind == "passages" and self.use_states:
+            return len(self.passages)
+        return 1
 
     def describe(self) -> str:
-        if self.kind == "goal":
-            return f"goal -> {'+'.join(map(str, self.goal))} at decision {self.at}"
-        closed = ", ".join(f"{u}<->{v}" for u, v in self.passages)
-        return f"passages {closed} closed at decision {self.at}"
+        world = " or ".join(self.names or ("another model",))
+        by_use = (f" (the more used: decisions in {'/'.join(map(str, self.use_states))})"
+                  if self.use_states else "")
+        if self.kind == "model":
+            what = f"the world becomes {world}{by_use}"
+        elif self.kind == "goal":
+            what = f"goal -> {'+'.join(map(str, self.goal))}"
+            what += f", the world becomes {world}" if self.after else ""
+        else:
+            joined = (" or " if self.use_states else ", ").join(
+                f"{u}<->{v}" for u, v in self.passages)
+            what = f"passages {joined} closed{by_use}" + (f" in {world}" if self.after else "")
+        return f"{what} at decision {self.at}"
 
 
 @dataclass(frozen=True)
@@ -120,6 +178,17 @@ class OnlineTask:
         if len(set(ats)) != len(ats):
             raise ConfigError("two changes at the same decision", key="change_at")
         object.__setattr__(self, "changes", tuple(sorted(self.changes, key=lambda c: c.at)))
+        if any(c.alternatives() > 1 for c in self.changes[:-1]):
+            raise ConfigError("a change chosen by use must be the last one", key="use_states",
+                              fix="the phases after it would depend on the choice")
+        goals = [("goal", self.goal)] + [("new_goal", c.goal) for c in self.changes if c.goal]
+        for key, goal in goals:
+            both = sorted(set(goal) & set(self.start_states))
+            if both:
+                raise ConfigError(f"start state(s) {both} are also the {key.replace('_', ' ')}:"
+                                  " after a reward the run would restart in the goal and be "
+                                  "rewarded for standing still", key="start_states",
+                                  fix="choose start states apart from every goal")
 
     def compile(self, T: np.ndarray, *, source: str | None = None) -> OnlineMdp:
         """The :class:`OnlineMdp` of this task on ``T`` (S, A, S); state ids outside
@@ -133,33 +202,48 @@ class OnlineTask:
 
         check(self.goal, "goal")
         check(self.start_states, "start_states")
-        cdfs, rewards, starts = [], [], [0]
+        cdfs, rewards, starts, uses = [], [], [0], [-1]
         T_now = np.asarray(T, dtype=np.float64)
         goal = self.goal
 
-        def phase() -> None:
+        def phase(T_phase: np.ndarray) -> None:
             r = np.zeros(S)
             r[list(goal)] = 1.0
-            cdfs.append(np.cumsum(T_now, axis=2))
+            cdfs.append(np.cumsum(T_phase, axis=2))
             rewards.append(r)
 
-        phase()
+        phase(T_now)
         for c in self.changes:
+            check(c.use_states, "use_states")
+            outcomes = [np.asarray(m, dtype=np.float64) for m in c.after] or [T_now]
+            for m, name in zip(outcomes, c.names or ("--after",) * len(outcomes), strict=False):
+                if m.shape != T_now.shape:
+                    raise ConfigError(f"the model after the change is {m.shape[0]} states x "
+                                      f"{m.shape[1]} actions, the run's {S} x {T_now.shape[1]}",
+                                      path=None if name == "--after" else name, key="after",
+                                      fix="give a model of the same lab (same states and "
+                                      "actions)")
             if c.kind == "goal":
                 check(c.goal, "new_goal")
                 goal = c.goal
-            else:
+            elif c.kind == "passages":
                 check([x for p in c.passages for x in p], "passages")
-                T_now = close_passages(T_now, c.passages)
-            phase()
-            starts.append(c.at)
+                outcomes = ([close_passages(outcomes[0], [p]) for p in c.passages]
+                            if c.use_states else [close_passages(outcomes[0], c.passages)])
+            for k, T_phase in enumerate(outcomes):
+                phase(T_phase)
+                starts.append(c.at)
+                uses.append(int(c.use_states[k]) if c.use_states else -1)
+            T_now = outcomes[0]
         start = np.zeros(S)
         start[list(self.start_states)] = 1.0 / len(self.start_states)
         return OnlineMdp(np.ascontiguousarray(np.stack(cdfs)), np.stack(rewards),
-                         np.asarray(starts, dtype=np.int64), np.cumsum(start))
+                         np.asarray(starts, dtype=np.int64), np.cumsum(start),
+                         np.asarray(uses, dtype=np.int64))
 
     def as_dict(self) -> dict[str, Any]:
         return {"goal": list(self.goal), "start_states": list(self.start_states),
                 "changes": [{"at": c.at, "kind": c.kind, "goal": list(c.goal),
-                             "passages": [list(p) for p in c.passages]}
+                             "passages": [list(p) for p in c.passages],
+                             "after": list(c.names), "use_states": list(c.use_states)}
                             for c in self.changes]}

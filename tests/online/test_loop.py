@@ -104,7 +104,7 @@ def test_task_states_are_checked_naming_the_field() -> None:
 @pytest.mark.parametrize("criterion", ["random", "entropy", "entropy_and_cost"])
 def test_seeded_runs_are_bit_identical(experts, criterion) -> None:
     T = chain(6, p=0.7)
-    task = OnlineTask(goal=(5,), start_states=(0, 1), changes=(Change(150, "goal", goal=(0,)),))
+    task = OnlineTask(goal=(5,), start_states=(1, 2), changes=(Change(150, "goal", goal=(0,)),))
     _, a = _run(experts, T, task, criterion=criterion, n=300, seed=4)
     _, b = _run(experts, T, task, criterion=criterion, n=300, seed=4)
     _, c = _run(experts, T, task, criterion=criterion, n=300, seed=5)
@@ -144,3 +144,28 @@ def test_an_arm_draws_the_same_streams_whatever_runs_beside_it() -> None:
         np.testing.assert_array_equal(a["expert"], b["expert"])
     # and the two arms of one run start in the same state (the same environment stream)
     assert both["mb"][0]["s"][0] == both["entropy_and_cost_k1"][0]["s"][0]
+
+
+def test_the_reward_band_of_the_figure_stays_at_or_above_zero(monkeypatch) -> None:
+    """Cumulative rewards are >= 0: a run that earned nothing beside one that earned much
+    has mean - std < 0, and the band is clipped there."""
+    from matplotlib.axes import Axes
+
+    from simlab.online.report import _figures
+
+    lows = []
+    real = Axes.fill_between
+
+    def spy(self, x, y1, *args, **kwargs):
+        lows.append(np.min(y1))
+        return real(self, x, y1, *args, **kwargs)
+
+    monkeypatch.setattr(Axes, "fill_between", spy)
+    n = 50
+    rich = np.zeros(n)
+    rich[::2] = 1.0
+    runs = [dict(reward=rich, backups=np.ones(n), expert=np.ones(n)),
+            *[dict(reward=np.zeros(n), backups=np.ones(n), expert=np.ones(n))] * 3]
+    summary = {"task": {"changes": []}}
+    _figures({"mb": runs}, summary, 10)
+    assert len(lows) == 2 and min(lows) == 0.0
