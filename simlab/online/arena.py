@@ -100,14 +100,16 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
 class PhysicsJob:
     """One physics run's settings (they travel together to the worker): the
     :class:`~simlab.online.physics.PhysicsLab`, the
-    :class:`~simlab.online.physics.PhysicsTask`, the experts' agent configs and the
-    :class:`~simlab.online.meta.Arbitration`."""
+    :class:`~simlab.online.physics.PhysicsTask`, the experts' agent configs, the
+    :class:`~simlab.online.meta.Arbitration` and the environment's
+    :data:`~simlab.online.protocol.LoopRules`."""
 
     lab: Any
     task: Any
     mf_config: Any
     mb_config: Any
     arbitration: Any
+    rules: Any = None
 
 
 def physics_lab(cfg: Any) -> Any:
@@ -134,18 +136,14 @@ def physics_lab(cfg: Any) -> Any:
 
 
 def physics_task(cfg: Any, lab: Any) -> Any:
-    """The :class:`~simlab.online.physics.PhysicsTask` of ``cfg`` on ``lab``: the goal
-    change as on an MDP, the passages closed by boxes on their doorways (found now, so a
-    passage that does not exist is refused before any run)."""
+    """The :class:`~simlab.online.physics.PhysicsTask` of ``cfg`` on ``lab``: the task of
+    the same options on an MDP (:meth:`~simlab.online.command.OnlineConfig.task`, so the
+    same checks and the same passage choice by use), its passages closed by boxes on their
+    doorways (found now: a passage that does not exist is refused before any run)."""
     from simlab.online.physics import PhysicsChange, PhysicsTask
-    from simlab.online.task import parse_passages
 
-    changes: tuple[Any, ...] = ()
-    if cfg.change == "goal":
-        changes = (PhysicsChange(cfg.change_at, "goal", goal=tuple(cfg.new_goal)),)
-    elif cfg.change == "passages":
-        changes = (PhysicsChange(cfg.change_at, "passages",
-                                 passages=parse_passages(cfg.passages)),)
+    changes = tuple(PhysicsChange(c.at, c.kind, goal=tuple(c.goal), passages=c.passages,
+                                  use_states=c.use_states) for c in cfg.task().changes)
     task = PhysicsTask(tuple(cfg.goal), tuple(cfg.start_states), int(cfg.decisions), changes,
                        pose_source=cfg.pose_source, mcl_map=cfg.mcl_map)
     task.check_states(lab.n_states)
@@ -174,7 +172,7 @@ def run_physics_job(job: PhysicsJob, seed: np.random.SeedSequence, progress: Any
                 pending[0] = 0
 
     run = run_physics_online(agent, job.lab, job.task, RunStreams.from_seed(seed),
-                             progress=tell)
+                             rules=job.rules, progress=tell)
     if progress is not None and pending[0]:
         progress.put(pending[0])
     cols = run.columns()

@@ -484,7 +484,8 @@ def _physics_world(cfg: OnlineConfig, arms: list[tuple[str, str, float]], seeds:
 
     lab = physics_lab(cfg)
     task = physics_task(cfg, lab)
-    jobs = [dict(job=PhysicsJob(lab, task, mf_cfg, mb_cfg, cfg.arbitration(crit, kappa)),
+    rules = cfg.loop_rules()
+    jobs = [dict(job=PhysicsJob(lab, task, mf_cfg, mb_cfg, cfg.arbitration(crit, kappa), rules),
                  seed=seeds[i]) for _, crit, kappa in arms for i in range(cfg.seeds)]
     source = cfg.arena if isinstance(cfg.arena, str | Path) else lab.arena.name
     info = SimpleNamespace(source=str(source), n_states=lab.n_states, n_actions=lab.n_actions)

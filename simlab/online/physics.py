@@ -34,6 +34,7 @@ Decisions (the protocol of Dromnelle et al. 2022, sec. 4.1, on simlab's arena):
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -67,6 +68,7 @@ class PhysicsChange:
     goal: tuple[int, ...] = ()
     box: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
     passages: tuple[tuple[int, int], ...] = ()
+    use_states: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in CHANGE_KINDS:
@@ -80,13 +82,26 @@ class PhysicsChange:
         if self.kind == "passages" and not self.passages:
             raise ConfigError("a passage closing needs the passages", key="passages",
                               fix="e.g. passages = ['20-21', '6-7']")
+        if self.use_states and (self.kind != "passages"
+                                or len(self.use_states) != len(self.passages)):
+            raise ConfigError(f"{len(self.use_states)} counting states for "
+                              f"{len(self.passages)} passages", key="use_states",
+                              fix="give one counting state per passage")
+
+    def alternatives(self) -> int:
+        """How many outcomes the change offers: one per passage when the more used one is
+        closed (``use_states``), else 1."""
+        return len(self.passages) if self.use_states else 1
 
     def describe(self) -> str:
         if self.kind == "goal":
             return f"goal -> {'+'.join(map(str, self.goal))} at decision {self.at}"
         if self.kind == "passages":
-            closed = ", ".join(f"{u}<->{v}" for u, v in self.passages)
-            return f"passages {closed} closed by boxes at decision {self.at}"
+            closed = (" or " if self.use_states else ", ").join(f"{u}<->{v}"
+                                                                for u, v in self.passages)
+            by_use = (f" (the more used: decisions in {'/'.join(map(str, self.use_states))})"
+                      if self.use_states else "")
+            return f"passages {closed} closed by boxes{by_use} at decision {self.at}"
         return f"box at ({self.box[0]:g}, {self.box[1]:g}) m added at decision {self.at}"
 
 
@@ -118,15 +133,17 @@ class PhysicsTask:
                 "pose_source": self.pose_source, "mcl_map": self.mcl_map,
                 "changes": [{"at": c.at, "kind": c.kind, "goal": list(c.goal),
                              "box": list(c.box) if c.kind == "box" else [],
-                             "passages": [list(p) for p in c.passages]}
-                            for c in self.changes]}
+                             "passages": [list(p) for p in c.passages],
+                             "use_states": list(c.use_states)} for c in self.changes]}
 
     def check_states(self, n_states: int) -> None:
         """:class:`ConfigError` naming the field when a state is not in ``0..n_states-1``."""
         fields = [("goal", self.goal), ("start_states", self.start_states)]
         fields += [("new_goal", c.goal) for c in self.changes if c.kind == "goal"]
-        fields += [("passages", tuple(x for p in c.passages for x in p))
-                   for c in self.changes if c.kind == "passages"]
+        for c in self.changes:
+            if c.kind == "passages":
+                fields.append(("passages", tuple(x for p in c.passages for x in p)))
+                fields += [("use_states", c.use_states)] if c.use_states else []
         for key, states in fields:
             bad = [s for s in states if not 0 <= int(s) < n_states]
             if bad or not states:
@@ -163,20 +180,22 @@ class PhysicsLab:
         return PhysicsWalker(self.arena, self.params, pose_source,
                              dict(self.pose_source_options), self.discretizer)
 
-    def boxes_of(self, change: PhysicsChange) -> list[tuple[float, ...]]:
-        """The boxes ``(x, y, size_x, size_y, yaw)`` a change adds (none for ``goal``)."""
+    def boxes_of(self, change: PhysicsChange) -> list[list[tuple[float, ...]]]:
+        """The boxes ``(x, y, size_x, size_y, yaw)`` each outcome of a change adds: one
+        list per alternative (one per passage when the more used is closed; else a single
+        list, empty for ``goal``)."""
         from simlab.online.doorway import doorway
 
         if change.kind == "box":
-            return [tuple(change.box) + (0.0,) * (5 - len(change.box))]
-        if change.kind == "passages":
-            d = self.discretizer
-            out = []
-            for u, v in change.passages:
-                door = doorway(self.arena.occupied, d.state_of, np.asarray(d.centres), u, v)
-                out.append((door.x, door.y, door.length, door.thickness, door.yaw))
-            return out
-        return []
+            return [[tuple(change.box) + (0.0,) * (5 - len(change.box))]]
+        if change.kind != "passages":
+            return [[]]
+        d = self.discretizer
+        boxes = []
+        for u, v in change.passages:
+            door = doorway(self.arena.occupied, d.state_of, np.asarray(d.centres), u, v)
+            boxes.append((door.x, door.y, door.length, door.thickness, door.yaw))
+        return [[b] for b in boxes] if change.use_states else [boxes]
 
 
 @dataclass(frozen=True)
@@ -208,12 +227,13 @@ def children(seed: np.random.SeedSequence, n: int) -> list[np.random.SeedSequenc
 @dataclass
 class PhysicsRun:
     """What :func:`run_physics_online` did: the decision ``log`` (the columns of
-    :class:`~simlab.online.loop.OnlineLog`), per decision ``blocked`` (n,) bool, the
-    simulated ``duration`` (n,) s (primitive and decision latency) and the true position
-    after it ``xy`` (n, 2) m; ``robot_seconds`` simulated, ``wall_seconds``, ``boxes``
-    the boxes added ``(x, y, size_x, size_y, yaw)``, ``mcl_field`` the
-    :class:`~simlab.localization.likelihood.LikelihoodField` the filter used last (None
-    for ``truth``)."""
+    :class:`~simlab.online.loop.OnlineLog`, with its ``restarts`` and ``use_counts``), per
+    decision ``blocked`` (n,) bool, the simulated ``duration`` (n,) s (primitive and
+    decision latency; 0 for the published goal decision, whose move is the restart) and the
+    true position after it ``xy`` (n, 2) m; ``robot_seconds`` simulated,
+    ``wall_seconds``, ``boxes`` the boxes added ``(x, y, size_x, size_y, yaw)``,
+    ``mcl_field`` the :class:`~simlab.localization.likelihood.LikelihoodField` the filter
+    used last (None for ``truth``)."""
 
     log: OnlineLog
     blocked: np.ndarray
@@ -225,9 +245,12 @@ class PhysicsRun:
     mcl_field: Any = None
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The log's columns and the physics' own (``blocked``, ``duration``, ``x``, ``y``)."""
+        """The log's columns and the physics' own (``blocked``, ``duration``, ``x``, ``y``),
+        and the run's ``restarts`` and ``use_counts``."""
         return {**self.log.columns(), "blocked": self.blocked, "duration": self.duration,
-                "x": self.xy[:, 0], "y": self.xy[:, 1]}
+                "x": self.xy[:, 0], "y": self.xy[:, 1],
+                "restarts": np.asarray(self.log.restarts, dtype=np.int64),
+                "use_counts": self.log.use_counts}
 
 
 class _Lab:
@@ -248,9 +271,11 @@ class _Lab:
     def state(self, pose: np.ndarray) -> int:
         return int(self.point_state(float(pose[0]), float(pose[1])))
 
-    def restart(self) -> int:
-        """The robot put down at the centre of a start state (``env`` stream); its state."""
-        s0 = int(self.starts[self.streams.env.integers(0, self.starts.size)])
+    def restart(self, state: int = -1) -> int:
+        """The robot put down at the centre of ``state`` (-1: a start state drawn from the
+        ``env`` stream), keeping its heading; the state of its believed pose there."""
+        s0 = int(self.starts[self.streams.env.integers(0, self.starts.size)]) if state < 0 \
+            else int(state)
         yaw = float(self.walker.world.pose()[2])
         self.walker.place(np.array([self.centres[s0, 0], self.centres[s0, 1], yaw]),
                           self.streams.mcl)
@@ -304,6 +329,12 @@ class _Agent:
     def learn(self, s: int, a: int, r: float, s_next: int) -> None:
         self._learn(self.agent, int(s), int(a), float(r), int(s_next))
 
+    def phantom_start(self, s: int) -> None:
+        """The published run's fictitious previous decision in its first state ``s``:
+        ``(s, 0, 0, s)`` learned, ``s`` counted as visited (:mod:`simlab.online.loop`)."""
+        self.learn(s, 0, 0.0, s)
+        self.agent.seen[s] = True
+
 
 def _check(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask) -> None:
     S, A = lab.n_states, lab.n_actions
@@ -314,54 +345,107 @@ def _check(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask) -> None:
     task.check_states(S)
 
 
+class _Changes:
+    """The task's changes as they happen: the phase index (an alternative chosen by use
+    counts as its own phase, as in the MDP loop), the goal, the boxes each adds, and the
+    decisions of the counting states (``use_counts``, one per phase, -1 where none)."""
+
+    def __init__(self, lab: PhysicsLab, task: PhysicsTask) -> None:
+        self.task = task
+        self.pending = [(c, lab.boxes_of(c)) for c in task.changes]  # doorways found first
+        self.n_states = lab.n_states
+        self.use_counts = np.full(1 + sum(c.alternatives() for c in task.changes), -1,
+                                  dtype=np.int64)
+        self.rewind()
+
+    def rewind(self) -> None:
+        """Back to the task's start (a restart of the published protocol)."""
+        self.todo = list(self.pending)
+        self.phase, self.first = 0, 1
+        self.goal = np.isin(np.arange(self.n_states), self.task.goal)
+
+    def due(self, t: int, visits: np.ndarray, world: _Lab) -> None:
+        """Apply every change due at decision ``t``."""
+        while self.todo and self.todo[0][0].at <= t:
+            c, outcomes = self.todo.pop(0)
+            k = 0
+            if c.use_states:
+                counts = visits[list(c.use_states)]
+                self.use_counts[self.first:self.first + counts.size] = counts
+                k = int(np.argmax(counts))  # the first on ties
+            self.phase = self.first + k
+            self.first += c.alternatives()
+            if c.kind == "goal":
+                self.goal = np.isin(np.arange(self.n_states), c.goal)
+            for box in outcomes[k]:
+                world.add_box(box)
+
+
 def run_physics_online(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask,
-                       streams: RunStreams, *, progress: Any = None) -> PhysicsRun:
+                       streams: RunStreams, *, rules: Any = None,
+                       progress: Any = None) -> PhysicsRun:
     """Let ``agent`` learn online for ``task.decisions`` decisions in a fresh world of
-    ``lab`` (module docstring). ``progress(k)``, when given, is told every decision made
-    (k = 1); the agent learns in place."""
+    ``lab`` (module docstring) under the environment ``rules``
+    (:data:`~simlab.online.protocol.LoopRules`; default simlab's), as the MDP loop
+    (:mod:`simlab.online.loop`) applies them. ``progress(k)``, when given, is told every
+    decision made (k = 1); the agent learns in place."""
+    from simlab.online.protocol import PROTOCOLS
+
     _check(agent, lab, task)
-    changes = [(c, lab.boxes_of(c)) for c in task.changes]  # doorways found before driving
+    rules = PROTOCOLS["simlab"].loop_rules(-1, -1) if rules is None else rules
+    changes = _Changes(lab, task)
     n = int(task.decisions)
     log = OnlineLog.empty(n)
-    blocked = np.zeros(n, dtype=bool)
-    duration = np.zeros(n)
-    xy = np.zeros((n, 2))
-    goal_mask = np.isin(np.arange(lab.n_states), task.goal)
+    blocked, duration, xy = np.zeros(n, dtype=bool), np.zeros(n), np.zeros((n, 2))
+    visits = np.zeros(lab.n_states, dtype=np.int64)
     primitives = np.asarray(lab.primitives, dtype=np.int64)
     world = _Lab(lab, task, streams)
     calls = _Agent(agent, streams.agent)
     try:
-        s = world.restart()
-        t_robot, t_wall0 = 0.0, time.perf_counter()
-        phase = 0
-        for t in range(n):
-            while changes and changes[0][0].at <= t:
-                c, boxes = changes.pop(0)
-                phase += 1
-                if c.kind == "goal":
-                    goal_mask = np.isin(np.arange(lab.n_states), c.goal)
-                for box in boxes:
-                    world.add_box(box)
+        s = world.restart(rules.first_state)
+        if rules.phantom_start:
+            calls.phantom_start(s)
+        t_wall0 = time.perf_counter()
+        t, got, restarts = 0, 0.0, 0
+        while t < n:
+            changes.due(t, visits, world)
             a, e, h_mf, h_mb, c_mf, c_mb, backups, seconds = calls.decide(s)
-            out = world.walker.step(int(primitives[int(a)]), streams.noise)
-            s_next = world.state(out.pose_after)
-            r = 1.0 if goal_mask[s_next] else 0.0
+            if rules.goal_decision and changes.goal[s]:  # the move from the goal: a restart
+                s_next = world.restart()
+                blocked[t], duration[t] = False, 0.0
+            else:
+                out = world.walker.step(int(primitives[int(a)]), streams.noise)
+                s_next = world.state(out.pose_after)
+                blocked[t] = out.blocked
+                duration[t] = out.duration + world.walker.decision_latency
+            xy[t] = world.walker.world.pose()[:2]
+            arrived = bool(changes.goal[s_next])
+            r = 1.0 if arrived and t != rules.silent_at else 0.0
             calls.learn(s, a, r, s_next)
             for col, val in (("s", s), ("a", a), ("s_next", s_next), ("expert", e),
                              ("h_mf", h_mf), ("h_mb", h_mb), ("c_mf", c_mf), ("c_mb", c_mb),
                              ("backups", backups), ("seconds", seconds), ("reward", r),
-                             ("phase", phase)):
+                             ("phase", changes.phase)):
                 getattr(log, col)[t] = val
-            blocked[t] = out.blocked
-            duration[t] = out.duration + world.walker.decision_latency
-            xy[t] = out.truth_after[:2]
-            t_robot += duration[t]
-            s = world.restart() if r > 0 else s_next
+            visits[s] += 1
+            got += r
+            t += 1
+            s = world.restart() if arrived and not rules.goal_decision else s_next
+            if t == rules.restart_after and got == 0.0 and restarts < rules.max_restarts:
+                restarts, t = restarts + 1, 0
+                changes.rewind()
+                agent.seen[:] = False
+                s = world.restart(rules.first_state)
+                if rules.phantom_start:
+                    calls.phantom_start(s)
             if progress is not None:
                 progress(1)
         source = world.walker.source
-        return PhysicsRun(log=log, blocked=blocked, duration=duration, xy=xy,
-                          robot_seconds=t_robot, wall_seconds=time.perf_counter() - t_wall0,
+        return PhysicsRun(log=dataclasses.replace(log, restarts=restarts,
+                                                  use_counts=changes.use_counts),
+                          blocked=blocked, duration=duration, xy=xy,
+                          robot_seconds=float(duration.sum()),
+                          wall_seconds=time.perf_counter() - t_wall0,
                           boxes=list(world.boxes), mcl_field=getattr(source, "field", None)
                           if task.pose_source == "mcl" else None)
     finally:

@@ -170,7 +170,7 @@ def summarize(logs: dict[str, list[dict[str, np.ndarray]]], cfg: Any, task: Any,
 def _alternatives(task: Any) -> list[str]:
     """Labels of the alternatives of the task's change chosen by use (empty: none)."""
     c = task.changes[-1] if task.changes else None
-    if c is None or not getattr(c, "use_states", ()):  # (a physics task has none)
+    if c is None or not c.use_states:
         return []
     if c.kind == "model":
         return list(c.names) or [f"model {k + 1}" for k in range(len(c.after))]

@@ -162,3 +162,89 @@ def test_bad_arena_options_are_refused(table_states: Path, tmp_path: Path, capsy
     err = capsys.readouterr().err
     assert key in err
     assert not (tmp_path / "o").exists()
+
+
+# ----------------------------------------------------------------------------- the protocol
+def _published_rules(task: PhysicsTask, change_at: int = -1, **changes):
+    """The published loop rules of ``task`` (its first start state first)."""
+    from simlab.online.protocol import PROTOCOLS
+
+    return PROTOCOLS["published"].loop_rules(change_at, task.start_states[0])._replace(**changes)
+
+
+def _until_change_lab() -> PhysicsLab:
+    return PhysicsLab(load_arena("table"), _lattice(), PrimitiveParams(mode="until_state_change"))
+
+
+def _run_rules(experts, n: int, task: PhysicsTask, rules, seed: int = 0):
+    mf, mb = experts
+    ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration(criterion="mb"))
+    run = run_physics_online(ag, _until_change_lab(), task,
+                             RunStreams.from_seed(np.random.SeedSequence(seed)), rules=rules)
+    return ag, run
+
+
+def test_the_published_rules_in_physics(experts) -> None:
+    """The environment's published rules (simlab's agent): the run starts in the first
+    start state; a rewarded arrival is followed by one decision in the goal whose move is
+    the restart (no physics: no time, not blocked) to a start state; the experts learned the
+    phantom (s0, 0, 0, s0) first: MF's table is Q-learning replayed over it and the log."""
+    task = PhysicsTask((7,), (12, 2), 60)
+    ag, run = _run_rules(experts, 60, task, _published_rules(task))
+    log = run.log
+    assert log.s[0] == 12 and ag.seen[12]
+    hits = np.flatnonzero(log.reward > 0)
+    assert hits.size >= 2
+    for t in hits[hits < 59]:
+        assert log.s[t + 1] == 7 and log.s_next[t + 1] in (12, 2)  # the goal's decision
+        assert run.duration[t + 1] == 0 and not run.blocked[t + 1]
+        assert log.reward[t + 1] == 0
+    cont = np.flatnonzero(log.s[:-1] != 7)
+    np.testing.assert_array_equal(log.s[cont + 1], log.s_next[cont])  # elsewhere: go on
+    Q = np.full((25, 16), 1 / 1.9)
+    for s, a, r, s2 in [(12, 0, 0.0, 12), *zip(log.s, log.a, log.reward, log.s_next,
+                                               strict=True)]:
+        Q[s, a] += 0.6 * (r + 0.9 * Q[s2].max() - Q[s, a])
+        if r > 0:
+            Q[s2] = 0.0
+    np.testing.assert_allclose(ag.mf.Q, Q, rtol=0, atol=1e-12)
+
+
+def test_the_changes_decision_pays_nothing(experts) -> None:
+    """The same seed with and without a silenced decision t*, chosen where the first run
+    arrived in the goal: the runs are the same up to t*, whose reward is 0 in the second."""
+    task = PhysicsTask((7,), (12,), 30)
+    _, a = _run_rules(experts, 30, task, _published_rules(task, silent_at=-1))
+    t_star = int(np.flatnonzero(a.log.reward > 0)[1])
+    _, b = _run_rules(experts, 30, task, _published_rules(task, silent_at=t_star))
+    np.testing.assert_array_equal(a.log.s_next[:t_star + 1], b.log.s_next[:t_star + 1])
+    assert a.log.reward[t_star] == 1 and b.log.reward[t_star] == 0
+    np.testing.assert_array_equal(a.log.reward[:t_star], b.log.reward[:t_star])
+
+
+def test_a_run_without_reward_starts_again(experts) -> None:
+    """A goal behind a wall across the table cannot be reached: every 6 decisions without a
+    reward the run starts again from its first state, the experts keeping what they learned
+    (at most max_restarts times)."""
+    task = PhysicsTask((2,), (22,), 8, (PhysicsChange(0, "box", box=(0.0, -0.3, 1.6, 0.05)),))
+    ag, run = _run_rules(experts, 8, task, _published_rules(task, restart_after=6, max_restarts=3))
+    assert run.log.restarts == 3 and run.log.s[0] == 22
+    assert run.log.reward.sum() == 0 and ag.seen.sum() >= 1
+
+
+def test_the_more_used_passage_is_closed(experts) -> None:
+    """Two passages with a counting state each: the box goes on the doorway of the one
+    whose state saw more decisions before the change, and the counts are those of the log."""
+    from simlab.online.doorway import doorway
+
+    passages = ((12, 13), (11, 12))
+    task = PhysicsTask((7,), (12,), 24, (PhysicsChange(16, "passages", passages=passages,
+                                                       use_states=(13, 11)),))
+    _, run = _run_rules(experts, 24, task, None)
+    seen = np.bincount(run.log.s[:16], minlength=25)[[13, 11]]
+    np.testing.assert_array_equal(run.log.use_counts[1:], seen)
+    k = int(np.argmax(seen))
+    lat = _lattice()
+    door = doorway(load_arena("table").occupied, lat.state_of, lat.centres, *passages[k])
+    assert run.boxes == [(door.x, door.y, door.length, door.thickness, door.yaw)]
+    assert np.all(run.log.phase[16:] == 1 + k) and np.all(run.log.phase[:16] == 0)
