@@ -40,7 +40,7 @@ import yaml
 from discretize.gridmap import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from simlab.base import validation
 from simlab.base.errors import ConfigError, DataError
-from simlab.base.io import atomic_write, atomic_write_text, ensure_new
+from simlab.base.io import NESTED_TOO_DEEPLY, atomic_write, atomic_write_text, ensure_new
 
 MODES = ("trinary", "scale", "raw")
 #: Pixel values ``map_saver`` writes in trinary mode.
@@ -96,6 +96,8 @@ def read_map_yaml(path: str | os.PathLike[str]) -> MapYaml:
         raise ConfigError(f"not a text file ({exc.reason})", path=path) from None
     try:
         doc = yaml.safe_load(text)
+    except RecursionError:
+        raise ConfigError(NESTED_TOO_DEEPLY, path=path) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""

@@ -53,7 +53,7 @@ from scipy.spatial import cKDTree
 from discretize.gridmap import OccupancyMap
 from simlab.base import validation
 from simlab.base.errors import ConfigError, DataError
-from simlab.base.io import atomic_write_json, ensure_new
+from simlab.base.io import NESTED_TOO_DEEPLY, atomic_write_json, ensure_new
 
 #: Half-diagonal of the TurtleBot3 Burger footprint 138 x 178 mm, metres.
 TURTLEBOT3_BURGER_RADIUS = 0.5 * math.hypot(0.138, 0.178)
@@ -307,6 +307,8 @@ class Discretizer:
             doc = json.loads(path.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise DataError(f"{path}: not valid JSON ({exc})") from None
+        except RecursionError:
+            raise DataError(f"{path}: {NESTED_TOO_DEEPLY}") from None
         if not isinstance(doc, dict) or "centres" not in doc:
             raise DataError(f"{path}: not a states file (no 'centres' list)")
         raw = doc["centres"]

@@ -1,7 +1,8 @@
 """MkDocs hooks of the documentation site (``mkdocs.yml``: ``hooks``).
 
 * A page line ``<!-- simlab:NAME -->`` is replaced by the page generated from the code
-  (``commands``, ``envs``, ``dataset``; :mod:`simlab_docs`).
+  (``commands``, ``envs``, ``dataset``; :mod:`simlab_docs`), ``<!-- simlab:api:PAGE -->``
+  by the ``:::`` lines of every public module of the API page's packages.
 * Every ``simlab ...`` line of a code block must name a real subcommand and real options:
   otherwise a warning, which ``mkdocs build --strict`` turns into a failed build.
 * The guide's figures are made by the commands it shows (:data:`simlab_docs.FIGURES`),
@@ -32,11 +33,25 @@ _state: dict[str, Any] = {}
 
 
 def on_pre_build(config: Any) -> None:
+    """The parsers of the commands, and the guide's figures made in a scratch folder. A
+    figure that cannot be made (a full disk, a failing command) stops the build with one
+    line (mkdocs' ``PluginError``, no traceback) and leaves no scratch folder behind."""
+    from mkdocs.exceptions import PluginError
+
     _state["commands"] = simlab_docs.command_parsers()
-    scratch = tempfile.TemporaryDirectory(prefix="simlab-docs-")
-    _state["scratch"] = scratch
     start = time.perf_counter()
-    _state["figures"] = simlab_docs.make_figures(Path(scratch.name))
+    scratch = None
+    try:
+        scratch = tempfile.TemporaryDirectory(prefix="simlab-docs-")
+        _state["figures"] = simlab_docs.make_figures(Path(scratch.name))
+    except (OSError, simlab_docs.FigureError) as exc:
+        if scratch is not None:
+            scratch.cleanup()
+        what = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        where = f" ({exc.filename})" if isinstance(exc, OSError) and exc.filename else ""
+        raise PluginError(f"simlab: the guide's figures could not be made: {what}{where} "
+                          "(free space in the temporary directory, or set TMPDIR)") from None
+    _state["scratch"] = scratch
     log.info("simlab: figures made by their commands in %.1f s", time.perf_counter() - start)
 
 
@@ -55,6 +70,10 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         marker = f"<!-- simlab:{name} -->"
         if marker in markdown:
             markdown = markdown.replace(marker, make())
+    for name in simlab_docs.API_PAGES:
+        marker = f"<!-- simlab:api:{name} -->"
+        if marker in markdown:
+            markdown = markdown.replace(marker, simlab_docs.api_markdown(name))
     for name, path in _state.get("figures", {}).items():
         marker = f"<!-- simlab:figure:{name} -->"
         if marker in markdown:

@@ -11,7 +11,8 @@ Used by ``docs/hooks.py`` during ``mkdocs build`` (and by ``tests/docs``):
   fields, from ``simlab.data.schema`` and ``simlab.data.manifest``;
 * :func:`check_command_lines` — every ``simlab ...`` line in a page's code blocks names an
   existing subcommand and existing options, so an example cannot outlive a rename;
-* :func:`make_figures` — the guide's figures, made by the commands the guide shows.
+* :func:`make_figures` — the guide's figures, made by the commands the guide shows;
+* :func:`api_markdown` — an API page: every public module of a package, for mkdocstrings.
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["FIGURES", "check_command_lines", "command_parsers", "commands_markdown",
-           "dataset_markdown", "envs_markdown", "make_figures"]
+__all__ = ["API_PAGES", "FIGURES", "api_markdown", "check_command_lines", "command_parsers",
+           "commands_markdown", "dataset_markdown", "envs_markdown", "make_figures",
+           "public_modules"]
 
 
 # -- the command line, read from its own parsers -----------------------------------------
@@ -278,25 +280,109 @@ FIGURES: dict[str, list[list[str]]] = {
 }
 
 
+class FigureError(RuntimeError):
+    """A command of :data:`FIGURES` failed (its message is the command's own line)."""
+
+
 def make_figures(folder: Path) -> dict[str, Path]:
     """Run :data:`FIGURES`'s commands in ``folder`` (``python -m simlab``); ``{name: file}``.
 
     The figures' command chains run side by side (each chain in order); text outputs
-    (``.txt``) are the command's standard output.
+    (``.txt``) are the command's standard output. The commands' temporary files (the
+    merged robot URDF simlab caches in the temporary directory) go to ``folder/tmp``, so
+    that removing ``folder`` leaves nothing behind. A command that fails raises
+    :class:`FigureError` with its own one-line message.
     """
+    import os
     from concurrent.futures import ThreadPoolExecutor
 
     folder.mkdir(parents=True, exist_ok=True)
+    tmp = folder / "tmp"
+    tmp.mkdir(exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(tmp)}
 
     def chain(name: str) -> Path:
         for argv in FIGURES[name]:
             done = subprocess.run([sys.executable, "-m", "simlab", "-q", *argv], cwd=folder,
-                                  capture_output=True, text=True)
+                                  capture_output=True, text=True, env=env)
             if done.returncode != 0:
-                raise RuntimeError(f"simlab {' '.join(argv)} failed: {done.stderr.strip()}")
+                raise FigureError(f"simlab {' '.join(argv)} failed: "
+                                  f"{' '.join(done.stderr.split())}")
             if name.endswith(".txt"):
                 (folder / name).write_text(done.stdout)
         return folder / name
 
     with ThreadPoolExecutor(max_workers=len(FIGURES)) as pool:
         return dict(zip(FIGURES, pool.map(chain, FIGURES), strict=True))
+
+
+# -- the API reference: every public module ------------------------------------------------
+
+#: API page -> the packages whose every public module it renders (a module in two packages'
+#: lists is rendered on the first page only). ``simlab.envs`` has its own hand-made page
+#: (its classes are on the environments page).
+API_PAGES: dict[str, tuple[str, ...]] = {
+    "simlab": ("simlab", "simlab.commands", "simlab.cli"),
+    "agents": ("simlab.agents",), "base": ("simlab.base",),
+    "calibration": ("simlab.calibration",), "data": ("simlab.data",),
+    "discretize": ("discretize",), "experiments": ("simlab.experiments",),
+    "localization": ("simlab.localization",), "online": ("simlab.online",),
+    "orchestration": ("simlab.orchestration",), "physics": ("simlab.physics",),
+    "replay": ("simlab.replay",), "ros": ("simlab.ros",), "social": ("simlab.social",),
+    "training": ("simlab.training",), "visitlab": ("simlab.visitlab",),
+}
+#: Packages documented by hand-made pages instead (see :data:`API_PAGES`).
+CURATED = ("simlab.envs",)
+
+
+def public_modules(package: str, *, recursive: bool = True) -> list[str]:
+    """``package`` and its modules and subpackages whose names do not start with ``_``
+    (``__main__`` excluded), in name order; a plain module is a list of itself."""
+    import pkgutil
+
+    mod = importlib.import_module(package)
+    names = [package]
+    if not hasattr(mod, "__path__"):
+        return names
+    for info in sorted(pkgutil.iter_modules(mod.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        full = f"{package}.{info.name}"
+        if info.ispkg and recursive:
+            names += public_modules(full)
+        elif info.ispkg or info.name != "__main__":
+            names.append(full)
+    return names
+
+
+def api_markdown(page: str) -> str:
+    """The ``::: module`` lines of API page ``page`` (:data:`API_PAGES`): every public module
+    of its packages (of ``simlab`` itself only the top module)."""
+    lines = []
+    for package in API_PAGES[page]:
+        top = package == "simlab"
+        for name in public_modules(package, recursive=not top):
+            if top and name != "simlab":
+                continue
+            if any(name == c or name.startswith(c + ".") for c in CURATED):
+                continue
+            shown = _ENV_CARDS.get(name)
+            lines.append(f"::: {name}" if not shown else
+                         f"::: {name}\n    options:\n      filters: [\"!^_\", "
+                         + ", ".join(f'\"!^{c}$\"' for c in shown) + "]")
+    return "\n\n".join(lines)
+
+
+def _env_cards() -> dict[str, list[str]]:
+    """module -> its env classes, whose cards the environments page renders (an object
+    rendered on two pages would have two addresses)."""
+    from simlab.envs import ENV_ENTRY_POINTS
+
+    cards: dict[str, list[str]] = {}
+    for entry in ENV_ENTRY_POINTS.values():
+        module, cls = entry.split(":")
+        cards.setdefault(module, []).append(cls)
+    return cards
+
+
+_ENV_CARDS = _env_cards()

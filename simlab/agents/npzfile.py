@@ -19,7 +19,7 @@ import numpy as np
 
 from simlab.base import validation
 from simlab.base.errors import ConfigError, DataError
-from simlab.base.io import atomic_write, ensure_new
+from simlab.base.io import atomic_write, ensure_new, npz_problem
 
 #: The ``format`` every file's metadata records.
 FORMAT = "simlab-agents-1"
@@ -56,7 +56,7 @@ def load_npz(
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise DataError(f"{path}: not a readable npz archive ({exc})") from exc
+        raise DataError(f"{path}: {npz_problem(path, exc)}") from exc
     missing = [k for k in required if k not in arrays]
     if missing:
         raise ConfigError(

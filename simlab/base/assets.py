@@ -37,6 +37,13 @@ def available(kind: str, suffix: str) -> list[str]:
     return sorted(p.stem for p in asset_dir(kind).glob(f"*{suffix}"))
 
 
+def is_path(name_or_path: str | Path, suffix: str) -> bool:
+    """Whether :func:`resolve` takes ``name_or_path`` as a file path (it ends in ``suffix``
+    or holds a path separator) rather than a built-in name."""
+    text = str(name_or_path)
+    return text.endswith(suffix) or "/" in text or "\\" in text
+
+
 def resolve(kind: str, name_or_path: str | Path, suffix: str) -> Path:
     """Turn a built-in name (``"table"``) or a file path into an existing path.
 
@@ -45,8 +52,11 @@ def resolve(kind: str, name_or_path: str | Path, suffix: str) -> Path:
     :class:`ConfigError` listing the known ones.
     """
     text = str(name_or_path)
-    if text.endswith(suffix) or "/" in text or "\\" in text:
+    if is_path(text, suffix):
         path = Path(text)
+        if path.is_dir():
+            raise ConfigError("is a directory, not a file", path=path,
+                              fix=f"give the {suffix} file itself")
         if not path.is_file():
             raise ConfigError("file not found", path=path)
         return path

@@ -18,6 +18,10 @@ from typing import IO, Any
 
 from simlab.base.errors import ConfigError
 
+#: The problem of a file whose parser ran out of stack: what a user can do about it.
+NESTED_TOO_DEEPLY = ("nested too deeply to read (brackets or tables inside each other "
+                     "thousands of levels deep)")
+
 # The process umask, read once (os.umask can only be read by setting it). Temporary files
 # from mkstemp are created 0600; outputs get the mode a plain open() would give them.
 _UMASK = os.umask(0o022)
@@ -83,6 +87,20 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         fh.write(data)
 
 
+def write_npy(fh: IO[bytes], array: Any) -> None:
+    """``np.save(fh, array)`` (no pickle) through Python's file layer. NumPy writes an
+    array to a real file with C stdio, and a full disk then surfaces as "N requested and M
+    written" without an errno; written here, the OSError keeps ``ENOSPC`` and says "No
+    space left on device"."""
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.save(buf, array, allow_pickle=False)
+    fh.write(buf.getbuffer())
+
+
 def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> None:
     """Write ``obj`` as indented JSON to ``path`` atomically."""
     atomic_write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
@@ -108,6 +126,8 @@ def read_toml(path: str | os.PathLike[str], *, what: str = "file",
                           key=key, fix="check the path") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=path) from None
+    except RecursionError:
+        raise ConfigError(NESTED_TOO_DEEPLY, path=path, key=key) from None
 
 
 def ensure_new(path: str | os.PathLike[str], *, overwrite: bool = False, what: str = "output") -> Path:
@@ -174,8 +194,11 @@ class OutputTransaction:
         write again, e.g. the Q-table of a goal no longer trained) at :meth:`commit`, after
         the renames: a failed run removes nothing."""
         final = Path(final)
-        target = final if final.is_absolute() else self.out / final
-        if not _is_inside(target, self.out) or ".." in target.relative_to(self.out).parts:
+        # a path inside ``out`` as given (``out/q_NE.npz``, also when ``out`` is relative),
+        # or a name relative to it, as :meth:`path` takes them
+        target = final if _is_inside(final, self.out) else self.out / final
+        if (final.is_absolute() and not _is_inside(final, self.out)) or \
+                ".." in target.relative_to(self.out).parts:
             raise ValueError(f"{final} is not inside the output directory {self.out}")
         self.retired.append(target)
 
@@ -280,3 +303,31 @@ def unstaged_error(exc: OSError, out: Path) -> OSError:
     k = next(i for i, p in enumerate(parts) if p.startswith(STAGING_PREFIX))
     final = out.joinpath(*parts[k + 1:]) if k + 1 < len(parts) else out
     return type(exc)(exc.errno, exc.strerror or str(exc), str(final))
+
+
+#: The first bytes of a zip archive (an ``.npz``) and of a single ``.npy`` array.
+_ZIP_MAGIC, _NPY_MAGIC = b"PK\x03\x04", b"\x93NUMPY"
+
+
+def npz_problem(path: str | os.PathLike[str], exc: BaseException) -> str:
+    """What is wrong with ``path``, which ``np.load(path, allow_pickle=False)`` failed to
+    read with ``exc``, in the user's terms: not an npz at all (a text file, other bytes),
+    a damaged archive, or arrays of Python objects (which simlab never unpickles). NumPy
+    says "contains pickled (object) data ... load it unsafely" for any file that is
+    neither a zip nor an ``.npy``, advice that must not reach a user."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(512)
+    except OSError as err:
+        return f"cannot be read ({err.strerror or err})"
+    if not head:
+        return "the file is empty, not an npz archive"
+    if not head.startswith((_ZIP_MAGIC, _NPY_MAGIC)):
+        text = head.decode("utf-8", errors="replace")[:-2]  # a character cut at 512 bytes
+        printable = all(c.isprintable() or c in "\r\n\t" for c in text) and "\ufffd" not in text
+        kind = "a text file" if printable else "not a zip archive"
+        return f"not an npz archive ({kind}; an .npz is a zip of .npy arrays)"
+    if "pickle" in str(exc).lower() or "object" in str(exc).lower():
+        return ("holds arrays of Python objects, which simlab never loads (unpickling runs "
+                "code); only numeric and text arrays are read")
+    return f"a damaged npz archive ({' '.join(str(exc).split())})"

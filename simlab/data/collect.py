@@ -324,6 +324,9 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
     * ``start_states``: ``"all"`` or a list of states: one walk from each state's centre
       (its own seed stream, the budget split evenly; ``workers`` processes run them), so
       the walk covers the lab; recorded as ``manifest["parameters"]["start_states"]``.
+      A centre where the robot does not fit (in or against an obstacle) starts its walk at
+      the nearest place of the same state where it does, with a warning; a state where it
+      fits nowhere is refused.
     * ``n_actions``/``convention``/``speed``: walk in a real robot's action set (see
       above); recorded as ``manifest["action_set"]``.
     * ``progress``: show a tqdm bar with transitions/s and simulated hours per wall second.
@@ -446,13 +449,34 @@ def _walks(cfg: CollectConfig, n_states: int
     return starts, walks, per_worker, t_budget
 
 
-def _start_poses(starts: list[int] | None, disc: Any) -> list[tuple[float, float, float]] | None:
-    """Truth start pose of each walk: the state's centre, facing +x (the first primitive
-    turns to its own heading anyway)."""
+def _start_poses(starts: list[int] | None, disc: Any, arena: Any, states: Any
+                 ) -> list[tuple[float, float, float]] | None:
+    """Truth start pose of each walk, facing +x (the first primitive turns to its own
+    heading anyway): the state's centre, or where the robot fits nearest to it in the
+    state (:func:`simlab.base.statecheck.start_in_state`; warned); a state where it fits
+    nowhere is refused."""
     if starts is None:
         return None
+    from simlab.base.errors import warn
+    from simlab.base.statecheck import start_in_state
+    from simlab.physics.robot import load_robot_spec
+
+    footprint = load_robot_spec().footprint
     centres = np.asarray(disc.centres, dtype=np.float64)
-    return [(float(centres[s, 0]), float(centres[s, 1]), 0.0) for s in starts]
+    poses = []
+    for s in starts:
+        xy = start_in_state(s, disc, arena, footprint)
+        if xy is None:
+            raise ConfigError(f"start state {s}: the robot fits nowhere in its cell (centre "
+                              f"({centres[s, 0]:.2f}, {centres[s, 1]:.2f}) m)",
+                              path=states if isinstance(states, str | os.PathLike) else None,
+                              key="start_states", fix=f"leave state {s} out of --start-states")
+        if xy != (float(centres[s, 0]), float(centres[s, 1])):
+            warn(f"start state {s}: the robot does not fit at its centre ({centres[s, 0]:.2f}, "
+                 f"{centres[s, 1]:.2f}) m (an obstacle); its walk starts at ({xy[0]:.2f}, "
+                 f"{xy[1]:.2f}) m, the nearest place of the state where it fits")
+        poses.append((xy[0], xy[1], 0.0))
+    return poses
 
 
 @dataclass(frozen=True)
@@ -490,6 +514,7 @@ def collect(cfg: CollectConfig) -> CollectResult:
     disc = load_discretizer(cfg.states)
     params = cfg.resolved_params()
     starts, walks, per_worker, t_budget = _walks(cfg, int(disc.n_states))
+    start_poses = _start_poses(starts, disc, arena_cfg, cfg.states)
     schema = transition_schema(cfg.pose_source)
     manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
                              starts)
@@ -503,7 +528,7 @@ def collect(cfg: CollectConfig) -> CollectResult:
         run = _Run(cfg=cfg, out=out, disc=disc, schema=schema, per_worker=per_worker,
                    t_budget=t_budget, spec=_walk_spec(cfg, manifest, arena_cfg, disc, params),
                    walks=walks)
-        wstates = _worker_states(manifest, walks, per_worker, out, _start_poses(starts, disc))
+        wstates = _worker_states(manifest, walks, per_worker, out, start_poses)
         orphans = _orphans(out, manifest)
         written, peak_rss, cpu = _run_parts(run, manifest, wstates, orphans)
         for name in orphans:  # left by a run killed at a point this run never reached

@@ -60,6 +60,7 @@ from numpy.typing import NDArray
 
 from simlab.base import validation
 from simlab.base.errors import ConfigError, DataError, warn
+from simlab.base.io import NESTED_TOO_DEEPLY
 from simlab.data.schema import N_ACTIONS
 
 COLUMNS = ("s", "a", "s_next", "count")
@@ -231,6 +232,8 @@ def _read_json(path: Path, text: str) -> tuple[Rows, str, dict[str, Any]]:
         doc = json.loads(text, parse_int=_parse_json_int)
     except json.JSONDecodeError as exc:
         raise _bad(path, "", f"not valid JSON ({exc})") from None
+    except RecursionError:
+        raise _bad(path, "", NESTED_TOO_DEEPLY) from None
     rows: Rows = []
     if isinstance(doc, list):
         for i, item in enumerate(doc):

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from simlab.base import validation
 from simlab.base.actions import SIMLAB16, ActionSet, ActionSetOptions
-from simlab.base.errors import ConfigError
+from simlab.base.errors import ConfigError, warn
 from simlab.base.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 from simlab.base.options import command, option
 from simlab.data.count_model import (
@@ -255,6 +255,10 @@ def _from_dataset(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
         raise ConfigError(f"the dataset has {A} actions but records "
                           f"{action_set.describe()}", path=dataset, key="action_set")
     ds.warn_if_incomplete("the model")
+    if ds.table.num_rows == 0:
+        warn(f"{ds.directory}: the dataset holds no transitions (its manifest lists "
+             f"{len(ds.manifest['parts'])} parts): the model is estimated from 0 "
+             "transitions and every (s, a) is unvisited (collect data into it first)")
     a_col = ds.column("a")
     triples = (ds.column("s"), a_col, ds.column("s_next"))
     arena = ds.manifest["arena"]

@@ -47,7 +47,8 @@ class EmpiricalMDPEnv(gym.Env):
     * **Episode** ``horizon`` steps (thesis: 50), ended by truncation; never terminated.
       ``horizon=None`` leaves the limit to Gymnasium: the registered id does so and registers
       ``max_episode_steps=50``, so ``gym.make(id, max_episode_steps=N)`` truncates at N.
-    * **Render** ``ansi`` (one text line) or ``rgb_array`` (``render_fps`` 4): an (H, W, 3)
+    * **Render** ``ansi`` (one text line: the step, out of ``horizon`` when the env
+      has one, the state and the goal) or ``rgb_array`` (``render_fps`` 4): an (H, W, 3)
       uint8 top-down picture of the Voronoi centres (grey), the goal states (green) and the
       current state (red), or a strip of S squares when the MDP has no centres.
     * **Start** uniform over all states by default (so the learned policy is good
@@ -180,7 +181,10 @@ class EmpiricalMDPEnv(gym.Env):
 
     def render(self) -> str | None:
         if self.render_mode == "ansi":
-            return f"t={self._t}/{self.horizon} state={self._state} goal={self.goal}\n"
+            # without a horizon the limit is the TimeLimit wrapper's, which the env cannot
+            # see (gym.make gives the unwrapped env a spec without max_episode_steps)
+            step = f"t={self._t}" if self.horizon is None else f"t={self._t}/{self.horizon}"
+            return f"{step} state={self._state} goal={self.goal}\n"
         if self.render_mode == "rgb_array":
             return render_states_rgb(self.mdp.centres, self.mdp.n_states, self.goal_mask,
                                      self._state)

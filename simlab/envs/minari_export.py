@@ -30,7 +30,8 @@ refused unless ``overwrite``) before anything is written; the dataset is built u
 temporary datasets root beside Minari's (``MINARI_DATASETS_PATH`` pointed there for the
 duration of the call, so the export is not thread-safe) and renamed into place, so a
 failure never leaves a partial dataset that would break ``minari list local``. A killed
-export (SIGKILL) leaves its hidden staging root; the next export removes it (one no live
+export (SIGKILL) leaves its hidden staging root; the next export removes it, at once when
+its process is gone (:func:`remove_dead_staging`: simlab's roots only, never one a live
 export holds the lock of).
 
 The options of :func:`export_minari` (``simlab export-minari``) are the fields of
@@ -302,18 +303,18 @@ def _description(m: dict[str, Any], goal: str | None) -> str:
 def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str, Any]) -> None:
     """Create the Minari dataset in a temporary datasets root beside Minari's and move it
     into place only once it is complete (an existing one is replaced only then)."""
-    import fcntl
-
     import minari
+    from filelock import FileLock
     from minari.namespace import create_namespace, list_local_namespaces
     from minari.storage import get_dataset_path
 
     namespace, _, _ = check_dataset_id(dataset_id)
     root = get_dataset_path()  # Minari's datasets root (created if missing)
-    _remove_dead_staging(root)
-    tmp_root = Path(tempfile.mkdtemp(prefix=f".{root.name}{STAGING_INFIX}", dir=root.parent))
-    alive = os.open(tmp_root, os.O_RDONLY | os.O_DIRECTORY)
-    fcntl.flock(alive, fcntl.LOCK_EX)  # held while this export lives (see _remove_dead_staging)
+    remove_dead_staging(root)
+    tmp_root = Path(tempfile.mkdtemp(prefix=f".{root.name}{STAGING_INFIX}{os.getpid()}-",
+                                     dir=root.parent))
+    alive = FileLock(tmp_root / OWNER_LOCK)
+    alive.acquire()  # held while this export lives (see remove_dead_staging)
     try:
         with warnings.catch_warnings(), _datasets_root(tmp_root):
             warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\..*")
@@ -328,39 +329,70 @@ def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str,
         target.parent.mkdir(parents=True, exist_ok=True)
         os.replace(tmp_root / dataset_id, target)
     finally:
+        alive.release()
         shutil.rmtree(tmp_root, ignore_errors=True)
-        os.close(alive)
 
 
-#: Staging roots are ``.<datasets root name>.simlab-XXXX`` beside Minari's datasets root.
+#: Staging roots are ``.<datasets root name>.simlab-<pid>-XXXX`` beside Minari's datasets
+#: root: the owner's process id, then mkdtemp's random part.
 STAGING_INFIX = ".simlab-"
-#: Seconds a staging root must be old before another export may remove it (an export that
-#: has created its root but not yet locked it is younger).
+#: The lock file inside a staging root that its export holds while it lives.
+OWNER_LOCK = ".owner.lock"
+#: Seconds a staging root whose owner's process id is in use (by the export, or by another
+#: process that got the id after the export was killed) must be old before its lock alone
+#: decides: an export holds its lock a moment after creating its root.
 STAGING_GRACE_SECONDS = 30.0
 
 
-def _remove_dead_staging(root: Path) -> list[Path]:
-    """Remove the staging roots beside ``root`` left by killed exports (SIGKILL, power cut):
-    the ones no live export holds the ``flock`` of and older than
-    :data:`STAGING_GRACE_SECONDS`. Returns those removed. A live export's root is locked,
-    so two exports never remove each other's."""
-    import fcntl
+def _pid_alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (possibly another user's)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _dead_owner(stale: Path, prefix: str) -> bool:
+    """Whether the export that made the staging root ``stale`` is gone: no process holds its
+    lock, and its process no longer exists (or, when the id is in use again, the root is
+    older than :data:`STAGING_GRACE_SECONDS`). Roots of an earlier layout (no process id in
+    the name) count by age alone."""
     import time
 
+    from filelock import FileLock, Timeout
+
+    pid_text = stale.name[len(prefix):].split("-", 1)[0]
+    age = time.time() - stale.stat().st_mtime
+    if not pid_text.isdigit() or "-" not in stale.name[len(prefix):]:
+        return age >= STAGING_GRACE_SECONDS
+    if _pid_alive(int(pid_text)) and age < STAGING_GRACE_SECONDS:
+        return False  # its export may be between creating the root and locking it
+    lock = FileLock(stale / OWNER_LOCK)
+    try:
+        lock.acquire(timeout=0)
+    except Timeout:
+        return False  # a live export
+    lock.release()
+    return True
+
+
+def remove_dead_staging(root: Path) -> list[Path]:
+    """Remove the staging roots beside Minari's datasets ``root`` that killed exports left
+    (SIGKILL, power cut): only simlab's (``.<root>.simlab-<pid>-*`` directories of this
+    user) and only those whose export is gone (:func:`_dead_owner`), so two exports never
+    remove each other's. Returns those removed."""
+    prefix = f".{root.name}{STAGING_INFIX}"
     removed = []
-    for stale in root.parent.glob(f".{root.name}{STAGING_INFIX}*"):
+    for stale in root.parent.glob(f"{prefix}*"):
         try:
-            if not stale.is_dir() or time.time() - stale.stat().st_mtime < STAGING_GRACE_SECONDS:
+            if (stale.is_symlink() or not stale.is_dir() or stale.stat().st_uid != os.getuid()
+                    or not _dead_owner(stale, prefix)):
                 continue
-            fd = os.open(stale, os.O_RDONLY | os.O_DIRECTORY)
         except OSError:
             continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            continue  # a live export
-        finally:
-            os.close(fd)
         shutil.rmtree(stale, ignore_errors=True)
         removed.append(stale)
     return removed

@@ -95,11 +95,10 @@ class TableArenaEnv(gym.Env):
       ``Dict(pose, lidar=Box(-inf, inf))``: ``+inf`` for no return within ``range_max`` and
       ``-inf`` for "too close", a surface nearer than ``range_min`` (0.12 m) along the beam
       (the robot's own body excluded) or a noisy reading below ``range_min``.
-    * **Goal-conditioned** ``goal_conditioned=True`` adds the current goal to the observation
-      in the keys of Gymnasium-Robotics' ``GoalEnv`` (used by hindsight experience replay):
-      ``desired_goal`` Box(2), the goal area's centre (x, y in metres), and ``achieved_goal``
-      Box(2), the robot's position (x, y in metres); :meth:`compute_reward` gives the reward
-      of any such pair, so one policy can serve every goal of the arena.
+    * **Goal-conditioned** ``goal_conditioned=True`` makes a :class:`GoalTableArenaEnv`
+      (``desired_goal``/``achieved_goal`` keys and ``compute_reward``, see its card). Without
+      it the env has no ``compute_reward``: Stable-Baselines3 and hindsight replay take any
+      env with that method for a goal env.
     * **Reward** 1.0 when the robot ends the step inside the current goal area, else 0.0
       (thesis eq. 2.1).
     * **Id** ``gym.make("simlab:simlab/TableArena-v0")`` imports simlab first (Gymnasium's
@@ -123,6 +122,13 @@ class TableArenaEnv(gym.Env):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> TableArenaEnv:
+        # ``gym.make("simlab/TableArena-v0", goal_conditioned=True)`` builds the goal env:
+        # only that one may carry compute_reward (SB3 takes any env that has it for a GoalEnv)
+        if cls is TableArenaEnv and kwargs.get("goal_conditioned") is True:
+            cls = GoalTableArenaEnv
+        return super().__new__(cls)
 
     def __init__(
         self,
@@ -162,9 +168,6 @@ class TableArenaEnv(gym.Env):
         self.render_mode = render_mode
         self.lidar_mode = lidar_mode
         self.goal_conditioned = goal_conditioned
-        #: (G, 2) goal centres and (G,) radii (m), for :meth:`compute_reward`
-        self._goal_xy = np.array([[g.x, g.y] for g in self.arena.goals], dtype=np.float64)
-        self._goal_r = np.array([g.radius for g in self.arena.goals], dtype=np.float64)
         self.observation_space = self._observation_space()
         if isinstance(action_set, Mapping):  # the JSON record, e.g. from a Q-table's metadata
             action_set = ActionSet.from_json(action_set)
@@ -196,11 +199,6 @@ class TableArenaEnv(gym.Env):
                     "lidar": spaces.Box(0.0, np.float32(spec.range_max), shape=(n,),
                                         dtype=np.float32),
                     "lidar_valid": spaces.MultiBinary(n)}
-        if self.goal_conditioned:
-            xy = spaces.Box(np.array([x0, y0], dtype=np.float32),
-                            np.array([x1, y1], dtype=np.float32), dtype=np.float32)
-            keys["achieved_goal"] = xy
-            keys["desired_goal"] = copy.deepcopy(xy)
         return spaces.Dict(keys)
 
     def _live(self) -> World:
@@ -217,13 +215,6 @@ class TableArenaEnv(gym.Env):
         return np.clip(self._live().pose().astype(np.float32), box.low, box.high)
 
     def _observe(self) -> dict[str, np.ndarray]:
-        obs = self._observe_sensors()
-        if self.goal_conditioned:
-            obs["achieved_goal"] = obs["pose"][:2].copy()
-            obs["desired_goal"] = np.array([self.goal.x, self.goal.y], dtype=np.float32)
-        return obs
-
-    def _observe_sensors(self) -> dict[str, np.ndarray]:
         world = self._live()
         spec = world.lidar_spec
         if self.lidar_mode == "raw":
@@ -244,22 +235,6 @@ class TableArenaEnv(gym.Env):
         self._scan_points = scan.points_world()
         lidar, valid = finite_scan(scan.ranges, spec.range_max)
         return {"pose": self._pose_obs(), "lidar": lidar, "lidar_valid": valid}
-
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                       info: Any = None) -> np.ndarray:
-        """Reward (...,) float64 of robot positions ``achieved_goal`` (..., 2) (m) against
-        goal centres ``desired_goal`` (..., 2) (m): 1.0 inside the goal area, else 0.0.
-
-        The area's radius is that of the arena goal nearest to ``desired_goal`` (exactly
-        the goal itself for observed goals; a relabelled goal, as hindsight experience
-        replay makes them, gets its nearest goal's radius). ``info`` is unused (the
-        ``GoalEnv`` signature). Equals the step reward for the observed pair.
-        """
-        a = np.asarray(achieved_goal, dtype=np.float64)
-        d = np.asarray(desired_goal, dtype=np.float64)
-        nearest = np.argmin(np.linalg.norm(d[..., None, :] - self._goal_xy, axis=-1), axis=-1)
-        inside = np.linalg.norm(a - d, axis=-1) <= self._goal_r[nearest]
-        return inside.astype(np.float64)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -344,3 +319,75 @@ class TableArenaEnv(gym.Env):
         memo[id(self)] = new
         new.__setstate__(copy.deepcopy(self.__getstate__(), memo))  # fresh world, own RNG
         return new
+
+
+class GoalTableArenaEnv(TableArenaEnv):
+    """:class:`TableArenaEnv` with the current goal in the observation, a ``GoalEnv``.
+
+    ``gym.make("simlab:simlab/TableArena-v0", goal_conditioned=True)`` builds this class
+    (so does ``TableArenaEnv(goal_conditioned=True)``); everything else is the card of
+    :class:`TableArenaEnv`.
+
+    * **Observation** the sensors' keys plus those of Gymnasium-Robotics' ``GoalEnv`` (used
+      by hindsight experience replay): ``desired_goal`` Box(2), the goal area's centre (x, y
+      in metres), and ``achieved_goal`` Box(2), the robot's position (x, y in metres).
+    * **Reward** :meth:`compute_reward` gives the reward of any such pair (the step reward
+      for the observed one), so one policy can serve every goal of the arena.
+    * **Id** ``"simlab:simlab/TableArena-v0"`` with ``goal_conditioned=True``.
+    """
+
+    def __init__(
+        self,
+        arena: ArenaConfig | str = "table",
+        *,
+        goal: str | None = None,
+        max_steps: int | None = 50,
+        params: PrimitiveParams | None = None,
+        render_mode: str | None = None,
+        physics_hz: float = 200.0,
+        action_set: ActionSet | Mapping[str, Any] | None = None,
+        lidar_mode: str = "finite",
+        goal_conditioned: bool = True,
+    ) -> None:
+        if goal_conditioned is not True:
+            raise ConfigError(f"{type(self).__name__} is always goal-conditioned, got "
+                              f"{goal_conditioned!r}", key="goal_conditioned",
+                              fix="use TableArenaEnv for an env without goals in its "
+                                  "observation")
+        super().__init__(arena, goal=goal, max_steps=max_steps, params=params,
+                         render_mode=render_mode, physics_hz=physics_hz,
+                         action_set=action_set, lidar_mode=lidar_mode, goal_conditioned=True)
+        #: (G, 2) goal centres and (G,) radii (m), for :meth:`compute_reward`
+        self._goal_xy = np.array([[g.x, g.y] for g in self.arena.goals], dtype=np.float64)
+        self._goal_r = np.array([g.radius for g in self.arena.goals], dtype=np.float64)
+
+    def _observation_space(self) -> spaces.Dict:
+        keys = dict(super()._observation_space().spaces)
+        x0, y0, x1, y1 = self.arena.bounds
+        xy = spaces.Box(np.array([x0, y0], dtype=np.float32),
+                        np.array([x1, y1], dtype=np.float32), dtype=np.float32)
+        keys["achieved_goal"] = xy
+        keys["desired_goal"] = copy.deepcopy(xy)
+        return spaces.Dict(keys)
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        obs = super()._observe()
+        obs["achieved_goal"] = obs["pose"][:2].copy()
+        obs["desired_goal"] = np.array([self.goal.x, self.goal.y], dtype=np.float32)
+        return obs
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                       info: Any = None) -> np.ndarray:
+        """Reward (...,) float64 of robot positions ``achieved_goal`` (..., 2) (m) against
+        goal centres ``desired_goal`` (..., 2) (m): 1.0 inside the goal area, else 0.0.
+
+        The area's radius is that of the arena goal nearest to ``desired_goal`` (exactly
+        the goal itself for observed goals; a relabelled goal, as hindsight experience
+        replay makes them, gets its nearest goal's radius). ``info`` is unused (the
+        ``GoalEnv`` signature). Equals the step reward for the observed pair.
+        """
+        a = np.asarray(achieved_goal, dtype=np.float64)
+        d = np.asarray(desired_goal, dtype=np.float64)
+        nearest = np.argmin(np.linalg.norm(d[..., None, :] - self._goal_xy, axis=-1), axis=-1)
+        inside = np.linalg.norm(a - d, axis=-1) <= self._goal_r[nearest]
+        return inside.astype(np.float64)

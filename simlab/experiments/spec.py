@@ -19,6 +19,7 @@ from typing import Any
 
 from simlab.base import validation
 from simlab.base.errors import ConfigError
+from simlab.base.io import NESTED_TOO_DEEPLY
 
 BUDGETS = ("quick", "full")
 #: Operators comparing a metric with a number.
@@ -311,6 +312,8 @@ def load_experiment(path: str | os.PathLike[str], *, resolve_runner: bool = Fals
         raise ConfigError("no such experiment file", path=path) from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=path) from None
+    except RecursionError:
+        raise ConfigError(NESTED_TOO_DEEPLY, path=path) from None
     spec = parse_experiment(data, path)
     if resolve_runner:
         from simlab.experiments.registry import get_runner

@@ -68,6 +68,7 @@ from numpy.typing import ArrayLike, NDArray
 from simlab.base import validation
 from simlab.base.assets import resolve
 from simlab.base.errors import ConfigError
+from simlab.base.io import NESTED_TOO_DEEPLY
 
 #: Height of the LIDAR scan plane above the floor (m); walls and obstacles must reach above it
 #: to be seen. Kept in sync with ``scan_joint`` in robots/turtlebot3_burger.urdf by a test.
@@ -333,6 +334,8 @@ def load_arena(name_or_path: str | Path) -> ArenaConfig:
         data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=path) from None
+    except RecursionError:
+        raise ConfigError(NESTED_TOO_DEEPLY, path=path) from None
     return _parse(data, path, hashlib.sha256(raw).hexdigest())
 
 

@@ -79,6 +79,12 @@ class DriveConfig(PrimitiveOptions):
         if self.primitive_options_given and self.params is not None:
             raise ConfigError("give the primitive parameters once: params or the "
                               "primitive options", key="params")
+        if self.params is not None and not isinstance(self.params,
+                                                      PrimitiveParams | str | os.PathLike):
+            raise ConfigError(f"expected a [primitives] TOML path (or, from Python, a "
+                              f"PrimitiveParams), got {self.params!r}", key="params",
+                              fix='params = "primitives.toml", a file with a [primitives] '
+                                  "table")
 
     def resolved_params(self) -> PrimitiveParams:
         """The primitive parameters of the drive: the primitive options, else ``params``,

@@ -6,13 +6,17 @@ stamp is ``t0 + t`` with ``t`` the trajectory's seconds):
 =====================  ====================================  ===============================
 topic                  type                                  content
 =====================  ====================================  ===============================
-``/tf_static``         ``tf2_msgs/msg/TFMessage``            ``base_footprint -> base_link``
-                                                             and ``base_link -> base_scan``
-                                                             (the URDF's joints), once,
-                                                             latched
+``/tf_static``         ``tf2_msgs/msg/TFMessage``            every fixed joint of the URDF
+                                                             (``base_footprint -> base_link
+                                                             -> base_scan, caster_back_link,
+                                                             imu_link``), once, latched
 ``/tf``                ``tf2_msgs/msg/TFMessage``            ``map -> odom`` (= pose * odom
-                                                             ^-1) and ``odom ->
-                                                             base_footprint`` per sample
+                                                             ^-1), ``odom ->
+                                                             base_footprint`` and ``base_link
+                                                             -> wheel_{left,right}_link``
+                                                             per sample
+``/joint_states``      ``sensor_msgs/msg/JointState``        the wheel joints' angles (rad)
+                                                             and rates (rad/s) per sample
 ``/odom``              ``nav_msgs/msg/Odometry``             odometry pose (frame ``odom``),
                                                              twist and covariances
 ``/amcl_pose``         ``geometry_msgs/msg/                  map-frame pose (the pose a
@@ -45,28 +49,35 @@ the writer (``simlab.writer``: what ``--overwrite`` may replace), the action set
 ``/simlab/action`` (``simlab.action_set``, JSON), the pose source of the map pose and the
 time origin (``simlab.time_origin_ns``: the stamp of ``t = 0``).
 
-Poses are float64 in the messages (exact); yaw goes through a quaternion (exact to ~1e-16
-rad); scans are float32 as in ``LaserScan``.
+The robot's frames and wheel angles are those :mod:`simlab.ros.frames` derives from the
+URDF and the motion (``robot``); without them, ``/tf_static`` holds the two transforms of
+``base_offset`` and ``scan_offset`` and there is no ``/joint_states``.
+
+Poses are float64 in the messages (exact); yaw goes through a quaternion (scipy's
+``Rotation``; exact to ~1e-16 rad); scans are float32 as in ``LaserScan``.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import json
 import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from simlab.base.errors import ConfigError, DataError
+from simlab.base.io import NESTED_TOO_DEEPLY, exclusive_directory
+from simlab.ros.frames import RobotFrames, wheel_angles
 from simlab.ros.markers import SceneMarkers, voronoi_cells
 
 TOPICS = {
@@ -74,7 +85,7 @@ TOPICS = {
     "scan": "/scan", "map": "/map", "state": "/simlab/state", "goal": "/simlab/goal",
     "action": "/simlab/action", "blocked": "/simlab/blocked", "duration": "/simlab/duration",
     "cells": "/simlab/cells", "goals": "/simlab/goals", "human": "/simlab/human",
-    "true_pose": "/simlab/true_pose",
+    "true_pose": "/simlab/true_pose", "joint_states": "/joint_states",
 }
 _TYPES = {
     "/tf_static": "tf2_msgs/msg/TFMessage", "/tf": "tf2_msgs/msg/TFMessage",
@@ -87,6 +98,7 @@ _TYPES = {
     "/simlab/goals": "visualization_msgs/msg/MarkerArray",
     "/simlab/human": "visualization_msgs/msg/MarkerArray",
     "/simlab/true_pose": "geometry_msgs/msg/PoseStamped",
+    "/joint_states": "sensor_msgs/msg/JointState",
 }
 #: Topics published once and latched: ``static_transform_broadcaster`` and ``map_server``
 #: offer them transient-local (REP-105 tooling; ROS 2 docs "About Quality of Service
@@ -129,7 +141,11 @@ class BagTrajectory:
     map-frame pose of a human (None: no human); ``truth`` (n, 3) the true map-frame pose
     when ``pose`` is an estimate (a particle filter's; None: ``pose`` is the truth or
     unknown); ``custom`` further ``custom_data`` entries
-    of the bag's metadata (written as given; read back: every entry).
+    of the bag's metadata (written as given; read back: every entry); ``walk_starts`` (w,)
+    the sample index where each independent walk begins (several workers' walks laid one
+    after the other: the odometry's twist and covariance restart there; None: one walk);
+    ``robot`` the :class:`~simlab.ros.frames.RobotFrames` to publish (every fixed joint,
+    the wheels and ``/joint_states``; None: only the two offsets above, no wheels).
     """
 
     t: NDArray[np.float64]
@@ -152,6 +168,8 @@ class BagTrajectory:
     human: NDArray[np.float64] | None = None
     truth: NDArray[np.float64] | None = None
     custom: dict[str, str] | None = None
+    walk_starts: NDArray[np.int64] | None = None
+    robot: RobotFrames | None = None
 
 
 def _rosbags() -> tuple[Any, Any, Any]:
@@ -184,13 +202,28 @@ def _latched_qos() -> Any:
                avoid_ros_namespace_conventions=False)
 
 
+def yaw_quats(yaw: Any) -> NDArray[np.float64]:
+    """Quaternions ``(..., 4)`` (x, y, z, w) of rotations by ``yaw`` (...,) rad about z (one
+    scipy call for a whole trajectory: a ``Rotation`` per message costs ~60 us)."""
+    yaw = np.asarray(yaw, dtype=np.float64)
+    return Rotation.from_euler("z", yaw.reshape(-1, 1)).as_quat().reshape(*yaw.shape, 4)
+
+
+def quat_yaws(quats: Any) -> NDArray[np.float64]:
+    """Yaws ``(...,)`` (rad) of quaternions ``(..., 4)`` (x, y, z, w): the first angle of
+    the intrinsic z-y'-x'' (yaw, pitch, roll) decomposition."""
+    q = np.asarray(quats, dtype=np.float64)
+    return Rotation.from_quat(q.reshape(-1, 4)).as_euler("ZYX")[:, 0].reshape(q.shape[:-1])
+
+
 def _quat(yaw: float) -> tuple[float, float, float, float]:
-    return 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)
+    x, y, z, w = yaw_quats(float(yaw))
+    return float(x), float(y), float(z), float(w)
 
 
 def yaw_of(q: Any) -> float:
-    """Yaw (rad) of a quaternion message (roll and pitch ignored)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """Yaw (rad) of a quaternion message (:func:`quat_yaws`)."""
+    return float(quat_yaws([q.x, q.y, q.z, q.w]))
 
 
 def compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -266,6 +299,22 @@ def odometry_covariance(t: NDArray[np.float64], odom: NDArray[np.float64],
     return pose_cov, twist_cov
 
 
+def _odometry_motion(t: NDArray[np.float64], odom: NDArray[np.float64],
+                     walk_starts: NDArray[np.int64] | None
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`odometry_twist` and :func:`odometry_covariance` of each walk on its own (a
+    new walk starts at rest, from a known pose)."""
+    bounds = [0, *sorted(set(int(i) for i in (walk_starts if walk_starts is not None else [])
+                             if 0 < int(i) < len(t))), len(t)]
+    twist, pose_cov, twist_cov = [], [], []
+    for a, b in itertools.pairwise(bounds):
+        twist.append(odometry_twist(t[a:b], odom[a:b]))
+        pc, tc = odometry_covariance(t[a:b], odom[a:b])
+        pose_cov.append(pc)
+        twist_cov.append(tc)
+    return np.concatenate(twist), np.concatenate(pose_cov), np.concatenate(twist_cov)
+
+
 def _cov6(c3: NDArray[np.float64]) -> NDArray[np.float64]:
     """A planar (x, y, yaw) covariance as ROS's row-major 6x6 (x, y, z, roll, pitch, yaw);
     z, roll and pitch are exact (the robot stays on the floor): variance 0."""
@@ -293,9 +342,11 @@ class _Msgs:
     def header(self, ns: int, frame: str) -> Any:
         return self.Header(stamp=self.Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
 
-    def pose(self, x: float, y: float, yaw: float, z: float = 0.0) -> Any:
+    def pose(self, x: float, y: float, yaw: float, z: float = 0.0, quat: Any = None) -> Any:
+        """A pose message; ``quat`` (x, y, z, w), when given, is ``yaw``'s quaternion."""
+        q = _quat(float(yaw)) if quat is None else (float(v) for v in quat)
         return self.Pose(position=self.Point(x=float(x), y=float(y), z=float(z)),
-                         orientation=self.Quat(*_quat(float(yaw))))
+                         orientation=self.Quat(*q))
 
     def tf(self, ns: int, parent: str, child: str, x: float, y: float, yaw: float,
            z: float = 0.0) -> Any:
@@ -306,15 +357,34 @@ class _Msgs:
                 translation=self.Vec(x=float(x), y=float(y), z=float(z)),
                 rotation=self.Quat(*_quat(float(yaw)))))
 
+    def tf_q(self, ns: int, parent: str, child: str, xyz: tuple[float, float, float],
+             quat: tuple[float, float, float, float]) -> Any:
+        """A transform given by its translation (m) and quaternion (x, y, z, w)."""
+        t = self.ts.types
+        return t["geometry_msgs/msg/TransformStamped"](
+            header=self.header(ns, parent), child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=self.Vec(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+                rotation=self.Quat(*(float(v) for v in quat))))
+
+    def joint_state(self, ns: int, names: list[str], position: NDArray[np.float64],
+                    velocity: NDArray[np.float64]) -> Any:
+        return self.ts.types["sensor_msgs/msg/JointState"](
+            header=self.header(ns, ""), name=names,
+            position=np.asarray(position, dtype=np.float64),
+            velocity=np.asarray(velocity, dtype=np.float64),
+            effort=np.zeros(0, dtype=np.float64))
+
     def tf_message(self, transforms: list[Any]) -> Any:
         return self.ts.types["tf2_msgs/msg/TFMessage"](transforms=transforms)
 
     def odometry(self, ns: int, pose: NDArray[np.float64], twist: NDArray[np.float64],
-                 pose_cov: NDArray[np.float64], twist_cov: NDArray[np.float64]) -> Any:
+                 pose_cov: NDArray[np.float64], twist_cov: NDArray[np.float64],
+                 quat: Any = None) -> Any:
         t = self.ts.types
         return t["nav_msgs/msg/Odometry"](
             header=self.header(ns, "odom"), child_frame_id="base_footprint",
-            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose),
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose, quat=quat),
                                                           covariance=_cov6(pose_cov)),
             twist=t["geometry_msgs/msg/TwistWithCovariance"](
                 twist=t["geometry_msgs/msg/Twist"](
@@ -322,11 +392,11 @@ class _Msgs:
                     angular=self.Vec(x=0.0, y=0.0, z=float(twist[2]))),
                 covariance=_cov6(twist_cov)))
 
-    def amcl(self, ns: int, pose: NDArray[np.float64]) -> Any:
+    def amcl(self, ns: int, pose: NDArray[np.float64], quat: Any = None) -> Any:
         t = self.ts.types
         return t["geometry_msgs/msg/PoseWithCovarianceStamped"](
             header=self.header(ns, "map"),
-            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose),
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(*pose, quat=quat),
                                                           covariance=np.zeros(36)))
 
     def scan(self, ns: int, ranges: NDArray[np.float32], g: ScanGeometry) -> Any:
@@ -456,6 +526,8 @@ def read_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise DataError(f"{meta}: not a text file") from None
     try:
         data = YAML(typ="safe", pure=True).load(text)
+    except RecursionError:
+        raise DataError(f"{meta}: {NESTED_TOO_DEEPLY}") from None
     except YAMLError as exc:
         line = " ".join(str(exc).split())
         raise DataError(f"{meta}: not valid YAML ({line})") from None
@@ -509,24 +581,6 @@ def check_bag_target(path: str | os.PathLike[str], *, overwrite: bool = False) -
     return path
 
 
-@contextlib.contextmanager
-def _lock(directory: Path) -> Iterator[None]:
-    """Hold an exclusive flock on ``directory`` (released when the block ends or the
-    process dies); a second holder gets a :class:`ConfigError` at once."""
-    import fcntl
-
-    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise ConfigError("another simlab process is writing a bag here", path=directory,
-                              fix="wait for it to finish, or choose another --out") from None
-        yield
-    finally:
-        os.close(fd)
-
-
 def _remove_stale_staging(parent: Path, name: str) -> None:
     """Staging directories of ``name`` left by a killed writer (the caller holds the lock
     of ``parent``, so none of them is in use)."""
@@ -559,7 +613,9 @@ def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 
     created = [p for p in [parent, *parent.parents] if not p.exists()]
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        with _lock(parent):
+        with exclusive_directory(parent, what="folder (a bag is being written into it)",
+                                 fix="wait for the other export to finish, or choose "
+                                     "another --out"):
             _remove_stale_staging(parent, path.name)
             path = check_bag_target(path, overwrite=overwrite)  # the lock is ours now
             staging = Path(tempfile.mkdtemp(prefix=f".{path.name}{STAGING_PREFIX}", dir=parent))
@@ -634,13 +690,16 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         pose = np.asarray(traj.pose, dtype=np.float64)
         odom = pose if traj.odom is None else np.asarray(traj.odom, dtype=np.float64)
         map_odom = compose(pose, inverse(odom))
-        twist = odometry_twist(t, odom)
-        pose_cov, twist_cov = odometry_covariance(t, odom)
-        sx, sy, sz = traj.scan_offset
-        bx, by, bz = traj.base_offset
-        put("/tf_static", stamps[0], m.tf_message([
-            m.tf(stamps[0], "base_footprint", "base_link", bx, by, 0.0, bz),
-            m.tf(stamps[0], "base_link", "base_scan", sx, sy, 0.0, sz)]))
+        twist, pose_cov, twist_cov = _odometry_motion(t, odom, traj.walk_starts)
+        put("/tf_static", stamps[0], m.tf_message(_static_transforms(m, stamps[0], traj)))
+        q_map_odom, q_odom, q_pose = (yaw_quats(a[:, 2]) for a in (map_odom, odom, pose))
+        q_truth = None if traj.truth is None else yaw_quats(np.asarray(traj.truth)[:, 2])
+        robot = traj.robot
+        if robot is not None:
+            wheels, rates = wheel_angles(t, odom, robot.wheel_radius, robot.wheel_separation,
+                                         traj.walk_starts)
+            wheel_names = [j.name for j in robot.wheels]
+            q_wheels = [robot.wheel_quats(k, wheels[:, k]) for k in range(2)]
         if traj.map is not None:
             put("/map", stamps[0], m.grid(stamps[0], traj.map))
         scene = traj.scene
@@ -649,10 +708,16 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
         if scene is not None and scene.goals:
             put("/simlab/goals", stamps[0], m.goals(stamps[0], scene))
         for i, ns in enumerate(stamps):
-            put("/tf", ns, m.tf_message([m.tf(ns, "map", "odom", *map_odom[i]),
-                                         m.tf(ns, "odom", "base_footprint", *odom[i])]))
-            put("/odom", ns, m.odometry(ns, odom[i], twist[i], pose_cov[i], twist_cov[i]))
-            put("/amcl_pose", ns, m.amcl(ns, pose[i]))
+            transforms = [m.tf_q(ns, "map", "odom", (*map_odom[i, :2], 0.0), q_map_odom[i]),
+                          m.tf_q(ns, "odom", "base_footprint", (*odom[i, :2], 0.0), q_odom[i])]
+            if robot is not None:
+                transforms += [m.tf_q(ns, j.parent, j.child, j.xyz, q_wheels[k][i])
+                               for k, j in enumerate(robot.wheels)]
+                put("/joint_states", ns, m.joint_state(ns, wheel_names, wheels[i], rates[i]))
+            put("/tf", ns, m.tf_message(transforms))
+            put("/odom", ns, m.odometry(ns, odom[i], twist[i], pose_cov[i], twist_cov[i],
+                                        q_odom[i]))
+            put("/amcl_pose", ns, m.amcl(ns, pose[i], q_pose[i]))
             if traj.scans is not None:
                 put("/scan", ns, m.scan(ns, traj.scans[i], traj.scan_geometry))
             if traj.state is not None:
@@ -663,9 +728,20 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                 put("/simlab/human", ns, m.human(ns, traj.human[i]))
             if traj.truth is not None:
                 put("/simlab/true_pose", ns, ts.types["geometry_msgs/msg/PoseStamped"](
-                    header=m.header(ns, "map"), pose=m.pose(*traj.truth[i])))
+                    header=m.header(ns, "map"), pose=m.pose(*traj.truth[i], quat=q_truth[i])))
         if traj.actions is not None:
             _put_actions(put, ts.types, traj, t0)
+
+
+def _static_transforms(m: _Msgs, ns: int, traj: BagTrajectory) -> list[Any]:
+    """``/tf_static``: every fixed joint of ``traj.robot``, or (without it) base_link and
+    base_scan from the trajectory's offsets."""
+    if traj.robot is not None:
+        return [m.tf_q(ns, j.parent, j.child, j.xyz, j.quat) for j in traj.robot.fixed]
+    sx, sy, sz = traj.scan_offset
+    bx, by, bz = traj.base_offset
+    return [m.tf(ns, "base_footprint", "base_link", bx, by, 0.0, bz),
+            m.tf(ns, "base_link", "base_scan", sx, sy, 0.0, sz)]
 
 
 def _stamp_ns(header: Any) -> int:
@@ -775,16 +851,24 @@ def _recorded_action_set(custom: dict[str, Any], path: Path) -> Any:
                         f"JSON") from None
 
 
-def _pose_of(msg: Any) -> tuple[float, float, float]:
+def _pose_of(msg: Any) -> tuple[float, float, float, float, float, float]:
+    """``(x, y, qx, qy, qz, qw)`` of a pose message (:func:`_planar` makes the yaws)."""
     p = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
-    return p.position.x, p.position.y, yaw_of(p.orientation)
+    q = p.orientation
+    return p.position.x, p.position.y, q.x, q.y, q.z, q.w
+
+
+def _planar(rows: Any) -> NDArray[np.float64]:
+    """``(n, 3)`` poses (x, y, yaw) of :func:`_pose_of` rows, the yaws in one call."""
+    a = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+    return np.column_stack([a[:, :2], quat_yaws(a[:, 2:])])
 
 
 def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str | None,
                 action_topic: str | None, t0: float | None, path: Path) -> BagTrajectory:
     try:
         msgs = sorted(topics[pose_topic], key=lambda e: _stamp_ns(e[1].header))
-        pose = np.array([_pose_of(m) for _, m, _ in msgs], dtype=np.float64)
+        pose = _planar([_pose_of(m) for _, m, _ in msgs])
     except AttributeError:
         raise DataError(f"{path}: pose_topic: {pose_topic!r} carries "
                         f"{topics[pose_topic][0][2]}, not a pose (give a "
@@ -840,12 +924,12 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                 base = (v.x, v.y, v.z)
     return BagTrajectory(
         t=((np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9).astype(np.float64), pose=pose,
-        odom=None if odom is None else np.array(odom),
+        odom=None if odom is None else _planar(odom),
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),
         goal=None if goal is None else np.array(goal), actions=actions, action_t=action_t,
         blocked=blocked, duration=duration, map=grid, scan_offset=offset, base_offset=base,
-        truth=None if truth is None else np.array(truth, dtype=np.float64))
+        truth=None if truth is None else _planar(truth))
 
 
 def _grid_of(msg: Any) -> Any:

@@ -2,8 +2,11 @@
 
 Sources (the directory decides):
 
-* a **dataset** (``_manifest.json``, written by ``simlab collect`` or an importer): one
-  worker's walk (``worker``, default 0). Samples at each transition's start ``t`` (pose
+* a **dataset** (``_manifest.json``, written by ``simlab collect`` or an importer): every
+  worker's walk, one after the other in bag time (walk k starts a whole number of seconds,
+  at least one, after walk k-1 ends; ``simlab.walks`` in the bag's ``custom_data`` records
+  each walk's worker and time offset, and the odometry restarts at rest), or only
+  ``worker``'s. Samples at each transition's start ``t`` (pose
   before, state ``s``) and end ``t + duration`` (pose after, ``s_next``; dropped when it
   coincides with the next start); ``/simlab/action`` carries ``a`` at each start. The
   map-frame pose (``/amcl_pose``, ``map -> base_footprint``) is the pose source's, as a
@@ -21,7 +24,9 @@ rasterized at ``resolution`` (0 free, 100 occupied), or a map_server map given a
 Each decision's ``blocked`` flag and ``duration`` (the motion, without the decision
 latency) go on ``/simlab/blocked`` and ``/simlab/duration`` at its start, and the action
 set, the dataset's pose source and the time origin in the bag's ``custom_data``, so that
-``simlab import-bag`` gives the dataset back column for column. The states' Voronoi cells
+``simlab import-bag`` gives the dataset back column for column, every worker; the arena
+record (``simlab.arena``, with the TOML file's path when the arena came from one) goes
+along, so the imported dataset exports again without ``--arena``. The states' Voronoi cells
 and the arena's goal areas are ``MarkerArray`` topics (``/simlab/cells``,
 ``/simlab/goals``), the ``tf_static`` transforms are the robot URDF's joints, and beams
 that face a surface nearer than ``range_min`` read ``-inf`` (REP-117).
@@ -79,19 +84,14 @@ def _cols(table: Any, names: list[str]) -> np.ndarray:
     return np.column_stack([table.column(c).to_numpy() for c in names]).astype(np.float64)
 
 
-def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
-    from simlab.data.dataset import open_dataset
+#: Seconds between one worker's walk and the next in a bag of several (whole seconds, so
+#: adding the offset to a walk's times and taking it away again is exact to the nanosecond).
+WALK_GAP = 1.0
 
-    ds = open_dataset(path, validate=True)
-    tab = ds.table
-    w = tab.column("worker").to_numpy()
-    if not np.any(w == worker):
-        raise ConfigError(f"no transitions of worker {worker} (workers: "
-                          f"{sorted(set(w.tolist()))})", path=path, key="worker",
-                          fix="choose one of the workers listed")
-    tab = tab.filter(w == worker)
+
+def _walk(tab: Any, pose_source: str | None) -> dict[str, Any]:
+    """One worker's rows as bag samples and decisions (times from the walk's own origin)."""
     has_truth = "x_true" in tab.column_names
-    pose_source = ds.manifest.get("pose_source")
     t, dur = tab.column("t").to_numpy(), tab.column("duration").to_numpy()
     zeros = np.zeros(len(t))
 
@@ -113,16 +113,89 @@ def _from_dataset(path: Path, worker: int) -> dict[str, Any]:
         pose, odom = true, source
     elif true is not None:
         truth = true
-    centres = (ds.manifest.get("discretizer") or {}).get("centres")
-    return {"t": tt, "pose": pose, "odom": odom, "truth": truth, "state": state, "goal": None,
+    return {"t": tt, "pose": pose, "odom": odom, "truth": truth, "state": state,
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
-            "blocked": tab.column("blocked").to_numpy().astype(bool), "duration": dur,
-            "action_set": None if ds.action_set is None else ds.action_set.to_json(),
-            "pose_source": pose_source,
-            "centres": None if centres is None else np.asarray(centres, dtype=np.float64),
-            "custom": {"simlab.part_size": str((ds.manifest.get("parameters") or {}).get(
-                "part_size", ""))},
-            "arena": ds.manifest["arena"].get("file") or ds.manifest["arena"]["name"]}
+            "blocked": tab.column("blocked").to_numpy().astype(bool), "duration": dur}
+
+
+def _laid_end_to_end(walks: list[dict[str, Any]]) -> tuple[dict[str, Any], list[float]]:
+    """The walks one after the other in bag time: walk k starts ``WALK_GAP`` (whole
+    seconds) after walk k-1's last sample. Returns the joined arrays (``walk_starts``: the
+    sample index where each walk begins) and each walk's time offset (s)."""
+    offsets, end = [], None
+    for w in walks:
+        off = 0.0 if end is None else float(math.ceil(end - w["t"][0]) + WALK_GAP)
+        offsets.append(off)
+        end = off + float(w["t"][-1])
+    joined: dict[str, Any] = {}
+    for key in ("pose", "odom", "truth", "state", "actions", "blocked", "duration"):
+        parts = [w[key] for w in walks]
+        joined[key] = None if parts[0] is None else np.concatenate(parts)
+    joined["t"] = np.concatenate([w["t"] + off for w, off in zip(walks, offsets, strict=True)])
+    joined["action_t"] = np.concatenate([w["action_t"] + off
+                                         for w, off in zip(walks, offsets, strict=True)])
+    joined["walk_starts"] = np.cumsum([0] + [len(w["t"]) for w in walks[:-1]]).astype(np.int64)
+    return joined, offsets
+
+
+def _from_dataset(path: Path, worker: int | None) -> dict[str, Any]:
+    """The dataset's walks (every worker's, or only ``worker``'s) as one bag trajectory."""
+    from simlab.data.dataset import open_dataset
+
+    ds = open_dataset(path, validate=True)
+    tab = ds.table
+    w = tab.column("worker").to_numpy()
+    workers = sorted(set(w.tolist()))
+    if worker is not None:
+        if worker not in workers:
+            raise ConfigError(f"no transitions of worker {worker} (workers: {workers})",
+                              path=path, key="worker", fix="choose one of the workers listed")
+        workers = [worker]
+    pose_source = ds.manifest.get("pose_source")
+    rec, offsets = _laid_end_to_end([_walk(tab.filter(w == k), pose_source)
+                                     for k in workers])
+    centres = (ds.manifest.get("discretizer") or {}).get("centres")
+    walks = [{"worker": int(k), "offset": off} for k, off in zip(workers, offsets, strict=True)]
+    record = ds.manifest["arena"]
+    rec.update(
+        goal=None, action_set=None if ds.action_set is None else ds.action_set.to_json(),
+        pose_source=pose_source,
+        centres=None if centres is None else np.asarray(centres, dtype=np.float64),
+        custom={"simlab.part_size": str((ds.manifest.get("parameters") or {}).get(
+            "part_size", "")), "simlab.walks": json.dumps(walks),
+            "simlab.arena": json.dumps(record)},
+        arena=_recorded_arena(record))
+    return rec
+
+
+def _arena_record(arena: Any, used: Any, recorded: dict[str, Any] | None) -> dict[str, Any]:
+    """The manifest's arena record of the arena a bag shows: the source's own ``recorded``
+    one, or (an arena given instead) its name, bounds and goals; with ``file`` (absolute)
+    when it came from a TOML file, so that a dataset imported from the bag exports again."""
+    from simlab.base.assets import is_path
+
+    record = dict(recorded) if recorded is not None else {
+        "name": arena.name, "bounds": [float(v) for v in arena.bounds],
+        "goals": [{"name": g.name, "x": float(g.x), "y": float(g.y), "radius": float(g.radius)}
+                  for g in arena.goals]}
+    if isinstance(used, str | os.PathLike) and is_path(used, ".toml"):
+        record["file"] = str(Path(used).resolve())
+    return record
+
+
+def _recorded_arena(record: dict[str, Any]) -> Any:
+    """The arena a dataset's manifest records, as :func:`load_arena` takes it: its file
+    when that is still there, else its name when it is a built-in arena; None when neither
+    (a robot's data, imported from a log or a bag of its own: ``--arena`` is needed)."""
+    from simlab.base.assets import available
+
+    file = record.get("file")
+    if isinstance(file, str) and Path(file).is_file():
+        return file
+    name = record.get("name")
+    if isinstance(name, str) and name in available("arenas", ".toml"):
+        return name
+    return None
 
 
 def _from_replay(path: Path) -> dict[str, Any]:
@@ -146,7 +219,7 @@ def _from_replay(path: Path) -> dict[str, Any]:
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
             "blocked": blocked, "duration": dur, "action_set": summary.get("action_set"),
             "pose_source": "truth", "centres": _replay_centres(summary), "custom": None,
-            "arena": summary["arena"]}
+            "arena": summary["arena"], "walk_starts": None}
 
 
 def _replay_centres(summary: dict[str, Any]) -> np.ndarray | None:
@@ -239,7 +312,8 @@ class ExportBagConfig(CommandConfig):
     source: Path = option(help="dataset directory (simlab collect / import-log) or replay "
                           "directory (simlab replay)", positional=True)
     out: Path = option(help="bag directory to write")
-    worker: int = option(0, "dataset: which worker's walk to export")
+    worker: int | None = option(None, "dataset: export only this worker's walk (default: "
+                                "every worker's, one after the other in bag time)")
     arena: Any | None = option(None, "arena (name or TOML) for the scans and the map "
                                "(default: the source's)")
     map: Any | None = option(None, "map_server map to publish on /map (default: the arena "
@@ -251,7 +325,8 @@ class ExportBagConfig(CommandConfig):
     overwrite: bool = option(False, "replace a bag that simlab export-bag wrote in --out")
 
     def validate(self) -> None:
-        validation.whole(self.worker, "worker")
+        if self.worker is not None:
+            validation.whole(self.worker, "worker")
         validation.positive(self.resolution, "resolution")
         validation.positive(self.start_time, "start_time", allow_zero=True)
 
@@ -270,6 +345,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
     from simlab.physics.arena import load_arena
     from simlab.physics.robot import load_robot_spec
     from simlab.ros.bag import BagTrajectory, ScanGeometry, check_bag_target, write_bag
+    from simlab.ros.frames import robot_frames
     from simlab.ros.markers import SceneMarkers
 
     source, out = Path(cfg.source), Path(cfg.out)
@@ -291,15 +367,26 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
                           "transitions.parquet)", path=source,
                           fix="give the directory that simlab collect, import-log, "
                               "import-bag or replay wrote")
+    if cfg.arena is None and rec["arena"] is None:
+        raise ConfigError(f"the dataset records no arena that is here (arena "
+                          f"{json.loads(rec['custom']['simlab.arena']).get('name')!r}: neither "
+                          f"a built-in name nor a file; data imported from a robot's log or "
+                          f"bag has none)", path=source / "_manifest.json", key="arena",
+                          fix="pass --arena NAME or --arena FILE.toml, the arena the robot "
+                              "drove in")
     arena_cfg = load_arena(cfg.arena or rec["arena"])
+    if kind == "dataset":  # the arena the bag shows, for import-bag's manifest
+        rec["custom"]["simlab.arena"] = json.dumps(
+            _arena_record(arena_cfg, cfg.arena or rec["arena"],
+                          None if cfg.arena else json.loads(rec["custom"]["simlab.arena"])))
     if cfg.map is not None:
         from discretize.mapio import read_map
 
         grid = read_map(cfg.map)
     else:
         grid = arena_map(arena_cfg, cfg.resolution)
-    # tf_static: the URDF's joints as the robot spec reads them (positions in the root
-    # frame base_footprint; the tree base_footprint -> base_link -> base_scan)
+    # the URDF's frames (every fixed joint on tf_static, the wheels on tf and joint_states);
+    # the scan and base offsets as the robot spec reads them (root frame base_footprint)
     robot = load_robot_spec()
     bx, by, bz = (float(v) for v in robot.base_link_offset)
     sx, sy, sz = (float(v) for v in robot.lidar_offset)
@@ -316,6 +403,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
                          action_set=rec["action_set"], pose_source=rec["pose_source"],
                          map=grid, scan_offset=(sx - bx, sy - by, sz - bz),
                          base_offset=(bx, by, bz),
-                         scene=scene, custom=rec["custom"])
+                         scene=scene, custom=rec["custom"], walk_starts=rec["walk_starts"],
+                         robot=robot_frames(robot.urdf_path))
     path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)

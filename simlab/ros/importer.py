@@ -19,7 +19,9 @@
   latency), the time origin and the pose source (``truth``: the map pose; ``odometry``:
   the ``/odom`` pose with the map pose as the truth; ``mcl``: the map pose with
   ``/simlab/true_pose`` as the truth), so that export then import gives the dataset back
-  column for column.
+  column for column: each walk of its ``simlab.walks`` record becomes its worker again
+  (times from the walk's own offset), and its ``simlab.arena`` record is the manifest's
+  arena.
 * **Scans** (optional ``/scan``) are not needed for the transitions; their number is
   recorded in the provenance.
 * **States**: nearest centre of the states file (the writer's rule). Written with
@@ -258,8 +260,7 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
     :class:`~simlab.data.poselog.SegmentParams` thresholds; ``segment=True`` (or
     ``action_topic=None``) forces the segmentation even when the bag has an action topic."""
     from discretize.voronoi import load_states
-    from simlab.data.poselog import decision_actions, segment_decisions
-    from simlab.data.writer import DatasetInfo, TransitionArrays
+    from simlab.data.writer import DatasetInfo
     from simlab.ros.bag import read_bag
 
     bag, states, pose_topic, out = Path(cfg.bag), cfg.states, cfg.pose_topic, Path(cfg.out)
@@ -269,11 +270,69 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
     disc = load_states(states) if isinstance(states, str | os.PathLike) else states
     traj = read_bag(bag, pose_topic=pose_topic, action_topic=action_topic)
     aset = cfg.make_action_set(traj.action_set)
-    t, xy, yaw = traj.t, traj.pose[:, :2], traj.pose[:, 2]
+    walks, source = [], ""
+    for lo, hi, offset in _walk_spans(traj, bag):  # one per worker of a simlab dataset
+        walk, source = _walk_transitions(traj, lo, hi, offset, cfg, aset, action_topic,
+                                         pose_topic)
+        walks.append(walk)
+    pose_source = _pose_source(traj, pose_topic)
+    info = DatasetInfo(
+        discretizer=disc, action_set=aset, pose_source=pose_source,
+        provenance={"importer": IMPORTER, "bag": str(bag),
+                    "states": str(states) if isinstance(states, str | os.PathLike) else None,
+                    "samples": len(traj.t), "scans": 0 if traj.scans is None else len(traj.scans),
+                    "pose_topic": pose_topic or "auto", "action_source": source,
+                    "action_set": "recorded in the bag" if traj.action_set is not None
+                    and cfg.n_actions is None and cfg.convention is None else "given",
+                    "segmentation": json.loads(json.dumps(asdict(segment)))},
+        arena=_arena_record(traj.custom, bag), parameters={"importer": "ros-bag"})
+    part_size = (traj.custom or {}).get("simlab.part_size", "")
+    _write(out, walks, info, cfg.overwrite,
+           int(part_size) if part_size.isdigit() and int(part_size) > 0 else None)
+    return ImportBagResult(out=out, samples=len(traj.t), decisions=sum(len(w) for w in walks),
+                           blocked=int(sum(np.sum(w.blocked) for w in walks)),
+                           action_source=source)
+
+
+def _walk_spans(traj: Any, bag: Path) -> list[tuple[float, float, float]]:
+    """``(start, end, offset)`` (s, bag time) of each walk in the bag: one per worker
+    when simlab export-bag laid several walks one after the other (its ``simlab.walks``
+    record: each walk's time offset), else the whole bag; a walk's own times are bag
+    times minus its offset."""
+    record = (traj.custom or {}).get("simlab.walks")
+    if record is None:
+        return [(-np.inf, np.inf, 0.0)]
+    try:
+        offsets = [float(w["offset"]) for w in json.loads(record)]
+    except (TypeError, ValueError, KeyError):
+        offsets = []
+    if not offsets or sorted(offsets) != offsets or not np.all(np.isfinite(offsets)):
+        raise ConfigError("custom_data: simlab.walks is not a list of walks with increasing "
+                          "offsets", path=bag / "metadata.yaml", key="simlab.walks",
+                          fix="export the dataset again with simlab export-bag")
+    ends = [*offsets[1:], np.inf]
+    return [(lo if k else -np.inf, hi, lo) for k, (lo, hi) in
+            enumerate(zip(offsets, ends, strict=True))]
+
+
+def _walk_transitions(traj: Any, lo: float, hi: float, offset: float, cfg: ImportBagConfig,
+                      aset: ActionSet, action_topic: str | None, pose_topic: str | None
+                      ) -> tuple[Any, str]:
+    """The transitions of the bag's samples and actions in ``[lo, hi)`` (s, bag time), with
+    times from ``offset``; and where the actions came from."""
+    from simlab.data.poselog import decision_actions, segment_decisions
+    from simlab.data.writer import TransitionArrays
+
+    segment = cfg.segment_params()
+    keep = (traj.t >= lo) & (traj.t < hi)
+    t = traj.t[keep] - offset
+    xy, yaw = traj.pose[keep, :2], traj.pose[keep, 2]
     if traj.actions is not None and traj.action_t is not None:
+        k = (traj.action_t >= lo) & (traj.action_t < hi)
         start, end, blocked, actions, duration = _decisions_from_actions(
-            t, xy, yaw, traj.actions, traj.action_t, segment, aset.n_actions,
-            traj.blocked, traj.duration)
+            t, xy, yaw, traj.actions[k], traj.action_t[k] - offset, segment, aset.n_actions,
+            None if traj.blocked is None else traj.blocked[k],
+            None if traj.duration is None else traj.duration[k])
         source = f"action topic {action_topic}"
     else:
         dec = segment_decisions(t, xy, yaw, segment)
@@ -283,33 +342,40 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
         source = "segmentation of the pose (as simlab import-log)"
     if len(start) == 0:
         raise ConfigError("no decision found in the bag (nothing turns or moves faster than "
-                          "the thresholds, and no action messages)", path=bag,
+                          "the thresholds, and no action messages)", path=cfg.bag,
                           fix="lower --move-speed/--turn-rate, or check --pose-topic")
-    # the bag's own pose source when simlab wrote it and the pose topic is the default
-    pose_source, pose, truth = "log", traj.pose, None
-    if pose_topic is None and traj.pose_source == "truth":
-        pose_source = "truth"
-    elif pose_topic is None and traj.pose_source == "odometry" and traj.odom is not None:
-        pose_source, pose, truth = "odometry", traj.odom, traj.pose
-    elif pose_topic is None and traj.pose_source == "mcl" and traj.truth is not None:
-        pose_source, truth = "mcl", traj.truth
+    pose_source = _pose_source(traj, pose_topic)
+    pose, truth = traj.pose[keep], None
+    if pose_source == "odometry":
+        pose, truth = traj.odom[keep], traj.pose[keep]
+    elif pose_source == "mcl":
+        truth = traj.truth[keep]
     walk = TransitionArrays(t=t[start], a=actions, pose=pose[start], pose_next=pose[end],
                             blocked=blocked, duration=duration,
                             truth=None if truth is None else truth[start],
                             truth_next=None if truth is None else truth[end])
-    info = DatasetInfo(
-        discretizer=disc, action_set=aset, pose_source=pose_source,
-        provenance={"importer": IMPORTER, "bag": str(bag),
-                    "states": str(states) if isinstance(states, str | os.PathLike) else None,
-                    "samples": len(t), "scans": 0 if traj.scans is None else len(traj.scans),
-                    "pose_topic": pose_topic or "auto", "action_source": source,
-                    "action_set": "recorded in the bag" if traj.action_set is not None
-                    and cfg.n_actions is None and cfg.convention is None else "given",
-                    "segmentation": json.loads(json.dumps(asdict(segment)))},
-        arena={"name": bag.name, "file": None, "bounds": None, "goals": []},
-        parameters={"importer": "ros-bag"})
-    part_size = (traj.custom or {}).get("simlab.part_size", "")
-    _write(out, walk, info, cfg.overwrite,
-           int(part_size) if part_size.isdigit() and int(part_size) > 0 else None)
-    return ImportBagResult(out=out, samples=len(t), decisions=len(start),
-                           blocked=int(np.sum(blocked)), action_source=source)
+    return walk, source
+
+
+def _pose_source(traj: Any, pose_topic: str | None) -> str:
+    """The bag's own pose source when simlab wrote it and the pose topic is the default
+    (``truth``: the map pose; ``odometry``: /odom, the map pose the truth; ``mcl``: the map
+    pose, /simlab/true_pose the truth), else ``log``."""
+    if pose_topic is None and traj.pose_source == "truth":
+        return "truth"
+    if pose_topic is None and traj.pose_source == "odometry" and traj.odom is not None:
+        return "odometry"
+    if pose_topic is None and traj.pose_source == "mcl" and traj.truth is not None:
+        return "mcl"
+    return "log"
+
+
+def _arena_record(custom: dict[str, str] | None, bag: Path) -> dict[str, Any]:
+    """The manifest's arena record: the one simlab export-bag recorded (so the dataset
+    exports again without ``--arena``), else the bag's name without a file."""
+    record = (custom or {}).get("simlab.arena")
+    with contextlib.suppress(TypeError, ValueError):
+        parsed = json.loads(record) if record is not None else None
+        if isinstance(parsed, dict) and isinstance(parsed.get("name"), str):
+            return parsed
+    return {"name": bag.name, "file": None, "bounds": None, "goals": []}

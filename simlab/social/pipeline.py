@@ -76,7 +76,7 @@ import numpy as np
 
 from simlab.base import validation as v
 from simlab.base.errors import ConfigError
-from simlab.base.io import atomic_write, atomic_write_json, output_transaction
+from simlab.base.io import atomic_write, atomic_write_json, output_transaction, write_npy
 from simlab.base.options import CommandConfig, command, option
 from simlab.social.closedloop import (
     ClosedLoopConfig,
@@ -297,7 +297,7 @@ def social_pipeline(cfg: SocialPipelineConfig, executor: Any | None = None
             if table_q is not None:
                 paths[key] = out / name
                 with atomic_write(txn.path(paths[key]), "wb") as fh:
-                    np.save(fh, table_q, allow_pickle=False)
+                    write_npy(fh, table_q)
         plot_cumulative(runs, txn.path(paths["plot"]))
         if cfg.gif_decisions:
             paths["gif"] = out / "closed_loop.gif"

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ import numpy as np
 
 from simlab.base import validation
 from simlab.base.errors import ConfigError, DataError
-from simlab.base.io import atomic_write, atomic_write_json, ensure_new
+from simlab.base.io import atomic_write, atomic_write_json, ensure_new, npz_problem
 from simlab.base.options import CommandConfig, option
 from simlab.visitlab.curves import TrainResult, smooth_curve, summarize_curve
 
@@ -70,8 +71,12 @@ def load_results(path: str | os.PathLike[str]) -> list[TrainResult]:
             out = []
             for i, label in enumerate(labels):
                 out.append(TrainResult(label, data[f"returns_{i}"], data[f"q_{i}"], configs[i]))
-    except (KeyError, ValueError, OSError) as exc:
-        raise DataError(f"{path}: not a Visit-the-lab curves file ({exc})") from None
+    except KeyError as exc:
+        raise DataError(f"{path}: not a Visit-the-lab curves file (no array {exc}; "
+                        f"simlab visitlab train writes curves.npz)") from None
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise DataError(f"{path}: not a Visit-the-lab curves file: "
+                        f"{npz_problem(path, exc)}") from None
     return out
 
 

@@ -302,7 +302,7 @@ def _run_seeds(jobs: list[tuple[Any, ...]], shape: tuple[int, int], workers: int
                 returns[futures[fut]], qs[futures[fut]] = fut.result()
                 bar.update(trials)
         except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
+            pool.stop_now()  # Ctrl-C: the seeds still running are not waited for
             raise
         pool.shutdown(wait=True)
     return returns, qs

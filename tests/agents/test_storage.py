@@ -60,7 +60,7 @@ def test_bad_files_give_clear_errors(tmp_path):
     with pytest.raises(ConfigError, match=r"missing array.*Q.*found: V"):
         load_q_table(tmp_path / "noq.npz")
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
-    with pytest.raises(DataError, match="not a readable npz"):
+    with pytest.raises(DataError, match=r"not an npz archive \(a text file"):
         load_q_table(tmp_path / "junk.npz")
     with pytest.raises(ConfigError, match="file not found"):
         load_q_table(tmp_path / "absent.npz")

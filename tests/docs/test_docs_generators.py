@@ -105,3 +105,81 @@ def test_rest_roles_become_code_spans() -> None:
 
     text = "See :func:`simlab.agents.greedy` and :class:`~simlab.base.actions.ActionSet`::\n\n    x\n"
     assert markdown_of(text) == "See `simlab.agents.greedy` and `ActionSet`:\n\n    x\n"
+
+
+def test_figure_commands_keep_their_temporary_files_in_the_scratch_folder(
+        tmp_path: Path, monkeypatch) -> None:
+    """The merged robot URDF simlab caches in the temporary directory lands in the
+    figures' scratch folder (removed after the build), not in the user's TMPDIR."""
+    system_tmp = tmp_path / "system-tmp"
+    system_tmp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(system_tmp))
+    monkeypatch.setattr(simlab_docs, "FIGURES", {"d.png": [
+        ["drive", "--steps", "1", "--png", "d.png", "--no-progress"]]})
+    made = simlab_docs.make_figures(tmp_path / "scratch")
+    assert made["d.png"].is_file()
+    assert not list(system_tmp.iterdir())
+    assert list((tmp_path / "scratch" / "tmp").glob("simlab-turtlebot3_burger-*.urdf"))
+
+
+@pytest.mark.parametrize("how", ["failing command", "full disk"])
+def test_a_figure_that_cannot_be_made_stops_the_build_in_one_line(
+        how: str, tmp_path: Path, monkeypatch) -> None:
+    pytest.importorskip("mkdocs")
+    import errno
+    import tempfile
+
+    import hooks  # docs/hooks.py (docs/ is on sys.path)
+    from mkdocs.exceptions import PluginError
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    if how == "failing command":
+        monkeypatch.setattr(simlab_docs, "FIGURES", {"d.png": [
+            ["drive", "--arena", "nosuch", "--steps", "1", "--no-progress"]]})
+        needles = ["simlab drive --arena nosuch", "unknown arena name 'nosuch'"]
+    else:
+        def full(*args, **kwargs):
+            raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "x"))
+
+        monkeypatch.setattr(simlab_docs, "make_figures", full)
+        needles = ["No space left on device", "TMPDIR"]
+    with pytest.raises(PluginError) as exc:
+        hooks.on_pre_build(None)
+    text = str(exc.value)
+    assert "\n" not in text and all(n in text for n in needles), text
+    assert not list(tmp_path.glob("simlab-docs-*"))  # the scratch folder is gone
+
+
+def test_the_api_reference_covers_every_public_module() -> None:
+    """Every public module of simlab and discretize is rendered by an API page (the env
+    modules by the hand-made one), and every API page is in the site's navigation."""
+    import yaml
+
+    pages = {p: simlab_docs.api_markdown(p) for p in simlab_docs.API_PAGES}
+    rendered = {line[4:] for text in pages.values() for line in text.splitlines()
+                if line.startswith("::: ")}
+    for package in ("simlab", "discretize"):
+        for name in simlab_docs.public_modules(package):
+            if name.startswith("simlab.envs"):
+                continue  # docs/pages/api/envs.md and the environments page
+            assert name in rendered, name
+    assert {"simlab.ros.bag", "simlab.online.meta", "simlab.calibration.transfer.score",
+            "simlab.replay.loop", "simlab.localization.filter",
+            "simlab.orchestration.pipeline", "simlab.experiments.spec"} <= rendered
+    nav = yaml.safe_load("nav:" + (ROOT / "mkdocs.yml").read_text().split("\nnav:", 1)[1])
+    listed = str(nav)
+    for page in simlab_docs.API_PAGES:
+        assert f"api/{page}.md" in listed, page
+        assert f"<!-- simlab:api:{page} -->" in (ROOT / "docs" / "pages" / "api"
+                                                 / f"{page}.md").read_text()
+
+
+def test_rest_roles_become_links_where_the_target_is_rendered() -> None:
+    pytest.importorskip("griffe")
+    from griffe_rest import markdown_of
+
+    known = {"simlab.agents.greedy": "simlab.agents.policy.greedy"}
+    text = "Use :func:`simlab.agents.greedy`, :func:`~simlab.agents.greedy` or :func:`_x`."
+    assert markdown_of(text, known.get) == (
+        "Use [`simlab.agents.greedy`][simlab.agents.policy.greedy], "
+        "[`greedy`][simlab.agents.policy.greedy] or `_x`.")

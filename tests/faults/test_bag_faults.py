@@ -293,13 +293,12 @@ def test_a_killed_import_leaves_staging_that_the_next_one_removes(wb: Path, caps
 
 def test_a_second_writer_stops_at_once(wb: Path, capsys) -> None:
     from simlab.base.io import exclusive_directory
-    from simlab.ros.bag import _lock
 
     before = tree_hashes(wb)
-    with _lock(wb):  # an export-bag writing beside --out
+    with exclusive_directory(wb):  # an export-bag writing beside --out (the one lock)
         res = run_cli(["export-bag", str(wb / "data"), "--out", str(wb / "b"), "--no-scans"],
                       capsys)
-    assert_refused(res, "another simlab process", "wait")
+    assert_refused(res, "another process is writing", "wait")
     with exclusive_directory(wb / "ds"):  # an import-bag writing into --out
         res = run_cli(["import-bag", str(wb / "bag"), "--states", str(wb / "states.json"),
                        "--out", str(wb / "ds")], capsys)

@@ -138,6 +138,22 @@ def test_train_overwrite_retires_its_own_stale_goals_and_nothing_else(work: Path
     assert (work / "q" / "q_mine.npz").read_bytes() == b"the user's"
 
 
+def test_train_overwrite_with_a_relative_out_retires_the_stale_goals_too(
+        work: Path, capsys, monkeypatch) -> None:
+    """``--out q`` from the folder that holds it (the way a user types it): the first run's
+    Q-tables of the goals not trained again went unretired (the summary lists ``q/q_C.npz``,
+    which was taken relative to ``q`` a second time)."""
+    monkeypatch.chdir(work)
+    res = run_cli("train --mdp mdp.npz --goals N,S --episodes 2 --runs 1 --no-plots "
+                  "--out q --overwrite --no-progress".split(), capsys)
+    assert res.code == 0, res.stderr
+    assert sorted(p.name for p in (work / "q").glob("q_*.npz")) == ["q_N.npz", "q_S.npz"]
+    res = run_cli("train --mdp mdp.npz --goals N --episodes 2 --runs 1 --no-plots "
+                  "--out ./q --overwrite --no-progress".split(), capsys)
+    assert res.code == 0, res.stderr
+    assert sorted(p.name for p in (work / "q").glob("q_*.npz")) == ["q_N.npz"]
+
+
 def test_a_failed_overwrite_retires_nothing(work: Path, capsys, monkeypatch) -> None:
     before = tree_hashes(work)
     real = os.fsync

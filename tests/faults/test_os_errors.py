@@ -11,6 +11,7 @@ from __future__ import annotations
 import errno
 import os
 import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -96,3 +97,56 @@ def test_describe_os_error_names_the_file_and_the_fix() -> None:
     text = describe_os_error(OSError(errno.ENOSPC, "No space left on device", "/x/q.npz"))
     assert text.startswith("No space left on device: /x/q.npz (free some space")
     assert "\n" not in text
+
+
+def test_write_npy_keeps_the_errno_of_a_full_disk() -> None:
+    """NumPy writes a real file with C stdio and turns a short write into "N requested and
+    M written" (no errno); simlab.base.io.write_npy writes through Python's layer."""
+    import io
+
+    import numpy as np
+
+    from simlab.base.io import write_npy
+
+    class Full(io.RawIOBase):
+        def writable(self) -> bool:
+            return True
+
+        def write(self, b) -> int:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    with pytest.raises(OSError) as exc:
+        write_npy(Full(), np.zeros((2560, 22)))
+    assert exc.value.errno == errno.ENOSPC
+    buf = io.BytesIO()
+    write_npy(buf, np.arange(6.0).reshape(2, 3))
+    buf.seek(0)
+    np.testing.assert_array_equal(np.load(buf, allow_pickle=False), np.arange(6.0).reshape(2, 3))
+
+
+@pytest.fixture()
+def tiny_disk(tmp_path: Path):
+    """A 256 KiB tmpfs (root only: skipped where mount is not allowed)."""
+    import shutil
+    import subprocess
+
+    mnt = tmp_path / "tiny"
+    mnt.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None or subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)],
+            capture_output=True).returncode != 0:
+        pytest.skip("needs a tmpfs mount (root)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", str(mnt)], capture_output=True)
+
+
+def test_social_pipeline_on_a_really_full_disk_says_no_space_left(tiny_disk: Path,
+                                                                    capsys) -> None:
+    """The social module's Q-table meets a full disk (a 256 KiB file system): the line
+    says "No space left on device" and names the user's file, and nothing is left."""
+    res = run_cli(f"social-pipeline --out {tiny_disk}/sp --hours 0.002 --runs 1 "
+                  "--trials 200".split(), capsys)
+    assert_refused(res, "no space left", f"{tiny_disk}/sp")
+    assert not any(tiny_disk.rglob("*.npy"))

@@ -3,6 +3,7 @@ and the warnings promised for suspicious but legal inputs."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -73,6 +74,13 @@ def _children(pid: int) -> list[int]:
         except OSError:
             pass
     return kids
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
 
 
 def _alive(pid: int) -> bool:
@@ -194,6 +202,22 @@ def test_estimate_warns_on_an_incomplete_dataset(work: Path, capsys) -> None:
     assert quiet.code == 0 and "incomplete" not in quiet.stderr
 
 
+def test_estimate_warns_on_a_dataset_whose_manifest_lists_no_parts(work: Path, capsys) -> None:
+    """``parts: []`` (and no part files): a complete dataset of 0 transitions; the MDP is
+    still written (it is what the data say) but one warning line says so."""
+    import shutil
+
+    m = json.loads((work / "data" / "_manifest.json").read_text())
+    m["parts"] = []
+    (work / "data" / "_manifest.json").write_text(json.dumps(m))
+    shutil.rmtree(work / "data" / "parts")
+    res = run_cli(f"estimate {work}/data --out {work}/m.npz --no-plot".split(), capsys)
+    assert res.code == 0, res.stderr
+    warnings = [ln for ln in res.stderr.splitlines() if ": warning: " in ln]
+    assert len(warnings) == 1 and "no transitions" in warnings[0], res.stderr
+    assert f"{work}/data" in warnings[0] and "0 parts" in warnings[0]
+
+
 def test_train_warns_on_an_mdp_from_zero_transitions(work: Path, capsys) -> None:
     (work / "zero.csv").write_text("s,a,s_next,count\n0,0,1,0\n1,0,0,0\n")
     res = run_cli(f"estimate --counts {work}/zero.csv --states {work}/states.json --arena table "
@@ -246,32 +270,80 @@ def test_ctrl_c_in_a_terminal_stops_jobs_and_idle_workers_print_nothing() -> Non
     assert "busy job: KeyboardInterrupt" in res.stdout  # the job stopped, not waited for
 
 
-def test_export_minari_removes_the_staging_a_killed_export_left(work: Path, capsys,
-                                                               monkeypatch) -> None:
-    import fcntl
+def _dead_pid() -> int:
+    """The id of a process that has exited (and been reaped)."""
+    proc = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    return int(proc.stdout)
+
+
+def test_export_minari_removes_only_the_staging_of_dead_exports(work: Path, capsys,
+                                                                 monkeypatch) -> None:
+    from filelock import FileLock
 
     pytest.importorskip("minari")
     home = work / "minari"
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(home))
     old = time.time() - 3600
+    me, dead = os.getpid(), _dead_pid()
+    names = {"killed": f"{dead}-abc", "live": f"{me}-def", "starting": f"{me}-ghi",
+             "reused-pid": f"{me}-jkl", "legacy-old": "mno", "legacy-young": "pqr"}
     dirs = {}
-    for name in ("dead", "live", "young"):
-        d = work / f".minari{'.simlab-'}{name}"
+    for case, rest in names.items():
+        d = work / f".minari.simlab-{rest}"
         (d / "simlab").mkdir(parents=True)
         (d / "simlab" / "half.hdf5").write_bytes(b"\0" * 10)
-        if name != "young":
+        if case in ("live", "reused-pid", "legacy-old"):
             os.utime(d, (old, old))
-        dirs[name] = d
-    live = os.open(dirs["live"], os.O_RDONLY | os.O_DIRECTORY)
-    fcntl.flock(live, fcntl.LOCK_EX)  # another export, still running
+        dirs[case] = d
+    foreign = work / ".minari.other-1"  # not simlab's
+    foreign.mkdir()
+    os.utime(foreign, (old, old))
+    live = FileLock(dirs["live"] / ".owner.lock")
+    live.acquire()  # another export, still running
     try:
         res = run_cli(f"export-minari {work}/data --id simlab/faults-v0".split(), capsys)
     finally:
-        os.close(live)
+        live.release()
     assert res.code == 0, res.stderr
-    assert not dirs["dead"].exists()  # SIGKILLed: removed by this export
-    assert dirs["live"].exists() and dirs["young"].exists()  # maybe running: kept
+    gone = {case for case, d in dirs.items() if not d.exists()}
+    # a killed export's root goes at once; one whose id is in use again once it is old
+    assert gone == {"killed", "reused-pid", "legacy-old"}
+    assert foreign.is_dir()
     assert (home / "simlab" / "faults-v0").is_dir()
+
+
+_KILLED_EXPORT = """
+import sys, time
+import minari
+from simlab.cli import main
+def hang(*args, **kwargs):  # the export's long write, where the SIGKILL lands
+    print("writing", flush=True)
+    time.sleep(600)
+minari.create_dataset_from_buffers = hang
+main(["export-minari", sys.argv[1], "--id", "simlab/killed-v0"])
+"""
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
+def test_an_export_right_after_a_sigkilled_one_leaves_no_staging(work: Path, capsys,
+                                                                 monkeypatch) -> None:
+    pytest.importorskip("minari")
+    home = work / "minari_store"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(home))
+    proc = subprocess.Popen([sys.executable, "-c", _KILLED_EXPORT, str(work / "data")],
+                            stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "writing"
+        assert list(work.glob(".minari_store.simlab-*"))  # the killed export's staging
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    res = run_cli(f"export-minari {work}/data --id simlab/after-v0".split(), capsys)
+    assert res.code == 0, res.stderr
+    assert not list(work.glob(".minari_store.simlab-*"))
+    assert (home / "simlab" / "after-v0").is_dir()
 
 
 def test_visitlab_sees_ctrl_c_between_short_chunks_that_change_no_result(monkeypatch) -> None:
@@ -310,4 +382,34 @@ def test_ctrl_c_during_visitlab_is_130_and_leaves_no_output(work: Path) -> None:
         raise AssertionError("simlab visitlab ignored Ctrl-C for 120 s") from None
     assert proc.returncode == 130, (proc.returncode, err)
     assert "interrupted" in err and "Traceback" not in err
+    assert not (work / "v").exists()
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
+def test_ctrl_c_of_visitlab_with_workers_ends_the_running_seeds(work: Path) -> None:
+    """``visitlab train --workers 2``: SIGINT to the driver alone (as ``kill -INT`` or a
+    job control that does not reach the workers) while both workers train their seeds.
+    The driver ends its workers and exits 130; before, the interpreter's exit waited for
+    the running seeds to finish (24 s for 4,000,000 trials; these take far longer)."""
+    proc = _simlab("visitlab", "train", "--task", "social", "--agent", "q-learning",
+                   "--trials", "50000000", "--seeds", "2", "--workers", "2",
+                   "--out", str(work / "v"), "--no-progress", cwd=work)
+    def workers() -> list[int]:  # the pool's processes (not multiprocessing's tracker)
+        return [p for p in _children(proc.pid) if "spawn_main" in _cmdline(p)]
+
+    _wait_for(lambda: len(workers()) == 2, "the workers", limit=300.0)
+    pool = workers()
+    time.sleep(3.0)  # both seeds running
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)  # a hang guard, not a speed check
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        for pid in pool:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        raise AssertionError("visitlab --workers 2 waited for its seeds after Ctrl-C") from None
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "interrupted" in err and "Traceback" not in err
+    assert not any(_alive(p) for p in pool)  # ended by the driver, not left to finish
     assert not (work / "v").exists()

@@ -5,6 +5,7 @@ draw the Voronoi cells."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +50,78 @@ def walks(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     collect(arena="table", states=root / "states.json", out=root / "mcl", transitions=16,
             seed=4, part_size=50, progress=False, pose_source="mcl")
     out["mcl"] = root / "mcl"
+    collect(arena="table", states=root / "states.json", out=root / "two", transitions=255,
+            seed=4, part_size=50, simulator="kinematic", progress=False, workers=2)
+    out["two"] = root / "two"
     return out
+
+
+def _assert_same_columns(a, b) -> None:
+    """Column for column: exact, but for times (whole nanoseconds in a bag) and yaws
+    (through a quaternion)."""
+    assert a.column_names == b.column_names and a.num_rows == b.num_rows
+    for name in a.column_names:
+        x, y = a.column(name).to_pylist(), b.column(name).to_pylist()
+        if name in ("t", "duration"):
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-9, err_msg=name)
+        elif name.startswith("yaw"):
+            d = (np.asarray(y) - np.asarray(x) + np.pi) % (2 * np.pi) - np.pi
+            assert np.abs(d).max() < 1e-12, name
+        else:
+            assert y == x, name
+
+
+def test_a_two_worker_dataset_comes_back_whole_and_exports_again(walks, tmp_path: Path,
+                                                                 capsys) -> None:
+    ds = walks["two"]
+    a = read_dataset(ds)
+    workers = a.column("worker").to_numpy()
+    assert a.num_rows == 255 and (workers == 0).sum() == 128 and (workers == 1).sum() == 127
+    assert main(["export-bag", str(ds), "--out", str(tmp_path / "bag"), "--no-scans"]) == 0
+    assert main(["import-bag", str(tmp_path / "bag"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "back")]) == 0
+    _assert_same_columns(a, read_dataset(tmp_path / "back"))
+    assert open_dataset(tmp_path / "back").manifest["workers"] == 2
+    # the imported dataset knows its arena: exported again without --arena, then imported
+    assert main(["export-bag", str(tmp_path / "back"), "--out", str(tmp_path / "bag2"),
+                 "--no-scans"]) == 0
+    assert main(["import-bag", str(tmp_path / "bag2"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "back2")]) == 0
+    _assert_same_columns(a, read_dataset(tmp_path / "back2"))
+    # one worker on request: worker 1's walk, as the one walk of the bag
+    assert main(["export-bag", str(ds), "--worker", "1", "--out", str(tmp_path / "bag1"),
+                 "--no-scans"]) == 0
+    assert main(["import-bag", str(tmp_path / "bag1"), "--states", str(walks["states"]),
+                 "--out", str(tmp_path / "one")]) == 0
+    one = read_dataset(tmp_path / "one")
+    mine = a.filter(a.column("worker").to_numpy() == 1)
+    assert one.num_rows == 127
+    np.testing.assert_array_equal(one.column("a").to_numpy(), mine.column("a").to_numpy())
+    np.testing.assert_allclose(one.column("t").to_numpy(), mine.column("t").to_numpy(),
+                               rtol=0, atol=1e-9)
+
+
+def test_walks_laid_end_to_end_restart_the_odometry_at_rest(walks, tmp_path: Path) -> None:
+    from simlab.ros.export import export_bag
+
+    export_bag(walks["two"], tmp_path / "bag", scans=False)
+    info = read_metadata(tmp_path / "bag")
+    offsets = [w["offset"] for w in json.loads(info["custom_data"]["simlab.walks"])]
+    assert offsets[0] == 0.0 and offsets[1] == int(offsets[1])  # whole seconds
+    back = read_bag(tmp_path / "bag", action_topic=None)
+    first = int(np.searchsorted(back.t, offsets[1]))
+    assert back.t[first - 1] + 1.0 <= back.t[first]  # a gap of at least a second
+    # the second walk starts from rest: no velocity across the jump between the walks
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    with Reader(tmp_path / "bag") as r:
+        odom = [ts.deserialize_cdr(raw, c.msgtype) for c, _, raw in
+                r.messages(connections=[c for c in r.connections if c.topic == "/odom"])]
+    twist = odom[first].twist
+    assert twist.twist.linear.x == 0.0 and twist.twist.angular.z == 0.0
+    assert not np.any(twist.covariance) and not np.any(odom[first].pose.covariance)
 
 
 @pytest.mark.parametrize("source", ["truth", "odometry", "mcl"])
@@ -256,15 +328,87 @@ def test_exported_frames_match_the_robot_urdf(walks, tmp_path: Path) -> None:
                     v, q = tr.transform.translation, tr.transform.rotation
                     assert (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0)
                     static[(tr.header.frame_id, tr.child_frame_id)] = (v.x, v.y, v.z)
-    assert set(static) == {("base_footprint", "base_link"), ("base_link", "base_scan")}
-    joints = {}
+    joints, fixed = {}, set()
     for joint in ET.parse(load_robot_spec().urdf_path).getroot().findall("joint"):
         key = (joint.find("parent").get("link"), joint.find("child").get("link"))
         origin = joint.find("origin")
         joints[key] = tuple(float(v) for v in origin.get("xyz").split())
         assert origin.get("rpy") in (None, "0 0 0")
+        if joint.get("type") == "fixed":
+            fixed.add(key)
+    # every fixed joint of the URDF: base_link, base_scan, the caster and the IMU
+    assert set(static) == fixed and {("base_link", "caster_back_link"),
+                                     ("base_link", "imu_link")} <= fixed
     for edge, xyz in static.items():
         assert xyz == pytest.approx(joints[edge], abs=1e-12), edge
+
+
+def test_the_bag_carries_every_frame_and_the_wheel_joint_states(walks, tmp_path: Path
+                                                                 ) -> None:
+    """Every link of the URDF has a transform in the bag (robot_state_publisher's whole
+    tree), and the wheels' /tf rotations are the /joint_states angles about the wheel axis,
+    which follow the motion: the left wheel turns (s - dyaw b/2) / r between samples."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+    from scipy.spatial.transform import Rotation
+
+    from simlab.physics.robot import load_robot_spec
+    from simlab.ros.export import export_bag
+
+    export_bag(walks["truth"], tmp_path / "bag", scans=False)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    children, wheel_tf, states = set(), [], []
+    with Reader(tmp_path / "bag") as r:
+        for c, _, raw in r.messages():
+            msg = ts.deserialize_cdr(raw, c.msgtype)
+            if c.topic in ("/tf", "/tf_static"):
+                children |= {tr.child_frame_id for tr in msg.transforms}
+                wheel_tf += [tr for tr in msg.transforms if tr.child_frame_id.startswith("wheel")]
+            elif c.topic == "/joint_states":
+                states.append(msg)
+    spec = load_robot_spec()
+    import xml.etree.ElementTree as ET
+
+    links = {x.get("name") for x in ET.parse(spec.urdf_path).getroot().findall("link")}
+    assert links - {"base_footprint"} <= children and "odom" in children
+    assert len(states) == len(wheel_tf) // 2 and len(states) > 100
+    assert list(states[0].name) == ["wheel_left_joint", "wheel_right_joint"]
+    angles = np.array([m.position for m in states])
+    for k, tr in enumerate(wheel_tf[:40]):  # left, right, left, ...
+        q = tr.transform.rotation
+        rotvec = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_rotvec()
+        expected = Rotation.from_rotvec([0.0, angles[k // 2, k % 2], 0.0]).as_rotvec()
+        np.testing.assert_allclose(rotvec, expected, atol=1e-9)
+    # the wheels follow the motion: their difference is the heading change, their sum the
+    # distance driven along the heading (turn in place, then drive: thesis primitives)
+    back = read_bag(tmp_path / "bag")
+    d = np.diff(back.pose, axis=0)
+    dyaw = (d[:, 2] + np.pi) % (2 * np.pi) - np.pi
+    drive = np.cos(back.pose[1:, 2]) * d[:, 0] + np.sin(back.pose[1:, 2]) * d[:, 1]
+    step = np.diff(angles, axis=0)
+    r, b = spec.wheel_radius, spec.wheel_separation
+    np.testing.assert_allclose((step[:, 1] - step[:, 0]) * r / b, dyaw, atol=1e-9)
+    np.testing.assert_allclose((step[:, 1] + step[:, 0]) * r / 2, drive, atol=1e-9)
+    assert np.abs(drive).max() > 0.05 and np.abs(dyaw).max() > 0.5  # it drove and turned
+
+
+def test_wheel_angles_of_a_hand_worked_turn_and_drive() -> None:
+    """A quarter turn left in place (2 s), then 0.5 m north (2 s), then a new walk: the left
+    wheel turns -pi/2 b/2 / r then +0.5 / r, the right +pi/2 b/2 / r then +0.5 / r."""
+    from simlab.ros.frames import wheel_angles
+
+    t = np.array([0.0, 2.0, 4.0, 10.0, 12.0])
+    odom = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, np.pi / 2], [0.0, 0.5, np.pi / 2],
+                     [1.0, 1.0, 0.0], [1.2, 1.0, 0.0]])
+    r, b = 0.033, 0.160
+    angles, rates = wheel_angles(t, odom, r, b, walk_starts=np.array([0, 3]))
+    turn = np.pi / 2 * b / 2 / r
+    np.testing.assert_allclose(angles[:3], [[0, 0], [-turn, turn],
+                                            [-turn + 0.5 / r, turn + 0.5 / r]], atol=1e-12)
+    np.testing.assert_allclose(rates[1], [-turn / 2, turn / 2], atol=1e-12)
+    # the second walk starts at rest from 0, not from the jump between the walks
+    np.testing.assert_allclose(angles[3:], [[0, 0], [0.2 / r, 0.2 / r]], atol=1e-12)
+    assert not rates[3].any()
 
 def test_a_foreign_bags_decisions_end_with_their_motion_not_at_the_next_action(
         tmp_path: Path) -> None:

@@ -293,7 +293,8 @@ def test_export_bag_config_file_and_command_line(tmp_path: Path, capsys) -> None
 
 def test_export_bag_help_shows_the_defaults(capsys, monkeypatch) -> None:
     blocks = _help("export-bag", capsys, monkeypatch)
-    assert "(default 0.02)" in blocks["--resolution"] and "(default 0)" in blocks["--worker"]
+    assert "(default 0.02)" in blocks["--resolution"]
+    assert "(default: every worker's" in blocks["--worker"]
     assert {"--out", "--arena", "--map", "--no-scans", "--overwrite", "--config"} <= set(blocks)
 
 

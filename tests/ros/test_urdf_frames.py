@@ -13,7 +13,8 @@ import numpy as np
 from simlab.physics.robot import load_robot_spec
 from simlab.physics.urdf_merge import merge_fixed_leaf_links
 
-FRAMES = {"caster_back_link": (-0.081, 0.0, -0.005), "imu_link": (-0.032, 0.0, 0.058)}
+#: ROBOTIS turtlebot3_description (turtlebot3_burger.urdf): caster_back_joint and imu_joint
+FRAMES = {"caster_back_link": (-0.081, 0.0, -0.005), "imu_link": (-0.032, 0.0, 0.068)}
 
 
 def _text() -> str:

@@ -158,3 +158,16 @@ def test_env_exposes_the_action_set_and_the_mask(tmp_path) -> None:
     assert load_mdp(tmp_path / "o.npz").action_set == SIMLAB16
     np.savez(tmp_path / "u.npz", T=T)
     assert load_mdp(tmp_path / "u.npz").action_set is None
+
+
+def test_text_render_shows_the_step_and_only_a_limit_that_is_the_envs(small_mdp_file,
+                                                                       small_mdp):
+    # the registered id leaves the limit to Gymnasium's TimeLimit: no "/None"
+    registered = gym.make("simlab/EmpiricalMDP-v0", mdp=str(small_mdp_file), goal="g1",
+                          render_mode="ansi")
+    registered.reset(seed=0, options={"state": 3})
+    s, *_ = registered.step(0)
+    assert registered.render() == f"t=1 state={s} goal=g1\n"
+    own = EmpiricalMDPEnv(small_mdp, "g1", horizon=12, render_mode="ansi")
+    own.reset(seed=0, options={"state": 3})
+    assert own.render() == "t=0/12 state=3 goal=g1\n"

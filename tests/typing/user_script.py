@@ -20,7 +20,7 @@ from simlab.base.actions import SIMLAB16, ActionSet, parse_action_set
 from simlab.base.errors import ConfigError, DataError
 from simlab.data.dataset import parts_path, read_dataset
 from simlab.data.mdp import EmpiricalMDP, load_mdp
-from simlab.envs.table_arena import TableArenaEnv
+from simlab.envs.table_arena import GoalTableArenaEnv
 
 
 def run_policy(q_file: Path, states: Path, goal: str, steps: int) -> float:
@@ -40,7 +40,7 @@ def run_policy(q_file: Path, states: Path, goal: str, steps: int) -> float:
 
 
 def goal_conditioned() -> tuple[float, ...]:
-    env = TableArenaEnv(goal_conditioned=True)
+    env = GoalTableArenaEnv()
     obs, info = env.reset(seed=1)
     reward = env.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
     env.close()
