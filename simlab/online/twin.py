@@ -55,7 +55,8 @@ CELL = 0.7
 class LabFiles:
     """A lab ready for the experiment: ``name``, its ``states`` file, ``arena`` TOML, the
     real ``model`` (counts, ISIR JSON), the after-change models per task (``after``), the
-    protocol's ``goal``, ``start_states``, ``new_goal``, ``passages`` and ``change_at``
+    protocol's ``goal``, ``start_states``, ``new_goal``, ``passages`` (with the state
+    counting the use of each: published 19 towards 20-21, 7 towards 6-7) and ``change_at``
     (0-based), and ``real_hours`` of robot time behind the model."""
 
     name: str
@@ -67,6 +68,7 @@ class LabFiles:
     start_states: tuple[int, ...] = (0, 32)
     new_goal: tuple[int, ...] = (34,)
     passages: tuple[str, ...] = ("20-21", "6-7")
+    use_states: tuple[int, ...] = (19, 7)
     change_at: int = 1600
     real_hours: float = 13.0
 
@@ -105,7 +107,7 @@ def real_lab(folder: Path, out: Path) -> LabFiles:
         raise ConfigError(f"not a lab folder: {', '.join(missing)} missing", path=folder,
                           key="params.lab", fix="give the folder of the lab's public data")
     out.mkdir(parents=True, exist_ok=True)
-    discretize_command(DiscretizeConfig(map_yaml=folder / "mymap.yaml", out=out / "states.json",
+    discretize_command(DiscretizeConfig(map=folder / "mymap.yaml", out=out / "states.json",
                                         centres=folder / "voronoiCenters_exp.dat", flip_y=True,
                                         png=None))
     arena_from_map(ArenaFromMapConfig(map_yaml=folder / "mymap.yaml", out=out / "lab.toml",
@@ -149,8 +151,9 @@ def stand_in_lab(out: Path, seed: int) -> LabFiles:
     counts = corridor_counts(np.random.default_rng(seed))
     atomic_write_text(out / MODEL, json.dumps(isir_document(
         counts, note="synthetic stand-in (simlab.online.synthetic)")))
+    # the passages' counting states: the doors' own cells on the start side
     return LabFiles(name="stand-in lab (simlab.online.synthetic)", states=out / "states.json",
-                    arena=out / "lab.toml", model=out / MODEL)
+                    arena=out / "lab.toml", model=out / MODEL, use_states=(20, 6))
 
 
 def _mdp(model: Path, out: Path) -> Path:
@@ -190,18 +193,24 @@ def _twin_primitives(p: dict[str, Any], budget: dict[str, Any], lab: LabFiles,
     return out / "primitives.toml"
 
 
-def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Path]
+def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any]
                   ) -> dict[str, Any]:
-    """The ``simlab online`` options of one task on the real model (``real``) or in the twin."""
-    if task == "stable":
-        return {}
+    """The ``simlab online`` options of one task on the real model (``real``) or in the
+    twin. On the real model a change swaps in the lab's after-change models when it has
+    them (the published protocol: the goal's model, or one model per passage of which the
+    more used passage's happens, counted by decisions in ``use_states``); in the twin the
+    goal moves, or a box closes the more used passage's doorway."""
     opts: dict[str, Any] = {"change_at": lab.change_at}
     if task == "goal":
         opts.update(change="goal", new_goal=list(lab.new_goal))
-    else:
-        opts.update(change="passages", passages=list(lab.passages))
-    if real and task in mdps:
-        opts["after"] = [str(mdps[task])] if task == "goal" else [str(p) for p in mdps[task]]
+        if real and "goal" in mdps:
+            opts["after"] = [str(mdps["goal"][0])]
+    elif task == "passages":
+        opts.update(use_states=list(lab.use_states))
+        if real and "passages" in mdps:
+            opts.update(change="model", after=[str(p) for p in mdps["passages"]])
+        else:
+            opts.update(change="passages", passages=list(lab.passages))
     return opts
 
 
@@ -302,7 +311,6 @@ def twin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
     for task, files in lab.after.items():
         mdps[task] = tuple(_mdp(f, ctx.out / "mdp" / f"{task}_{i}.npz")
                            for i, f in enumerate(files))
-    mdps = {k: (v[0] if isinstance(v, tuple) and k == "goal" else v) for k, v in mdps.items()}
     common = {k: p[k] for k in ("criteria", "kappas", "protocol") if k in p}
     common.update(goal=list(lab.goal), start_states=list(lab.start_states),
                   seeds=int(budget["seeds"]), decisions=int(p.get("decisions", 3200)),
