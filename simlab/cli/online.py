@@ -1,4 +1,5 @@
-"""``simlab online``: agents learning while they act; MB/MF meta-control on an empirical MDP.
+"""``simlab online``: agents learning while they act; MB/MF meta-control on an empirical MDP
+or in physics on an arena (:mod:`simlab.online.arena`).
 
 The options are the fields of :class:`simlab.online.command.OnlineConfig`.
 """
@@ -7,7 +8,8 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "learn online on an empirical MDP with MB/MF meta-control (criteria, costs, changes)"
+HELP = ("learn online with MB/MF meta-control (criteria, costs, changes) on an empirical MDP, "
+        "or in physics on an arena")
 MEMORY_FIX = "fewer --seeds or --decisions, fewer --criteria or --kappas, or --no-plots"
 
 

@@ -182,6 +182,41 @@ class PhysicsWalker:
         self._noise_rng = source_rng
         self._last_pose = None
 
+    def place(self, pose: NDArray[np.float64], source_rng: np.random.Generator) -> None:
+        """Carry the robot to ``pose`` (truth, (3,)) in the running world and put it down
+        at rest, keeping every body added since the last :meth:`reset` (an episode's
+        restart: the robot is set down at a start and its localization restarts there, as
+        AMCL is given the pose it was put down at). Unlike :meth:`reset` no time or
+        contact state is rebuilt; the next reading is drawn afresh."""
+        self.world.set_pose(np.asarray(pose, dtype=np.float64))
+        self.source.reset(self.world, source_rng)
+        self.driver.scan_beams = getattr(self.source, "scan_beams", None)
+        self._noise_rng = source_rng
+        self._last_pose = None
+
+    def believed_pose(self) -> NDArray[np.float64]:
+        """The pose (3,) the robot believes it is at now, between two primitives: the
+        reading the next transition starts from (drawn now if none is held, from the
+        pose-source Generator, in the order :meth:`step` would draw it), else the pose
+        source's estimate."""
+        if self._pose_noise:
+            assert self._noise_rng is not None, "reset() first"
+            if self._last_pose is None:
+                base = (self.world.pose() if self._localized
+                        else self._source_now())
+                self._last_pose = self._noisy_pose(np.asarray(base, dtype=np.float64),
+                                                   self.params, self._noise_rng)
+            return self._last_pose
+        return self._source_now()
+
+    def _source_now(self) -> NDArray[np.float64]:
+        tracker = getattr(self.source, "tracker", None)
+        if tracker is not None:  # the particle filter's estimate
+            return np.asarray(tracker.pose(None), dtype=np.float64)
+        if isinstance(self.source, OdometryPose):
+            return np.asarray(self.world.odometry(), dtype=np.float64)
+        return np.asarray(self.world.pose(), dtype=np.float64)
+
     def step(self, action: int, rng: np.random.Generator) -> StepOutcome:
         if self._localized:
             return self._localized_step(action, rng)

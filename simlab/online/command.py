@@ -88,7 +88,8 @@ import numpy as np
 
 from simlab.base import validation as v
 from simlab.base.errors import ConfigError
-from simlab.base.options import CommandConfig, command, option
+from simlab.base.options import command, option
+from simlab.online.arena import PHYSICS_FILES, ArenaOptions
 from simlab.online.meta import AGENT_RULES, CRITERIA, TIES
 from simlab.online.protocol import FIRST_STATES, PASSAGE_CHOICES, PROTOCOLS, RESETS, Protocol
 
@@ -142,13 +143,16 @@ def _expert_config(name: str, defaults: dict[str, Any], params: Any, key: str) -
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class OnlineConfig(CommandConfig):
-    """Options of ``simlab online`` / :func:`online` (module docstring)."""
+class OnlineConfig(ArenaOptions):
+    """Options of ``simlab online`` / :func:`online` (module docstring; the physics options
+    of :class:`~simlab.online.arena.ArenaOptions`)."""
 
     COMMAND = "online"
+    ARGUMENTS = ("mdp",)
 
-    mdp: Any = option(help="mdp.npz written by simlab estimate (Python: or an EmpiricalMDP)",
-                      positional=True, parse=Path)
+    mdp: Any | None = option(None, "mdp.npz written by simlab estimate (Python: or an "
+                             "EmpiricalMDP); or --arena to learn in physics", positional=True,
+                             parse=Path)
     out: Path | None = option(None, "output directory (required; Python: None writes "
                               "nothing)")
     criteria: tuple[str, ...] = option(
@@ -257,6 +261,16 @@ class OnlineConfig(CommandConfig):
     progress: bool = option(True, "progress bar (--no-progress hides it)")
 
     def validate(self) -> None:
+        if (self.mdp is None) == (self.arena is None):
+            raise ConfigError("give exactly one world: an MDP file or --arena",
+                              key="mdp", fix="simlab online mdp.npz ..., or simlab online "
+                              "--arena lab.toml --states states.json ...")
+        self.check_arena_options()
+        if self.arena is not None and (self.after or self.change == "model"):
+            raise ConfigError("a run in physics changes its world itself (a goal change, "
+                              "boxes on closed passages), not by a model", key="after",
+                              fix="use --change goal or --change passages, or learn on an "
+                              "MDP")
         v.whole(self.decisions, "decisions", minimum=1)
         v.whole(self.seeds, "seeds", minimum=1)
         v.whole(self.seed, "seed")
@@ -432,9 +446,64 @@ class OnlineResult:
     seconds: float
 
 
+@dataclasses.dataclass(frozen=True)
+class _World:
+    """What the arms run on: ``info`` (``source``, ``n_states``, ``n_actions`` of the MDP
+    or the physics lab), the ``task``, the ``jobs`` (keyword arguments per run) and the job
+    function ``run``; ``lab`` the physics lab (None on an MDP)."""
+
+    info: Any
+    task: Any
+    jobs: list[dict[str, Any]]
+    run: Any
+    lab: Any = None
+
+
+def _mdp_world(cfg: OnlineConfig, arms: list[tuple[str, str, float]], seeds: list[Any],
+               mf_cfg: Any, mb_cfg: Any) -> _World:
+    from simlab.data.mdp import EmpiricalMDP, load_mdp
+
+    m = cfg.mdp if isinstance(cfg.mdp, EmpiricalMDP) else load_mdp(v.existing_file(
+        cfg.mdp, "mdp", what="MDP file"))
+    after, names = _after_models(cfg, m)
+    task = cfg.task(after, names)
+    task.compile(m.T, source=m.source)  # state ids checked before any work
+    rules = cfg.loop_rules()
+    jobs = [dict(T=np.asarray(m.T), task=task, mf_config=mf_cfg, mb_config=mb_cfg,
+                 arbitration=cfg.arbitration(crit, kappa), valid=m.valid,
+                 decisions=cfg.decisions, seed=seeds[i], rules=rules)
+            for _, crit, kappa in arms for i in range(cfg.seeds)]
+    return _World(m, task, jobs, run_arm)
+
+
+def _physics_world(cfg: OnlineConfig, arms: list[tuple[str, str, float]], seeds: list[Any],
+                   mf_cfg: Any, mb_cfg: Any) -> _World:
+    from types import SimpleNamespace
+
+    from simlab.online.arena import PhysicsJob, physics_lab, physics_task, run_physics_job
+
+    lab = physics_lab(cfg)
+    task = physics_task(cfg, lab)
+    rules = cfg.loop_rules()
+    jobs = [dict(job=PhysicsJob(lab, task, mf_cfg, mb_cfg, cfg.arbitration(crit, kappa), rules),
+                 seed=seeds[i]) for _, crit, kappa in arms for i in range(cfg.seeds)]
+    source = cfg.arena if isinstance(cfg.arena, str | Path) else lab.arena.name
+    info = SimpleNamespace(source=str(source), n_states=lab.n_states, n_actions=lab.n_actions)
+    return _World(info, task, jobs, run_physics_job, lab)
+
+
+def _run_jobs(cfg: OnlineConfig, world: _World, ex: Any) -> list[Any]:
+    if world.lab is None:
+        return ex.map(run_arm, world.jobs, desc="online runs", progress=cfg.progress)
+    from simlab.online.arena import run_physics_jobs
+
+    return run_physics_jobs(world.jobs, ex, cfg.progress, len(world.jobs) * cfg.decisions)
+
+
 @command(OnlineConfig, extras=("executor",))
 def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
-    """Run every arm of ``cfg`` on its MDP and write the outputs (module docstring).
+    """Run every arm of ``cfg`` on its MDP, or in physics on its arena, and write the
+    outputs (module docstring; :mod:`simlab.online.arena`).
 
     ``executor`` (Python only): a :mod:`simlab.base.parallel` executor the runs go to (e.g. the
     one of ``simlab reproduce``); default: one of ``backend`` / ``workers``, closed after.
@@ -443,59 +512,58 @@ def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
 
     from simlab.base.io import output_transaction
     from simlab.base.parallel import make_executor
-    from simlab.data.mdp import EmpiricalMDP, load_mdp
     from simlab.online.report import owned_by_online
 
     t0 = time.perf_counter()
-    m = cfg.mdp if isinstance(cfg.mdp, EmpiricalMDP) else load_mdp(v.existing_file(
-        cfg.mdp, "mdp", what="MDP file"))
-    after, names = _after_models(cfg, m)
-    task = cfg.task(after, names)
-    task.compile(m.T, source=m.source)  # state ids checked before any work
     mf_cfg, mb_cfg = cfg.expert_configs()
     arms = arm_names(cfg.criteria, cfg.kappas)
+    seeds = np.random.SeedSequence(cfg.seed).spawn(cfg.seeds)
+    world = (_physics_world if cfg.in_physics else _mdp_world)(cfg, arms, seeds, mf_cfg,
+                                                               mb_cfg)
+    m = world.info
     out = cfg.out
+    every = FILES + PHYSICS_FILES if world.lab is not None else FILES
     finals: dict[str, Path] = {}
     if out is not None:
-        names = FILES if cfg.plots else tuple(f for f in FILES if f not in _PLOTS)
+        names = every if cfg.plots else tuple(f for f in every if f in FILES
+                                              and f not in _PLOTS)
         finals = {n: Path(out) / n for n in names}
         if m.source is not None and any(Path(m.source).resolve() == p.resolve()
                                         for p in finals.values()):
-            raise ConfigError("an output would replace the input MDP", path=m.source,
+            raise ConfigError("an output would replace an input file", path=m.source,
                               key="out", fix="choose another --out")
         if cfg.overwrite and any(p.exists() for p in finals.values()) \
                 and not owned_by_online(Path(out)):
             raise ConfigError("--overwrite replaces only the outputs of an earlier simlab "
                               "online (its summary.json is missing or not ours)", path=out,
                               key="overwrite", fix="choose another --out")
-    seeds = np.random.SeedSequence(cfg.seed).spawn(cfg.seeds)
-    rules = cfg.loop_rules()
-    jobs = [dict(T=np.asarray(m.T), task=task, mf_config=mf_cfg, mb_config=mb_cfg,
-                 arbitration=cfg.arbitration(crit, kappa), valid=m.valid,
-                 decisions=cfg.decisions, seed=seeds[i], rules=rules)
-            for _, crit, kappa in arms for i in range(cfg.seeds)]
     with contextlib.ExitStack() as stack:
         txn = None
         if out is not None:  # refuses existing outputs and takes the lock before the runs
             txn = stack.enter_context(output_transaction(out, finals.values(),
                                                          overwrite=cfg.overwrite))
             if cfg.overwrite and owned_by_online(Path(out)):
-                for name in sorted(set(FILES) - set(finals)):  # the ones not written again
-                    txn.retire(Path(out) / name)
+                for name in sorted(set(FILES + PHYSICS_FILES) - set(finals)):
+                    txn.retire(Path(out) / name)  # the ones not written again
         if executor is not None:
-            results = executor.map(run_arm, jobs, desc="online runs", progress=cfg.progress)
+            results = _run_jobs(cfg, world, executor)
         else:
             # Ray runs on its cluster's CPUs: --workers is for the local pool (as collect)
             workers = None if cfg.backend == "ray" else cfg.workers
             with make_executor(cfg.backend, workers=workers, in_process_single=True) as ex:
-                results = ex.map(run_arm, jobs, desc="online runs", progress=cfg.progress)
+                results = _run_jobs(cfg, world, ex)
         logs = {name: results[j * cfg.seeds:(j + 1) * cfg.seeds]
                 for j, (name, _, _) in enumerate(arms)}
         from simlab.online.report import summarize, write_outputs
 
-        summary = summarize(logs, cfg, task, m, mf_cfg, mb_cfg)
+        summary = summarize(logs, cfg, world.task, m, mf_cfg, mb_cfg)
+        if world.lab is not None:
+            from simlab.online.arena import physics_summary
+
+            at = world.task.changes[0].at if world.task.changes else None
+            summary["physics"] = physics_summary(logs, at)
         summary["seconds"] = round(time.perf_counter() - t0, 3)
         if txn is not None:
-            write_outputs(txn, finals, logs, summary, cfg)
+            write_outputs(txn, finals, logs, summary, cfg, lab=world.lab, task=world.task)
     return OnlineResult(logs=logs, summary=summary, files=finals,
                         seconds=time.perf_counter() - t0)

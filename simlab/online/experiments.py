@@ -139,15 +139,15 @@ def lattice_states(arena: Any, lattice: int) -> Any:
 
 def physics_run(arm: PhysicsArm, seed: np.random.SeedSequence) -> dict[str, np.ndarray]:
     """One physics run (a parallel job): its own world and states, the arm's task."""
-    from simlab.online.physics import RunStreams, run_physics_online
-    from simlab.physics.world import World
+    from simlab.online.physics import PhysicsLab, RunStreams, run_physics_online
+    from simlab.physics.arena import load_arena
+    from simlab.physics.motion import PrimitiveParams
 
-    with World(arm.arena) as world:
-        disc = lattice_states(world.arena, arm.lattice)
-        agent = arm.arbitration.agent(arm.mf_config, arm.mb_config, disc.n_states, 16)
-        run = run_physics_online(agent, world, disc, arm.task, RunStreams.from_seed(seed))
-    cols = run.log.columns()
-    cols["blocked"] = run.blocked
+    arena = load_arena(arm.arena)
+    lab = PhysicsLab(arena, lattice_states(arena, arm.lattice), PrimitiveParams())
+    agent = arm.arbitration.agent(arm.mf_config, arm.mb_config, lab.n_states, lab.n_actions)
+    run = run_physics_online(agent, lab, arm.task, RunStreams.from_seed(seed))
+    cols = run.columns()
     cols["robot_seconds"] = np.array([run.robot_seconds])
     return cols
 
@@ -282,3 +282,7 @@ def physics(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> 
              "self-loops), not from the agents' own transitions."]
     return RunResult(metrics=metrics, figures=[pth for k, pth in res.files.items()
                                                if k.endswith(".png")], notes=notes)
+
+
+# The twin experiment's runner lives in its own module; importing it registers it.
+from simlab.online import twin as _twin  # noqa: E402, F401

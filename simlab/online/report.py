@@ -62,6 +62,11 @@ DECISION_DOCS: dict[str, tuple[str, str]] = {
     "reward": ("1", "reward of the decision (on arriving in s_next)"),
     "phase": ("1", "task phase: 0 before the change, then the change (the alternative "
                    "chosen by use)"),
+    # a run in physics (simlab online --arena)
+    "blocked": ("1", "the obstacle detector stopped the primitive before it drove"),
+    "duration": ("s", "simulated time of the decision: the primitive and the decision latency"),
+    "x": ("m", "true x of the robot after the decision (map frame)"),
+    "y": ("m", "true y of the robot after the decision (map frame)"),
 }
 
 
@@ -75,7 +80,7 @@ def _ms(x: np.ndarray) -> dict[str, float]:
     return {"mean": float(np.mean(x)), "std": float(np.std(x))}
 
 
-def _windows(x: np.ndarray, w: int) -> np.ndarray:
+def windows(x: np.ndarray, w: int) -> np.ndarray:
     """(runs, n) -> (runs, ceil(n / w)) means per window."""
     runs, n = x.shape
     k = -(-n // w)
@@ -117,7 +122,7 @@ def summarize(logs: dict[str, list[dict[str, np.ndarray]]], cfg: Any, task: Any,
         rec: dict[str, Any] = {
             "reward": _ms(r.sum(1)), "backups": _ms(b.sum(1)), "seconds": _ms(sec.sum(1)),
             "mb_share": float(e.mean()),
-            "mb_share_windows": [round(float(x), 4) for x in _windows(e, cfg.window).mean(0)],
+            "mb_share_windows": [round(float(x), 4) for x in windows(e, cfg.window).mean(0)],
         }
         totals[name] = {"b": b.sum(1), "s": sec.sum(1)}
         if at is not None:
@@ -165,7 +170,7 @@ def summarize(logs: dict[str, list[dict[str, np.ndarray]]], cfg: Any, task: Any,
 def _alternatives(task: Any) -> list[str]:
     """Labels of the alternatives of the task's change chosen by use (empty: none)."""
     c = task.changes[-1] if task.changes else None
-    if c is None or not getattr(c, "use_states", ()):  # (a physics task has none)
+    if c is None or not c.use_states:
         return []
     if c.kind == "model":
         return list(c.names) or [f"model {k + 1}" for k in range(len(c.after))]
@@ -223,7 +228,24 @@ def _markdown(summary: dict[str, Any]) -> str:
     lines += ["", "Costs are planning costs of the deciding expert, and of both experts at a "
               "state's first visit when both plan there (value-iteration backups; wall-clock "
               "seconds beside them), relative to MB deciding alone."]
+    if "physics" in summary:
+        lines += _physics_markdown(summary["physics"], change)
     return "\n".join(lines) + "\n"
+
+
+def _physics_markdown(phys: dict[str, Any], change: bool) -> list[str]:
+    lines = ["", "## In physics", "",
+             "| arm | blocked primitives | before / after the change | simulated hours per "
+             "run | decisions per wall second |", "|---|---|---|---|---|"]
+    for name, a in phys["arms"].items():
+        split = (f"{a['blocked_before']:.3f} / {a['blocked_after']:.3f}" if change else "-")
+        lines.append(f"| {name} | {a['blocked']:.3f} | {split} | "
+                     f"{a['robot_hours']['mean']:.2f} | {a['decisions_per_wall_second']:.0f} |")
+    for box in phys["boxes"]:
+        x, y, sx, sy, yaw = box
+        lines.append(f"\nBox added: centre ({x:.2f}, {y:.2f}) m, {sx:.2f} x {sy:.2f} m, yaw "
+                     f"{np.degrees(yaw):.0f} degrees.")
+    return lines
 
 
 def _protocol_line(protocol: dict[str, Any]) -> str:
@@ -258,7 +280,7 @@ def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, An
                 # a cumulative sum is >= 0: the band of one std is clipped there
                 ax.fill_between(t, np.maximum(mean - std, 0.0), mean + std, alpha=0.15)
             else:
-                y = _windows(x, window).mean(0)
+                y = windows(x, window).mean(0)
                 t = (np.arange(y.shape[0]) + 0.5) * window
                 ax.plot(t, y, marker="o", ms=3, label=name)
         if at is not None:
@@ -275,13 +297,17 @@ def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, An
 
 
 def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[str, np.ndarray]]],
-                  summary: dict[str, Any], cfg: Any) -> None:
-    """Write every output to its staged path of the transaction ``txn``."""
+                  summary: dict[str, Any], cfg: Any, *, lab: Any = None, task: Any = None
+                  ) -> None:
+    """Write every output to its staged path of the transaction ``txn``; a run in physics
+    (``lab`` and ``task`` given) adds its per-decision columns and figures
+    (:mod:`simlab.online.arena`)."""
     import json
 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    from simlab.online.arena import PHYSICS_RUN_FIELDS
     from simlab.online.loop import RUN_FIELDS
 
     cols: dict[str, list[np.ndarray]] = {}
@@ -291,7 +317,7 @@ def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[s
             extra = {"arm": np.full(n, name, dtype=object), "seed": np.full(n, i, np.int32),
                      "t": np.arange(n, dtype=np.int32)}
             for k, val in {**extra, **lg}.items():
-                if k in RUN_FIELDS:
+                if k in RUN_FIELDS or k in PHYSICS_RUN_FIELDS:
                     continue
                 if k == "expert":
                     val = np.where(val == 1, "MB", "MF").astype(object)
@@ -308,7 +334,12 @@ def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[s
     with atomic_write(txn.path(finals["decisions.parquet"]), "wb") as fh:
         pq.write_table(table, fh)
     if cfg.plots:
-        for fname, data in _figures(logs, summary, cfg.window).items():
+        figures = _figures(logs, summary, cfg.window)
+        if lab is not None:
+            from simlab.online.arena import physics_figures
+
+            figures.update(physics_figures(logs, lab, task, cfg.window))
+        for fname, data in figures.items():
             atomic_write_bytes(txn.path(finals[fname]), data)
     summary = {**summary, "files": {k: str(p) for k, p in finals.items()}}
     atomic_write_json(txn.path(finals["summary.json"]), summary)

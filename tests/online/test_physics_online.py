@@ -8,8 +8,15 @@ import pytest
 from discretize.voronoi import Discretizer
 from simlab.base.errors import ConfigError
 from simlab.online import meta
-from simlab.online.physics import PhysicsChange, PhysicsTask, RunStreams, run_physics_online
-from simlab.physics.world import World
+from simlab.online.physics import (
+    PhysicsChange,
+    PhysicsLab,
+    PhysicsTask,
+    RunStreams,
+    run_physics_online,
+)
+from simlab.physics.arena import load_arena
+from simlab.physics.motion import PrimitiveParams
 
 
 def _lattice() -> Discretizer:
@@ -17,21 +24,23 @@ def _lattice() -> Discretizer:
     return Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g]))
 
 
+def _lab() -> PhysicsLab:
+    return PhysicsLab(load_arena("table"), _lattice(), PrimitiveParams())
+
+
 def _run(experts, criterion: str, n: int, changes=(), seed: int = 0, **task):
     mf, mb = experts
     ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration(criterion=criterion))
-    with World("table") as world:
-        run = run_physics_online(ag, world, _lattice(),
-                                 PhysicsTask((11, 12, 13), (6, 7, 8), n, changes, **task),
-                                 RunStreams.from_seed(np.random.SeedSequence(seed)))
-        bodies = list(world.static_bodies)
-    return ag, run, bodies
+    run = run_physics_online(ag, _lab(), PhysicsTask((11, 12, 13), (6, 7, 8), n, changes,
+                                                     **task),
+                             RunStreams.from_seed(np.random.SeedSequence(seed)))
+    return ag, run
 
 
 def test_transitions_rewards_and_the_passive_observer(experts) -> None:
     changes = (PhysicsChange(12, "goal", goal=(0,)), PhysicsChange(20, "box",
                                                                    box=(0.0, -0.3, 0.4, 0.05)))
-    ag, run, bodies = _run(experts, "mb", 30, changes)
+    ag, run = _run(experts, "mb", 30, changes)
     log = run.log
     assert np.all(log.expert == meta.EXPERT_MB)
     assert list(log.phase[[0, 11, 12, 19, 20, 29]]) == [0, 0, 1, 1, 2, 2]
@@ -40,7 +49,7 @@ def test_transitions_rewards_and_the_passive_observer(experts) -> None:
     cont = np.flatnonzero(log.reward[:-1] == 0)
     np.testing.assert_array_equal(log.s[cont + 1], log.s_next[cont])  # no reward: go on
     assert np.all(np.isin(log.s[np.flatnonzero(log.reward[:-1] > 0) + 1], (6, 7, 8)))
-    assert run.boxes and run.boxes[0] in bodies  # the box was added to the world
+    assert run.boxes == [(0.0, -0.3, 0.4, 0.05, 0.0)]  # the box was added to the world
     assert run.robot_seconds > 0 and np.all(log.backups >= 0)
     # MF learned exactly by Q-learning on the transitions MB decided
     Q = np.full((25, 16), 1 / 1.9)
@@ -52,8 +61,8 @@ def test_transitions_rewards_and_the_passive_observer(experts) -> None:
 
 
 def test_same_seed_same_run(experts) -> None:
-    _, a, _ = _run(experts, "entropy_and_cost", 12, seed=3)
-    _, b, _ = _run(experts, "entropy_and_cost", 12, seed=3)
+    _, a = _run(experts, "entropy_and_cost", 12, seed=3)
+    _, b = _run(experts, "entropy_and_cost", 12, seed=3)
     for col, x in a.log.columns().items():
         if col != "seconds":
             np.testing.assert_array_equal(x, b.log.columns()[col], err_msg=col)
@@ -63,13 +72,12 @@ def test_same_seed_same_run(experts) -> None:
 def test_bad_sizes_are_refused(experts) -> None:
     mf, mb = experts
     streams = RunStreams.from_seed(np.random.SeedSequence(0))
-    with World("table") as world:
-        with pytest.raises(ConfigError, match="expected \\(25, 16\\)"):
-            run_physics_online(meta.make_meta_agent(mf, mb, 10, 16), world, _lattice(),
-                               PhysicsTask((1,), (0,), 1), streams)
-        with pytest.raises(ConfigError, match="goal"):
-            run_physics_online(meta.make_meta_agent(mf, mb, 25, 16), world, _lattice(),
-                               PhysicsTask((30,), (0,), 1), streams)
+    with pytest.raises(ConfigError, match="expected \\(25, 16\\)"):
+        run_physics_online(meta.make_meta_agent(mf, mb, 10, 16), _lab(),
+                           PhysicsTask((1,), (0,), 1), streams)
+    with pytest.raises(ConfigError, match="goal"):
+        run_physics_online(meta.make_meta_agent(mf, mb, 25, 16), _lab(),
+                           PhysicsTask((30,), (0,), 1), streams)
     with pytest.raises(ConfigError, match="pose_source"):
         PhysicsTask((1,), (0,), 1, pose_source="gps")
     with pytest.raises(ConfigError, match="mcl_map"):
@@ -83,7 +91,7 @@ def test_the_mcl_map_follows_the_box_or_stays_stale(experts, mcl_map, inside) ->
     there); in the stale map it is the distance to the nearest wall of the empty table
     (the box's centre is 0.45 m from the table's 0.75 m half-width walls, no closer)."""
     box = (0.0, -0.3, 0.4, 0.2)
-    _, run, _ = _run(experts, "mb", 4, (PhysicsChange(2, "box", box=box),),
+    _, run = _run(experts, "mb", 4, (PhysicsChange(2, "box", box=box),),
                      pose_source="mcl", mcl_map=mcl_map)
     f = run.mcl_field
     row, col = f.map.world_to_pixel(np.array(box[:2]))

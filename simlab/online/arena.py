@@ -1,0 +1,351 @@
+"""``simlab online --arena``: the online experiment in physics, on an arena as on an MDP.
+
+The options of :class:`ArenaOptions` (a field group of
+:class:`~simlab.online.command.OnlineConfig`) name the robot's world: an ``arena`` (a
+built-in name or the TOML of ``simlab arena-from-map``), its ``states`` (``simlab
+discretize``), the primitives (``--primitives`` the ``primitives.toml`` of ``simlab
+calibrate``, or the direct flags), the robot's action set (``--n-actions 8 --convention
+ccw-east --speed fast`` for a real lab's 8 actions) and the pose source (``truth``, which
+carries the calibrated twin's own localization error when its primitives have one, or
+``mcl``). Every run of every arm drives its own world (:mod:`simlab.online.physics`) in a
+worker process; the outputs are those of the MDP runs plus the physics' own figures.
+
+Decisions: the passages of ``--change passages`` are closed by boxes on their doorways
+(:mod:`simlab.online.doorway`); ``--after`` (a second model) has no physics meaning and is
+refused. Progress counts decisions over every run (workers report every
+:data:`REPORT_EVERY` decisions).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab.base.actions import ActionSetOptions
+from simlab.base.errors import ConfigError
+from simlab.base.options import option
+from simlab.physics.primitive_options import PrimitiveOptions
+
+__all__ = [
+    "PHYSICS_FILES",
+    "ArenaOptions",
+    "PhysicsJob",
+    "physics_figures",
+    "physics_lab",
+    "physics_summary",
+    "physics_task",
+    "run_physics_job",
+    "run_physics_jobs",
+]
+
+#: Decisions between two progress reports of a worker.
+REPORT_EVERY = 25
+#: The physics runs' own figures, beside the MDP runs' outputs.
+PHYSICS_FILES = ("physics.png", "visits.png")
+#: What a physics run returns per run, not per decision (not columns of decisions.parquet).
+PHYSICS_RUN_FIELDS = ("wall_seconds", "boxes")
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class ArenaOptions(ActionSetOptions, PrimitiveOptions):
+    """Where ``simlab online`` runs in physics (module docstring): arena, states, pose."""
+
+    arena: Any | None = option(
+        None, "learn in physics on this arena (built-in name or the .toml of simlab "
+        "arena-from-map) instead of an MDP; needs --states", metavar="ARENA")
+    states: Any | None = option(None, "states file of the arena (simlab discretize); the "
+                                "goal and start states are its states")
+    pose_source: str = option("truth", "pose the states are read from in physics: truth "
+                              "(with the primitives' localization error, if any) or mcl "
+                              "(a particle filter on the arena's map)", choices=("truth", "mcl"))
+    mcl_map: str = option("updated", "in physics with --pose-source mcl, the filter's map "
+                          "after a box is added: updated (it knows the box) or stale",
+                          choices=("updated", "stale"))
+    map: Path | None = option(None, "map_server YAML the particle filter localizes on "
+                              "(--pose-source mcl; default: the arena's own walls)")
+
+    @property
+    def in_physics(self) -> bool:
+        return self.arena is not None
+
+    def check_arena_options(self) -> None:
+        """:class:`ConfigError` for arena options given without an arena (and the reverse)."""
+        if self.arena is None:
+            given = [k for k in ("states", "map") if getattr(self, k) is not None]
+            if self.primitive_options_given:
+                given.append("primitives")
+            if self.action_set_given:
+                given.append("n_actions")
+            if self.pose_source != "truth" or self.mcl_map != "updated":
+                given.append("pose_source")
+            if given:
+                raise ConfigError(f"--{given[0].replace('_', '-')} applies to a run in "
+                                  "physics only", key=given[0],
+                                  fix="add --arena ARENA --states STATES, or drop it")
+            return
+        if self.states is None:
+            raise ConfigError("a run in physics needs the arena's states", key="states",
+                              fix="--states states.json (written by simlab discretize)")
+        if self.map is not None and self.pose_source != "mcl":
+            raise ConfigError("--map is the particle filter's map", key="map",
+                              fix="add --pose-source mcl or drop --map")
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsJob:
+    """One physics run's settings (they travel together to the worker): the
+    :class:`~simlab.online.physics.PhysicsLab`, the
+    :class:`~simlab.online.physics.PhysicsTask`, the experts' agent configs, the
+    :class:`~simlab.online.meta.Arbitration` and the environment's
+    :data:`~simlab.online.protocol.LoopRules`."""
+
+    lab: Any
+    task: Any
+    mf_config: Any
+    mb_config: Any
+    arbitration: Any
+    rules: Any = None
+
+
+def physics_lab(cfg: Any) -> Any:
+    """The :class:`~simlab.online.physics.PhysicsLab` of ``cfg``'s arena options; the
+    states are checked against the arena (centres off the floor are a warning)."""
+    import os
+
+    from discretize.voronoi import load_states
+    from simlab.base.statecheck import check_centres_in_arena
+    from simlab.online.physics import PhysicsLab
+    from simlab.physics.arena import load_arena
+    from simlab.physics.motion import PrimitiveParams
+
+    arena = load_arena(cfg.arena)
+    states = cfg.states
+    disc = load_states(states) if isinstance(states, str | os.PathLike) else states
+    check_centres_in_arena(np.asarray(disc.centres, dtype=float), arena,
+                           source=str(states) if isinstance(states, str | os.PathLike)
+                           else None)
+    params = cfg.primitive_params() or PrimitiveParams()
+    aset = cfg.make_action_set()
+    options = {} if cfg.map is None else {"map": str(cfg.map)}
+    return PhysicsLab(arena, disc, params, tuple(int(p) for p in aset.primitives()), options)
+
+
+def physics_task(cfg: Any, lab: Any) -> Any:
+    """The :class:`~simlab.online.physics.PhysicsTask` of ``cfg`` on ``lab``: the task of
+    the same options on an MDP (:meth:`~simlab.online.command.OnlineConfig.task`, so the
+    same checks and the same passage choice by use), its passages closed by boxes on their
+    doorways (found now: a passage that does not exist is refused before any run)."""
+    from simlab.online.physics import PhysicsChange, PhysicsTask
+
+    changes = tuple(PhysicsChange(c.at, c.kind, goal=tuple(c.goal), passages=c.passages,
+                                  use_states=c.use_states) for c in cfg.task().changes)
+    task = PhysicsTask(tuple(cfg.goal), tuple(cfg.start_states), int(cfg.decisions), changes,
+                       pose_source=cfg.pose_source, mcl_map=cfg.mcl_map)
+    task.check_states(lab.n_states)
+    for c in task.changes:
+        lab.boxes_of(c)
+    return task
+
+
+def run_physics_job(job: PhysicsJob, seed: np.random.SeedSequence, progress: Any = None
+                    ) -> dict[str, np.ndarray]:
+    """One physics run (a parallel job): a fresh agent learns in a fresh world. Returns
+    its log columns (:meth:`~simlab.online.physics.PhysicsRun.columns`) and
+    ``wall_seconds``. ``progress`` a queue told the decisions made, in batches."""
+    from simlab.online.physics import RunStreams, run_physics_online
+
+    agent = job.arbitration.agent(job.mf_config, job.mb_config, job.lab.n_states,
+                                  job.lab.n_actions)
+    tell = None
+    if progress is not None:
+        pending = [0]
+
+        def tell(k: int) -> None:
+            pending[0] += k
+            if pending[0] >= REPORT_EVERY:
+                progress.put(pending[0])
+                pending[0] = 0
+
+    run = run_physics_online(agent, job.lab, job.task, RunStreams.from_seed(seed),
+                             rules=job.rules, progress=tell)
+    if progress is not None and pending[0]:
+        progress.put(pending[0])
+    cols = run.columns()
+    cols["wall_seconds"] = np.array([run.wall_seconds])
+    cols["boxes"] = np.asarray(run.boxes, dtype=float).reshape(-1, 5)
+    return cols
+
+
+class _Direct:
+    """The bar's queue when the runs are in this process: a put updates the bar."""
+
+    def __init__(self, bar: Any) -> None:
+        self.bar = bar
+
+    def put(self, k: int) -> None:
+        self.bar.update(int(k))
+
+
+class _DecisionBar:
+    """A tqdm bar of the decisions of every run: fed directly by runs in this process,
+    through a manager queue by local worker processes; Ray tasks get no queue (the
+    executor's bar of finished runs is shown instead)."""
+
+    def __init__(self, total: int, enabled: bool, where: str) -> None:
+        self.queue: Any = None
+        self._thread: threading.Thread | None = None
+        self._manager: Any = None
+        self._bar: Any = None
+        if not enabled or where not in ("in-process", "local"):
+            return
+        from tqdm.auto import tqdm
+
+        self._bar = tqdm(total=total, desc="online decisions (physics)", unit="dec",
+                         dynamic_ncols=True)
+        if where == "in-process":
+            self.queue = _Direct(self._bar)
+            return
+        import multiprocessing
+
+        self._manager = multiprocessing.get_context("spawn").Manager()
+        self.queue = self._manager.Queue()
+        self._thread = threading.Thread(target=self._drain, daemon=True)
+        self._thread.start()
+
+    def _drain(self) -> None:
+        while True:
+            k = self.queue.get()
+            if k is None:
+                return
+            self._bar.update(int(k))
+
+    def close(self) -> None:
+        if self._thread is not None:
+            self.queue.put(None)
+            self._thread.join(timeout=5)
+            self._manager.shutdown()
+        if self._bar is not None:
+            self._bar.close()
+
+
+def run_physics_jobs(jobs: list[dict[str, Any]], executor: Any, progress: bool,
+                     total: int) -> list[dict[str, np.ndarray]]:
+    """Every physics run of ``jobs`` (keyword arguments of :func:`run_physics_job`) on
+    ``executor``, with a bar of decisions (``total``) when ``progress``."""
+    bar = _DecisionBar(total, progress, getattr(executor, "name", ""))
+    try:
+        if bar.queue is not None:
+            jobs = [{**j, "progress": bar.queue} for j in jobs]
+        return executor.map(run_physics_job, jobs, desc="online runs (physics)",
+                            progress=progress and bar.queue is None)
+    finally:
+        bar.close()
+
+
+def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
+                    ) -> dict[str, Any]:
+    """Per arm: the share of blocked primitives (before / after the change), simulated
+    hours per run, the decisions per wall second of a run; and the boxes added."""
+    arms: dict[str, Any] = {}
+    boxes: list[list[float]] = []
+    for name, runs in logs.items():
+        blocked = np.stack([r["blocked"] for r in runs]).astype(float)
+        hours = np.array([r["duration"].sum() / 3600.0 for r in runs])
+        rate = np.array([r["s"].shape[0] / max(float(r["wall_seconds"][0]), 1e-9)
+                         for r in runs])
+        rec: dict[str, Any] = {"blocked": float(blocked.mean()),
+                               "robot_hours": {"mean": float(hours.mean()),
+                                               "std": float(hours.std())},
+                               "decisions_per_wall_second": float(np.median(rate))}
+        if at is not None:
+            rec["blocked_before"] = float(blocked[:, :at].mean())
+            rec["blocked_after"] = float(blocked[:, at:].mean())
+        arms[name] = rec
+        if not boxes and runs[0]["boxes"].size:
+            boxes = np.round(runs[0]["boxes"], 4).tolist()
+    return {"arms": arms, "boxes": boxes}
+
+
+def _png(fig: Any) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    return buf.getvalue()
+
+
+def physics_figures(logs: dict[str, list[dict[str, np.ndarray]]], lab: Any, task: Any,
+                    window: int) -> dict[str, bytes]:
+    """``physics.png`` (blocked primitives and simulated seconds per decision, per window)
+    and ``visits.png`` (where each arm's robot was after its decisions, on the arena, with
+    the goal and start states and the boxes)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from simlab.online.report import windows
+
+    at = task.changes[0].at if task.changes else None
+    fig = Figure(figsize=(6.4, 6.0), layout="constrained")
+    axes = fig.subplots(2, 1, sharex=True)
+    for name, runs in logs.items():
+        for ax, col in zip(axes, ("blocked", "duration"), strict=True):
+            y = windows(np.stack([r[col] for r in runs]).astype(float), window).mean(0)
+            ax.plot((np.arange(y.shape[0]) + 0.5) * window, y, marker="o", ms=3, label=name)
+    for ax, label in zip(axes, ("share of blocked primitives", "simulated s per decision"),
+                         strict=True):
+        if at is not None:
+            ax.axvline(at, color="k", ls="--", lw=1)
+        ax.set_ylabel(label)
+    axes[0].legend(fontsize=7)
+    axes[1].set_xlabel("decision")
+    figures = {"physics.png": _png(fig)}
+    figures["visits.png"] = _png(_visits_figure(logs, lab, task))
+    return figures
+
+
+def _visits_figure(logs: dict[str, list[dict[str, np.ndarray]]], lab: Any, task: Any) -> Any:
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import Affine2D
+
+    x0, y0, x1, y1 = lab.arena.bounds
+    res = 0.02 if max(x1 - x0, y1 - y0) < 4 else 0.05
+    shape = (int(np.ceil((y1 - y0) / res)), int(np.ceil((x1 - x0) / res)))
+    occ = lab.arena.rasterize(res, (x0, y0), shape)
+    n = len(logs)
+    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
+    if aspect > 1:  # a tall lab: panels side by side
+        fig = Figure(figsize=(2.2 + 3.0 * n / aspect ** 0.5, 3.0 * aspect ** 0.5 + 0.6),
+                     layout="constrained")
+        axes = np.atleast_1d(fig.subplots(1, n))
+    else:
+        fig = Figure(figsize=(7.0, (7.0 * aspect + 0.5) * n + 0.3), layout="constrained")
+        axes = np.atleast_1d(fig.subplots(n, 1))
+    centres = np.asarray(lab.discretizer.centres, dtype=float)
+    boxes = next((r["boxes"] for runs in logs.values() for r in runs[:1]), np.zeros((0, 5)))
+    for ax, (name, runs) in zip(axes, logs.items(), strict=True):
+        ax.imshow(occ, cmap="Greys", extent=(x0, x0 + shape[1] * res, y0, y0 + shape[0] * res),
+                  vmin=0, vmax=1.6, interpolation="nearest")
+        xs = np.concatenate([r["x"] for r in runs])
+        ys = np.concatenate([r["y"] for r in runs])
+        ax.hexbin(xs, ys, gridsize=int(max(8, (x1 - x0) / 0.15)), mincnt=1, cmap="viridis",
+                  bins="log", alpha=0.85, extent=(x0, x1, y0, y1))
+        ax.plot(*centres[list(task.start_states)].T, "o", ms=6, mfc="none", mec="tab:blue")
+        ax.plot(*centres[list(task.goal)].T, "*", ms=11, color="tab:red")
+        for c in task.changes:
+            if c.kind == "goal":
+                ax.plot(*centres[list(c.goal)].T, "*", ms=11, color="tab:orange")
+        for bx, by, sx, sy, yaw in boxes:
+            rect = Rectangle((bx - sx / 2, by - sy / 2), sx, sy, color="tab:red", alpha=0.8)
+            rect.set_transform(Affine2D().rotate_around(bx, by, yaw) + ax.transData)
+            ax.add_patch(rect)
+        ax.set_title(f"{name}: positions after each decision (log count)", fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+    return fig
