@@ -564,6 +564,12 @@ def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
             summary["physics"] = physics_summary(logs, at)
         summary["seconds"] = round(time.perf_counter() - t0, 3)
         if txn is not None:
-            write_outputs(txn, finals, logs, summary, cfg, lab=world.lab, task=world.task)
+            extra: dict[str, Any] = {}
+            if world.lab is not None:
+                from simlab.online.arena import PHYSICS_RUN_FIELDS, physics_figures
+
+                extra = dict(run_fields=PHYSICS_RUN_FIELDS, extra_figures=physics_figures(
+                    logs, world.lab, world.task, cfg.window) if cfg.plots else None)
+            write_outputs(txn, finals, logs, summary, cfg, **extra)
     return OnlineResult(logs=logs, summary=summary, files=finals,
                         seconds=time.perf_counter() - t0)

@@ -297,17 +297,18 @@ def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, An
 
 
 def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[str, np.ndarray]]],
-                  summary: dict[str, Any], cfg: Any, *, lab: Any = None, task: Any = None
-                  ) -> None:
+                  summary: dict[str, Any], cfg: Any, *,
+                  extra_figures: dict[str, bytes] | None = None,
+                  run_fields: tuple[str, ...] = ()) -> None:
     """Write every output to its staged path of the transaction ``txn``; a run in physics
-    (``lab`` and ``task`` given) adds its per-decision columns and figures
-    (:mod:`simlab.online.arena`)."""
+    adds its figures (``extra_figures``, PNG bytes by file name) and names the fields of its
+    logs that are per run, not per decision (``run_fields``: not columns of
+    ``decisions.parquet``)."""
     import json
 
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from simlab.online.arena import PHYSICS_RUN_FIELDS
     from simlab.online.loop import RUN_FIELDS
 
     cols: dict[str, list[np.ndarray]] = {}
@@ -317,7 +318,7 @@ def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[s
             extra = {"arm": np.full(n, name, dtype=object), "seed": np.full(n, i, np.int32),
                      "t": np.arange(n, dtype=np.int32)}
             for k, val in {**extra, **lg}.items():
-                if k in RUN_FIELDS or k in PHYSICS_RUN_FIELDS:
+                if k in RUN_FIELDS or k in run_fields:
                     continue
                 if k == "expert":
                     val = np.where(val == 1, "MB", "MF").astype(object)
@@ -334,12 +335,8 @@ def write_outputs(txn: Any, finals: dict[str, Path], logs: dict[str, list[dict[s
     with atomic_write(txn.path(finals["decisions.parquet"]), "wb") as fh:
         pq.write_table(table, fh)
     if cfg.plots:
-        figures = _figures(logs, summary, cfg.window)
-        if lab is not None:
-            from simlab.online.arena import physics_figures
-
-            figures.update(physics_figures(logs, lab, task, cfg.window))
-        for fname, data in figures.items():
+        for fname, data in {**_figures(logs, summary, cfg.window),
+                            **(extra_figures or {})}.items():
             atomic_write_bytes(txn.path(finals[fname]), data)
     summary = {**summary, "files": {k: str(p) for k, p in finals.items()}}
     atomic_write_json(txn.path(finals["summary.json"]), summary)
