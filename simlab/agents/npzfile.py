@@ -51,7 +51,7 @@ def load_npz(
     path = Path(path)
     validation.existing_file(path)
     if not zipfile.is_zipfile(path):  # numpy would say "pickled data ... load it unsafely"
-        raise DataError(f"{path}: not a readable npz archive (not a zip file of arrays)")
+        raise DataError(f"{path}: {npz_problem(path, ValueError('not a zip file'))}")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}

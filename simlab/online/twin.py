@@ -23,8 +23,8 @@ Runner ``online.twin`` (``experiments/online_isir_twin.toml``):
 
 Metrics per task ``T`` and arm ``A``: ``T_A_real`` / ``T_A_twin`` total reward (mean over
 runs) and ``T_A_twin_vs_real`` their ratio; with a change ``T_A_real_after`` /
-``T_A_twin_after``; ``T_rank_agrees`` whether the twin orders the arms' post-change (or
-total, for ``stable``) rewards as the real model does; ``T_twin_blocked`` the share of
+``T_A_twin_after``; ``T_rank_agrees`` 1 when the twin orders the arms' post-change (or
+total, for ``stable``) rewards as the real model does, else 0; ``T_twin_blocked`` the share of
 blocked primitives in the twin.
 """
 
@@ -230,8 +230,8 @@ def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any], change: b
             m[f"{task}_{arm}_twin_after"] = t["reward_after"]["mean"]
         order_real.append(r[key]["mean"])
         order_twin.append(t[key]["mean"])
-    m[f"{task}_rank_agrees"] = bool(np.array_equal(np.argsort(order_real, kind="stable"),
-                                                   np.argsort(order_twin, kind="stable")))
+    m[f"{task}_rank_agrees"] = float(np.array_equal(np.argsort(order_real, kind="stable"),
+                                                    np.argsort(order_twin, kind="stable")))
     m[f"{task}_twin_blocked"] = float(np.mean([a["blocked"] for a in
                                                sim["physics"]["arms"].values()]))
     return m
