@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.physics import rate
 from simlab.physics._bullet import BulletClient, pybullet, quiet_stdout
 from simlab.physics.arena import ArenaConfig, load_arena
 from simlab.physics.lidar import Lidar, LidarScan, LidarSpec
@@ -193,7 +194,11 @@ class World:
     gui:
         Open the PyBullet GUI (needs a display); DIRECT (headless) otherwise.
     physics_hz, solver_iterations:
-        Fixed time step and constraint solver iterations.
+        Fixed time step (Hz; default :data:`simlab.physics.rate.DEFAULT_HZ`) and constraint
+        solver iterations (default: what the rate needs,
+        :func:`simlab.physics.rate.iterations_for`). Any rate > 0 steps here; the commands
+        refuse the rates too coarse for the primitives
+        (:func:`simlab.physics.rate.check_rate`).
     lidar:
         Scanner parameters (LDS-01 defaults).
     """
@@ -204,16 +209,20 @@ class World:
         *,
         robot: RobotSpec | str | Path = "turtlebot3_burger",
         gui: bool = False,
-        physics_hz: float = 200.0,
-        solver_iterations: int = 5,
+        physics_hz: float | None = None,
+        solver_iterations: int | None = None,
         lidar: LidarSpec | None = None,
     ) -> None:
         self.arena = arena if isinstance(arena, ArenaConfig) else load_arena(arena)
         self.robot_spec = robot if isinstance(robot, RobotSpec) else load_robot_spec(robot)
         self.lidar_spec = lidar or LidarSpec()
-        self.physics_hz = float(physics_hz)
+        hz = rate.DEFAULT_HZ if physics_hz is None else float(physics_hz)
+        if not (math.isfinite(hz) and hz > 0):
+            raise ValueError(f"physics_hz must be a rate > 0 Hz, got {physics_hz!r}")
+        self.physics_hz = hz
         self.dt = 1.0 / self.physics_hz
-        self.solver_iterations = int(solver_iterations)
+        self.solver_iterations = (rate.iterations_for(hz) if solver_iterations is None
+                                  else int(solver_iterations))
         self.gui = gui
         with quiet_stdout():
             self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)

@@ -1,0 +1,446 @@
+"""How coarse can the physics step be before the robot's transitions change?
+
+For each physics rate of ``--rates`` (default 240, 200, 120, 100, 60, 50, 40 Hz), measured
+in one run on one machine:
+
+1. **iterations**: every primitive (16) from ``--poses`` start poses on the table at each
+   solver iteration count of ``--iterations``, against a fine-step reference (960 Hz, 50
+   iterations: the primitives' 60 Hz and 10 Hz control ticks and the LIDAR's 5 Hz fall on
+   its steps): the end position error (mm, max and mean), the end heading error (deg), the
+   heading error the turn leaves (deg; the primitive tests allow 3) and the mean duration
+   against the reference's (the dataset's pace). The iterations a rate needs: the fewest
+   whose primitives are as faithful as 200 Hz with 5 iterations, the settings every dataset
+   was made with before the rate was a setting ("today"): position and heading errors at
+   most 10 % (+0.5 mm, +0.1 deg) above today's, turn error within 3 deg, mean duration
+   within 2 % of the reference's;
+2. **walls** (each rate with its iterations): the obstacle detector's decisions from
+   ``--wall-poses`` poses near the walls and obstacles of ``table_obstacles`` (every
+   action from each): the share blocked and the agreement with 200 Hz; then driving into a
+   wall at full speed with the detector bypassed (a boundary wall head-on and at 45 deg, the
+   box, the cylinder) for 3 s: the deepest penetration (mm) of any step, whether the centre
+   ever enters the wall or obstacle (through), and whether backing off for 1 s covers at
+   least 80 % of the commanded 0.22 m (else stuck);
+3. **scans**: the LIDAR scans during a fixed sequence of primitives: the latest a scan comes
+   after its 0.2 s schedule (ms; 0 when 0.2 s is a whole number of steps);
+4. **walks**: ``--seeds`` random walks of ``--transitions`` uniformly random primitives on
+   the table (41 ground-truth Voronoi states), run seed by seed with every rate in turn (the
+   machine's speed drifts: both arms in the same minutes): the transition table pooled over
+   the seeds against 200 Hz walks of other seeds as visit-weighted TV
+   (``simlab.calibration.metrics``), beside the bootstrap floor of the 200 Hz data matched to
+   the rate's visits (median and 97.5 %); the 200 Hz row is the control (200 Hz walks of
+   independent seeds: its TV must fall inside the floor). CPU and wall seconds per transition (medians over the seeds) and their
+   ratio to 200 Hz's; the mean stepped duration per transition.
+
+A rate is **faithful** when it needs no more iterations than ``--iterations`` offers (1),
+its detector agrees with 200 Hz on at least 97 % of the decisions and never lets the robot
+through or stuck (2), its scans keep their schedule (3) and its TV lies within the floor's
+97.5 % (4). The lowest faithful rate is printed; ``--figure PNG`` draws fidelity and speed
+against the rate; ``--json FILE`` keeps every number.
+
+    python benchmarks/step_size.py [--rates 240,200,120,100,60,50,40] [--iterations 5,10,20,30]
+        [--seeds 3] [--transitions 8448] [--poses 8] [--wall-poses 40] [--figure step.png]
+        [--json step.json] [--quick]
+
+The load average is printed before and after (the machine may be shared).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from collect_speed import ground_truth_states  # benchmarks/ is on sys.path as the script's dir
+
+REF_HZ, REF_ITERATIONS = 960.0, 50
+TODAY = (200.0, 5)
+TURN_BOUND_DEG = 3.0
+PUSH_SECONDS, BACK_SECONDS = 3.0, 1.0
+#: The reference walks: 200 Hz, other seeds than every rate's walks.
+REFERENCE = "200 Hz reference"
+
+
+def world(arena: str, hz: float, iterations: int) -> Any:
+    from simlab.physics.world import World
+
+    return World(arena, physics_hz=hz, solver_iterations=iterations)
+
+
+# ------------------------------------------------------------------ 1. primitives
+
+
+def start_poses(n: int, seed: int = 1) -> list[tuple[float, float, float]]:
+    """``n`` poses in the middle of the table (no primitive from them is blocked)."""
+    rng = np.random.default_rng(seed)
+    return [(float(rng.uniform(-0.3, 0.3)), float(rng.uniform(-0.3, 0.3)),
+             float(rng.uniform(-math.pi, math.pi))) for _ in range(n)]
+
+
+def primitive_ends(hz: float, iterations: int, poses: list) -> np.ndarray:
+    """``(len(poses) * 16, 5)``: end x, y, yaw, duration and the turn's heading error of
+    every primitive from every pose."""
+    from simlab.physics.motion import PrimitiveParams, execute_primitive
+
+    params, rows = PrimitiveParams(), []
+    with world("table", hz, iterations) as w:
+        for pose in poses:
+            for a in range(16):
+                w.reset(pose)
+                r = execute_primitive(w, a, np.random.default_rng(a), params)
+                rows.append((*r.pose_after, r.duration, r.heading_error))
+    return np.array(rows)
+
+
+def _tolerance_deg() -> float:
+    from simlab.physics.motion import PrimitiveParams
+
+    return math.degrees(PrimitiveParams().heading_tolerance)
+
+
+@dataclass(frozen=True)
+class PoseErrors:
+    """Errors of a setting's primitives against the reference (mm, deg, relative)."""
+
+    pos_max: float
+    pos_mean: float
+    head_max: float
+    head_mean: float
+    turn_max: float
+    duration: float
+
+    @classmethod
+    def of(cls, ends: np.ndarray, ref: np.ndarray) -> PoseErrors:
+        d = np.hypot(ends[:, 0] - ref[:, 0], ends[:, 1] - ref[:, 1]) * 1e3
+        h = np.degrees(np.abs(np.remainder(ends[:, 2] - ref[:, 2] + np.pi, 2 * np.pi) - np.pi))
+        return cls(float(d.max()), float(d.mean()), float(h.max()), float(h.mean()),
+                   float(np.degrees(np.abs(ends[:, 4])).max()),
+                   float(ends[:, 3].mean() / ref[:, 3].mean() - 1.0))
+
+    def as_good_as(self, today: PoseErrors) -> bool:
+        # a heading within the turn's own tolerance (1 deg) of the reference's is as good
+        # as any: where in that band a turn stops depends on which control tick ends it
+        return (self.pos_max <= 1.1 * today.pos_max + 0.5
+                and self.pos_mean <= 1.1 * today.pos_mean + 0.5
+                and self.head_max <= max(1.1 * today.head_max + 0.1, _tolerance_deg())
+                and self.turn_max <= TURN_BOUND_DEG and abs(self.duration) <= 0.02)
+
+
+def iteration_table(rates: list[float], iterations: list[int], n_poses: int
+                    ) -> tuple[dict[float, dict[int, PoseErrors]], dict[float, int | None]]:
+    """Errors of every (rate, iterations) and the iterations each rate needs (None: none
+    of those tried)."""
+    poses = start_poses(n_poses)
+    ref = primitive_ends(REF_HZ, REF_ITERATIONS, poses)
+    errors = {hz: {it: PoseErrors.of(primitive_ends(hz, it, poses), ref) for it in iterations}
+              for hz in rates}
+    today = errors[TODAY[0]][TODAY[1]] if TODAY[0] in errors and TODAY[1] in iterations \
+        else PoseErrors.of(primitive_ends(*TODAY, poses), ref)
+    errors.setdefault(TODAY[0], {})[TODAY[1]] = today
+    need = {hz: next((it for it in sorted(iterations) if errors[hz][it].as_good_as(today)), None)
+            for hz in rates}
+    return errors, need
+
+
+# ------------------------------------------------------------------ 2. walls
+
+
+def near_wall_poses(n: int, seed: int = 2) -> list[tuple[float, float, float]]:
+    """``n`` free poses of ``table_obstacles`` within 0.1-0.3 m of a wall or obstacle."""
+    from simlab.physics.arena import load_arena
+    from simlab.physics.world import StaticClearance
+
+    arena = load_arena("table_obstacles")
+    clear = StaticClearance(arena, resolution=0.005)
+    x0, y0, x1, y1 = arena.bounds
+    rng, out = np.random.default_rng(seed), []
+    while len(out) < n:
+        x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
+        if 0.1 <= clear.at(x, y) <= 0.3:
+            out.append((float(x), float(y), float(rng.uniform(-math.pi, math.pi))))
+    return out
+
+
+def detector_decisions(hz: float, iterations: int, poses: list) -> np.ndarray:
+    """``(len(poses) * 16,)`` blocked flags of every primitive from every pose."""
+    from simlab.physics.motion import PrimitiveParams, execute_primitive
+
+    params, out = PrimitiveParams(), []
+    with world("table_obstacles", hz, iterations) as w:
+        for pose in poses:
+            for a in range(16):
+                w.reset(pose)
+                out.append(execute_primitive(w, a, np.random.default_rng(a), params).blocked)
+    return np.array(out, dtype=bool)
+
+
+#: Pushes into a wall: (name, start pose x, y, yaw); the table_obstacles arena.
+PUSHES = (("wall head-on", 0.0, 0.5, math.pi / 2), ("wall 45 deg", 0.4, 0.5, math.pi / 4),
+          ("box", -0.22, -0.05, math.pi / 2), ("cylinder", 0.24, 0.0, -math.pi / 2))
+
+
+def push(hz: float, iterations: int, pose: tuple[float, float, float]) -> dict[str, float]:
+    """Drive at full speed into what lies ahead of ``pose`` for 3 s (no detector), then back
+    off for 1 s: the deepest penetration (mm), whether the centre entered an obstacle or left
+    the arena, and the distance backed (m)."""
+    with world("table_obstacles", hz, iterations) as w:
+        w.reset(pose)
+        c, body, static = w.client, w.body, [b for b in w.static_bodies if b != w.floor]
+        deepest, through = 0.0, False
+        w.drive.command(w.robot_spec.v_max, 0.0)
+        for _ in range(round(PUSH_SECONDS * hz)):
+            w.step()
+            for b in static:
+                for p in c.getContactPoints(body, b):
+                    deepest = max(deepest, -p[8])
+            through |= bool(w.arena.occupied(w.pose()[:2]))
+        before = w.pose()
+        w.drive.command(-w.robot_spec.v_max, 0.0)
+        w.step(round(BACK_SECONDS * hz))
+        backed = float(np.hypot(*(w.pose()[:2] - before[:2])))
+    return {"penetration_mm": deepest * 1e3, "through": through, "backed_m": backed}
+
+
+def walls(hz: float, iterations: int, poses: list, reference: np.ndarray | None
+          ) -> dict[str, Any]:
+    """The detector's decisions (against ``reference``, the 200 Hz ones) and the pushes."""
+    blocked = detector_decisions(hz, iterations, poses)
+    pushes = {name: push(hz, iterations, (x, y, yaw)) for name, x, y, yaw in PUSHES}
+    return {"blocked_share": float(blocked.mean()),
+            "agreement": None if reference is None else float((blocked == reference).mean()),
+            "blocked": blocked, "pushes": pushes,
+            "penetration_mm": max(p["penetration_mm"] for p in pushes.values()),
+            "through": any(p["through"] for p in pushes.values()),
+            "stuck": any(p["backed_m"] < 0.8 * 0.22 * BACK_SECONDS for p in pushes.values())}
+
+
+# ------------------------------------------------------------------ 3. scans
+
+
+def scan_lateness(hz: float, iterations: int, n: int = 20) -> float:
+    """The latest a scan came after its 0.2 s schedule over ``n`` random primitives (ms)."""
+    from simlab.physics.motion import PrimitiveParams, execute_primitive
+
+    late = 0.0
+    rng = np.random.default_rng(5)
+    with world("table", hz, iterations) as w:
+        period = 1.0 / w.lidar_spec.rate_hz
+        for _ in range(n):
+            t0, stamps = w.time, []
+            execute_primitive(w, int(rng.integers(16)), rng, PrimitiveParams(),
+                              on_scan=lambda scan, _odom, out=stamps: out.append(scan.stamp))
+            for k, t in enumerate(stamps, start=1):
+                late = max(late, t - t0 - k * period)
+    return late * 1e3
+
+
+# ------------------------------------------------------------------ 4. walks
+
+
+@dataclass
+class Walk:
+    """One walk: ``(S, 16, S)`` counts, CPU and wall seconds, stepped seconds."""
+
+    counts: np.ndarray
+    cpu: float
+    wall: float
+    stepped: float
+
+
+def walk(hz: float, iterations: int, seed: int, n: int, disc: Any) -> Walk:
+    """``n`` uniformly random primitives from the table's start (the collection walk's
+    decision step, without its files)."""
+    from simlab.data.count_model import count_transitions
+    from simlab.physics.driver import DecisionDriver
+    from simlab.physics.motion import PrimitiveParams
+
+    act_seq, noise_seq = np.random.SeedSequence(seed).spawn(2)
+    act, noise = np.random.default_rng(act_seq), np.random.default_rng(noise_seq)
+    actions = act.integers(0, 16, size=n)
+    xy = np.empty((n + 1, 2))
+    with world("table", hz, iterations) as w:
+        driver = DecisionDriver(w, PrimitiveParams())
+        xy[0] = w.pose()[:2]
+        c0, t0 = time.process_time(), time.perf_counter()
+        for i in range(n):
+            xy[i + 1] = driver.execute(int(actions[i]), noise).result.pose_after[:2]
+        cpu, wall, stepped = time.process_time() - c0, time.perf_counter() - t0, w.time
+    s = np.asarray(disc.state_of(xy), dtype=np.int64)
+    return Walk(count_transitions(s[:-1], actions, s[1:], int(disc.n_states), 16), cpu, wall,
+                stepped)
+
+
+def walks(arms: list[tuple[str, float, int]], seeds: int, n: int, disc: Any
+          ) -> dict[str, list[Walk]]:
+    """Every arm's walks, seed by seed with the arms in turn."""
+    from tqdm import tqdm
+
+    out: dict[str, list[Walk]] = {name: [] for name, _, _ in arms}
+    with tqdm(total=seeds * len(arms), desc="walks", unit="walk") as bar:
+        for k in range(seeds):
+            for name, hz, it in arms:
+                seed = 1000 + k if name == REFERENCE else k
+                out[name].append(walk(hz, it, seed, n, disc))
+                bar.update()
+    return out
+
+
+def tv_row(mine: list[Walk], ref: list[Walk], rng: np.random.Generator) -> dict[str, float]:
+    """Pooled TV of ``mine`` against ``ref`` and the matched bootstrap floor of ``ref``."""
+    from simlab.calibration.metrics import bootstrap_floor, tv_distance
+
+    a = sum(w.counts for w in mine)
+    b = sum(w.counts for w in ref)
+    floor = bootstrap_floor(b, rng, n_boot=200, other_n=a.sum(axis=2))
+    n = sum(int(w.counts.sum()) for w in mine)
+    return {"tv": tv_distance(a, b).distance, "floor": floor.median, "floor_high": floor.high,
+            "cpu_ms": 1e3 * statistics.median(w.cpu / w.counts.sum() for w in mine),
+            "wall_ms": 1e3 * statistics.median(w.wall / w.counts.sum() for w in mine),
+            "duration": sum(w.stepped for w in mine) / n}
+
+
+# ------------------------------------------------------------------ report
+
+
+def print_iterations(errors: dict[float, dict[int, PoseErrors]], need: dict[float, int | None]
+                     ) -> None:
+    print(f"\n== 1. primitive end poses against {REF_HZ:g} Hz / {REF_ITERATIONS} iterations "
+          f"(today: {TODAY[0]:g} Hz / {TODAY[1]}) ==")
+    print(f"{'Hz':>5} {'iter':>4} {'pos max':>8} {'mean mm':>8} {'head max':>9} {'mean deg':>9} "
+          f"{'turn max':>9} {'duration':>9}  as good as today")
+    today = errors[TODAY[0]][TODAY[1]]
+    for hz in sorted(errors, reverse=True):
+        for it, e in sorted(errors[hz].items()):
+            mark = "needed" if need.get(hz) == it else ("yes" if e.as_good_as(today) else "no")
+            print(f"{hz:5g} {it:4d} {e.pos_max:8.2f} {e.pos_mean:8.2f} {e.head_max:9.2f} "
+                  f"{e.head_mean:9.2f} {e.turn_max:9.2f} {100 * e.duration:+8.1f}%  {mark}")
+
+
+def summary_table(rows: dict[float, dict[str, Any]]) -> None:
+    base = rows[TODAY[0]]
+    print("\n== step-size table (each rate with the iterations it needs) ==")
+    print(f"{'Hz':>5} {'iter':>4} {'pos max/mean mm':>16} {'head max':>8} {'blocked':>8} "
+          f"{'agree':>6} {'pen mm':>7} {'through':>7} {'stuck':>5} {'scan ms':>7} "
+          f"{'TV':>6} {'floor (97.5%)':>14} {'s/trans':>7} {'CPU ms/tr':>9} {'x200':>5} "
+          f"{'wall ms/tr':>10}  faithful")
+    for hz in sorted(rows, reverse=True):
+        r = rows[hz]
+        e, w, t = r["errors"], r["walls"], r["tv"]
+        agree = "-" if w["agreement"] is None else f"{100 * w['agreement']:.1f}"
+        print(f"{hz:5g} {r['iterations']:4d} {e.pos_max:7.1f}/{e.pos_mean:<8.1f} "
+              f"{e.head_max:8.2f} {100 * w['blocked_share']:7.1f}% {agree:>6} "
+              f"{w['penetration_mm']:7.2f} {w['through']!s:>7} {w['stuck']!s:>5} "
+              f"{r['scan_late_ms']:7.2f} {t['tv']:6.3f} {t['floor']:6.3f} ({t['floor_high']:.3f})"
+              f" {t['duration']:7.3f} {t['cpu_ms']:9.2f} "
+              f"{base['tv']['cpu_ms'] / t['cpu_ms']:5.2f} {t['wall_ms']:10.2f}  "
+              f"{'yes' if r['faithful'] else 'no'}")
+
+
+def figure(rows: dict[float, dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    hz = sorted(rows)
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    ax[0].plot(hz, [rows[h]["errors"].pos_max for h in hz], "o-", label="max")
+    ax[0].plot(hz, [rows[h]["errors"].pos_mean for h in hz], "s-", label="mean")
+    ax[0].axhline(rows[TODAY[0]]["errors"].pos_max, color="grey", ls=":", label="200 Hz max")
+    ax[0].set(xlabel="physics rate (Hz)", ylabel="end position error (mm)",
+              title=f"primitives vs {REF_HZ:g} Hz (needed iterations)")
+    ax[1].fill_between(hz, 0, [rows[h]["tv"]["floor_high"] for h in hz], color="C2",
+                       alpha=0.2, label="floor 97.5 %")
+    ax[1].plot(hz, [rows[h]["tv"]["floor"] for h in hz], "--", color="C2", label="floor median")
+    ax[1].plot(hz, [rows[h]["tv"]["tv"] for h in hz], "o-", color="C3", label="TV to 200 Hz")
+    ax[1].set(xlabel="physics rate (Hz)", ylabel="visit-weighted TV",
+              title="walk transitions vs 200 Hz")
+    ax[2].plot(hz, [rows[h]["tv"]["cpu_ms"] for h in hz], "o-", label="CPU ms / transition")
+    ax[2].set(xlabel="physics rate (Hz)", ylabel="CPU ms per transition", title="speed")
+    for a in ax:
+        for h in hz:
+            if not rows[h]["faithful"]:
+                a.axvspan(h - 2, h + 2, color="red", alpha=0.08)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"figure: {path}")
+
+
+def faithful(r: dict[str, Any]) -> bool:
+    w = r["walls"]
+    return (r["needed"] is not None and (w["agreement"] is None or w["agreement"] >= 0.97)
+            and not w["through"] and not w["stuck"] and r["scan_late_ms"] < 1e-6
+            and r["tv"]["tv"] <= r["tv"]["floor_high"])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rates", default="240,200,120,100,60,50,40")
+    ap.add_argument("--iterations", default="5,10,15,20,30,40")
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--transitions", type=int, default=8448, help="per walk (thesis: 8,448)")
+    ap.add_argument("--poses", type=int, default=8, help="start poses of the primitive check")
+    ap.add_argument("--wall-poses", type=int, default=40)
+    ap.add_argument("--figure", type=Path, default=None)
+    ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--quick", action="store_true", help="small budgets (a smoke run)")
+    args = ap.parse_args()
+    if args.quick:
+        args.seeds, args.transitions, args.poses, args.wall_poses = 2, 300, 2, 6
+    rates = sorted({float(r) for r in args.rates.split(",")} | {TODAY[0]}, reverse=True)
+    its = sorted({int(i) for i in args.iterations.split(",")} | {TODAY[1]})
+    load0 = os.getloadavg()
+    t0 = time.perf_counter()
+    errors, need = iteration_table(rates, its, args.poses)
+    print_iterations(errors, need)
+    setting = {hz: need[hz] if need[hz] is not None else max(its) for hz in rates}
+    setting[TODAY[0]] = TODAY[1]  # the reference arm is today's settings, whatever 1 says
+    wall_poses = near_wall_poses(args.wall_poses)
+    ref_blocked = detector_decisions(*TODAY, wall_poses)
+    with tempfile.TemporaryDirectory() as tmp:
+        from simlab.physics.inputs import load_discretizer
+
+        disc = load_discretizer(ground_truth_states(Path(tmp) / "s.json", "table", 41))
+        arms = [(f"{hz:g} Hz", hz, setting[hz]) for hz in rates]
+        arms.append((REFERENCE, *TODAY))
+        done = walks(arms, args.seeds, args.transitions, disc)
+    rng = np.random.default_rng(0)
+    rows: dict[float, dict[str, Any]] = {}
+    for name, hz, it in arms[:-1]:
+        rows[hz] = {"iterations": it, "needed": need[hz] if hz != TODAY[0] else TODAY[1],
+                    "errors": errors[hz][it], "scan_late_ms": scan_lateness(hz, it),
+                    "walls": walls(hz, it, wall_poses, None if hz == TODAY[0] else ref_blocked),
+                    "tv": tv_row(done[name], done[REFERENCE], rng)}
+        rows[hz]["faithful"] = faithful(rows[hz])
+    summary_table(rows)
+    load1 = os.getloadavg()
+    print("(every row's walks and the 200 Hz reference walks have independent seeds: the "
+          "200 Hz row is the control, and must fall within its floor)")
+    ok = [hz for hz in rows if rows[hz]["faithful"]]
+    print(f"\nlowest faithful rate: {min(ok):g} Hz with {rows[min(ok)]['iterations']} solver "
+          f"iterations, {rows[TODAY[0]]['tv']['cpu_ms'] / rows[min(ok)]['tv']['cpu_ms']:.2f}x "
+          f"the CPU per transition of {TODAY[0]:g} Hz" if ok else "\nno rate is faithful")
+    print(f"{args.seeds} seeds x {args.transitions} transitions per rate; load average "
+          f"{load0[0]:.2f} before, {load1[0]:.2f} after; {os.cpu_count()} cores; "
+          f"{time.perf_counter() - t0:.0f} s")
+    if args.figure:
+        figure(rows, args.figure)
+    if args.json:
+        out = {str(hz): {**r, "errors": asdict(r["errors"]),
+                         "walls": {k: v for k, v in r["walls"].items() if k != "blocked"}}
+               for hz, r in rows.items()}
+        out["iteration_grid"] = {str(hz): {str(it): asdict(e) for it, e in d.items()}
+                                 for hz, d in errors.items()}
+        args.json.write_text(json.dumps(out, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()
