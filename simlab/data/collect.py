@@ -70,7 +70,7 @@ from simlab.data.walkers import (
 from simlab.localization.sources import POSE_SOURCES
 from simlab.physics.inputs import load_arena_config, load_discretizer
 from simlab.physics.primitive_options import PrimitiveOptions
-from simlab.physics.rate import iterations_for, rate_option, rate_record, resolve_rate
+from simlab.physics.rate import rate_option, resolve_rate, settings_for
 
 #: Default transitions per part: small enough that a crash loses little, large enough
 #: that per-part overheads (world rebuild, file, manifest) stay negligible.
@@ -595,7 +595,7 @@ def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
         manifest["parameters"]["start_states"] = list(starts)
     if cfg.simulator == "physics":
         hz = resolve_rate(cfg.physics_hz)
-        manifest["parameters"]["physics"] = rate_record(hz, iterations_for(hz))
+        manifest["parameters"]["physics"] = settings_for(hz).to_json()
     manifest["sources"] = {
         "arena_file": getattr(arena_cfg, "source", None),
         "states_file": None if not isinstance(states, str | os.PathLike) else str(states),

@@ -37,7 +37,7 @@ from simlab.base.errors import ConfigError
 from simlab.base.io import atomic_write_json, output_transaction
 from simlab.base.options import CommandConfig, command, option
 from simlab.localization.sources import SCANLESS_POSE_SOURCES
-from simlab.physics.rate import iterations_for, rate_option, rate_record, resolve_rate
+from simlab.physics.rate import rate_option, resolve_rate, settings_for
 
 if TYPE_CHECKING:  # the occupancy kernels load numba: only when a map is built, not for --help
     from discretize.gridmap import OccupancyMap
@@ -188,8 +188,7 @@ def build_map(cfg: MapConfig) -> MapRun:
             "inf_free_range": cfg.inf_free_range,
             "log_odds": asdict(grid.params),
             "primitive_params": asdict(params),
-            "physics": rate_record(resolve_rate(cfg.physics_hz),
-                                   iterations_for(resolve_rate(cfg.physics_hz))),
+            "physics": settings_for(resolve_rate(cfg.physics_hz)).to_json(),
             "n_scans": grid.n_scans,
             "n_actions": ex.n_actions,
             "n_blocked": ex.n_blocked,

@@ -18,32 +18,49 @@ was recorded were made with, :data:`RECORDLESS_HZ`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 from simlab.base.errors import ConfigError
 from simlab.base.options import option
 
-__all__ = ["DEFAULT_HZ", "ITERATIONS", "MIN_HZ", "RECORDLESS_HZ", "check_rate",
-           "iterations_for", "rate_option", "rate_record", "resolve_rate"]
+__all__ = ["DEFAULT_HZ", "MIN_HZ", "RECORDLESS_HZ", "SETTINGS", "StepSettings", "check_rate",
+           "rate_option", "resolve_rate", "settings_for"]
 
 #: Physics steps per simulated second of every world unless another rate is asked for.
 DEFAULT_HZ = 200.0
-#: The coarsest rate allowed: the primitives' heading control ticks at 60 Hz
-#: (``PrimitiveParams.fine_hz``), and a control tick cannot be shorter than a step.
-MIN_HZ = 60.0
-#: ``(rate Hz, solver iterations)``, finest first: a rate takes the iterations of the
-#: first row at or below it.
-ITERATIONS: tuple[tuple[float, int], ...] = ((200.0, 5), (120.0, 10), (60.0, 20))
+#: The coarsest rate allowed (measured faithful with its settings; coarser is refused).
+MIN_HZ = 40.0
+#: ``(rate Hz, solver iterations, contact processing threshold m or None)``, finest first:
+#: a rate takes the settings of the first row at or below it (None: Bullet's default,
+#: every point of a contact manifold goes to the solver).
+SETTINGS: tuple[tuple[float, int, float | None], ...] = (
+    (200.0, 5, None), (100.0, 10, 0.0), (50.0, 20, 0.0), (40.0, 40, 0.0))
 #: The rate of every physics dataset whose manifest predates the rate's record.
 RECORDLESS_HZ = 200.0
 
 
-def iterations_for(hz: float) -> int:
-    """The solver iterations a step of ``hz`` Hz needs (:data:`ITERATIONS`)."""
-    for rate, iterations in ITERATIONS:
-        if hz >= rate - 1e-9:
-            return iterations
-    return ITERATIONS[-1][1]
+@dataclass(frozen=True)
+class StepSettings:
+    """What a physics step is: ``hz`` steps per simulated second, the constraint solver's
+    ``solver_iterations`` and the robot's ``contact_threshold`` (m: the manifold points
+    farther apart than this are left out of the solver; None: Bullet's default, all)."""
+
+    hz: float
+    solver_iterations: int
+    contact_threshold: float | None
+
+    def to_json(self) -> dict[str, Any]:
+        """The record of manifests and reports."""
+        return {"hz": self.hz, "solver_iterations": self.solver_iterations,
+                "contact_threshold": self.contact_threshold}
+
+
+def settings_for(hz: float) -> StepSettings:
+    """The settings a step of ``hz`` Hz needs (:data:`SETTINGS`; a rate between two rows
+    takes the coarser row's, a rate below the last its)."""
+    row = next((r for r in SETTINGS if hz >= r[0] - 1e-9), SETTINGS[-1])
+    return StepSettings(float(hz), row[1], row[2])
 
 
 def check_rate(hz: Any, key: str = "physics_hz") -> float:
@@ -55,22 +72,16 @@ def check_rate(hz: Any, key: str = "physics_hz") -> float:
     if hz < MIN_HZ - 1e-9:
         raise ConfigError(
             f"{hz:g} Hz is too coarse for the motion primitives: the minimum is {MIN_HZ:g} Hz "
-            f"(their heading control ticks at {MIN_HZ:g} Hz and a tick cannot be shorter "
-            "than a physics step)", key=key, fix=f"give {MIN_HZ:g} Hz or more "
-            f"(default {DEFAULT_HZ:g})")
+            "(the coarsest rate whose primitives were measured to end where 200 Hz's do)",
+            key=key, fix=f"give {MIN_HZ:g} Hz or more (default {DEFAULT_HZ:g})")
     return float(hz)
-
-
-def rate_record(hz: float, iterations: int) -> dict[str, Any]:
-    """The JSON record of a physics step (manifests, reports)."""
-    return {"hz": float(hz), "solver_iterations": int(iterations)}
 
 
 def rate_option() -> Any:
     """The ``--physics-hz`` field of a physics command's config (None: the command's default
     rate; read it with :func:`resolve_rate`)."""
     return option(None, f"physics steps per simulated second (default {DEFAULT_HZ:g}; at least "
-                  f"{MIN_HZ:g}: the primitives' control rate)", metavar="HZ")
+                  f"{MIN_HZ:g})", metavar="HZ")
 
 
 def resolve_rate(hz: Any, default: float | None = None) -> float:

@@ -193,10 +193,11 @@ class World:
         A :class:`RobotSpec`, a built-in robot name or a ``.urdf`` path.
     gui:
         Open the PyBullet GUI (needs a display); DIRECT (headless) otherwise.
-    physics_hz, solver_iterations:
-        Fixed time step (Hz; default :data:`simlab.physics.rate.DEFAULT_HZ`) and constraint
-        solver iterations (default: what the rate needs,
-        :func:`simlab.physics.rate.iterations_for`). Any rate > 0 steps here; the commands
+    physics_hz, solver_iterations, contact_threshold:
+        Fixed time step (Hz; default :data:`simlab.physics.rate.DEFAULT_HZ`), constraint
+        solver iterations and the robot's contact processing threshold (m; ``math.inf``:
+        Bullet's default); None: what the rate needs
+        (:func:`simlab.physics.rate.settings_for`). Any rate > 0 steps here; the commands
         refuse the rates too coarse for the primitives
         (:func:`simlab.physics.rate.check_rate`).
     lidar:
@@ -211,6 +212,7 @@ class World:
         gui: bool = False,
         physics_hz: float | None = None,
         solver_iterations: int | None = None,
+        contact_threshold: float | None = None,
         lidar: LidarSpec | None = None,
     ) -> None:
         self.arena = arena if isinstance(arena, ArenaConfig) else load_arena(arena)
@@ -219,10 +221,14 @@ class World:
         hz = rate.DEFAULT_HZ if physics_hz is None else float(physics_hz)
         if not (math.isfinite(hz) and hz > 0):
             raise ValueError(f"physics_hz must be a rate > 0 Hz, got {physics_hz!r}")
+        need = rate.settings_for(hz)
+        self.settings = rate.StepSettings(
+            hz, need.solver_iterations if solver_iterations is None else int(solver_iterations),
+            need.contact_threshold if contact_threshold is None
+            else (None if contact_threshold == math.inf else float(contact_threshold)))
         self.physics_hz = hz
         self.dt = 1.0 / self.physics_hz
-        self.solver_iterations = (rate.iterations_for(hz) if solver_iterations is None
-                                  else int(solver_iterations))
+        self.solver_iterations = self.settings.solver_iterations
         self.gui = gui
         with quiet_stdout():
             self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
@@ -268,6 +274,10 @@ class World:
             )
         # The base's reported position is its centre of mass; keep the inertial offset to
         # convert between the link frame (our pose) and the COM frame.
+        threshold = self.settings.contact_threshold
+        if threshold is not None:  # the manifold's separated points stay out of the solver
+            for link in range(-1, c.getNumJoints(self.body)):
+                c.changeDynamics(self.body, link, contactProcessingThreshold=threshold)
         info = c.getDynamicsInfo(self.body, -1)
         self._inertial_pos = np.asarray(info[3], dtype=float)
         self._inertial_xyz = tuple(float(v) for v in info[3])

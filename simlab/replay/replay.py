@@ -108,7 +108,7 @@ from simlab.base.errors import ConfigError
 from simlab.base.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 from simlab.base.options import command
 from simlab.localization.sources import POSE_SOURCES
-from simlab.physics.rate import iterations_for, rate_record
+from simlab.physics.rate import settings_for
 from simlab.replay.config import POLICIES, ReplayConfig
 from simlab.replay.loop import FRAME_PARTICLES, ReplayLog, RunOutcome, RunSpec, drive_to_pose
 from simlab.replay.policy import greedy_action
@@ -356,8 +356,7 @@ def _summarize(cfg: ReplayConfig, inp: _Inputs, plan: RunPlan, run: RunOutcome,
         escape_radius=float(cfg.escape_radius), epsilon=float(cfg.epsilon),
         primitive_params=asdict(inp.params), primitive_params_source=inp.params_source,
         primitives_file=None if cfg.primitives is None else str(cfg.primitives),
-        physics={**rate_record(inp.physics_hz, iterations_for(inp.physics_hz)),
-                 "source": inp.physics_source},
+        physics={**settings_for(inp.physics_hz).to_json(), "source": inp.physics_source},
         mcl_params=asdict(inp.mcl_params) if cfg.pose_source == "mcl" else None,
         schedule=Schedule(plan.split_baseline, plan.spec.remote_mcl),
         result=result, localization=localization_summary(run), random_baseline=base,
