@@ -474,14 +474,7 @@ def main() -> None:
     print(f"pipeline: done in {total:.1f} s without the {probing[0]:.1f} s of probes "
           f"(stages + report {total - stages_wall:.1f} s)")
     print_bounds(total, cpu_run, cores, (floor_total, sensed_total), others, args.before)
-    try:
-        from simlab.replay.scheduling import shares_per_session
-
-        rule = "session (autogroup: idle cores decide)" if shares_per_session() else "process"
-    except ModuleNotFoundError:  # the code before the replay package (A/B runs)
-        rule = "?"
-    print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}; CPUs shared "
-          f"per {rule}")
+    print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}")
     warm = rec.get("warmup", {})
     print(f"numba compile in this process: {ct.seconds:.1f} s; the warm-up worker (compile + "
           f"imports, beside the map and the walk) took {warm.get('worker_seconds')} s and the "

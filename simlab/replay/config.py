@@ -82,9 +82,7 @@ class ReplayConfig(CommandConfig):
                                      "comma-separated; default: all of the arena's",
                                metavar="NAMES")
     parallel: bool = option(True, "run the random baseline and the mcl filter in processes "
-                                  "of their own on 2 cores (the filter: 3 with a baseline; "
-                                  "idle ones where the CPUs are shared per session); "
-                                  "bit-identical results")
+                                  "of their own on 2 or more cores; bit-identical results")
     pool: Any | None = option(None, "a one-process executor to run the random baseline (and "
                                     "encode the video) in, instead of a fresh process: a "
                                     "warmed worker lent by the caller, left open", cli=False)

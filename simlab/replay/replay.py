@@ -64,10 +64,9 @@ Decisions where the thesis is silent:
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
 * **scheduling** (``parallel=True`` on 2 or more usable cores, decided from the
-  core count, or from the idle cores where Linux shares the CPUs per session,
-  :func:`schedule`): the random baseline runs in a ``spawn`` process while this one drives
-  the learned policy (and then encodes the video), and the ``mcl`` filter runs in a
-  third process fed scan by scan (with 3 cores, or 2 without a baseline)
+  core count, :func:`schedule`): the random baseline runs in a ``spawn`` process while this
+  one drives the learned policy (and then encodes the video), and the ``mcl`` filter runs
+  in a third process fed scan by scan
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
   decisions and video frames). The worlds and seed streams are independent, so the
   results are bit-identical to ``parallel=False``; the replay's wall time becomes that
@@ -112,7 +111,7 @@ from simlab.physics.rate import settings_for
 from simlab.replay.config import POLICIES, ReplayConfig
 from simlab.replay.loop import FRAME_PARTICLES, ReplayLog, RunOutcome, RunSpec, drive_to_pose
 from simlab.replay.policy import greedy_action
-from simlab.replay.scheduling import RunPlan, idle_cores, run_both, schedule, usable_cores
+from simlab.replay.scheduling import RunPlan, run_both, schedule, usable_cores
 from simlab.replay.summary import (
     BaselineStats,
     ReplaySummary,
@@ -124,7 +123,7 @@ from simlab.replay.summary import (
 
 __all__ = ["FRAME_PARTICLES", "POLICIES", "POSE_SOURCES", "ReplayConfig", "ReplayLog",
            "ReplayResult", "ReplaySummary", "RunOutcome", "drive_to_pose", "greedy_action",
-           "idle_cores", "replay", "schedule", "usable_cores"]
+           "replay", "schedule", "usable_cores"]
 
 
 @dataclass(frozen=True)

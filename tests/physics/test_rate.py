@@ -14,11 +14,11 @@ from simlab.base.errors import ConfigError
 from simlab.physics.motion import PrimitiveParams, execute_primitive
 from simlab.physics.rate import (
     DEFAULT_HZ,
-    ITERATIONS,
     MIN_HZ,
     RECORDLESS_HZ,
+    SETTINGS,
     check_rate,
-    iterations_for,
+    settings_for,
 )
 from simlab.physics.world import World
 
@@ -32,18 +32,15 @@ def test_a_rate_below_the_minimum_is_refused_naming_the_minimum() -> None:
             check_rate(bad)
 
 
-def test_the_minimum_is_the_primitives_control_rate() -> None:
-    """A control tick cannot be shorter than a physics step: the primitives' fastest loop
-    (the heading control of the turn) bounds the rate from below."""
-    p = PrimitiveParams()
-    assert MIN_HZ >= p.fine_hz and MIN_HZ >= p.hold_hz
-    assert MIN_HZ <= DEFAULT_HZ
+def test_the_minimum_is_the_coarsest_measured_row() -> None:
+    """The settings table ends at the minimum: no rate below it has measured settings."""
+    assert SETTINGS[-1][0] == MIN_HZ <= DEFAULT_HZ
 
 
 @pytest.mark.parametrize("hz", [MIN_HZ, DEFAULT_HZ, 200.0])
 def test_scans_and_control_ticks_fall_on_whole_steps(hz: float) -> None:
-    """The LIDAR's 0.2 s, the drive's 0.1 s hold ticks and the turn's 1/60 s fall on whole
-    physics steps at the allowed rates that the step-size benchmark measured."""
+    """The LIDAR's 0.2 s and the drive's 0.1 s hold ticks fall on whole physics steps at
+    the rates the step-size benchmark measured: the scans keep their times."""
     p = PrimitiveParams()
     for period in (0.2, 1 / p.hold_hz):
         assert period * hz == pytest.approx(round(period * hz), abs=1e-9)
@@ -55,18 +52,33 @@ def test_scans_and_control_ticks_fall_on_whole_steps(hz: float) -> None:
     np.testing.assert_allclose(stamps, 0.2 * np.arange(1, len(stamps) + 1), rtol=0, atol=1e-9)
 
 
-def test_each_rate_takes_the_iterations_of_its_row() -> None:
-    rates = [r for r, _ in ITERATIONS]
-    its = [i for _, i in ITERATIONS]
+def test_each_rate_takes_the_settings_of_its_row() -> None:
+    rates = [r for r, _, _ in SETTINGS]
+    its = [i for _, i, _ in SETTINGS]
     assert rates == sorted(rates, reverse=True) and its == sorted(its)  # coarser, more
-    assert rates[-1] <= MIN_HZ
-    for r, i in ITERATIONS:
-        assert iterations_for(r) == i and iterations_for(r + 1) <= i
-    assert iterations_for(200.0) == 5  # the settings every dataset had before the record
+    for r, i, t in SETTINGS:
+        assert (settings_for(r).solver_iterations, settings_for(r).contact_threshold) == (i, t)
+        assert settings_for(r + 1).solver_iterations <= i
+    # 200 Hz is exactly the physics every dataset had before the rate was recorded
+    assert settings_for(200.0).to_json() == {"hz": 200.0, "solver_iterations": 5,
+                                             "contact_threshold": None}
     with World("table") as w:
-        assert w.physics_hz == DEFAULT_HZ and w.solver_iterations == iterations_for(DEFAULT_HZ)
+        assert w.physics_hz == DEFAULT_HZ and w.settings == settings_for(DEFAULT_HZ)
     with World("table", physics_hz=200.0) as w:
         assert (w.dt, w.solver_iterations) == (1 / 200, 5)
+        assert w.settings.contact_threshold is None  # Bullet's contacts, untouched
+
+
+def test_a_contact_threshold_leaves_separated_points_out_of_the_solver() -> None:
+    """A separated manifold point (a wheel's contact of the step before, lifted off the
+    floor) takes no impulse: leaving it out changes the primitive by far less than the
+    step's own error (mm)."""
+    ends = []
+    for threshold in (0.0, math.inf):
+        with World("table", physics_hz=60.0, solver_iterations=20,
+                   contact_threshold=threshold) as w:
+            ends.append(execute_primitive(w, 9, np.random.default_rng(0)).pose_after)
+    assert np.hypot(*(ends[0][:2] - ends[1][:2])) < 0.005
 
 
 def _lattice() -> Discretizer:
@@ -81,8 +93,7 @@ def test_a_dataset_records_its_rate_and_refuses_a_resume_at_another(tmp_path: Pa
     res = collect("table", _lattice(), out=tmp_path / "d", transitions=6, seed=1, workers=1,
                   part_size=3, progress=False)
     manifest = read_manifest(tmp_path / "d")
-    assert manifest["parameters"]["physics"] == {"hz": DEFAULT_HZ,
-                                                 "solver_iterations": iterations_for(DEFAULT_HZ)}
+    assert manifest["parameters"]["physics"] == settings_for(DEFAULT_HZ).to_json()
     assert physics_rate(manifest) == res.physics_hz == DEFAULT_HZ
     other = 200.0 if DEFAULT_HZ != 200.0 else MIN_HZ
     with pytest.raises(ConfigError, match=r"parameters\.physics\.hz: cannot resume"):
