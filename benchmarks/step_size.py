@@ -10,11 +10,12 @@ in one run on one machine:
    primitives' 60 Hz and 10 Hz control ticks and the LIDAR's 5 Hz fall on its steps): the
    end position error (mm, max and mean), the end heading error (deg), the heading error
    the turn leaves (deg) and the mean duration against the reference's (the dataset's pace).
-   The setting a rate needs: the cheapest (fewest iterations, then threshold 0) whose
-   primitives are as faithful as 200 Hz with 5 iterations and Bullet's contacts, the
-   settings every dataset was made with before the rate was a setting ("today"): position
-   errors at most 10 % (+0.5 mm) above today's, headings within the primitive tests' 3 deg,
-   mean duration within 2 % of the reference's;
+   And the overshoot of the commanded speed or yaw rate from rest (the drive tests allow
+   5 %). The setting a rate needs: of those whose primitives are as faithful as 200 Hz with
+   5 iterations and Bullet's contacts, the settings every dataset was made with before the
+   rate was a setting ("today"), the one whose primitives took the least CPU (median):
+   position errors at most 10 % (+0.5 mm) above today's, headings within the primitive
+   tests' 3 deg, mean duration within 2 % of the reference's, overshoot within 5 %;
 2. **walls** (each rate with its setting): the obstacle detector's decisions from
    ``--wall-poses`` poses near the walls and obstacles of ``table_obstacles`` (every
    action from each): the share blocked and the agreement with 200 Hz; then driving into a
@@ -53,6 +54,7 @@ The load average is printed before and after (the machine may be shared).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -71,6 +73,7 @@ from collect_speed import (  # benchmarks/ is on sys.path as the script's dir
 
 REF_HZ, REF_ITERATIONS = 960.0, 50
 TURN_BOUND_DEG = 3.0
+SPEED_BOUND = 0.05  # the drive tests' bound on commanded speeds
 PUSH_SECONDS, BACK_SECONDS = 3.0, 1.0
 #: The reference walks: 200 Hz, other seeds than every rate's walks.
 REFERENCE = "200 Hz reference"
@@ -111,8 +114,8 @@ def start_poses(n: int, seed: int = 1) -> list[tuple[float, float, float]]:
 
 
 def primitive_ends(hz: float, solver: Solver, poses: list) -> np.ndarray:
-    """``(len(poses) * 16, 5)``: end x, y, yaw, duration and the turn's heading error of
-    every primitive from every pose."""
+    """``(len(poses) * 16, 6)``: end x, y, yaw, duration, the turn's heading error and the
+    CPU seconds of every primitive from every pose."""
     from simlab.physics.motion import PrimitiveParams, execute_primitive
 
     params, rows = PrimitiveParams(), []
@@ -120,9 +123,28 @@ def primitive_ends(hz: float, solver: Solver, poses: list) -> np.ndarray:
         for pose in poses:
             for a in range(16):
                 w.reset(pose)
+                c = time.process_time()
                 r = execute_primitive(w, a, np.random.default_rng(a), params)
-                rows.append((*r.pose_after, r.duration, r.heading_error))
+                rows.append((*r.pose_after, r.duration, r.heading_error,
+                             time.process_time() - c))
     return np.array(rows)
+
+
+def speed_overshoot(hz: float, solver: Solver) -> float:
+    """The largest overshoot (a fraction) of the speed or yaw rate limits over 1 s from rest,
+    sampled every 4 steps, for the saturated commands of the drive tests (full speed ahead,
+    astern, a turn in place, both at once): they allow 5 %."""
+    worst = 0.0
+    for v, om in ((1.0, 0.0), (-1.0, 0.0), (0.0, 10.0), (0.22, 2.84)):
+        with world("table", hz, solver) as w:
+            w.reset((0.0, -0.5, math.pi / 2))
+            spec = w.robot_spec
+            w.drive.command(v, om)
+            for _ in range(round(hz / 4)):
+                w.step(4)
+                lin, ang = w.velocity()
+                worst = max(worst, abs(lin) / spec.v_max - 1.0, abs(ang) / spec.w_max - 1.0)
+    return worst
 
 
 @dataclass(frozen=True)
@@ -135,6 +157,8 @@ class PoseErrors:
     head_mean: float
     turn_max: float
     duration: float
+    cpu_ms: float
+    overshoot: float = 0.0
 
     @classmethod
     def of(cls, ends: np.ndarray, ref: np.ndarray) -> PoseErrors:
@@ -142,7 +166,8 @@ class PoseErrors:
         h = np.degrees(np.abs(np.remainder(ends[:, 2] - ref[:, 2] + np.pi, 2 * np.pi) - np.pi))
         return cls(float(d.max()), float(d.mean()), float(h.max()), float(h.mean()),
                    float(np.degrees(np.abs(ends[:, 4])).max()),
-                   float(ends[:, 3].mean() / ref[:, 3].mean() - 1.0))
+                   float(ends[:, 3].mean() / ref[:, 3].mean() - 1.0),
+                   float(np.median(ends[:, 5]) * 1e3))
 
     def as_good_as(self, today: PoseErrors) -> bool:
         # the position decides the state; a heading (where in its 1 deg tolerance a turn
@@ -150,22 +175,25 @@ class PoseErrors:
         return (self.pos_max <= 1.1 * today.pos_max + 0.5
                 and self.pos_mean <= 1.1 * today.pos_mean + 0.5
                 and self.head_max <= TURN_BOUND_DEG and self.turn_max <= TURN_BOUND_DEG
-                and abs(self.duration) <= 0.02)
+                and abs(self.duration) <= 0.02 and self.overshoot <= SPEED_BOUND)
 
 
 def solver_table(rates: list[float], solvers: list[Solver], n_poses: int
                  ) -> tuple[dict[float, dict[Solver, PoseErrors]], dict[float, Solver | None]]:
-    """Errors of every (rate, solver) and the solver each rate needs: the first of
-    ``solvers`` (in their order: cheapest first) as faithful as today's (None: none is)."""
+    """Errors of every (rate, solver) and the solver each rate needs: of those as faithful
+    as today's, the one whose primitives took the least CPU (None: none is)."""
     poses = start_poses(n_poses)
     ref = primitive_ends(REF_HZ, Solver(REF_ITERATIONS), poses)
-    errors = {hz: {sv: PoseErrors.of(primitive_ends(hz, sv, poses), ref) for sv in solvers}
-              for hz in rates}
+    errors = {hz: {sv: dataclasses.replace(PoseErrors.of(primitive_ends(hz, sv, poses), ref),
+                                           overshoot=speed_overshoot(hz, sv))
+                   for sv in solvers} for hz in rates}
     today = errors.setdefault(TODAY[0], {}).get(TODAY[1])
     if today is None:
         today = errors[TODAY[0]][TODAY[1]] = PoseErrors.of(primitive_ends(*TODAY, poses), ref)
-    need = {hz: next((sv for sv in solvers if errors[hz][sv].as_good_as(today)), None)
-            for hz in rates}
+    need = {}
+    for hz in rates:
+        ok = [sv for sv in solvers if errors[hz][sv].as_good_as(today)]
+        need[hz] = min(ok, key=lambda sv, hz=hz: errors[hz][sv].cpu_ms) if ok else None
     return errors, need
 
 
@@ -330,13 +358,15 @@ def print_solvers(errors: dict[float, dict[Solver, PoseErrors]],
     print(f"\n== 1. primitive end poses against {REF_HZ:g} Hz / {REF_ITERATIONS} iterations "
           f"(today: {TODAY[0]:g} Hz / {TODAY[1]}) ==")
     print(f"{'Hz':>5} {'solver':>12} {'pos max':>8} {'mean mm':>8} {'head max':>9} "
-          f"{'mean deg':>9} {'turn max':>9} {'duration':>9}  as good as today")
+          f"{'mean deg':>9} {'turn max':>9} {'duration':>9} {'overshoot':>9} {'ms/prim':>7}"
+          "  as good as today")
     today = errors[TODAY[0]][TODAY[1]]
     for hz in sorted(errors, reverse=True):
         for sv, e in sorted(errors[hz].items()):
             mark = "needed" if need.get(hz) == sv else ("yes" if e.as_good_as(today) else "no")
             print(f"{hz:5g} {sv!s:>12} {e.pos_max:8.2f} {e.pos_mean:8.2f} {e.head_max:9.2f} "
-                  f"{e.head_mean:9.2f} {e.turn_max:9.2f} {100 * e.duration:+8.1f}%  {mark}")
+                  f"{e.head_mean:9.2f} {e.turn_max:9.2f} {100 * e.duration:+8.1f}% "
+                  f"{100 * e.overshoot:8.1f}% {e.cpu_ms:7.2f}  {mark}")
 
 
 def summary_table(rows: dict[float, dict[str, Any]]) -> None:
