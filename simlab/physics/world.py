@@ -6,13 +6,16 @@ arenas in one process never share state. Library code never touches the global
 
 Physics settings (chosen for speed, fidelity checked by tests/physics):
 
-* 200 Hz fixed time step, 5 solver iterations. A step costs about the same whatever the
-  rate, so the rate sets the speed; measured on the random primitive walk (quiet 2-core
-  machine): 240 Hz 322x real time, 200 Hz 387x, 160 Hz 329x (contacts get costlier),
-  120 Hz 445x but primitive headings off by up to 3.5 degrees and distances by +14 %.
-  At 200 Hz commanded speeds and yaw rates are reproduced within 1.3 % and primitive
-  headings within 0.3 degrees (tests/physics);
-* the contact model is the cheapest of those measured that keeps those figures
+* a fixed time step of :data:`simlab.physics.rate.DEFAULT_HZ` (50 Hz) with the solver
+  settings the rate needs (:func:`simlab.physics.rate.settings_for`: 30 iterations and the
+  robot's separated contact points left out of the solver at 50 Hz; 5 iterations and
+  Bullet's contacts at 200 Hz, the rate before it was a setting). Chosen by
+  ``benchmarks/step_size.py``: primitives end within the 200 Hz ones' error of a 960 Hz
+  reference, walks give transition matrices within the bootstrap floor of 200 Hz walks,
+  and a transition costs 2.2x less CPU (see :mod:`simlab.physics.rate`). At 200 Hz
+  commanded speeds and yaw rates are reproduced within 1.3 % and primitive headings within
+  0.3 degrees; the tests of tests/physics hold at every rate of the settings table;
+* the contact model is the cheapest of those measured at 200 Hz that keeps those figures
   (benchmarks/contact_model.py, 2026-11-26, 2-core VM): a bare step of the robot on the
   table costs ~15 us of CPU, of which ~8 us remain with the floor filtered out; the rest
   is the three floor contacts (two wheel spheres, the caster), each one normal and two
