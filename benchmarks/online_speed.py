@@ -55,13 +55,13 @@ def bench_mdp(decisions: int, repeats: int) -> None:
     for crit in ("mf", "mb", "entropy_and_cost"):
         fused, python = [], []
         for rep in range(repeats + 1):
-            ag = meta.make_meta_agent(mf, mb, 38, 8, criterion=crit)
+            ag = meta.make_meta_agent(mf, mb, 38, 8, meta.Arbitration(crit))
             t0 = time.perf_counter()
             log = run_online(ag, task, decisions, np.random.default_rng(rep),
                              np.random.default_rng(100 + rep))
             if rep:
                 fused.append(decisions / (time.perf_counter() - t0))
-            ag = meta.make_meta_agent(mf, mb, 38, 8, criterion=crit)
+            ag = meta.make_meta_agent(mf, mb, 38, 8, meta.Arbitration(crit))
             env, arng = np.random.default_rng(rep), np.random.default_rng(100 + rep)
             from simlab.agents.kernels import sample_from_cdf
 
@@ -89,7 +89,7 @@ def _physics_run(world, rep: int, decisions: int, disc, mf, mb) -> tuple[float, 
     from simlab.physics.motion import PrimitiveParams
 
     world.reset()
-    ag = meta.make_meta_agent(mf, mb, 25, 16, criterion="entropy_and_cost")
+    ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration("entropy_and_cost"))
     t0 = time.perf_counter()
     run = run_physics_online(ag, world, disc, PhysicsTask((12,), (0, 24), decisions),
                              RunStreams.from_seed(np.random.SeedSequence(rep)))
