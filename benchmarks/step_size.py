@@ -402,13 +402,20 @@ def figure(rows: dict[float, dict[str, Any]], path: Path) -> None:
     ax[0].axhline(rows[TODAY[0]]["errors"].pos_max, color="grey", ls=":", label="200 Hz max")
     ax[0].set(xlabel="physics rate (Hz)", ylabel="end position error (mm)",
               title=f"primitives vs {REF_HZ:g} Hz (needed settings)")
-    ax[1].fill_between(hz, 0, [rows[h]["tv"]["floor_high"] for h in hz], color="C2",
-                       alpha=0.2, label="floor 97.5 %")
-    ax[1].plot(hz, [rows[h]["tv"]["floor"] for h in hz], "--", color="C2", label="floor median")
+    control = rows[TODAY[0]]["tv"]["tv"]
+    spread = [rows[h]["tv"]["floor_high"] - rows[h]["tv"]["floor"] for h in hz]
+    ax[1].fill_between(hz, control, [control + d for d in spread], color="C2", alpha=0.25,
+                       label="control + floor spread")
+    ax[1].axhline(control, color="C2", ls="--", label=f"{TODAY[0]:g} Hz control")
+    ax[1].plot(hz, [rows[h]["tv"]["floor"] for h in hz], ":", color="grey",
+               label="floor median")
     ax[1].plot(hz, [rows[h]["tv"]["tv"] for h in hz], "o-", color="C3", label="TV to 200 Hz")
     ax[1].set(xlabel="physics rate (Hz)", ylabel="visit-weighted TV",
-              title="walk transitions vs 200 Hz")
+              title="walk transitions vs 200 Hz walks")
     ax[2].plot(hz, [rows[h]["tv"]["cpu_ms"] for h in hz], "o-", label="CPU ms / transition")
+    for h in hz:
+        ax[0].annotate(str(rows[h]["solver"]), (h, rows[h]["errors"].pos_max), fontsize=6,
+                       textcoords="offset points", xytext=(0, 4), ha="center")
     ax[2].set(xlabel="physics rate (Hz)", ylabel="CPU ms per transition", title="speed")
     for a in ax:
         for h in hz:
