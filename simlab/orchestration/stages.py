@@ -46,7 +46,7 @@ key                 meaning                                                    d
 ``video``           write the replay GIF of chain seed 0 (thesis Fig. 4.11)    false
 ``seeds``           independent chains: datasets (with their MDP, training     1
                     and replay) from one map and one set of states
-``physics_hz``      physics rate of the map, the walks and the replays (Hz,    60
+``physics_hz``      physics rate of the map, the walks and the replays (Hz,    50
                     at least :data:`simlab.physics.rate.MIN_HZ`)
 ==================  =========================================================  ========
 """
