@@ -19,8 +19,13 @@ self-transition share and entropy sim vs real, the transfer of twin policies ove
 seeds (expected steps to every goal on the real model against its optimum: mean and worst),
 and the wall time on this machine.
 
-Run: ``python benchmarks/calibrate_twin.py [--quick] [--workers 2] [--keep DIR]``.
-``--quick`` shrinks every budget (a smoke run, not the benchmark).
+``--compare-hz HZ`` runs the same calibration a second time with ``HZ`` as the default
+physics rate (every walk of it, in every worker: ``benchmarks/rate_arm.py``), right after
+the first, and prints both wall times and their ratio (200: the rate before it was a
+setting).
+
+Run: ``python benchmarks/calibrate_twin.py [--quick] [--workers 2] [--keep DIR]
+[--compare-hz 200]``. ``--quick`` shrinks every budget (a smoke run, not the benchmark).
 """
 
 from __future__ import annotations
@@ -99,6 +104,18 @@ def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float,
     return {"transitions": int(counts.sum()), "hours": real_hours, "latency": latency}
 
 
+def run_calibrate(cmd: list[str], env: dict[str, str]) -> float:
+    """Run the calibrate command line; its wall seconds (its output printed)."""
+    t1 = time.perf_counter()
+    proc = subprocess.run(cmd, text=True, capture_output=True, env=env)
+    wall = time.perf_counter() - t1
+    print(proc.stdout.strip())
+    if proc.returncode:
+        print(proc.stderr.strip())
+        raise SystemExit(proc.returncode)
+    return wall
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="small budgets (smoke run)")
@@ -107,6 +124,8 @@ def main() -> None:
     parser.add_argument("--keep", type=Path, default=None, help="keep the files here")
     parser.add_argument("--reuse", action="store_true",
                         help="reuse the lab and hidden walk already in --keep")
+    parser.add_argument("--compare-hz", type=float, default=0.0,
+                        help="also calibrate with this default physics rate (0: no)")
     args = parser.parse_args()
 
     from simlab.calibration.signature import real_signature
@@ -146,14 +165,21 @@ def main() -> None:
         cmd += ["--candidates", "4", "--confirm-top", "1", "--confirm-seeds", "1",
                 "--transfer-seeds", "2", "--confirm-hours", "1"]
     print("$ simlab " + " ".join(cmd[3:]))
-    t1 = time.perf_counter()
-    proc = subprocess.run(cmd, text=True, capture_output=True, env={**os.environ})
-    wall = time.perf_counter() - t1
-    print(proc.stdout.strip())
-    if proc.returncode:
-        print(proc.stderr.strip())
-        raise SystemExit(proc.returncode)
+    load0 = os.getloadavg()[0]
+    wall = run_calibrate(cmd, dict(os.environ))
     rep = json.loads((out / "report.json").read_text())
+    if args.compare_hz:
+        from rate_arm import default_rate_env
+
+        from simlab.physics.rate import DEFAULT_HZ
+
+        other = root / f"cal-{args.compare_hz:g}hz"
+        cmd_hz = [other if c == str(out) else c for c in cmd]
+        wall_hz = run_calibrate([str(c) for c in cmd_hz], default_rate_env(args.compare_hz, root))
+        d_hz = json.loads((other / "report.json").read_text())["distance"]["distance"]
+        print(f"\ncalibrate at the default {DEFAULT_HZ:g} Hz: {wall:.0f} s wall; at "
+              f"{args.compare_hz:g} Hz: {wall_hz:.0f} s ({wall_hz / wall:.2f}x; its TV distance "
+              f"{d_hz:.3f}); load {load0:.2f} before, {os.getloadavg()[0]:.2f} after")
     d = rep["distance"]["distance"]
     fl, mf = rep["floor"]["median"], rep["matched_floor"]["median"]
     cov = rep["coverage"]

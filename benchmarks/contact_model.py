@@ -128,8 +128,10 @@ class Bench:
             tree.write(self.robot)
 
     def world(self) -> World:
+        # at 200 Hz with Bullet's contacts, the settings the candidates were measured at
+        # (the default rate's own settings are benchmarks/step_size.py's)
         kw = {} if self.cand.iterations is None else {"solver_iterations": self.cand.iterations}
-        return World("table", robot=self.robot, **kw)
+        return World("table", robot=self.robot, physics_hz=200.0, **kw)
 
     def reset(self, world: World, pose: tuple[float, float, float] | None = None) -> None:
         world.reset(pose)

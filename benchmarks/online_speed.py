@@ -12,8 +12,13 @@
    ``DecisionDriver`` driving a frozen greedy Q-table (what ``simlab replay`` does per
    decision, without its recorder and video).
 
+   The physics part runs at the default physics rate and, in turn with it (repeat by
+   repeat), at ``--compare-hz`` (default 200, the rate before it was a setting; 0: none):
+   the lab's world is built at that rate (``PhysicsLab.physics_hz``).
+
 Each figure is the best of ``--repeats`` runs (the machine is shared; the spread is
-printed). Numba compilation is paid before the timing (one warm-up run).
+printed), and the median; the load average is printed. Numba compilation is paid before
+the timing (one warm-up run).
 """
 
 from __future__ import annotations
@@ -75,49 +80,77 @@ def bench_mdp(decisions: int, repeats: int) -> None:
               f"MB share {log.expert.mean():.2f}")
 
 
-def bench_physics(decisions: int, repeats: int) -> None:
-    from discretize.voronoi import Discretizer
+def _physics_run(lab, rep: int, decisions: int, mf, mb) -> tuple[float, ...]:
+    """(online decisions/s, replay-step decisions/s, their stepped robot-s per wall s) of
+    one repeat on ``lab`` (a :class:`~simlab.online.physics.PhysicsLab` at its rate)."""
     from simlab.online import meta
     from simlab.online.physics import PhysicsTask, RunStreams, run_physics_online
     from simlab.physics.driver import DecisionDriver
-    from simlab.physics.motion import PrimitiveParams
-    from simlab.physics.world import World
 
-    g = np.linspace(-0.6, 0.6, 5)
-    disc = Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g]))
+    ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration(criterion="entropy_and_cost"))
+    t0 = time.perf_counter()
+    run = run_physics_online(ag, lab, PhysicsTask((12,), (0, 24), decisions),
+                             RunStreams.from_seed(np.random.SeedSequence(rep)))
+    wall = time.perf_counter() - t0
+    Q = ag.mf.Q.copy()  # a frozen table for the replay-style loop
+    walker = lab.walker("truth")
+    try:
+        world = walker.world
+        disc = lab.discretizer
+        driver = DecisionDriver(world, lab.params, state_of=lambda p: int(
+            disc.state_of(np.asarray(p[:2], dtype=float)[None])[0]))
+        rng = np.random.default_rng(rep + 3)
+        t_robot = world.time
+        t1 = time.perf_counter()
+        greedy = Q.argmax(axis=1)
+        for _ in range(decisions):
+            driver.step(lambda _pose, s, g=greedy: int(g[s]), rng)
+        wall_replay = time.perf_counter() - t1
+        robot_replay = world.time - t_robot
+    finally:
+        walker.close()
+    return (decisions / wall, decisions / wall_replay, run.robot_seconds / wall,
+            robot_replay / wall_replay)
+
+
+def bench_physics(decisions: int, repeats: int, compare_hz: float) -> None:
+    import dataclasses
+    import os
+    import statistics
+
+    from simlab.online.experiments import lattice_states
+    from simlab.online.physics import PhysicsLab
+    from simlab.physics.arena import load_arena
+    from simlab.physics.motion import PrimitiveParams
+    from simlab.physics.rate import DEFAULT_HZ
+
+    arena = load_arena("table")
+    base = PhysicsLab(arena, lattice_states(arena, 5), PrimitiveParams())
     mf, mb = _experts()
+    rates = [DEFAULT_HZ] + ([compare_hz] if compare_hz and compare_hz != DEFAULT_HZ else [])
     print(f"\n== physics, table, 25 states x 16 primitives, {decisions} decisions per run "
-          f"(best of {repeats}) ==")
-    online, replay, robot_online, robot_replay = [], [], [], []
-    with World("table") as world:
-        for rep in range(repeats + 1):
-            world.reset()
-            ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration())
-            t0 = time.perf_counter()
-            run = run_physics_online(ag, world, disc, PhysicsTask((12,), (0, 24), decisions),
-                                     RunStreams.from_seed(np.random.SeedSequence(rep)))
-            wall = time.perf_counter() - t0
-            Q = ag.mf.Q.copy()  # a frozen table for the replay-style loop
-            world.reset()
-            driver = DecisionDriver(world, PrimitiveParams(), state_of=lambda p: int(
-                disc.state_of(np.asarray(p[:2], dtype=float)[None])[0]))
-            rng = np.random.default_rng(rep + 3)
-            t_robot = world.time
-            t1 = time.perf_counter()
-            greedy = Q.argmax(axis=1)
-            for _ in range(decisions):
-                driver.step(lambda _pose, s, g=greedy: int(g[s]), rng)
-            wall_replay = time.perf_counter() - t1
-            if rep:
-                online.append(decisions / wall)
-                replay.append(decisions / wall_replay)
-                robot_online.append(run.robot_seconds / wall)
-                robot_replay.append((world.time - t_robot) / wall_replay)
-    print(f"online (entropy_and_cost) decisions/s {_best(online)}   stepped robot-s/wall-s "
-          f"{max(robot_online):.1f}")
-    print(f"replay step (frozen Q)    decisions/s {_best(replay)}   stepped robot-s/wall-s "
-          f"{max(robot_replay):.1f}")
-    print(f"online / replay decision rate {max(online) / max(replay):.2f}")
+          f"(best of {repeats}; rates {', '.join(f'{r:g}' for r in rates)} Hz in turn) ==")
+    load0 = os.getloadavg()[0]
+    res: dict[float, list[tuple[float, ...]]] = {hz: [] for hz in rates}
+    labs = {hz: dataclasses.replace(base, physics_hz=hz) for hz in rates}
+    for rep in range(repeats + 1):
+        for hz in rates:
+            r = _physics_run(labs[hz], rep, decisions, mf, mb)
+            if rep:  # the first is the warm-up
+                res[hz].append(r)
+    for hz in rates:
+        online = [r[0] for r in res[hz]]
+        replay = [r[1] for r in res[hz]]
+        print(f"{hz:5g} Hz: online (entropy_and_cost) decisions/s {_best(online)} median "
+              f"{statistics.median(online):.0f}; stepped robot-s/wall-s "
+              f"{max(r[2] for r in res[hz]):.1f}")
+        print(f"{hz:5g} Hz: replay step (frozen Q)    decisions/s {_best(replay)} median "
+              f"{statistics.median(replay):.0f}; online / replay {max(online) / max(replay):.2f}")
+    if len(rates) == 2:
+        a = statistics.median(r[0] for r in res[rates[0]])
+        b = statistics.median(r[0] for r in res[rates[1]])
+        print(f"online decisions/s at {rates[0]:g} Hz / at {rates[1]:g} Hz (medians): {a / b:.2f}x")
+    print(f"load average {load0:.2f} before, {os.getloadavg()[0]:.2f} after")
 
 
 def main() -> None:
@@ -126,10 +159,14 @@ def main() -> None:
     parser.add_argument("--physics-decisions", type=int, default=150)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--skip-physics", action="store_true")
+    parser.add_argument("--skip-mdp", action="store_true")
+    parser.add_argument("--compare-hz", type=float, default=200.0,
+                        help="second physics rate of the physics part (0: none)")
     args = parser.parse_args()
-    bench_mdp(args.decisions, args.repeats)
+    if not args.skip_mdp:
+        bench_mdp(args.decisions, args.repeats)
     if not args.skip_physics:
-        bench_physics(args.physics_decisions, args.repeats)
+        bench_physics(args.physics_decisions, args.repeats, args.compare_hz)
 
 
 if __name__ == "__main__":

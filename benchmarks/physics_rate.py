@@ -11,9 +11,10 @@ rates (the machine's speed drifts from minute to minute):
   simulated second and simulated seconds per primitive (a primitive brakes until the robot
   is at rest, which takes longer at some rates);
 
-each with its ratio to the 200 Hz run. A step is not a fixed cost: on the shared 2-core VM
-(2026-11-26) it cost 18 us at 200 Hz and 26-41 us at 150 Hz and below, so fewer steps did
-not mean less CPU per simulated second (rerun this script to see it on another machine).
+each with its ratio to the 200 Hz run. Each rate steps with the solver settings it needs
+(:func:`simlab.physics.rate.settings_for`): a coarse step needs more iterations, so a step
+is not a fixed cost (``benchmarks/step_size.py`` measures which settings each rate needs and
+what its transitions cost).
 
     python benchmarks/physics_rate.py [--rates 250,200,180,150,120] [--primitives 400]
                                       [--repeats 3]

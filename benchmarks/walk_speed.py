@@ -13,8 +13,12 @@ transitions per wall second and CPU second of both and their ratio.
 entries by own time (ray tests, the per-tick state lookup, stepSimulation, Python overhead
 of the tick loop).
 
+``--compare-hz HZ`` (default 200, the rate before it was a setting; 0: none) runs the
+calibration walk at that physics rate too, in turn with the others, and prints its CPU per
+transition against the default rate's (what a calibration's walks gain from the rate).
+
 Run: ``python benchmarks/walk_speed.py [--transitions 760] [--repeat 3] [--profile]
-[--top 25]``. The machine may be shared: the load average (``os.getloadavg``) is printed with
+[--top 25] [--compare-hz 200]``. The machine may be shared: the load average (``os.getloadavg``) is printed with
 the numbers, and ``--repeat`` alternates the two walks and reports the best (least CPU) and
 the median of each. The old code can be measured by the same script with
 ``PYTHONPATH=<a checkout of it>`` (the script imports ``simlab`` from there).
@@ -79,6 +83,8 @@ def main() -> None:
     parser.add_argument("--top", type=int, default=25, help="profile entries to print")
     parser.add_argument("--calibration-transitions", type=int, default=77_000,
                         help="transitions of a calibration, for the wall-time estimate")
+    parser.add_argument("--compare-hz", type=float, default=200.0,
+                        help="physics rate of a second calibration walk (0: none)")
     args = parser.parse_args()
 
     import simlab
@@ -89,10 +95,14 @@ def main() -> None:
         lab = lab_walk(root, args.transitions, args.seed)
         table = table_walk(root, args.transitions, args.seed)
         load0 = os.getloadavg()[0]
-        runs: dict[str, list[tuple[float, float, int]]] = {"lab": [], "table": []}
+        runs: dict[str, list[tuple[float, float, int]]] = {"lab": [], "table": [],
+                                                           "lab at compare-hz": []}
         for i in range(args.repeat):
             runs["lab"].append(timed(lab, root / f"lab-walk-{i}"))
             runs["table"].append(timed(table, root / f"table-walk-{i}"))
+            if args.compare_hz:
+                runs["lab at compare-hz"].append(timed({**lab, "physics_hz": args.compare_hz},
+                                                       root / f"lab-walk-hz-{i}"))
         load1 = os.getloadavg()[0]
         print(f"load average (1 min) {load0:.2f} before, {load1:.2f} after; "
               f"{os.cpu_count()} cores; {args.repeat} run(s) of each walk")
@@ -110,6 +120,14 @@ def main() -> None:
         print(f"ratio calibration walk / baseline (best runs): "
               f"{rate['lab'][0] / rate['table'][0]:.3f} wall, "
               f"{rate['lab'][1] / rate['table'][1]:.3f} CPU")
+        if args.compare_hz:
+            from simlab.physics.rate import DEFAULT_HZ
+
+            other = statistics.median(r[1] / r[2] for r in runs["lab at compare-hz"])
+            mine = statistics.median(r[1] / r[2] for r in runs["lab"])
+            print(f"calibration walk at {args.compare_hz:g} Hz: {1e3 * other:.2f} ms CPU per "
+                  f"transition (median) against {1e3 * mine:.2f} at the default "
+                  f"{DEFAULT_HZ:g} Hz: {other / mine:.2f}x")
         n = args.calibration_transitions
         per = 1.0 / rate["lab"][1]
         print(f"estimate: {n} calibration transitions = {n * per:.0f} CPU s, so about "

@@ -49,4 +49,9 @@ def run(args: argparse.Namespace) -> int:
         + ("" if result.complete else " (incomplete)")
         + f"; the walk reached {result.states_visited} of {result.n_states} states"
     )
+    from simlab.physics.rate import DEFAULT_HZ
+
+    if result.physics_hz is not None and result.physics_hz != DEFAULT_HZ:
+        print(f"physics stepped at {result.physics_hz:g} Hz (the default rate is "
+              f"{DEFAULT_HZ:g} Hz; the manifest records it)")
     return 0

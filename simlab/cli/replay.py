@@ -70,6 +70,11 @@ def run(args: argparse.Namespace) -> int:
     note = (getattr(s, "prediction", None) or {}).get("not_predicted")
     if note:
         print(f"MDP-predicted: none ({note})")
+    from simlab.physics.rate import DEFAULT_HZ
+
+    if s.physics["hz"] != DEFAULT_HZ:
+        print(f"physics stepped at {s.physics['hz']:g} Hz ({s.physics['source']}; the default "
+              f"rate is {DEFAULT_HZ:g} Hz)")
     loc = s.localization.get("mcl")
     if loc:
         a = loc["at_decisions"]

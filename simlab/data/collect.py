@@ -49,6 +49,7 @@ from simlab.data.manifest import (
     file_sha256,
     manifest_path,
     new_manifest,
+    physics_rate,
     read_manifest,
     write_manifest,
 )
@@ -69,6 +70,7 @@ from simlab.data.walkers import (
 from simlab.localization.sources import POSE_SOURCES
 from simlab.physics.inputs import load_arena_config, load_discretizer
 from simlab.physics.primitive_options import PrimitiveOptions
+from simlab.physics.rate import rate_option, resolve_rate, settings_for
 
 #: Default transitions per part: small enough that a crash loses little, large enough
 #: that per-part overheads (world rebuild, file, manifest) stay negligible.
@@ -93,6 +95,7 @@ class CollectResult:
             idle machine with a core per worker, the wall time is about their maximum.
         states_visited: states the walk was in (``s`` or ``s_next``) at least once, of
             ``n_states``: the walk's coverage of the lab.
+        physics_hz: the physics rate of the walk (Hz; None for the kinematic simulator).
     """
 
     directory: Path
@@ -106,6 +109,7 @@ class CollectResult:
     worker_cpu_seconds: tuple[float, ...] = ()
     states_visited: int = 0
     n_states: int = 0
+    physics_hz: float | None = None
 
     @property
     def simulated_hours(self) -> float:
@@ -329,6 +333,10 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
       fits nowhere is refused.
     * ``n_actions``/``convention``/``speed``: walk in a real robot's action set (see
       above); recorded as ``manifest["action_set"]``.
+    * ``physics_hz``: the physics rate (default :data:`simlab.physics.rate.DEFAULT_HZ`,
+      refused below :data:`~simlab.physics.rate.MIN_HZ`); recorded with its solver
+      iterations as ``manifest["parameters"]["physics"]``, so a resume at another rate is
+      refused and readers know the rate (:func:`simlab.data.manifest.physics_rate`).
     * ``progress``: show a tqdm bar with transitions/s and simulated hours per wall second.
     """
 
@@ -362,6 +370,7 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
         "over them: 'all' or a list such as 0,5,12 (default: one walk per worker from the "
         "arena's start pose)", metavar="all|LIST")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
+    physics_hz: float | None = rate_option()
 
     def validate(self) -> None:
         if self.states is None:
@@ -386,6 +395,10 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
             parse_start_states(self.start_states, None)
         self._check_backend()
         check_pose_source(self.pose_source, self.simulator)
+        if self.simulator == "kinematic" and self.physics_hz is not None:
+            raise ConfigError("the kinematic simulator has no physics step", key="physics_hz",
+                              fix="drop --physics-hz or use --simulator physics")
+        resolve_rate(self.physics_hz)  # a rate too coarse for the primitives is refused here
         if self.primitive_options_given:
             if self.simulator == "kinematic":
                 raise ConfigError("primitive settings apply to the physics simulator only",
@@ -545,6 +558,7 @@ def collect(cfg: CollectConfig) -> CollectResult:
             worker_cpu_seconds=tuple(cpu),
             states_visited=_states_visited(out, manifest),
             n_states=int(disc.n_states),
+            physics_hz=physics_rate(manifest),
         )
 
 
@@ -604,6 +618,9 @@ def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
         manifest["action_set"] = aset.to_json()
     if starts is not None:
         manifest["parameters"]["start_states"] = list(starts)
+    if cfg.simulator == "physics":
+        hz = resolve_rate(cfg.physics_hz)
+        manifest["parameters"]["physics"] = settings_for(hz).to_json()
     manifest["sources"] = {
         "arena_file": getattr(arena_cfg, "source", None),
         "states_file": None if not isinstance(states, str | os.PathLike) else str(states),
@@ -614,8 +631,10 @@ def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
 def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, disc: Any,
                params: Any) -> WalkSpec:
     """What every part's walker is built from; ``key`` names it for the worker caches."""
+    physics_hz = resolve_rate(cfg.physics_hz) if cfg.simulator == "physics" else None
     key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
-                         sort_keys=True) + repr(params) + repr(cfg.pose_source_options)
+                         sort_keys=True) + repr(params) + repr(cfg.pose_source_options) \
+        + repr(physics_hz)
     return WalkSpec(
         key=hashlib.sha256(key_src.encode()).hexdigest(),
         simulator=cfg.simulator,
@@ -625,6 +644,7 @@ def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, dis
         pose_source_options=dict(cfg.pose_source_options or {}),
         discretizer=disc if getattr(params, "mode", "fixed") == "until_state_change" else None,
         primitives=tuple(int(p) for p in cfg.make_action_set().primitives()),
+        physics_hz=physics_hz,
     )
 
 

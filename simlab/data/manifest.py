@@ -193,6 +193,21 @@ def read_manifest(directory: str | os.PathLike[str]) -> dict[str, Any]:
     return validate_manifest(manifest, path)
 
 
+def physics_rate(manifest: Mapping[str, Any]) -> float | None:
+    """The physics rate (Hz) a dataset was collected at: ``parameters.physics.hz``; for a
+    physics dataset whose manifest predates that record, the rate every walk stepped at
+    then (:data:`simlab.physics.rate.RECORDLESS_HZ`); None for a kinematic dataset."""
+    if manifest.get("simulator", "physics") != "physics":
+        return None
+    record = (manifest.get("parameters") or {}).get("physics")
+    if isinstance(record, Mapping) and isinstance(record.get("hz"), int | float) \
+            and not isinstance(record.get("hz"), bool):
+        return float(record["hz"])
+    from simlab.physics.rate import RECORDLESS_HZ
+
+    return RECORDLESS_HZ
+
+
 def write_manifest(directory: str | os.PathLike[str], manifest: Mapping[str, Any]) -> None:
     """Write the manifest atomically (temporary file, fsync, rename)."""
     atomic_write_json(manifest_path(directory), manifest)
@@ -254,7 +269,8 @@ def new_manifest(
     ``kinematic``); ``pose_source``; ``discretizer`` (hash, n_states, centres (S, 2) in
     metres); ``seed``, ``workers``, ``worker_seeds`` (the spawned SeedSequences as
     ``{"entropy", "spawn_key"}``) and ``seed_rule`` (how part streams derive from them);
-    ``parameters`` (budget, part size, primitive parameters); ``schema`` (column names
+    ``parameters`` (budget, part size, primitive parameters, the physics rate and its solver
+    iterations, see :func:`physics_rate`); ``schema`` (column names
     and Arrow types); ``parts`` (file, worker, part, rows, sha256, t_end, pose_end,
     final); ``complete``.
     """

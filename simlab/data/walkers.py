@@ -143,7 +143,8 @@ class PhysicsWalker:
     """The PyBullet world running :func:`simlab.physics.motion.execute_primitive`."""
 
     def __init__(self, arena: Any, params: Any, pose_source: str,
-                 pose_source_options: dict[str, Any], discretizer: Any = None) -> None:
+                 pose_source_options: dict[str, Any], discretizer: Any = None,
+                 physics_hz: float | None = None) -> None:
         from simlab.physics.driver import DecisionDriver
         from simlab.physics.motion import noisy_pose
         from simlab.physics.world import World
@@ -162,7 +163,7 @@ class PhysicsWalker:
         self._noise_rng: np.random.Generator | None = None
         self._last_pose: NDArray[np.float64] | None = None
         self.decision_latency = float(params.decision_latency)
-        self.world = World(arena, gui=False)
+        self.world = World(arena, gui=False, physics_hz=physics_hz)
         try:
             self.source = make_pose_source(pose_source, self.world, pose_source_options)
         except BaseException:
@@ -410,6 +411,7 @@ class WalkSpec:
             ``a`` is the index into this tuple (default: all 16, so ``a`` is the
             primitive). A real robot's 8 actions walk with their 8 primitives
             (:meth:`simlab.base.actions.ActionSet.primitives`).
+        physics_hz: the physics world's rate (Hz; None: the default rate).
     """
 
     key: str
@@ -420,13 +422,14 @@ class WalkSpec:
     pose_source_options: dict[str, Any] = field(default_factory=dict, hash=False)
     discretizer: Any = field(default=None, compare=False, hash=False)
     primitives: tuple[int, ...] = tuple(range(N_ACTIONS))
+    physics_hz: float | None = None
 
 
 def build_walker(spec: WalkSpec) -> Walker:
     """Instantiate the walker of ``spec`` (a PyBullet world for ``physics``)."""
     if spec.simulator == "physics":
         return PhysicsWalker(spec.arena, spec.params, spec.pose_source, spec.pose_source_options,
-                             spec.discretizer)
+                             spec.discretizer, spec.physics_hz)
     if spec.simulator == "kinematic":
         return KinematicWalker(spec.arena, spec.params, spec.pose_source)
     raise ConfigError(f"unknown simulator {spec.simulator!r}", key="simulator",

@@ -117,6 +117,9 @@ class TableArenaEnv(gym.Env):
       closed env raises ``gymnasium.error.ClosedEnvironmentError``.
     * **Info** ``blocked``, ``duration`` (simulated s stepped), ``time`` (simulated s since
       reset, including the decision latency), ``goal``, ``odometry`` (3,).
+    * **Physics** steps at ``physics_hz`` (default :data:`simlab.physics.rate.DEFAULT_HZ`,
+      the rate of ``simlab collect`` and ``replay``; below
+      :data:`~simlab.physics.rate.MIN_HZ` is refused).
     * **Seeding** the LIDAR noise and the goal draw use ``self.np_random``; the physics is
       deterministic, so the same seed and actions give identical rollouts.
     """
@@ -138,7 +141,7 @@ class TableArenaEnv(gym.Env):
         max_steps: int | None = 50,
         params: PrimitiveParams | None = None,
         render_mode: str | None = None,
-        physics_hz: float = 200.0,
+        physics_hz: float | None = None,
         action_set: ActionSet | Mapping[str, Any] | None = None,
         lidar_mode: str = "finite",
         goal_conditioned: bool = False,
@@ -158,6 +161,10 @@ class TableArenaEnv(gym.Env):
                         "render_mode": render_mode, "physics_hz": physics_hz,
                         "action_set": action_set, "lidar_mode": lidar_mode,
                         "goal_conditioned": goal_conditioned}
+        from simlab.physics.rate import DEFAULT_HZ, check_rate
+
+        physics_hz = check_rate(DEFAULT_HZ if physics_hz is None else physics_hz)
+        self._config["physics_hz"] = physics_hz
         self.world: World | None = World(arena, physics_hz=physics_hz)
         self.arena = self.world.arena
         if goal is not None:

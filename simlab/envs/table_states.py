@@ -104,7 +104,7 @@ class TableArenaStatesEnv(TableArenaEnv):
         max_steps: int | None = 50,
         params: PrimitiveParams | None = None,
         render_mode: str | None = None,
-        physics_hz: float = 200.0,
+        physics_hz: float | None = None,
     ) -> None:
         if states is None:
             raise ConfigError("no states given", key="states",

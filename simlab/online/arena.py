@@ -30,6 +30,7 @@ from simlab.base.actions import ActionSetOptions
 from simlab.base.errors import ConfigError
 from simlab.base.options import option
 from simlab.physics.primitive_options import PrimitiveOptions
+from simlab.physics.rate import rate_option, resolve_rate
 
 __all__ = [
     "PHYSICS_FILES",
@@ -68,6 +69,7 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
                           choices=("updated", "stale"))
     map: Path | None = option(None, "map_server YAML the particle filter localizes on "
                               "(--pose-source mcl; default: the arena's own walls)")
+    physics_hz: float | None = rate_option()
 
     @property
     def in_physics(self) -> bool:
@@ -76,7 +78,7 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
     def check_arena_options(self) -> None:
         """:class:`ConfigError` for arena options given without an arena (and the reverse)."""
         if self.arena is None:
-            given = [k for k in ("states", "map") if getattr(self, k) is not None]
+            given = [k for k in ("states", "map", "physics_hz") if getattr(self, k) is not None]
             if self.primitive_options_given:
                 given.append("primitives")
             if self.action_set_given:
@@ -94,6 +96,7 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
         if self.map is not None and self.pose_source != "mcl":
             raise ConfigError("--map is the particle filter's map", key="map",
                               fix="add --pose-source mcl or drop --map")
+        resolve_rate(self.physics_hz)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,7 +135,8 @@ def physics_lab(cfg: Any) -> Any:
     params = cfg.primitive_params() or PrimitiveParams()
     aset = cfg.make_action_set()
     options = {} if cfg.map is None else {"map": str(cfg.map)}
-    return PhysicsLab(arena, disc, params, tuple(int(p) for p in aset.primitives()), options)
+    return PhysicsLab(arena, disc, params, tuple(int(p) for p in aset.primitives()), options,
+                      physics_hz=resolve_rate(cfg.physics_hz))
 
 
 def physics_task(cfg: Any, lab: Any) -> Any:
@@ -247,10 +251,11 @@ def run_physics_jobs(jobs: list[dict[str, Any]], executor: Any, progress: bool,
         bar.close()
 
 
-def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
-                    ) -> dict[str, Any]:
+def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None,
+                    physics_hz: float | None = None) -> dict[str, Any]:
     """Per arm: the share of blocked primitives (before / after the change), simulated
-    hours per run, the decisions per wall second of a run; and the boxes added."""
+    hours per run, the decisions per wall second of a run; the boxes added and the physics
+    rate (``physics_hz``, Hz) the world stepped at."""
     arms: dict[str, Any] = {}
     boxes: list[list[float]] = []
     for name, runs in logs.items():
@@ -268,7 +273,7 @@ def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
         arms[name] = rec
         if not boxes and runs[0]["boxes"].size:
             boxes = np.round(runs[0]["boxes"], 4).tolist()
-    return {"arms": arms, "boxes": boxes}
+    return {"arms": arms, "boxes": boxes, "physics_hz": resolve_rate(physics_hz)}
 
 
 def _png(fig: Any) -> bytes:

@@ -561,7 +561,7 @@ def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
             from simlab.online.arena import physics_summary
 
             at = world.task.changes[0].at if world.task.changes else None
-            summary["physics"] = physics_summary(logs, at)
+            summary["physics"] = physics_summary(logs, at, world.lab.physics_hz)
         summary["seconds"] = round(time.perf_counter() - t0, 3)
         if txn is not None:
             extra: dict[str, Any] = {}

@@ -157,13 +157,15 @@ class PhysicsLab:
     (:class:`~simlab.physics.arena.ArenaConfig`), the states' ``discretizer``, the
     primitive ``params`` (:class:`~simlab.physics.motion.PrimitiveParams`), the simlab
     ``primitives`` (A,) the agent's actions drive (all 16 by default; a real robot's 8
-    through its action set) and the ``pose_source_options`` of the ``mcl`` source."""
+    through its action set), the ``pose_source_options`` of the ``mcl`` source and the
+    world's ``physics_hz`` (None: :data:`simlab.physics.rate.DEFAULT_HZ`)."""
 
     arena: Any
     discretizer: Any
     params: Any
     primitives: tuple[int, ...] = tuple(range(16))
     pose_source_options: dict[str, Any] = field(default_factory=dict)
+    physics_hz: float | None = None
 
     @property
     def n_states(self) -> int:
@@ -178,7 +180,8 @@ class PhysicsLab:
         from simlab.data.walkers import PhysicsWalker
 
         return PhysicsWalker(self.arena, self.params, pose_source,
-                             dict(self.pose_source_options), self.discretizer)
+                             dict(self.pose_source_options), self.discretizer,
+                             physics_hz=self.physics_hz)
 
     def boxes_of(self, change: PhysicsChange) -> list[list[tuple[float, ...]]]:
         """The boxes ``(x, y, size_x, size_y, yaw)`` each outcome of a change adds: one

@@ -37,6 +37,7 @@ from simlab.base.errors import ConfigError
 from simlab.base.io import atomic_write_json, output_transaction
 from simlab.base.options import CommandConfig, command, option
 from simlab.localization.sources import SCANLESS_POSE_SOURCES
+from simlab.physics.rate import rate_option, resolve_rate, settings_for
 
 if TYPE_CHECKING:  # the occupancy kernels load numba: only when a map is built, not for --help
     from discretize.gridmap import OccupancyMap
@@ -105,6 +106,8 @@ class MapConfig(CommandConfig):
       them (see the module docstring), None = up to the LIDAR's range_max.
     * ``log_odds``: inverse sensor model (default :class:`LogOddsParams`).
     * ``primitive_params``: :class:`simlab.physics.motion.PrimitiveParams` (default).
+    * ``physics_hz``: the physics rate (default :data:`simlab.physics.rate.DEFAULT_HZ`),
+      recorded in ``exploration.json``.
     * ``overwrite``: replace existing outputs; ``progress``: a bar over robot time.
     """
 
@@ -128,6 +131,7 @@ class MapConfig(CommandConfig):
                                           cli=False)
     overwrite: bool = option(False, "replace existing outputs")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
+    physics_hz: float | None = rate_option()
 
     def validate(self) -> None:
         if not (math.isfinite(self.minutes) and self.minutes > 0):
@@ -136,6 +140,7 @@ class MapConfig(CommandConfig):
         v.number(self.resolution, "resolution", low=0.001, high=0.2)
         v.positive(self.margin, "margin", allow_zero=True)
         v.whole(self.seed, "seed")
+        resolve_rate(self.physics_hz)
         if self.out is None:  # the command line's default, also for Python callers
             object.__setattr__(self, "out", Path("maps") / Path(str(self.arena)).stem)
 
@@ -183,6 +188,7 @@ def build_map(cfg: MapConfig) -> MapRun:
             "inf_free_range": cfg.inf_free_range,
             "log_odds": asdict(grid.params),
             "primitive_params": asdict(params),
+            "physics": settings_for(resolve_rate(cfg.physics_hz)).to_json(),
             "n_scans": grid.n_scans,
             "n_actions": ex.n_actions,
             "n_blocked": ex.n_blocked,
@@ -239,7 +245,7 @@ def _explore(cfg: MapConfig, arena_cfg: Any, params: Any, grid: OccupancyGrid) -
 
     budget = float(cfg.minutes) * 60.0
     n_actions = n_blocked = 0
-    with World(arena_cfg) as world:
+    with World(arena_cfg, physics_hz=resolve_rate(cfg.physics_hz)) as world:
         integrate(world.scan(noise_rng), world.odometry())
         driver = DecisionDriver(world, params, on_scan=integrate)
 

@@ -39,6 +39,7 @@ from simlab.base.options import CommandConfig, command, option
 from simlab.localization.sources import POSE_SOURCES
 from simlab.orchestration.report import train_ratios
 from simlab.orchestration.stages import PhysicsChain, PhysicsSettings, Stage
+from simlab.physics.rate import MIN_HZ
 
 #: Pipeline stage -> the link to its folder in the output folder.
 STAGES: dict[str, str] = {"map": "map", "states": "states", "dataset": "dataset", "mdp": "mdp",
@@ -78,6 +79,9 @@ class PipelineConfig(CommandConfig):
     primitives: str = option(_D.primitives, "[primitives] of the dataset walk, e.g. simlab "
                              "calibrate's primitives.toml (default: built-in; replay uses "
                              "the dataset's)", metavar="FILE.toml")
+    physics_hz: float = option(_D.physics_hz, "physics steps per simulated second of the map, "
+                               f"the walk and the replay (at least {MIN_HZ:g}: the "
+                               "primitives' control rate)", metavar="HZ")
     progress: bool = option(True, "progress bars (--no-progress hides them)")
 
     def validate(self) -> None:

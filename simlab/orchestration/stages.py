@@ -46,6 +46,8 @@ key                 meaning                                                    d
 ``video``           write the replay GIF of chain seed 0 (thesis Fig. 4.11)    false
 ``seeds``           independent chains: datasets (with their MDP, training     1
                     and replay) from one map and one set of states
+``physics_hz``      physics rate of the map, the walks and the replays (Hz,    50
+                    at least :data:`simlab.physics.rate.MIN_HZ`)
 ==================  =========================================================  ========
 """
 
@@ -63,6 +65,7 @@ from simlab.base import validation
 from simlab.base.errors import ConfigError
 from simlab.localization.sources import POSE_SOURCES
 from simlab.orchestration.cache import MARKER, Stage, StageCache
+from simlab.physics.rate import DEFAULT_HZ, check_rate
 
 __all__ = ["MARKER", "PHYSICS_SPAWN_KEY", "STAGE_INDEX", "PhysicsChain", "PhysicsSettings",
            "Stage", "chain_seed"]
@@ -93,6 +96,8 @@ class PhysicsSettings:
     #: ``[primitives]`` TOML of the dataset walk (e.g. ``simlab calibrate``'s
     #: ``primitives.toml``); "" = the built-in primitives. Replay takes the dataset's.
     primitives: str = ""
+    #: Physics rate (Hz) of every physics stage; the stages' cache keys hold it.
+    physics_hz: float = DEFAULT_HZ
 
     def primitive_params(self) -> Any:
         """The walk's :class:`~simlab.physics.motion.PrimitiveParams` (None: built-in)."""
@@ -149,6 +154,7 @@ class PhysicsSettings:
             values[name] = v
         validation.choice(values["pose_source"], POSE_SOURCES,
                           where.get("pose_source", "pose_source"))
+        check_rate(values["physics_hz"], where.get("physics_hz", "physics_hz"))
         settings = cls(**{k: values[k] for k in names})
         settings.check_references(where)
         return settings
@@ -237,12 +243,14 @@ class PhysicsChain:
             from simlab.orchestration.mapping import build_map
 
             run = build_map(s.arena, minutes=s.map_minutes, seed=seed, out=d,
-                            resolution=s.map_resolution, progress=self.progress)
+                            resolution=s.map_resolution, progress=self.progress,
+                            physics_hz=s.physics_hz)
             return {"wall_correct": run.accuracy.wall_correct,
                     "free_correct": run.accuracy.free_correct, "scans": run.n_scans}
 
         return self.cached_stage("map", {"arena": s.arena, "minutes": s.map_minutes,
-                                         "resolution": s.map_resolution, "seed": seed}, build)
+                                         "resolution": s.map_resolution, "seed": seed,
+                                         "physics_hz": s.physics_hz}, build)
 
     def states(self) -> Stage:
         """Voronoi states on the map (``states.json``, ``states.png``)."""
@@ -277,11 +285,13 @@ class PhysicsChain:
 
             res = collect(s.arena, parent.path / "states.json", out=d / "data", hours=s.hours,
                           seed=seed, workers=s.workers, backend=self.backend,
-                          progress=self.progress, params=s.primitive_params())
+                          progress=self.progress, params=s.primitive_params(),
+                          physics_hz=s.physics_hz)
             return {"transitions": res.transitions, "simulated_hours": res.simulated_hours,
                     "collect_wall_seconds": res.wall_seconds}
 
-        key = {"parent": parent.key, "hours": s.hours, "workers": s.workers, "seed": seed}
+        key = {"parent": parent.key, "hours": s.hours, "workers": s.workers, "seed": seed,
+               "physics_hz": s.physics_hz}
         params = s.primitive_params()
         if params is not None:  # absent for the built-in primitives: old cache keys still hold
             key["primitives"] = params.to_json()
@@ -339,7 +349,8 @@ class PhysicsChain:
             res = replay(s.arena, states.path / "states.json", q.path, hours=s.replay_hours,
                          pose_source=s.pose_source, seed=seed, out=d, map=map_yaml,
                          video=s.video, progress=self.progress, overwrite=True,
-                         mdp=mdp.path / "mdp.npz", pool=self.worker)
+                         mdp=mdp.path / "mdp.npz", pool=self.worker,
+                         physics_hz=s.physics_hz)
             keys = ("reward_rate_per_hour", "random_rate_per_hour", "predicted_rate_per_hour",
                     "position_error_mean_m")
             return {k: getattr(res.summary, k) for k in keys
@@ -347,5 +358,6 @@ class PhysicsChain:
 
         return self.cached_stage("replay", {"parent": q.key, "mdp": mdp.key, "seed": seed,
                                             "hours": s.replay_hours,
-                                            "pose_source": s.pose_source, "video": s.video},
+                                            "pose_source": s.pose_source, "video": s.video,
+                                            "physics_hz": s.physics_hz},
                                  build)

@@ -19,6 +19,7 @@ from simlab.physics.arena import ArenaConfig
 from simlab.physics.driver import DecisionDriver
 from simlab.physics.motion import N_ACTIONS, PrimitiveParams
 from simlab.physics.primitive_options import PrimitiveOptions
+from simlab.physics.rate import rate_option, resolve_rate
 from simlab.physics.render import render_topdown
 from simlab.physics.world import World
 
@@ -71,11 +72,13 @@ class DriveConfig(PrimitiveOptions):
     params: Any | None = option(
         None, "PrimitiveParams or [primitives] TOML path (Python and TOML only; default: "
         "built-in)", cli=False)
+    physics_hz: float | None = rate_option()
 
     def validate(self) -> None:
         # png stays as spelled: the summary reports it so
         validation.spelled_path(self.png, "png")
         validation.whole(self.steps, "steps")
+        resolve_rate(self.physics_hz)
         if self.primitive_options_given and self.params is not None:
             raise ConfigError("give the primitive parameters once: params or the "
                               "primitive options", key="params")
@@ -120,7 +123,7 @@ def drive(cfg: DriveConfig) -> DriveSummary:
     def choose(_pose: NDArray[np.float64], _state: int | None) -> int:
         return int(policy_rng.integers(N_ACTIONS))
 
-    with World(arena, gui=cfg.gui) as world:
+    with World(arena, gui=cfg.gui, physics_hz=resolve_rate(cfg.physics_hz)) as world:
         driver = DecisionDriver(world, params, watch_state=state_of)
         trail = [world.pose()]
         blocked = 0

@@ -6,13 +6,16 @@ arenas in one process never share state. Library code never touches the global
 
 Physics settings (chosen for speed, fidelity checked by tests/physics):
 
-* 200 Hz fixed time step, 5 solver iterations. A step costs about the same whatever the
-  rate, so the rate sets the speed; measured on the random primitive walk (quiet 2-core
-  machine): 240 Hz 322x real time, 200 Hz 387x, 160 Hz 329x (contacts get costlier),
-  120 Hz 445x but primitive headings off by up to 3.5 degrees and distances by +14 %.
-  At 200 Hz commanded speeds and yaw rates are reproduced within 1.3 % and primitive
-  headings within 0.3 degrees (tests/physics);
-* the contact model is the cheapest of those measured that keeps those figures
+* a fixed time step of :data:`simlab.physics.rate.DEFAULT_HZ` (50 Hz) with the solver
+  settings the rate needs (:func:`simlab.physics.rate.settings_for`: 30 iterations and the
+  robot's separated contact points left out of the solver at 50 Hz; 5 iterations and
+  Bullet's contacts at 200 Hz, the rate before it was a setting). Chosen by
+  ``benchmarks/step_size.py``: primitives end within the 200 Hz ones' error of a 960 Hz
+  reference, walks give transition matrices within the bootstrap floor of 200 Hz walks,
+  and a transition costs 2.2x less CPU (see :mod:`simlab.physics.rate`). At 200 Hz
+  commanded speeds and yaw rates are reproduced within 1.3 % and primitive headings within
+  0.3 degrees; the tests of tests/physics hold at every rate of the settings table;
+* the contact model is the cheapest of those measured at 200 Hz that keeps those figures
   (benchmarks/contact_model.py, 2026-11-26, 2-core VM): a bare step of the robot on the
   table costs ~15 us of CPU, of which ~8 us remain with the floor filtered out; the rest
   is the three floor contacts (two wheel spheres, the caster), each one normal and two
@@ -36,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from simlab.physics import rate
 from simlab.physics._bullet import BulletClient, pybullet, quiet_stdout
 from simlab.physics.arena import ArenaConfig, load_arena
 from simlab.physics.lidar import Lidar, LidarScan, LidarSpec
@@ -192,8 +196,13 @@ class World:
         A :class:`RobotSpec`, a built-in robot name or a ``.urdf`` path.
     gui:
         Open the PyBullet GUI (needs a display); DIRECT (headless) otherwise.
-    physics_hz, solver_iterations:
-        Fixed time step and constraint solver iterations.
+    physics_hz, solver_iterations, contact_threshold:
+        Fixed time step (Hz; default :data:`simlab.physics.rate.DEFAULT_HZ`), constraint
+        solver iterations and the robot's contact processing threshold (m; ``math.inf``:
+        Bullet's default); None: what the rate needs
+        (:func:`simlab.physics.rate.settings_for`). Any rate > 0 steps here; the commands
+        refuse the rates too coarse for the primitives
+        (:func:`simlab.physics.rate.check_rate`).
     lidar:
         Scanner parameters (LDS-01 defaults).
     """
@@ -204,16 +213,25 @@ class World:
         *,
         robot: RobotSpec | str | Path = "turtlebot3_burger",
         gui: bool = False,
-        physics_hz: float = 200.0,
-        solver_iterations: int = 5,
+        physics_hz: float | None = None,
+        solver_iterations: int | None = None,
+        contact_threshold: float | None = None,
         lidar: LidarSpec | None = None,
     ) -> None:
         self.arena = arena if isinstance(arena, ArenaConfig) else load_arena(arena)
         self.robot_spec = robot if isinstance(robot, RobotSpec) else load_robot_spec(robot)
         self.lidar_spec = lidar or LidarSpec()
-        self.physics_hz = float(physics_hz)
+        hz = rate.DEFAULT_HZ if physics_hz is None else float(physics_hz)
+        if not (math.isfinite(hz) and hz > 0):
+            raise ValueError(f"physics_hz must be a rate > 0 Hz, got {physics_hz!r}")
+        need = rate.settings_for(hz)
+        self.settings = rate.StepSettings(
+            hz, need.solver_iterations if solver_iterations is None else int(solver_iterations),
+            need.contact_threshold if contact_threshold is None
+            else (None if contact_threshold == math.inf else float(contact_threshold)))
+        self.physics_hz = hz
         self.dt = 1.0 / self.physics_hz
-        self.solver_iterations = int(solver_iterations)
+        self.solver_iterations = self.settings.solver_iterations
         self.gui = gui
         with quiet_stdout():
             self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
@@ -259,6 +277,10 @@ class World:
             )
         # The base's reported position is its centre of mass; keep the inertial offset to
         # convert between the link frame (our pose) and the COM frame.
+        threshold = self.settings.contact_threshold
+        if threshold is not None:  # the manifold's separated points stay out of the solver
+            for link in range(-1, c.getNumJoints(self.body)):
+                c.changeDynamics(self.body, link, contactProcessingThreshold=threshold)
         info = c.getDynamicsInfo(self.body, -1)
         self._inertial_pos = np.asarray(info[3], dtype=float)
         self._inertial_xyz = tuple(float(v) for v in info[3])

@@ -22,13 +22,15 @@ from simlab.base import validation as v
 from simlab.base.errors import ConfigError
 from simlab.base.options import CommandConfig, option
 from simlab.localization.sources import POSE_SOURCES
+from simlab.physics.rate import rate_option, resolve_rate
 
 POLICIES = ("greedy", "random")
 
 
 @dataclass(frozen=True, kw_only=True)
 class ReplayConfig(CommandConfig):
-    """Every option of a closed-loop replay (see :mod:`simlab.replay.replay`)."""
+    """Every option of a closed-loop replay (see :mod:`simlab.replay.replay`); ``physics_hz``
+    None steps at the rate of the MDP's dataset (else the default rate)."""
 
     COMMAND = "replay"
 
@@ -80,12 +82,11 @@ class ReplayConfig(CommandConfig):
                                      "comma-separated; default: all of the arena's",
                                metavar="NAMES")
     parallel: bool = option(True, "run the random baseline and the mcl filter in processes "
-                                  "of their own on 2 cores (the filter: 3 with a baseline; "
-                                  "idle ones where the CPUs are shared per session); "
-                                  "bit-identical results")
+                                  "of their own on 2 or more cores; bit-identical results")
     pool: Any | None = option(None, "a one-process executor to run the random baseline (and "
                                     "encode the video) in, instead of a fresh process: a "
                                     "warmed worker lent by the caller, left open", cli=False)
+    physics_hz: float | None = rate_option()
 
     def validate(self) -> None:
         v.positive(self.hours, "hours")
@@ -97,6 +98,8 @@ class ReplayConfig(CommandConfig):
         v.whole(self.max_frames, "max_frames", minimum=1)
         v.executor(self.pool)
         v.spelled_path(self.primitives, "primitives")
+        if self.physics_hz is not None:
+            resolve_rate(self.physics_hz)
         if self.primitives is not None and self.params is None:
             from simlab.physics.motion import PrimitiveParams
 

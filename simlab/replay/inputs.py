@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from simlab.base.actions import SIMLAB16, ActionSet, action_set_from_metadata
 from simlab.base.errors import ConfigError, warn
 from simlab.data.goals import is_state_goal
+from simlab.data.manifest import physics_rate
 
 #: Number of simlab motion primitives (thesis 3.2: 8 directions x 2 speeds).
 N_ACTIONS = 16
@@ -188,7 +189,8 @@ class ModelInputs:
     (``mdp.json``) and the dataset's manifest when they can be found:
     ``dataset_seconds_per_transition`` (robot seconds per transition of the walk),
     ``dataset`` (its directory) and ``primitive_params`` (the motion-primitive parameters
-    it was collected with, a dict; None for a kinematic dry-run dataset); None when
+    it was collected with, a dict; None for a kinematic dry-run dataset) and ``physics_hz``
+    (the physics rate it stepped at, :func:`simlab.data.manifest.physics_rate`); None when
     unknown.
     """
 
@@ -198,6 +200,7 @@ class ModelInputs:
     dataset: str | None = None
     primitive_params: dict[str, Any] | None = None
     action_set: ActionSet = SIMLAB16
+    physics_hz: float | None = None
     valid: NDArray[np.bool_] | None = None
 
 
@@ -248,7 +251,7 @@ def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
                     f"goal {g!r} covers other states in the MDP than in the arena",
                     path=src, key="goal_masks", fix="estimate with the same arena and states",
                 )
-    pace, dataset, primitive = None, None, None
+    pace, dataset, primitive, physics_hz = None, None, None, None
     doc = _read_json(Path(src).with_suffix(".json")) if src is not None else None
     if doc is not None:
         try:
@@ -264,6 +267,7 @@ def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
                 manifest = _read_json(candidate / "_manifest.json")
                 if manifest is not None:
                     dataset = str(candidate)
+                    physics_hz = physics_rate(manifest)
                     prim = (manifest.get("parameters") or {}).get("primitive")
                     # Only a physics walk's parameters are motion primitives.
                     if manifest.get("simulator", "physics") == "physics" and isinstance(prim,
@@ -272,7 +276,8 @@ def load_model(mdp: Any, discretizer: Any, goal_names: tuple[str, ...],
                     break
     return ModelInputs(T=np.asarray(m.T, dtype=np.float64), source=src,
                        dataset_seconds_per_transition=pace, dataset=dataset,
-                       primitive_params=primitive, action_set=m.action_set, valid=m.valid)
+                       primitive_params=primitive, action_set=m.action_set, valid=m.valid,
+                       physics_hz=physics_hz)
 
 
 def _read_json(path: Path) -> dict[str, Any] | None:
@@ -327,3 +332,24 @@ def primitive_params_for(model: ModelInputs | None, params: Any) -> tuple[Any, s
             fix="replay with the dataset's parameters (leave params unset) or collect again",
         )
     return params, "given (same as the dataset's)"
+
+
+def physics_rate_for(model: ModelInputs | None, hz: float | None) -> tuple[float, str]:
+    """The physics rate (Hz) to replay at, and where it comes from.
+
+    The robot should step the physics the model was estimated from: with ``hz`` None, the
+    MDP's dataset's rate (a physics dataset whose manifest predates the record stepped at
+    200 Hz), else the default rate. A given rate wins (checked against the minimum); when
+    it differs from the dataset's the source says so, and replay.json records both.
+    """
+    from simlab.physics.rate import DEFAULT_HZ, check_rate
+
+    recorded = None if model is None else model.physics_hz
+    if hz is not None:
+        hz = check_rate(hz)
+        if recorded is not None and abs(recorded - hz) > 1e-9:
+            return hz, f"given (the dataset stepped at {recorded:g} Hz)"
+        return hz, "given"
+    if recorded is not None:
+        return check_rate(recorded, key="parameters.physics.hz"), "dataset"
+    return DEFAULT_HZ, "default"

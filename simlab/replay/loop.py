@@ -111,6 +111,8 @@ class RunSpec:
     """``(G, S, A)`` actions the greedy policy may choose (None: all)."""
     remote_mcl: bool = False
     """Run the ``mcl`` particle filter in a process of its own (``parallel``)."""
+    physics_hz: float | None = None
+    """The physics rate (Hz; None: the default)."""
 
 
 # --------------------------------------------------------------------------------------
@@ -342,7 +344,7 @@ def run(spec: RunSpec, seqs: list[np.random.SeedSequence], bar: Any = None) -> R
              else lambda xy: int(disc.state_of(np.asarray(xy, dtype=float)[None, :2])[0]))
     recorder, frames = Recorder(), []
     wall0 = time.perf_counter()
-    with World(spec.arena) as world:
+    with World(spec.arena, physics_hz=spec.physics_hz) as world:
         source = _PoseSource.open(spec, world, seqs[2])
         driver = DecisionDriver(world, spec.params, pose_of=source.after, state_of=state_of,
                                 primitives=spec.primitives, on_scan=source.on_scan,

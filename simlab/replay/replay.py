@@ -64,10 +64,9 @@ Decisions where the thesis is silent:
 * **predicted rate**: :mod:`simlab.replay.prediction`, at the dataset's pace (its robot
   seconds per transition) and at the replay's own measured pace.
 * **scheduling** (``parallel=True`` on 2 or more usable cores, decided from the
-  core count, or from the idle cores where Linux shares the CPUs per session,
-  :func:`schedule`): the random baseline runs in a ``spawn`` process while this one drives
-  the learned policy (and then encodes the video), and the ``mcl`` filter runs in a
-  third process fed scan by scan (with 3 cores, or 2 without a baseline)
+  core count, :func:`schedule`): the random baseline runs in a ``spawn`` process while this
+  one drives the learned policy (and then encodes the video), and the ``mcl`` filter runs
+  in a third process fed scan by scan
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
   decisions and video frames). The worlds and seed streams are independent, so the
   results are bit-identical to ``parallel=False``; the replay's wall time becomes that
@@ -108,10 +107,11 @@ from simlab.base.errors import ConfigError
 from simlab.base.io import atomic_write, atomic_write_json, ensure_new, output_transaction
 from simlab.base.options import command
 from simlab.localization.sources import POSE_SOURCES
+from simlab.physics.rate import settings_for
 from simlab.replay.config import POLICIES, ReplayConfig
 from simlab.replay.loop import FRAME_PARTICLES, ReplayLog, RunOutcome, RunSpec, drive_to_pose
 from simlab.replay.policy import greedy_action
-from simlab.replay.scheduling import RunPlan, idle_cores, run_both, schedule, usable_cores
+from simlab.replay.scheduling import RunPlan, run_both, schedule, usable_cores
 from simlab.replay.summary import (
     BaselineStats,
     ReplaySummary,
@@ -123,7 +123,7 @@ from simlab.replay.summary import (
 
 __all__ = ["FRAME_PARTICLES", "POLICIES", "POSE_SOURCES", "ReplayConfig", "ReplayLog",
            "ReplayResult", "ReplaySummary", "RunOutcome", "drive_to_pose", "greedy_action",
-           "idle_cores", "replay", "schedule", "usable_cores"]
+           "replay", "schedule", "usable_cores"]
 
 
 @dataclass(frozen=True)
@@ -164,6 +164,8 @@ class _Inputs:
     params_source: str
     mcl_params: Any
     mcl_field: Any
+    physics_hz: float
+    physics_source: str
 
 
 def _load_inputs(cfg: ReplayConfig) -> _Inputs:
@@ -175,7 +177,13 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     from simlab.localization.likelihood import LikelihoodField
     from simlab.localization.maps import load_map_for_arena
     from simlab.physics.inputs import load_arena_config, load_discretizer
-    from simlab.replay.inputs import discover_mdp, load_model, load_qtables, primitive_params_for
+    from simlab.replay.inputs import (
+        discover_mdp,
+        load_model,
+        load_qtables,
+        physics_rate_for,
+        primitive_params_for,
+    )
 
     arena_cfg = load_arena_config(cfg.arena)
     disc = load_discretizer(cfg.states)
@@ -195,6 +203,7 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     action_set, valid = _actions_and_mask(qt, model)
     grid, map_check = load_map_for_arena(cfg.map, arena_cfg)
     params, params_source = primitive_params_for(model, cfg.params)
+    physics_hz, physics_source = physics_rate_for(model, cfg.physics_hz)
     if cfg.pose_source == "odometry" and params.heading_source != "odometry":
         params = replace(params, heading_source="odometry")
     mcl_params = cfg.mcl_params if cfg.mcl_params is not None else MCLParams()
@@ -202,7 +211,8 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     return _Inputs(arena=arena_cfg, disc=disc, states_src=states_src, goal_names=goal_names,
                    goal_masks=goal_masks, qt=qt, model=model, action_set=action_set,
                    valid=valid, grid=grid, map_check=map_check, params=params,
-                   params_source=params_source, mcl_params=mcl_params, mcl_field=field_)
+                   params_source=params_source, mcl_params=mcl_params, mcl_field=field_,
+                   physics_hz=physics_hz, physics_source=physics_source)
 
 
 def _check_hashes(disc: Any, qt: Any, mdp_source: Any, states_src: str | None) -> None:
@@ -256,7 +266,7 @@ def _plan(cfg: ReplayConfig, inp: _Inputs) -> RunPlan:
                    return_to_start=cfg.return_to_start, retry_blocked=cfg.retry_blocked,
                    escape_radius=cfg.escape_radius, epsilon=cfg.epsilon, frame_stride=stride,
                    primitives=inp.action_set.primitives(), valid=inp.valid,
-                   remote_mcl=split_mcl)
+                   remote_mcl=split_mcl, physics_hz=inp.physics_hz)
     bspec = None
     if baseline_hours > 0:
         bspec = replace(spec, policy="random", pose_source="truth", mcl_field=None,
@@ -345,6 +355,7 @@ def _summarize(cfg: ReplayConfig, inp: _Inputs, plan: RunPlan, run: RunOutcome,
         escape_radius=float(cfg.escape_radius), epsilon=float(cfg.epsilon),
         primitive_params=asdict(inp.params), primitive_params_source=inp.params_source,
         primitives_file=None if cfg.primitives is None else str(cfg.primitives),
+        physics={**settings_for(inp.physics_hz).to_json(), "source": inp.physics_source},
         mcl_params=asdict(inp.mcl_params) if cfg.pose_source == "mcl" else None,
         schedule=Schedule(plan.split_baseline, plan.spec.remote_mcl),
         result=result, localization=localization_summary(run), random_baseline=base,

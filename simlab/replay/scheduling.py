@@ -8,7 +8,6 @@ split run is the sequential one, bit for bit (tested).
 from __future__ import annotations
 
 import os
-import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,8 +15,7 @@ import numpy as np
 
 from simlab.replay.loop import RunOutcome, RunSpec, run
 
-__all__ = ["RunPlan", "idle_cores", "run_both", "schedule", "shares_per_session",
-           "usable_cores"]
+__all__ = ["RunPlan", "run_both", "schedule", "usable_cores"]
 
 
 def usable_cores() -> int:
@@ -28,68 +26,27 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def idle_cores(window: float = 0.25) -> float:
-    """CPUs idle right now, as seen by this process: ``usable_cores()`` times the idle
-    share of ``/proc/stat`` over ``window`` seconds (this process sleeps meanwhile, so
-    a quiet 2-core machine reads ~2). Without ``/proc/stat``: ``usable_cores()``.
-    (:func:`schedule` reads it only where the CPUs are shared per session.)"""
-
-    def sample() -> tuple[int, int]:
-        with open("/proc/stat") as fh:
-            values = [int(v) for v in fh.readline().split()[1:]]
-        return values[3] + values[4], sum(values)  # idle + iowait, total
-
-    try:
-        idle0, total0 = sample()
-        time.sleep(window)
-        idle1, total1 = sample()
-    except (OSError, ValueError, IndexError):  # pragma: no cover - not Linux
-        return float(usable_cores())
-    if total1 <= total0:
-        return float(usable_cores())
-    return usable_cores() * (idle1 - idle0) / (total1 - total0)
-
-
-def shares_per_session() -> bool:
-    """True when Linux shares the CPUs per session (``sched_autogroup_enabled``: each
-    session's processes share one scheduling group, so a second process of this session
-    gets no more CPU while other sessions keep the cores busy)."""
-    try:
-        with open("/proc/sys/kernel/sched_autogroup_enabled") as fh:
-            return fh.read().strip() == "1"
-    except OSError:  # not Linux, or no autogroup support: shares per process
-        return False
-
-
 def schedule(parallel: bool, baseline: bool, mcl: bool,
              cores: int | None = None) -> tuple[bool, bool]:
     """``(baseline in a process, mcl filter in a process)`` for a replay on ``cores``
     usable CPUs (None: :func:`usable_cores`).
 
-    Decided from the core count wherever the scheduler shares the CPUs per
-    process: with ``parallel`` and 2 cores the random baseline gets a process of its own
-    (it talks to this one once, at the end, so on a busy machine it costs its start-up,
-    ~1 s, and otherwise takes the CPU share of a second runnable process), and the filter
-    one when a third core is there for it (with no baseline: a second; it is fed scan by
-    scan, so it needs a core of its own).
-
-    Where Linux shares the CPUs per *session* (:func:`shares_per_session`, autogroup, the
-    default of desktop kernels and of this project's shared box) a second process of this
-    session gains nothing while other sessions keep the cores busy: measured on 2 cores
-    at load 4-5, the split replay took 18-26 s against 17-36 s in one process, its
-    learned run twice as long. There the cores must be idle to be ours, and the rule is
-    the count of idle cores (:func:`idle_cores`, 0.25 s sample; the replay's own earlier
-    stages have ended by then): the baseline process from 1.5 idle cores, the filter's
-    from another 1 (with no baseline: 1.5). Results do not depend on the choice
-    (bit-identical, tested).
+    Decided from the core count, as the dataset's walks are: with ``parallel`` and 2 or more
+    cores the random baseline gets a process of its own (it talks to this one once, at the
+    end) and so does the filter (fed scan by scan; the robot waits for it only at
+    decisions and video frames). On 2 cores that makes three processes: the learned run,
+    which also localizes, is the longest of the replay's parts, and the filter is a third
+    of its CPU. Measured on the shared 2-core VM at load 12-13 (a 1-hour mcl replay with its
+    baseline, two runs each, in turn): 52-62 s in one process, 46-48 s with the baseline
+    split, 36-47 s with both split. (An earlier rule split only onto idle cores where Linux
+    shares the CPUs per session; there the replay then ran in one process whenever the
+    machine was busy, at 7x its physics floor against the dataset's 2.5x.) Results do not
+    depend on the choice (bit-identical, tested).
     """
     n = usable_cores() if cores is None else int(cores)
-    if not parallel or n < 2 or not (baseline or mcl):
+    if not parallel or n < 2:
         return False, False
-    free = idle_cores() if shares_per_session() else float(n)
-    split_baseline = bool(baseline) and free >= 1.5
-    split_mcl = bool(mcl) and free >= (2.5 if split_baseline else 1.5)
-    return split_baseline, split_mcl
+    return bool(baseline), bool(mcl)
 
 
 @dataclass(frozen=True)

@@ -127,7 +127,8 @@ class ReplaySummary:
     ``mdp`` and ``dataset`` sources, ``goal_names``, ``goal_states`` (goal -> state ids),
     ``action_set`` (its JSON record), ``masked_pairs``; settings: ``policy`` ...
     ``primitive_params`` with their ``primitive_params_source`` and ``primitives_file`` (the
-    ``--primitives`` TOML they were read from, None without one), ``mcl_params``,
+    ``--primitives`` TOML they were read from, None without one), ``physics`` (the rate
+    stepped at, its solver iterations and where the rate came from), ``mcl_params``,
     ``schedule``; results: ``result`` (:class:`RunStats`),
     ``localization`` (error summaries per pose source), ``random_baseline``,
     ``prediction`` (per policy, :mod:`simlab.replay.prediction`), ``comparison``;
@@ -156,6 +157,7 @@ class ReplaySummary:
     primitive_params: dict[str, Any]
     primitive_params_source: str
     primitives_file: str | None
+    physics: dict[str, Any]
     mcl_params: dict[str, Any] | None
     schedule: Schedule
     result: RunStats

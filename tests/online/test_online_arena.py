@@ -189,13 +189,13 @@ def test_the_published_rules_in_physics(experts) -> None:
     start state; a rewarded arrival is followed by one decision in the goal whose move is
     the restart (no physics: no time, not blocked) to a start state; the experts learned the
     phantom (s0, 0, 0, s0) first: MF's table is Q-learning replayed over it and the log."""
-    task = PhysicsTask((7,), (12, 2), 60)
-    ag, run = _run_rules(experts, 60, task, _published_rules(task))
+    task = PhysicsTask((7,), (12, 2), 200)
+    ag, run = _run_rules(experts, 200, task, _published_rules(task))
     log = run.log
     assert log.s[0] == 12 and ag.seen[12]
     hits = np.flatnonzero(log.reward > 0)
     assert hits.size >= 2
-    for t in hits[hits < 59]:
+    for t in hits[hits < 199]:
         assert log.s[t + 1] == 7 and log.s_next[t + 1] in (12, 2)  # the goal's decision
         assert run.duration[t + 1] == 0 and not run.blocked[t + 1]
         assert log.reward[t + 1] == 0
@@ -213,10 +213,10 @@ def test_the_published_rules_in_physics(experts) -> None:
 def test_the_changes_decision_pays_nothing(experts) -> None:
     """The same seed with and without a silenced decision t*, chosen where the first run
     arrived in the goal: the runs are the same up to t*, whose reward is 0 in the second."""
-    task = PhysicsTask((7,), (12,), 30)
-    _, a = _run_rules(experts, 30, task, _published_rules(task, silent_at=-1))
+    task = PhysicsTask((7,), (12,), 150)
+    _, a = _run_rules(experts, 150, task, _published_rules(task, silent_at=-1))
     t_star = int(np.flatnonzero(a.log.reward > 0)[1])
-    _, b = _run_rules(experts, 30, task, _published_rules(task, silent_at=t_star))
+    _, b = _run_rules(experts, 150, task, _published_rules(task, silent_at=t_star))
     np.testing.assert_array_equal(a.log.s_next[:t_star + 1], b.log.s_next[:t_star + 1])
     assert a.log.reward[t_star] == 1 and b.log.reward[t_star] == 0
     np.testing.assert_array_equal(a.log.reward[:t_star], b.log.reward[:t_star])

@@ -132,4 +132,4 @@ def test_scan_callback_runs_at_the_lidar_rate():
         res = execute_primitive(world, 8, np.random.default_rng(0),
                                 on_scan=lambda scan, odom: stamps.append(scan.stamp))
     assert len(stamps) == pytest.approx(res.duration * 5, abs=1)
-    assert np.allclose(np.diff(stamps), 0.2, atol=1 / 200 + 1e-9)  # one physics step
+    assert np.allclose(np.diff(stamps), 0.2, atol=world.dt + 1e-9)  # one physics step

@@ -25,8 +25,9 @@ def test_zero_noise_is_bit_identical_to_the_trajectories_before_the_noise_fields
     # Values computed with the code before the mode/noise fields existed (same machine
     # arithmetic: PyBullet DIRECT is deterministic); any extra random draw would change them.
     # Regenerated once for the contact model without wheel spinning friction (the frame
-    # tree rooted at base_footprint alone left them bit-identical).
-    s = drive("table_obstacles", 25, 7, progress=False)
+    # tree rooted at base_footprint alone left them bit-identical). Stepped at 200 Hz, the
+    # rate they were computed at (the default rate changed since; 200 Hz did not).
+    s = drive("table_obstacles", 25, 7, progress=False, physics_hz=200.0)
     assert s.trail[-1].tolist() == [0.0800526453465296, 0.11383068306216383, 2.356174620899465]
     assert s.trail.sum(axis=0).tolist() == [0.9848365381034239, 0.42477611346907174,
                                             9.427881828633446]

@@ -47,6 +47,7 @@ def test_cli_summary_with_no_predicted_reward_prints_instead_of_crashing(monkeyp
     from types import SimpleNamespace
 
     import simlab.replay.replay as replay_module
+    from simlab.physics.rate import DEFAULT_HZ
     from simlab.replay.summary import Comparison
 
     summary = SimpleNamespace(
@@ -56,6 +57,7 @@ def test_cli_summary_with_no_predicted_reward_prints_instead_of_crashing(monkeyp
         comparison=Comparison(rate_per_hour=0.0, predicted_rate_per_hour=0.0,
                               measured_over_predicted=None),
         localization={}, files={"summary": "replay.json", "plot": "plot.png"},
+        physics={"hz": DEFAULT_HZ, "solver_iterations": 5, "source": "default"},
     )
     seen = []
     monkeypatch.setattr(replay_module, "replay",

@@ -37,8 +37,7 @@ def _logs_equal(a, b) -> None:
 @pytest.mark.parametrize("pose_source", ["truth", "mcl"])
 def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
     # both extra processes (baseline, filter), even on a 1- or 2-core runner
-    monkeypatch.setattr(replay_module, "usable_cores", lambda: 3)
-    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
     assert replay_module.schedule(True, True, pose_source == "mcl") == (
         True, pose_source == "mcl")
     runs = {}
@@ -79,7 +78,6 @@ def test_a_lent_worker_runs_the_baseline_and_stays_open(chain, tmp_path, monkeyp
     import simlab.base.parallel
 
     monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
-    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
     kw = dict(hours=0.02, seed=4, progress=False, baseline_hours=0.02)
     own = replay("table", chain.states, chain.qtables, out=tmp_path / "own", **kw)
     with simlab.base.parallel.spawn_worker() as lent:
@@ -98,40 +96,17 @@ def test_a_lent_worker_runs_the_baseline_and_stays_open(chain, tmp_path, monkeyp
     assert _strip(own.summary.to_json()) == _strip(got.summary.to_json())
 
 
-def test_schedule_follows_core_count_not_load(monkeypatch) -> None:
-    """Where CPUs are shared per process the core count decides (issue 17): a busy 2-core
-    machine still splits the baseline; the filter gets a process only with a core of its
-    own."""
-    monkeypatch.setattr(replay_module, "shares_per_session", lambda: False)
-    monkeypatch.setattr(replay_module, "idle_cores", lambda *_a: 0.0)  # never read
-    for cores, with_baseline, without_baseline in ((1, (False, False), (False, False)),
-                                                   (2, (True, False), (False, True)),
-                                                   (3, (True, True), (False, True)),
-                                                   (8, (True, True), (False, True))):
+def test_schedule_follows_the_core_count_not_the_load(monkeypatch) -> None:
+    """The core count decides, as for the dataset's walks: on 2 or more cores the baseline
+    and the filter each get a process, whatever the machine's load; on 1 none."""
+    for cores, expected in ((1, (False, False)), (2, (True, True)), (8, (True, True))):
         monkeypatch.setattr(replay_module, "usable_cores", lambda cores=cores: cores)
-        assert replay_module.schedule(True, True, True) == with_baseline
-        assert replay_module.schedule(True, False, True) == without_baseline
-        assert replay_module.schedule(True, True, False) == (cores >= 2, False)
+        assert replay_module.schedule(True, True, True) == expected
+        assert replay_module.schedule(True, False, True) == (False, expected[1])
+        assert replay_module.schedule(True, True, False) == (expected[0], False)
         assert replay_module.schedule(False, True, True) == (False, False)
         assert replay_module.schedule(True, False, False) == (False, False)
-        assert replay_module.schedule(True, True, True, cores=cores) == with_baseline
-
-
-def test_schedule_per_session_follows_idle_cores(monkeypatch) -> None:
-    """Where CPUs are shared per session (autogroup) only idle cores are ours."""
-    monkeypatch.setattr(replay_module, "shares_per_session", lambda: True)
-    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
-    for idle, with_baseline, without_baseline in ((0.4, (False, False), (False, False)),
-                                                  (1.9, (True, False), (False, True)),
-                                                  (2.6, (True, True), (False, True))):
-        monkeypatch.setattr(replay_module, "idle_cores", lambda idle=idle: idle)
-        assert replay_module.schedule(True, True, True) == with_baseline
-        assert replay_module.schedule(True, False, True) == without_baseline
-        assert replay_module.schedule(False, True, True) == (False, False)
-    monkeypatch.setattr(replay_module, "usable_cores", lambda: 1)
-    assert replay_module.schedule(True, True, True) == (False, False)
-    assert 0.0 <= replay_module.idle_cores(0.05) <= 2.0 + 1e-9
-    assert isinstance(replay_module.shares_per_session(), bool)
+        assert replay_module.schedule(True, True, True, cores=cores) == expected
 
 
 def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
