@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from simlab.base.actions import ActionSet
+from simlab.base.errors import ConfigError
 from simlab.base.io import (
     atomic_write,
     atomic_write_json,
@@ -43,20 +44,72 @@ from simlab.calibration.walks import action_set_options
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
 
+#: ``kind`` of ``report.json``: what ``--overwrite`` recognises as calibrate's own.
+KIND = "simlab-calibrate"
+
 
 def output_paths(out: str | os.PathLike[str]) -> dict[str, Path]:
     """``{file name: path}`` of the outputs in directory ``out``."""
     return {name: Path(out) / name for name in FILES}
 
 
+def _report_is_ours(path: Path) -> bool:
+    """``report.json`` written by ``simlab calibrate``: its ``kind`` (reports written before
+    it existed: the distance, floors, parameters and space calibrate always wrote)."""
+    import json
+
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+    if not isinstance(doc, dict):
+        return False
+    return doc.get("kind") == KIND or ("kind" not in doc and {
+        "distance", "floor", "matched_floor", "params", "space", "candidates"} <= set(doc))
+
+
+def _is_ours(path: Path, report_ours: bool) -> bool:
+    """Whether an existing output ``path`` is one calibrate wrote: ``primitives.toml`` by its
+    ``[calibration]`` table, ``report.md`` by its title, the figures beside a report of ours."""
+    name = path.name
+    if name == "report.json":
+        return report_ours
+    try:
+        if name == "primitives.toml":
+            import tomllib
+
+            table = tomllib.loads(path.read_text(encoding="utf-8")).get("calibration")
+            return isinstance(table, dict) and {"searched", "simulator"} <= set(table)
+        if name == "report.md":
+            with path.open(encoding="utf-8") as fh:
+                return fh.readline().startswith("# Calibration against")
+        with path.open("rb") as fh:
+            return report_ours and fh.read(8) == b"\x89PNG\r\n\x1a\n"
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+
+
 def check_outputs(out: str | os.PathLike[str], *, overwrite: bool = False) -> dict[str, Path]:
-    """Refuse (ConfigError) before any work if an output exists and not ``overwrite``."""
+    """Refuse (ConfigError) before any work: an output directory that is a file, an
+    existing output without ``overwrite``, and with it any output an earlier ``simlab
+    calibrate`` did not write (a ``primitives.toml`` written by hand is never replaced)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        ensure_new(out, overwrite=False, what="output directory (a file is in the way)")
+        raise ConfigError("the output directory is a file", path=out, key="out",
+                          fix="choose another --out, or move the file out of the way")
     paths = output_paths(out)
     for path in paths.values():
+        if path.is_dir():
+            raise ConfigError("calibration output is a directory", path=path, key="out",
+                              fix="choose another --out")
         ensure_new(path, overwrite=overwrite, what="calibration output")
+    if overwrite:
+        report_ours = _report_is_ours(paths["report.json"])
+        for path in paths.values():
+            if path.exists() and not _is_ours(path, report_ours):
+                raise ConfigError("not written by simlab calibrate; --overwrite replaces "
+                                  "only calibrate's own outputs", path=path, key="overwrite",
+                                  fix="choose another --out, or move the file away")
     return paths
 
 
@@ -104,6 +157,7 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
     """The JSON report (plain types)."""
     cfg = dataclasses.asdict(result.config)
     return {
+        "kind": KIND,
         "real": {"source": result.real.source, "action_set": result.real.action_set.to_json(),
                  **result.real_summary},
         "sim": {**result.sim_summary, "walk_rows": result.final.sim.walk_rows},
