@@ -136,3 +136,30 @@ def test_an_output_directory_that_is_a_file_is_not_answered_with_overwrite(
         assert_refused(res, "afile", "is a file")
         assert "--overwrite" not in res.stderr
     assert tree_hashes(work) == before
+
+
+def test_a_space_file_with_a_bad_choice_fails_at_load_naming_the_file(work: Path,
+                                                                      capsys) -> None:
+    (work / "space.toml").write_text('[parameters.mode]\nchoices = ["fixed", "teleport"]\n'
+                                     "[parameters.drive_time]\nlow = 0.2\nhigh = 1.0\n")
+    argv = _argv(work, extra=f"--space {work}/space.toml")
+    argv[argv.index("kinematic")] = "physics"  # mode is a field of the physics record
+    before = tree_hashes(work)
+    assert_refused(run_cli(argv, capsys), "space.toml", "parameters.mode", "teleport")
+    assert tree_hashes(work) == before and not (work / "cal").exists()
+
+
+@pytest.mark.parametrize(("extra", "field"), [
+    ("--confirm-hours 1e9", "confirm_hours"),
+    ("--screen-share 1e9", "screen_share"),
+    ("--hours-per-candidate 1e9", "hours_per_candidate"),
+])
+def test_walk_sizes_are_bounded(work: Path, capsys, extra: str, field: str) -> None:
+    argv = _argv(work)
+    for flag in ("--confirm-hours", "--hours-per-candidate"):  # the FAST budgets
+        if flag in extra:
+            k = argv.index(flag)
+            del argv[k:k + 2]
+    before = tree_hashes(work)
+    assert_refused(run_cli(argv + extra.split(), capsys), field)
+    assert tree_hashes(work) == before and not (work / "cal").exists()
