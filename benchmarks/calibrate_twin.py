@@ -267,7 +267,7 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
         simlab("transfer", "--real", real, "--sim", mdp, "--states", states,
                "--out", out, "--n-boot", 30, "--no-plot", "--overwrite")
         res = json.loads((out / "transfer.json").read_text())
-        ov = res["overview"]["twins"][0]
+        ov = res["over_goals"]["twins"][0]
         never = sum(t["never_share"] > 0 for g in res["goals"] for t in g["twins"])
         gap = "n/a" if ov["gap"] is None else f"{100 * ov['gap']:+.1f} %"
         print(f"twin policy from the recommended policy data ({need['transitions']:,} "

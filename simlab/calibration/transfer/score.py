@@ -149,7 +149,7 @@ class TransferResult:
         return {
             "kind": KIND,
             "real": self.real_name,
-            "overview": self.overview(),
+            "over_goals": self.overview(),
             "perfect_twin_lines": [None if ln is None else ln.to_json() for ln in self.lines],
             "reset_states": list(self.reset_states),
             "twins": list(self.twin_names),
