@@ -181,14 +181,14 @@ class CalibrateConfig(ActionSetOptions):
         "transitions)")
     screen_share: float = option(0.25, "screening walk size as a share of the real "
                                  "transitions")
-    candidates: int = option(16, "candidates screened, the starting point included")
+    candidates: int = option(24, "candidates screened, the starting point included")
     confirm_top: int = option(2, "best screened candidates re-simulated on fresh seeds "
                               "(the starting point too); the winner is picked there")
     confirm_seeds: int = option(1, "fresh seeds of each confirmed candidate")
     confirm_hours: float | None = option(
         None, "simulated hours of each confirming walk (default: sized from the matched "
         "floor, printed in the report)")
-    transfer_seeds: int = option(5, "twin seeds of the transfer report (0: none)")
+    transfer_seeds: int = option(3, "twin seeds of the transfer report (0: none)")
     goal_states: Any | None = option(
         None, "goal states of the transfer report, e.g. 18,34 (default: every state)",
         metavar="LIST")

@@ -61,6 +61,9 @@ class CalibrationConfig:
         hours_per_candidate: simulated hours of each screening walk (> 0); None (default)
             sizes it from the real table: ``screen_share`` of its transitions.
         candidates: number of candidates screened (>= 2), the starting point included.
+            24 by default: a robot that drives until its state changes searches 9 fields
+            (a Sobol design of half the candidates and a refinement of the other half:
+            about 1.3 points per field each).
         workers: walks simulated at once, one process each (1 = in this process).
             The refinement rounds have this many candidates, so the search is identical
             for the same (seed, workers), like ``collect``; the initial design is not
@@ -94,7 +97,10 @@ class CalibrationConfig:
             from the matched floor (:func:`~simlab.calibration.budget.size_budgets`).
         confirm_top: screened candidates confirmed (>= 1), besides the starting point.
         confirm_seeds: fresh seeds each confirmed candidate walks (>= 1).
-        transfer_seeds: twin seeds of the transfer report (0 = no transfer report).
+        transfer_seeds: twin seeds of the transfer report (0 = no transfer report); 3 by
+            default: each is read against the perfect twin at its own data, so a few
+            suffice, and each more one is another confirming-size walk (a seventh of
+            calibrate's time on the ISIR lab).
         start_states: where the walks start: ``"all"`` (default: one walk per state),
             a list of states, or None (the arena's start pose).
         address: Ray cluster address: the walks run as Ray tasks there (default: local
@@ -110,7 +116,7 @@ class CalibrationConfig:
     """
 
     hours_per_candidate: float | None = None
-    candidates: int = 16
+    candidates: int = 24
     workers: int = 2
     seed: int = 0
     simulator: str = "physics"
@@ -126,7 +132,7 @@ class CalibrationConfig:
     confirm_hours: float | None = None
     confirm_top: int = 2
     confirm_seeds: int = 1
-    transfer_seeds: int = 5
+    transfer_seeds: int = 3
     start_states: Any = "all"
     address: str | None = None
     goal_states: tuple[int, ...] | None = None

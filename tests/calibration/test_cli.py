@@ -52,18 +52,18 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     assert f"winner: candidate #{report['best_candidate']} of 3" in printed
     winners = {c["index"] for c in report["confirmed"] if c["index"] == report["best_candidate"]}
     assert winners == {report["best_candidate"]}
-    # five twin seeds scored on the real model, every state a goal (9 states)
+    # three twin seeds scored on the real model, every state a goal (9 states)
     overview = report["transfer"]["overview"]
-    assert len(overview["twins"]) == 5 and overview["goals"] == 9
+    assert len(overview["twins"]) == 3 and overview["goals"] == 9
     assert all(t["ratio"] is None or t["ratio"] >= 1.0 - 1e-9 for t in overview["twins"])
     assert f"({len(overview['twins'])} twins of" in printed
     # read against a perfect twin at the same data, in the summary and the report
     assert "a perfect twin at the same data" in printed
     assert report["transfer"]["perfect_twin_line"]["n_boot"] > 0
     assert all("perfect_ratio" in r for r in report["transfer"]["data_curve"])
-    # the same five walks pooled 1, 2, 4 and 5 at a time; one walk per twin is the overview
+    # the same three walks pooled 1, 2 and 3 at a time; one walk per twin is the overview
     curve = report["transfer"]["data_curve"]
-    assert [(r["walks"], r["pools"]) for r in curve] == [(1, 5), (2, 2), (4, 1), (5, 1)]
+    assert [(r["walks"], r["pools"]) for r in curve] == [(1, 3), (2, 1), (3, 1)]
     sizes = [r["transitions"] for r in curve]
     assert all(a < b for a, b in itertools.pairwise(sizes))
     assert curve[0]["mean_ratio"] == pytest.approx(overview["mean_ratio"])
