@@ -89,6 +89,23 @@ def data_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANC
             "transitions": float(c / tolerance)}
 
 
+def policy_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANCE
+                ) -> dict[str, Any] | None:
+    """The policy data to recommend: :func:`data_need` when the curve falls as ``1/N``;
+    when it is flat or rises (``flat``: the policies are limited by the twin, not by its
+    data), the largest measured size, whose mean ratio is the ``limit`` (``c`` 0); None
+    with fewer than two finite sizes."""
+    need = data_need(curve, tolerance)
+    if need is not None:
+        return {**need, "flat": False}
+    rows = [r for r in curve if r["mean_ratio"] is not None and math.isfinite(r["mean_ratio"])]
+    if len(rows) < 2:
+        return None
+    top = max(rows, key=lambda r: r["transitions"])
+    return {"limit": float(top["mean_ratio"]), "c": 0.0, "tolerance": float(tolerance),
+            "transitions": float(top["transitions"]), "flat": True}
+
+
 def pool_sizes(n: int) -> list[int]:
     """Twin walks pooled per twin in the data curve: 1, 2, 4, ... below ``n``, then ``n``."""
     sizes, k = [], 1
@@ -148,7 +165,7 @@ def transfer_stage(real: Any, twin_counts: list[NDArray[np.int64]], twin_names: 
     out.line = perfect_twin_line(out.real_model, out.report, twin_counts[0].sum(axis=2),
                                  n_boot=LINE_BOOT, rng=rng)
     out.curve = _curve(out, twin_counts, model, named, rng)
-    out.need = data_need(out.curve)
+    out.need = policy_need(out.curve)
     if out.need is not None:
         visits = np.mean([c.sum(axis=2) for c in twin_counts], axis=0)
         scale = out.need["transitions"] / max(float(visits.sum()), 1.0)
@@ -200,12 +217,14 @@ def transfer_warnings(out: TwinTransfer) -> list[str]:
         seen = ("" if n is None or not trapped else
                 f", seen {min(n[p] for p in trapped)}-{max(n[p] for p in trapped)} times each")
         cause = (f"their policies choose {len(trapped)} (s, a) the real robot only stayed in "
-                 f"or never tried{seen}: the real data are too thin there to say it moves"
-                 if trapped else "their policies loop between states on the real model")
+                 f"or never tried{seen}: the real data are too thin there to say it moves "
+                 "(`simlab transfer --untried mask` chooses among the pairs the real robot "
+                 "moved in)" if trapped else
+                 "their policies loop between states on the real model (the twin's data are "
+                 "too few to plan there: see the pooled rows of the data curve)")
         warned.append(f"{len(never)} of {len(rep.twin_names)} twin seeds never arrive at some "
                       f"goal from some start, so their ratio and the mean have no value: "
-                      f"{cause} (`simlab transfer --untried mask` chooses among the pairs "
-                      "the real robot moved in)")
+                      f"{cause}")
     floors = [g.floor for g in rep.goals if g.floor is not None]
     bad = [f for f in floors if not math.isfinite(f.median)]
     if bad:
@@ -213,10 +232,15 @@ def transfer_warnings(out: TwinTransfer) -> list[str]:
                       "real robot's own plan never arrives on most resamples of the real "
                       "data (too few real transitions per pair)")
     if out.need is None and len(out.curve) > 1:
-        warned.append("no policy-data figure: the data curve " + (
-            "has fewer than two sizes whose twins all arrive" if sum(
-                math.isfinite(r["mean_ratio"]) for r in out.curve) < 2 else
-            "does not fall with more data"))
+        warned.append("no policy-data figure: the data curve has fewer than two sizes whose "
+                      "twins all arrive")
+    elif out.need is not None and out.need["flat"]:
+        warned.append("the twins' policies do not improve with more of their data ("
+                      + ", ".join(f"{r['mean_ratio']:.3f} at {r['transitions']:,}"
+                                  for r in out.curve if math.isfinite(r["mean_ratio"]))
+                      + "): what is left is the twin's own difference from the robot, not its "
+                      f"data; the policy data recommended are the largest pool's "
+                      f"{out.need['transitions']:,.0f} transitions")
     return warned
 
 

@@ -39,7 +39,7 @@ from simlab.base.io import (
     ensure_new,
     output_transaction,
 )
-from simlab.calibration.policies import data_need
+from simlab.calibration.policies import policy_need
 from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
 
@@ -232,8 +232,9 @@ def transfer_headline(result: CalibrationResult) -> str:
             f"{_gap(fin.mean() if fin.size == ratios.size else math.inf, twin.line)}")
     if twin.need is not None:
         fit = twin.need["limit"] + twin.need["c"] / twin.need["transitions"]
-        text += (f"; at the recommended {twin.need['transitions']:,.0f} transitions the fit "
-                 f"gives {fit:.3f}, a perfect twin {_ratio(twin.line_at_need)}"
+        how = "measured (more data do not help)" if twin.need["flat"] else "the fit gives"
+        text += (f"; at the recommended {twin.need['transitions']:,.0f} transitions {how} "
+                 f"{fit:.3f}, a perfect twin {_ratio(twin.line_at_need)}"
                  f"{_gap(fit, twin.line_at_need)}")
     if twin.policy is not None:
         text += (f"; the policy of {twin.policy['transitions']:,} collected transitions "
@@ -553,19 +554,25 @@ def _curve_table(out: io.StringIO, result: CalibrationResult) -> None:
         return
     hours = ("" if need["hours"] is None else
              f" (about {need['hours']:.0f} h of robot time at the real rate)")
-    out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
-              f"transitions: a twin of unlimited data would score about {need['limit']:.3f}, "
-              f"and **{need['transitions']:,.0f} twin transitions**{hours} bring a policy "
-              f"within {need['tolerance']} of it. Collect that much with the calibrated "
-              "primitives before training the policy you take to the robot: "
-              f"`{collect_line(result.real.action_set, need)}` (or `simlab calibrate "
-              "--policy-data` collects and scores it).\n\n")
+    if need["flat"]:
+        out.write(f"\nThe score does not fall with more data: the twins' policies are limited "
+                  f"by the twin, not its data (about {need['limit']:.3f}); **"
+                  f"{need['transitions']:,.0f} twin transitions**{hours}, the largest pool, "
+                  "are the policy data recommended")
+    else:
+        out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
+                  f"transitions: a twin of unlimited data would score about "
+                  f"{need['limit']:.3f}, and **{need['transitions']:,.0f} twin transitions**"
+                  f"{hours} bring a policy within {need['tolerance']} of it")
+    out.write(". Collect that much with the calibrated primitives before training the "
+              f"policy you take to the robot: `{collect_line(result.real.action_set, need)}` "
+              "(or `simlab calibrate --policy-data` collects and scores it).\n\n")
 
 
 def policy_data(result: CalibrationResult) -> dict[str, Any] | None:
-    """:func:`~simlab.calibration.stages.data_need` of the transfer's data curve, with the
-    robot hours of those transitions at the real table's rate (None when unknown)."""
-    need = data_need(result.transfer_curve)
+    """:func:`~simlab.calibration.policies.policy_need` of the transfer's data curve, with
+    the robot hours of those transitions at the real table's rate (None when unknown)."""
+    need = policy_need(result.transfer_curve)
     if need is None:
         return None
     n_real = int(result.real.counts.sum())

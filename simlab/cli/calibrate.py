@@ -43,9 +43,10 @@ def run(args: argparse.Namespace) -> int:
         need = policy_data(r)
         if need is not None:
             hours = "" if need["hours"] is None else f" ({need['hours']:.0f} h)"
-            print(f"policy data: {need['transitions']:,} twin transitions{hours} bring a twin "
-                  f"policy within {need['tolerance']} of unlimited twin data "
-                  f"({need['limit']:.3f} x the optimum)")
+            gain = ("more data do not improve the twins' policies" if need["flat"] else
+                    f"bring a twin policy within {need['tolerance']} of unlimited twin data")
+            print(f"policy data: {need['transitions']:,} twin transitions{hours} ({gain}; "
+                  f"{need['limit']:.3f} x the optimum)")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0
 

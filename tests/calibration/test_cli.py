@@ -171,7 +171,7 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     text = parser.format_help()
-    assert "(default 16)" in text and "(default excess)" in text and "--no-confirm" in text
+    assert "(default 24)" in text and "(default excess)" in text and "--no-confirm" in text
     cfg = CalibrateConfig.from_args(parser.parse_args(
         ["--config", str(toml), "--out", "o", "--candidates", "3"]))
     assert cfg.real_action_set() == CCW8 and cfg.real == str(real)
@@ -222,8 +222,9 @@ def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_pat
     the collect command of that data."""
     import simlab.calibration.report as report_mod
 
-    need = {"limit": 1.06, "c": 500.0, "tolerance": 0.01, "transitions": 50_000.0}
-    monkeypatch.setattr(report_mod, "data_need", lambda curve: dict(need))
+    need = {"limit": 1.06, "c": 500.0, "tolerance": 0.01, "transitions": 50_000.0,
+            "flat": False}
+    monkeypatch.setattr(report_mod, "policy_need", lambda curve: dict(need))
     real, states, hours = inputs
     out = tmp_path / "cal"
     assert main(argv(real, states, out, "--real-hours", f"{hours}")) == 0

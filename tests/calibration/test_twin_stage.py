@@ -11,7 +11,12 @@ import pytest
 from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.calibration.config import CalibrationConfig, RealTable
-from simlab.calibration.policies import data_need, real_transfer_counts, transfer_stage
+from simlab.calibration.policies import (
+    data_need,
+    policy_need,
+    real_transfer_counts,
+    transfer_stage,
+)
 from simlab.calibration.regions import REGIONS, pair_regions, region_signature
 from simlab.calibration.resets import (
     detect_reset_states,
@@ -151,3 +156,16 @@ def test_reset_states_option_reaches_the_config() -> None:
     with pytest.raises(ConfigError, match="confirm_hours"):
         CalibrationConfig(confirm_hours=1e9)
 
+
+
+def test_a_flat_curve_recommends_its_largest_pool_and_says_the_twin_is_the_limit() -> None:
+    curve = [{"transitions": 8000, "mean_ratio": 1.184},
+             {"transitions": 16000, "mean_ratio": 1.192},
+             {"transitions": 24000, "mean_ratio": 1.184}]
+    assert data_need(curve) is None  # no 1/N law to extrapolate
+    need = policy_need(curve)
+    assert need is not None and need["flat"] and need["transitions"] == 24000
+    assert need["limit"] == 1.184 and need["c"] == 0.0
+    falling = [{"transitions": n, "mean_ratio": 1.05 + 500 / n} for n in (8000, 16000)]
+    assert policy_need(falling)["flat"] is False
+    assert policy_need(curve[:1]) is None
