@@ -244,6 +244,9 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
     if not need:
         print("no policy-data figure in the report: step 5 skipped")
         return
+    if need.get("flat"):
+        print(f"the report's policy data: {need['transitions']:,} transitions, its largest "
+              "pool (more data do not improve the twin's policies)")
     data, mdp = root / "policy_data", root / "sim.npz"
     size = ["--hours", str(max(1, round(need["hours"])))] if need.get("hours") else [
         "--transitions", str(need["transitions"])]

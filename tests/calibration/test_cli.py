@@ -236,3 +236,25 @@ def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_pat
     assert "**50,000 twin transitions**" in md and f"--hours {math.ceil(h)} " in md
     report = json.loads((out / "report.json").read_text())
     assert report["transfer"]["data_need"]["hours"] == pytest.approx(h)
+
+
+def test_policy_data_is_collected_and_scored_against_the_perfect_twin(lattice9, tmp_path,
+                                                                      capsys) -> None:
+    # moves of about a cell (1.5 s) and 6 h of real data: twins whose policies arrive
+    states = tmp_path / "states.json"
+    lattice9.save(states)
+    sim = hidden_walk(lattice9, KinematicParams(drive_time=1.5), CCW8, 6.0, 4, "kinematic")
+    real = write_counts_csv(tmp_path / "real.csv", sim.counts)
+    out = tmp_path / "cal"
+    assert main(argv(real, states, out, "--real-hours", f"{sim.hours}", "--policy-data",
+                     "--goal-states", "0,8")) == 0
+    printed = capsys.readouterr().out
+    tr = json.loads((out / "report.json").read_text())["transfer"]
+    need, policy = tr["data_need"], tr["policy_data"]
+    assert need is not None  # three sizes whose twins arrive: a fit, or the largest pool
+    # the recommended transitions, walked and scored on every goal
+    assert policy["transitions"] == need["transitions"]
+    assert set(policy["goal_ratios"]) == {g["name"] for g in tr["goals"]}
+    assert policy["line"]["transitions"] == policy["transitions"]
+    assert "the policy of" in printed and "collected transitions" in printed
+    assert "| policy data | gap |" in (out / "report.md").read_text()
