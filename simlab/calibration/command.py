@@ -181,7 +181,7 @@ class CalibrateConfig(ActionSetOptions):
         "transitions)")
     screen_share: float = option(0.25, "screening walk size as a share of the real "
                                  "transitions")
-    candidates: int = option(24, "candidates screened, the starting point included")
+    candidates: int = option(28, "candidates screened, the starting point included")
     confirm_top: int = option(2, "best screened candidates re-simulated on fresh seeds "
                               "(the starting point too); the winner is picked there")
     confirm_seeds: int = option(1, "fresh seeds of each confirmed candidate")

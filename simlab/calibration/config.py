@@ -61,7 +61,7 @@ class CalibrationConfig:
         hours_per_candidate: simulated hours of each screening walk (> 0); None (default)
             sizes it from the real table: ``screen_share`` of its transitions.
         candidates: number of candidates screened (>= 2), the starting point included.
-            24 by default: a robot that drives until its state changes searches 9 fields
+            28 by default: a robot that drives until its state changes searches 11 fields
             (a Sobol design of half the candidates and a refinement of the other half:
             about 1.3 points per field each).
         workers: walks simulated at once, one process each (1 = in this process).
@@ -116,7 +116,7 @@ class CalibrationConfig:
     """
 
     hours_per_candidate: float | None = None
-    candidates: int = 24
+    candidates: int = 28
     workers: int = 2
     seed: int = 0
     simulator: str = "physics"

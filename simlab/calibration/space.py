@@ -253,7 +253,12 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
       decisions;
     * ``localization_hz`` (1-10 Hz, log): the stop waits for the localization's update;
     * ``wall_slide`` (0-0.8) and ``wall_back`` (0-0.2): what a refused move does at a wall
-      (their sum stays below 1 on the whole range).
+      (their sum stays below 1 on the whole range);
+    * ``min_drive`` (0 to half a cell): the shortest drive a state change may end;
+    * ``heading_tolerance`` (1-10 degrees, log): how far from its heading the robot starts
+      driving after the rotation in place (the ISIR robot within ~6 degrees). The rotation's
+      rate (``turn_rate``) is not searched: it changes how long a move takes, not where it
+      ends (measured on the ISIR lab: no change of the distance beyond its noise).
     """
     prims = np.asarray(primitives)
     if simulator != "physics":
@@ -280,6 +285,10 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
                  ParamSpec("localization_hz", 1.0, 10.0, "log"),
                  ParamSpec("wall_slide", 0.0, 0.8),
                  ParamSpec("wall_back", 0.0, 0.2),
+                 ParamSpec("min_drive", 0.0, 0.5 * cell_size if cell_size is not None
+                           and math.isfinite(cell_size) and cell_size > 0 else 0.2),
+                 ParamSpec("heading_tolerance", math.radians(1.0), math.radians(10.0),
+                           "log"),
                  ParamSpec("wheel_noise", 0.0, 0.1)]
     else:
         specs = [ParamSpec("mode", choices=("fixed", "until_state_change")),
