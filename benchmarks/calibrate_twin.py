@@ -1,31 +1,32 @@
 """Does `simlab calibrate`, exactly as the README gives it, make a faithful twin of a real lab?
 
-The benchmark lab has the signature of a real TurtleBot lab's published data (a corridor lab
-of about 9.3 m x 2.7 m mapped by GMapping at 5 cm, 38 Voronoi states with centres about
-0.7 m apart, 8 actions numbered counter-clockwise from East, about 13 h and 5,000
-transitions, a robot that drives until its state changes and stays in its state in about a
-quarter of its moves, states from a noisy localization). Its "real" robot is a physics walk
-whose settings the calibration never sees, and which holds effects that are **not** in the
-searched space, so that the twin can only approximate them:
+Two labs (``--lab``):
 
-* drive until the state changes at a hidden speed, time limit and detector margin;
-* wheel noise redrawn at every control tick and a random slip of up to 8 % of each move
-  (the twin searches only a per-move wheel noise);
-* states from a pose with 4 cm of localization error.
-
-Prints the real table's signature, then the calibration's figures against the targets: the
-visit-weighted TV distance against the bootstrap and matched floors, coverage, the
-self-transition share and entropy sim vs real, the transfer of twin policies over the twin
-seeds (expected steps to every goal on the real model against its optimum: mean and worst),
-and the wall time on this machine.
+* ``isir`` (the benchmark): the real ISIR TurtleBot arena of ``../shared/real-lab`` (its
+  13-hour transition model, GMapping map and 38 state centres; refused, naming the path,
+  when the folder is absent). The README's "Your own lab" path, command by command:
+  ``discretize --flip-y``, ``arena-from-map --flip-y``, ``estimate --counts``,
+  ``calibrate``, the policy data the report recommends (``collect`` + ``estimate``), and
+  ``transfer`` on the real model with state 18's real moves (its rows from
+  ``_newGoal.json``: in the 13-hour model they are the episode reset). Prints the figures
+  of the real lab's table: TV against its floors, self-transition share and entropy twin
+  / real, the blocked share and the signature by region, the twin policies as calibrate's
+  report says and from the recommended policy data against the perfect-twin line at the
+  same data, and calibrate's wall time with the machine's load.
+* ``synthetic``: a corridor lab with the real lab's signature whose "real" robot is a
+  physics walk with hidden settings: the check that a known robot is recovered. The
+  hidden robot holds what the real lab taught (a drifting localization error, a stop at
+  the localization's rate, slides and back-offs at walls) and effects the twin cannot
+  represent (per-tick wheel noise, a random slip).
 
 ``--compare-hz HZ`` runs the same calibration a second time with ``HZ`` as the default
 physics rate (every walk of it, in every worker: ``benchmarks/rate_arm.py``), right after
 the first, and prints both wall times and their ratio (200: the rate before it was a
 setting).
 
-Run: ``python benchmarks/calibrate_twin.py [--quick] [--workers 2] [--keep DIR]
-[--compare-hz 200]``. ``--quick`` shrinks every budget (a smoke run, not the benchmark).
+Run: ``python benchmarks/calibrate_twin.py --lab isir [--keep DIR] [--reuse] [--workers 2]
+[--compare-hz 200]`` or ``--lab synthetic [--quick]``. ``--quick`` shrinks every budget (a smoke run, not the
+benchmark). ``--reuse`` takes the calibration and policy data already in ``--keep``.
 """
 
 from __future__ import annotations
@@ -33,17 +34,23 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-#: The hidden robot (see the module docstring).
+#: The synthetic lab's hidden robot (see the module docstring): what the real lab taught
+#: (a localization error that drifts between decisions, a stop at the localization's rate,
+#: slides and back-offs at walls), then what the twin cannot represent.
 HIDDEN = dict(mode="until_state_change", fast_speed=0.18, max_drive_time=7.0,
-              detector_margin=0.06, wheel_noise_tick=0.02, slip=0.08, pose_noise_xy=0.04)
+              detector_margin=0.06, pose_noise_xy=0.04, pose_noise_persistence=0.8,
+              localization_hz=2.0, wall_slide=0.4, wall_back=0.05,
+              wheel_noise_tick=0.02, slip=0.08)
 REAL_HOURS = 13.0
 REAL_TRANSITIONS = 5357
 
@@ -104,30 +111,210 @@ def hidden_real(arena: Path, states: Path, out: Path, seed: int, hours: float,
     return {"transitions": int(counts.sum()), "hours": real_hours, "latency": latency}
 
 
-def run_calibrate(cmd: list[str], env: dict[str, str]) -> float:
-    """Run the calibrate command line; its wall seconds (its output printed)."""
-    t1 = time.perf_counter()
-    proc = subprocess.run(cmd, text=True, capture_output=True, env=env)
-    wall = time.perf_counter() - t1
-    print(proc.stdout.strip())
+#: The real lab's data: ``../shared/real-lab`` beside the repository.
+REAL_LAB = Path(__file__).resolve().parents[2] / "shared" / "real-lab"
+REAL_FILES = ("realisticNavWorld.json", "realisticNavWorld_newGoal.json", "mymap.yaml",
+              "mymap.pgm", "voronoiCenters_exp.dat")
+
+
+def simlab(*argv: object, log: Path | None = None,
+           env: dict[str, str] | None = None) -> tuple[str, float]:
+    """Run ``simlab ARGV`` in a fresh process (as a user would; ``env``: its environment,
+    default this one's); (stdout, wall s). Stops the benchmark with the command's own error
+    when it fails."""
+    cmd = [sys.executable, "-m", "simlab", *map(str, argv)]
+    print("$ simlab " + " ".join(map(str, argv)), flush=True)
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, text=True, capture_output=True,
+                          env={**os.environ} if env is None else env)
+    wall = time.perf_counter() - t0
+    if log is not None:
+        log.write_text(proc.stdout + proc.stderr)
     if proc.returncode:
-        print(proc.stderr.strip())
+        print(proc.stdout + proc.stderr)
         raise SystemExit(proc.returncode)
-    return wall
+    for line in proc.stderr.splitlines():
+        if "warning" in line:
+            print("  " + line)
+    return proc.stdout, wall
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--quick", action="store_true", help="small budgets (smoke run)")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--seed", type=int, default=7, help="seed of the hidden walk")
-    parser.add_argument("--keep", type=Path, default=None, help="keep the files here")
-    parser.add_argument("--reuse", action="store_true",
-                        help="reuse the lab and hidden walk already in --keep")
-    parser.add_argument("--compare-hz", type=float, default=0.0,
-                        help="also calibrate with this default physics rate (0: no)")
-    args = parser.parse_args()
+def run_calibrate(real: Path, states: Path, arena: Path, hours: str, out: Path,
+                  args: argparse.Namespace, *, reuse: bool, env: dict[str, str] | None = None
+                  ) -> tuple[dict, float, float]:
+    """``simlab calibrate`` as the README gives it (8 ccw-east actions at the fast speed);
+    (its report.json, wall s, load average over the run); an earlier run's report with
+    ``reuse``. ``env``: the subprocess's environment (another default rate)."""
+    timing = out.parent / f"{out.name}_time.json"
+    if reuse and (out / "report.json").is_file() and timing.is_file():
+        t = json.loads(timing.read_text())
+        return json.loads((out / "report.json").read_text()), t["wall"], t["load"]
+    extra = ["--candidates", "4", "--confirm-top", "1", "--transfer-seeds", "2",
+             "--confirm-hours", "1"] if args.quick else []
+    extra += args.calibrate_args.split()
+    load0 = os.getloadavg()[0]
+    stdout, wall = simlab("calibrate", "--real", real, "--states", states, "--arena", arena,
+                          "--n-actions", 8, "--convention", "ccw-east", "--speed", "fast",
+                          "--real-hours", hours, "--out", out, "--workers", args.workers,
+                          "--no-progress", "--overwrite", *extra,
+                          log=out.parent / f"{out.name}.log", env=env)
+    load = (load0 + os.getloadavg()[0]) / 2
+    print(stdout.strip())
+    timing.write_text(json.dumps({"wall": wall, "load": load}))
+    return json.loads((out / "report.json").read_text()), wall, load
 
+
+def print_calibration(rep: dict, wall: float, load: float) -> None:
+    """The calibration's figures against the targets."""
+    d = rep["distance"]["distance"]
+    fl, mf = rep["floor"]["median"], rep["matched_floor"]["median"]
+    cov = rep["coverage"]
+    print(f"\nTV distance {d:.3f}: {d / mf:.2f} x the matched floor {mf:.3f} (target <= 1.5), "
+          f"{d / fl:.2f} x the bootstrap floor {fl:.3f}")
+    print(f"coverage: the twin tried {cov['real_pairs_tried']} of {cov['real_pairs']} real "
+          f"pairs ({100 * cov['real_weight_tried']:.1f} % of the real transitions), reached "
+          f"{cov['states_reached']} of {cov['states']} states")
+    print(f"self-transition share twin / real {rep['sim']['self_transition_share']:.3f} / "
+          f"{rep['real']['self_transition_share']:.3f}; mean entropy per action twin / real "
+          f"{rep['sim']['mean_entropy_bits']:.2f} / {rep['real']['mean_entropy_bits']:.2f} "
+          f"bits; twin moves refused by the detector {100 * rep['sim']['blocked_rate']:.1f} %")
+    for row in rep.get("regions") or []:
+        r, t = row["real"], row["sim"]
+        print(f"  {row['region']:8s} {r['transitions']:5d} real transitions, TV "
+              f"{row['tv']:.3f}; stay {r['stay']:.2f}/{t['stay']:.2f}, ahead "
+              f"{r['ahead']:.2f}/{t['ahead']:.2f}, side {r['side']:.2f}/{t['side']:.2f}, "
+              f"behind {r['behind']:.2f}/{t['behind']:.2f} (real/twin)")
+    tr = rep.get("transfer")
+    if tr:
+        print(f"transfer ({tr['overview']['goals']} goals), as calibrate's report says: "
+              f"{tr['headline']}")
+        for row in tr["data_curve"]:
+            print(f"  {row['transitions']} transitions: {_r(row['mean_ratio'])} (worst "
+                  f"{_r(row['worst_ratio'])}), a perfect twin {_r(row.get('perfect_ratio'))}")
+    searched = [x["name"] for x in rep["space"]]
+    print("calibrated: " + ", ".join(f"{k}={rep['params'][k]:.4g}" if not isinstance(
+        rep["params"][k], str) else f"{k}={rep['params'][k]}" for k in searched))
+    print(f"wall time of calibrate: {wall:.0f} s on {os.cpu_count()} cores at load "
+          f"{load:.1f} (target < 900 s)")
+
+
+def compare_rate(args: argparse.Namespace, calibrate: Any, root: Path, rep: dict,
+                 wall: float) -> None:
+    """With ``--compare-hz``: the same calibration at that default physics rate, its wall
+    time against the default rate's (``calibrate(out, env)`` runs it)."""
+    if not args.compare_hz:
+        return
+    from rate_arm import default_rate_env
+
+    from simlab.physics.rate import DEFAULT_HZ
+
+    load0 = os.getloadavg()[0]
+    other, wall_hz, _ = calibrate(root / f"cal-{args.compare_hz:g}hz",
+                                  default_rate_env(args.compare_hz, root))
+    print(f"\ncalibrate at the default {DEFAULT_HZ:g} Hz: {wall:.0f} s wall, TV "
+          f"{rep['distance']['distance']:.3f}; at {args.compare_hz:g} Hz: {wall_hz:.0f} s "
+          f"({wall_hz / wall:.2f}x), TV {other['distance']['distance']:.3f}; load "
+          f"{load0:.2f} before, {os.getloadavg()[0]:.2f} after")
+
+
+def _r(x: float | None) -> str:
+    return "never" if x is None else f"{x:.3f}"
+
+
+def spliced_counts(real_lab: Path, out: Path) -> Path:
+    """The 13-hour model with state 18's real moves: its rows from ``_newGoal.json`` (in the
+    13-hour model they are the reset to a start). A CSV of counts."""
+    import warnings
+
+    from simlab.data.counts import load_counts
+
+    with warnings.catch_warnings():  # the published files repeat one (s, a, s') row
+        warnings.simplefilter("ignore")
+        base = load_counts(real_lab / "realisticNavWorld.json", n_actions=8).counts
+        moves = load_counts(real_lab / "realisticNavWorld_newGoal.json", n_actions=8).counts
+    base[18] = moves[18]
+    s, a, s2 = np.nonzero(base)
+    out.write_text("s,a,s_next,count\n" + "".join(
+        f"{i},{j},{k},{base[i, j, k]}\n" for i, j, k in zip(s, a, s2, strict=True)))
+    return out
+
+
+def isir(args: argparse.Namespace) -> None:
+    """The real ISIR lab through the README's commands (module docstring)."""
+    lab = Path(args.real_lab)
+    missing = [f for f in REAL_FILES if not (lab / f).is_file()]
+    if missing:
+        raise SystemExit(f"calibrate_twin.py: error: the real lab's data are not in {lab} "
+                         f"(missing {', '.join(missing)}); give --real-lab DIR, or run "
+                         "--lab synthetic")
+    root = args.keep or Path(tempfile.mkdtemp(prefix="simlab-isir-"))
+    root.mkdir(parents=True, exist_ok=True)
+    states, arena, model = root / "states.json", root / "lab.toml", root / "robot.npz"
+    if not (args.reuse and model.is_file()):
+        simlab("discretize", "--map", lab / "mymap.yaml", "--centres",
+               lab / "voronoiCenters_exp.dat", "--out", states, "--flip-y", "--overwrite")
+        simlab("arena-from-map", lab / "mymap.yaml", "--states", states, "--out", arena,
+               "--flip-y", "--overwrite")
+        simlab("estimate", "--counts", lab / "realisticNavWorld.json", "--n-actions", 8,
+               "--convention", "ccw-east", "--states", states, "--arena", arena, "--out",
+               model, "--no-plot", "--overwrite")
+    rep, wall, load = run_calibrate(lab / "realisticNavWorld.json", states, arena, "13",
+                                    root / "cal", args, reuse=args.reuse)
+    print_calibration(rep, wall, load)
+    compare_rate(args, lambda out, env: run_calibrate(
+        lab / "realisticNavWorld.json", states, arena, "13", out, args, reuse=args.reuse,
+        env=env), root, rep, wall)
+    policy_transfer(args, lab, root, rep, states, arena)
+    print(f"files in {root}")
+
+
+def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
+                    states: Path, arena: Path) -> None:
+    """README step 5: the recommended policy data, and step 5b: its policy on the real
+    model with state 18's real moves, against the perfect twin at the same data."""
+    need = (rep.get("transfer") or {}).get("data_need")
+    if not need:
+        print("no policy-data figure in the report: step 5 skipped")
+        return
+    if need.get("flat"):
+        print(f"the report's policy data: {need['transitions']:,} transitions, its largest "
+              "pool (more data do not improve the twin's policies)")
+    data, mdp = root / "policy_data", root / "sim.npz"
+    size = ["--hours", str(max(1, round(need["hours"])))] if need.get("hours") else [
+        "--transitions", str(need["transitions"])]
+    if args.quick:
+        size = ["--transitions", "3000"]
+    if not (args.reuse and mdp.is_file()):
+        shutil.rmtree(data, ignore_errors=True)  # the benchmark's own folder
+        _, wall = simlab("collect", "--arena", arena, "--states", states, "--primitives",
+                         root / "cal" / "primitives.toml", "--n-actions", 8, "--convention",
+                         "ccw-east", "--speed", "fast", "--start-states", "all", *size,
+                         "--workers", args.workers, "--out", data, "--no-progress")
+        print(f"  policy data collected in {wall:.0f} s")
+        simlab("estimate", data, "--out", mdp, "--no-plot", "--overwrite")
+    real18 = root / "robot18.npz"
+    simlab("estimate", "--counts", spliced_counts(lab, root / "robot18.csv"), "--n-actions",
+           8, "--convention", "ccw-east", "--states", states, "--arena", arena, "--out",
+           real18, "--no-plot", "--overwrite")
+    for real, name in ((real18, "with state 18's real moves"),
+                       (root / "robot.npz", "the 13-hour model (state 18 a reset)")):
+        out = root / f"transfer_{real.stem}"
+        simlab("transfer", "--real", real, "--sim", mdp, "--states", states,
+               "--out", out, "--n-boot", 30, "--no-plot", "--overwrite")
+        res = json.loads((out / "transfer.json").read_text())
+        ov = res["over_goals"]["twins"][0]
+        never = sum(t["never_share"] > 0 for g in res["goals"] for t in g["twins"])
+        gap = "n/a" if ov["gap"] is None else f"{100 * ov['gap']:+.1f} %"
+        print(f"twin policy from the recommended policy data ({need['transitions']:,} "
+              f"transitions), {len(res['goals'])} goals, on {name}: {_r(ov['ratio'])} x the "
+              f"real optimum's steps against a perfect twin's "
+              f"{_r(ov['perfect_twin_same_data'])} at the same data "
+              f"({gap}; target "
+              f"<= +5 %); goals with a start that never arrives: {never}")
+
+
+def synthetic(args: argparse.Namespace) -> None:
+    """The synthetic lab (module docstring)."""
     from simlab.calibration.signature import real_signature
     from simlab.data.counts import load_counts
     from simlab.physics.inputs import load_discretizer
@@ -154,65 +341,39 @@ def main() -> None:
     print(f"real signature: self-transition share {sig.self_share:.2f}, mean entropy "
           f"{sig.mean_entropy:.2f} bits, {sig.pairs_visited}/{sig.pairs} pairs, "
           f"{sig.states_visited}/{sig.states} states")
-
     out = root / "cal"
-    cmd = [sys.executable, "-m", "simlab", "calibrate", "--real", str(real_csv),
-           "--states", str(states), "--arena", str(arena), "--n-actions", "8",
-           "--convention", "ccw-east", "--speed", "fast", "--real-hours",
-           f"{info['hours']:.4f}", "--out", str(out), "--workers", str(args.workers),
-           "--no-progress"]
-    if args.quick:
-        cmd += ["--candidates", "4", "--confirm-top", "1", "--confirm-seeds", "1",
-                "--transfer-seeds", "2", "--confirm-hours", "1"]
-    print("$ simlab " + " ".join(cmd[3:]))
-    load0 = os.getloadavg()[0]
-    wall = run_calibrate(cmd, dict(os.environ))
-    rep = json.loads((out / "report.json").read_text())
-    if args.compare_hz:
-        from rate_arm import default_rate_env
-
-        from simlab.physics.rate import DEFAULT_HZ
-
-        other = root / f"cal-{args.compare_hz:g}hz"
-        cmd_hz = [other if c == str(out) else c for c in cmd]
-        wall_hz = run_calibrate([str(c) for c in cmd_hz], default_rate_env(args.compare_hz, root))
-        d_hz = json.loads((other / "report.json").read_text())["distance"]["distance"]
-        print(f"\ncalibrate at the default {DEFAULT_HZ:g} Hz: {wall:.0f} s wall; at "
-              f"{args.compare_hz:g} Hz: {wall_hz:.0f} s ({wall_hz / wall:.2f}x; its TV distance "
-              f"{d_hz:.3f}); load {load0:.2f} before, {os.getloadavg()[0]:.2f} after")
-    d = rep["distance"]["distance"]
-    fl, mf = rep["floor"]["median"], rep["matched_floor"]["median"]
-    cov = rep["coverage"]
-    ov = rep["transfer"]["overview"] if rep["transfer"] else None
-    print()
-    print(f"TV distance {d:.3f}: {d / mf:.2f} x the matched floor {mf:.3f} (target <= 1.5), "
-          f"{d / fl:.2f} x the bootstrap floor {fl:.3f} (target <= 2)")
-    print(f"coverage: the twin tried {cov['real_pairs_tried']} of {cov['real_pairs']} real "
-          f"pairs ({100 * cov['real_weight_tried']:.1f} % of the real transitions), reached "
-          f"{cov['states_reached']} of {cov['states']} states")
-    print(f"self-transition share sim {rep['sim']['self_transition_share']:.2f} / real "
-          f"{rep['real']['self_transition_share']:.2f}; mean entropy sim "
-          f"{rep['sim']['mean_entropy_bits']:.2f} / real {rep['real']['mean_entropy_bits']:.2f}"
-          " bits")
-    if ov is not None:
-        ratios = [t["ratio"] if t["ratio"] is not None else float("inf") for t in ov["twins"]]
-        print(f"transfer over {len(ratios)} twin seeds, {ov['goals']} goals: steps / real "
-              f"optimum mean {np.mean(ratios):.3f}, worst {max(ratios):.3f} (target: every "
-              f"seed <= 1.05); per seed " + ", ".join(f"{r:.3f}" for r in ratios))
-    if rep["transfer"] and rep["transfer"].get("data_curve"):
-        print("transfer against the twin's data (the twin walks pooled): " + "; ".join(
-            f"{r['transitions']} transitions {r['mean_ratio']:.3f} (worst {r['worst_ratio']:.3f})"
-            for r in rep["transfer"]["data_curve"] if r["mean_ratio"] is not None))
-        need = rep["transfer"].get("data_need")
-        if need:
-            print(f"  fitted limit (unlimited twin data) {need['limit']:.3f}; "
-                  f"{need['transitions']} twin transitions bring a policy within "
-                  f"{need['tolerance']} of it")
+    rep, wall, load = run_calibrate(real_csv, states, arena, f"{info['hours']:.4f}", out, args,
+                                    reuse=args.reuse)
+    print_calibration(rep, wall, load)
+    compare_rate(args, lambda out, env: run_calibrate(
+        real_csv, states, arena, f"{info['hours']:.4f}", out, args, reuse=args.reuse,
+        env=env), root, rep, wall)
     hidden = {k: v for k, v in HIDDEN.items() if k in rep["params"]}
     found = {k: rep["params"][k] for k in hidden}
-    print(f"hidden {hidden}\nfound  {found}")
-    print(f"wall time of calibrate: {wall:.0f} s on {os.cpu_count()} cores (target < 900 s); "
-          f"files in {root}")
+    print(f"hidden {hidden}\nfound  {found}\nfiles in {root}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--lab", choices=("isir", "synthetic"), default="isir",
+                        help="the real ISIR lab (default) or the synthetic one")
+    parser.add_argument("--real-lab", type=Path, default=REAL_LAB,
+                        help="the real lab's data folder (default ../shared/real-lab)")
+    parser.add_argument("--quick", action="store_true", help="small budgets (smoke run)")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=7, help="seed of the hidden walk")
+    parser.add_argument("--keep", type=Path, default=None, help="keep the files here")
+    parser.add_argument("--reuse", action="store_true",
+                        help="reuse the files already in --keep (lab, calibration, data)")
+    parser.add_argument("--compare-hz", type=float, default=0.0,
+                        help="also calibrate with this default physics rate (0: no)")
+    parser.add_argument("--calibrate-args", default="",
+                        help="extra calibrate options (quoted), e.g. '--candidates 20'")
+    args = parser.parse_args()
+    if args.lab == "isir":
+        isir(args)
+    else:
+        synthetic(args)
 
 
 if __name__ == "__main__":

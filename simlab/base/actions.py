@@ -223,17 +223,18 @@ class ActionSetOptions(CommandConfig):
     whose action numbering is given by the user (``estimate`` of a count table; inherit it
     in a command's config and call :meth:`make_action_set`).
 
-    ``n_actions`` defaults to None = "not given" so that a command can tell a choice from
-    the default (``estimate`` refuses the group for a dataset, which records its own).
+    ``n_actions`` and ``convention`` default to None = "not given" so that a command can
+    tell a choice from the default (``estimate`` refuses the group for a dataset, which
+    records its own, even ``--convention simlab``).
     """
 
     n_actions: int | None = option(
         None, "actions of the data: 8 (one speed) or 16 (default 16; a dataset records its "
         "own)", choices=(8, 16))
-    convention: str = option(
-        "simlab", "direction numbering: simlab (UP, DOWN, LEFT, RIGHT, UL, UR, DL, DR), "
-        "ccw-east (0 E, 1 NE, ... 7 SE) or 8 numbers PERM, the simlab direction of each of "
-        "yours")
+    convention: str | None = option(
+        None, "direction numbering: simlab (UP, DOWN, LEFT, RIGHT, UL, UR, DL, DR; the "
+        "default), ccw-east (0 E, 1 NE, ... 7 SE) or 8 numbers PERM, the simlab direction of "
+        "each of yours")
     speed: str = option(
         "slow", "which primitive speed an 8-action robot's single speed is (ignored for 16 "
         "actions)", choices=("slow", "fast"))
@@ -241,10 +242,10 @@ class ActionSetOptions(CommandConfig):
     @property
     def action_set_given(self) -> bool:
         """Whether any field of the group differs from its default."""
-        return self.n_actions is not None or self.convention != "simlab" or self.speed != "slow"
+        return self.n_actions is not None or self.convention is not None or self.speed != "slow"
 
     def make_action_set(self, default_n_actions: int = 16) -> ActionSet:
         """The :class:`ActionSet` of the fields (``n_actions`` None: ``default_n_actions``);
         a 16-action set has both speeds, so ``speed`` only describes an 8-action one."""
         n = default_n_actions if self.n_actions is None else self.n_actions
-        return parse_action_set(n, self.convention, self.speed if n == 8 else "slow")
+        return parse_action_set(n, self.convention or "simlab", self.speed if n == 8 else "slow")

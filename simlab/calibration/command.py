@@ -68,7 +68,7 @@ def _real_table(real: str | os.PathLike[str], n_states: int, aset: ActionSet | N
     """The real counts: a count file read in ``aset`` (default simlab's 16), or an
     ``mdp.npz`` of ``simlab estimate --counts``, which records its action set once: a
     different ``aset`` given beside it is refused, naming both."""
-    from simlab.data.counts import load_counts
+    from simlab.data.counts import check_action_width, load_counts
 
     if Path(real).suffix.lower() == ".npz":
         from simlab.data.mdp import load_mdp
@@ -89,8 +89,10 @@ def _real_table(real: str | os.PathLike[str], n_states: int, aset: ActionSet | N
                               fix="use the states file the real counts were numbered by")
         return RealTable(counts=np.asarray(mdp.counts, dtype=np.int64), action_set=recorded,
                          hours=real_hours, source=str(real))
+    given = aset is not None and aset.n_actions == 16
     aset = SIMLAB16 if aset is None else aset
     table = load_counts(real, n_states=n_states, n_actions=aset.n_actions)
+    check_action_width(table, given=given)
     return RealTable(counts=table.counts, action_set=aset, hours=real_hours, source=str(real))
 
 
@@ -135,7 +137,12 @@ def calibrate_files(
     sp = None
     if space is not None:
         sp = space if isinstance(space, ParameterSpace) else load_space(space)
-        sp.check_fields(base if base is not None else default_base(config.simulator))
+        try:
+            sp.check_fields(base if base is not None else default_base(config.simulator))
+        except ConfigError as exc:
+            if isinstance(space, ParameterSpace):
+                raise
+            raise ConfigError(exc.problem, path=space, key=exc.key, fix=exc.fix) from None
     arena_cfg = load_arena_config(arena)
     result = calibrate(rt, arena_cfg, disc, space=sp, base=base, config=config)
     files = write_outputs(result, out, overwrite=overwrite, grid=_map_of(arena_cfg), disc=disc)
@@ -174,14 +181,14 @@ class CalibrateConfig(ActionSetOptions):
         "transitions)")
     screen_share: float = option(0.25, "screening walk size as a share of the real "
                                  "transitions")
-    candidates: int = option(16, "candidates screened, the starting point included")
+    candidates: int = option(28, "candidates screened, the starting point included")
     confirm_top: int = option(2, "best screened candidates re-simulated on fresh seeds "
                               "(the starting point too); the winner is picked there")
     confirm_seeds: int = option(1, "fresh seeds of each confirmed candidate")
     confirm_hours: float | None = option(
         None, "simulated hours of each confirming walk (default: sized from the matched "
         "floor, printed in the report)")
-    transfer_seeds: int = option(5, "twin seeds of the transfer report (0: none)")
+    transfer_seeds: int = option(3, "twin seeds of the transfer report (0: none)")
     goal_states: Any | None = option(
         None, "goal states of the transfer report, e.g. 18,34 (default: every state)",
         metavar="LIST")
@@ -213,6 +220,13 @@ class CalibrateConfig(ActionSetOptions):
         "transition under the simulated T", choices=("excess", "tv", "loglik"))
     confirm: bool = option(True, "re-simulate the best candidates on fresh seeds and pick "
                            "the winner there (--no-confirm skips it, and the transfer report)")
+    reset_states: str = option(
+        "auto", "real rows that are an episode reset, not moves: auto (recognised: every "
+        "transition of the state jumps several cells), none, or ids such as 18; they leave "
+        "the distance and the transfer", metavar="auto|none|LIST")
+    policy_data: bool = option(
+        False, "collect the policy data the transfer recommends with the calibrated "
+        "primitives and score the policy planned on them (adds that walk's time)")
     seed: int = option(0, "seed of walks and search")
     overwrite: bool = option(False, "replace the outputs of an earlier simlab calibrate")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
@@ -238,7 +252,8 @@ class CalibrateConfig(ActionSetOptions):
             transfer_seeds=self.transfer_seeds, address=self.address,
             start_states=None if str(self.start_states).strip().lower() == "none"
             else self.start_states,
-            goal_states=validation.state_ids(self.goal_states, "goal_states"))
+            goal_states=validation.state_ids(self.goal_states, "goal_states"),
+            reset_states=self.reset_states, policy_data=self.policy_data)
 
     def real_action_set(self) -> ActionSet | None:
         """What the real table's actions mean; None when no field of the group was given
@@ -248,7 +263,7 @@ class CalibrateConfig(ActionSetOptions):
         if not self.action_set_given:
             return None
         n = 16 if self.n_actions is None else self.n_actions
-        return parse_action_set(n, self.convention, self.speed)
+        return parse_action_set(n, self.convention or "simlab", self.speed)
 
 
 

@@ -25,6 +25,9 @@ class RealTable:
         hours: duration the counts cover (h), if known (gives transitions per hour).
         blocked: number of blocked transitions, if the data records it.
         source: where the counts came from (for the report).
+        reset_states: states whose recorded rows are an episode reset, not moves
+            (:mod:`~simlab.calibration.resets`); ``counts`` holds no row for them.
+        reset_counts: the transitions of those rows that were left out.
     """
 
     counts: NDArray[np.int64]
@@ -32,6 +35,8 @@ class RealTable:
     hours: float | None = None
     blocked: int | None = None
     source: str = ""
+    reset_states: tuple[int, ...] = ()
+    reset_counts: int = 0
 
     def __post_init__(self) -> None:
         c = np.asarray(self.counts)
@@ -56,6 +61,9 @@ class CalibrationConfig:
         hours_per_candidate: simulated hours of each screening walk (> 0); None (default)
             sizes it from the real table: ``screen_share`` of its transitions.
         candidates: number of candidates screened (>= 2), the starting point included.
+            28 by default: a robot that drives until its state changes searches 11 fields
+            (a Sobol design of half the candidates and a refinement of the other half:
+            about 1.3 points per field each).
         workers: walks simulated at once, one process each (1 = in this process).
             The refinement rounds have this many candidates, so the search is identical
             for the same (seed, workers), like ``collect``; the initial design is not
@@ -89,16 +97,26 @@ class CalibrationConfig:
             from the matched floor (:func:`~simlab.calibration.budget.size_budgets`).
         confirm_top: screened candidates confirmed (>= 1), besides the starting point.
         confirm_seeds: fresh seeds each confirmed candidate walks (>= 1).
-        transfer_seeds: twin seeds of the transfer report (0 = no transfer report).
+        transfer_seeds: twin seeds of the transfer report (0 = no transfer report); 3 by
+            default: each is read against the perfect twin at its own data, so a few
+            suffice, and each more one is another confirming-size walk (a seventh of
+            calibrate's time on the ISIR lab).
         start_states: where the walks start: ``"all"`` (default: one walk per state),
             a list of states, or None (the arena's start pose).
         address: Ray cluster address: the walks run as Ray tasks there (default: local
             processes).
         goal_states: goal states of the transfer report (default: every state).
+        reset_states: real rows that are an episode reset, not moves
+            (:mod:`~simlab.calibration.resets`): ``"auto"`` (default: recognised from
+            the state centres), ``"none"``, or state ids; they leave the distance and the
+            transfer, with a warning.
+        policy_data: after the transfer report, collect the policy data it recommends
+            with the calibrated primitives (one walk from every state) and score the
+            policy planned on them against the perfect-twin line at that data.
     """
 
     hours_per_candidate: float | None = None
-    candidates: int = 16
+    candidates: int = 28
     workers: int = 2
     seed: int = 0
     simulator: str = "physics"
@@ -114,18 +132,23 @@ class CalibrationConfig:
     confirm_hours: float | None = None
     confirm_top: int = 2
     confirm_seeds: int = 1
-    transfer_seeds: int = 5
+    transfer_seeds: int = 3
     start_states: Any = "all"
     address: str | None = None
     goal_states: tuple[int, ...] | None = None
+    reset_states: Any = "auto"
+    policy_data: bool = False
 
     def __post_init__(self) -> None:
         k = "calibration."
-        if self.hours_per_candidate is not None:
-            validation.positive(self.hours_per_candidate, k + "hours_per_candidate")
-        if self.confirm_hours is not None:
-            validation.positive(self.confirm_hours, k + "confirm_hours")
-        validation.positive(self.screen_share, k + "screen_share")
+        for name in ("hours_per_candidate", "confirm_hours"):
+            if getattr(self, name) is not None:
+                validation.number(getattr(self, name), k + name, low=0.0, low_open=True,
+                                  high=MAX_WALK_HOURS, fix="simulated hours of one walk; "
+                                  "leave it out to size it from the real data")
+        validation.number(self.screen_share, k + "screen_share", low=0.0, low_open=True,
+                          high=MAX_SCREEN_SHARE, fix="a share of the real transitions, "
+                          "0.25 by default")
         validation.whole(self.candidates, k + "candidates", minimum=2)
         validation.whole(self.workers, k + "workers", minimum=1)
         validation.whole(self.seed, k + "seed", minimum=0)
@@ -150,4 +173,12 @@ class CalibrationConfig:
 
 #: What the search may minimise (:class:`CalibrationConfig.objective`).
 OBJECTIVES = ("tv", "excess", "loglik")
+
+#: Longest walk a calibration stage may be given (simulated hours): 1,000 h is ~1 million
+#: transitions of a real robot's pace, days of wall time; more is a typo, not a budget.
+MAX_WALK_HOURS = 1000.0
+
+#: Largest screening walk as a share of the real transitions: the screening is meant to be
+#: cheaper than the confirmation (1.5x the real transitions on a real lab's table).
+MAX_SCREEN_SHARE = 10.0
 

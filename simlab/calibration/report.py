@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from simlab.base.actions import ActionSet
+from simlab.base.errors import ConfigError
 from simlab.base.io import (
     atomic_write,
     atomic_write_json,
@@ -38,10 +39,14 @@ from simlab.base.io import (
     ensure_new,
     output_transaction,
 )
-from simlab.calibration.stages import CalibrationResult, data_need
+from simlab.calibration.policies import policy_need
+from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
+
+#: ``kind`` of ``report.json``: what ``--overwrite`` recognises as calibrate's own.
+KIND = "simlab-calibrate"
 
 
 def output_paths(out: str | os.PathLike[str]) -> dict[str, Path]:
@@ -49,14 +54,63 @@ def output_paths(out: str | os.PathLike[str]) -> dict[str, Path]:
     return {name: Path(out) / name for name in FILES}
 
 
+def _report_is_ours(path: Path) -> bool:
+    """``report.json`` written by ``simlab calibrate``: its ``kind`` (reports written before
+    it existed: the distance, floors, parameters and space calibrate always wrote)."""
+    import json
+
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+    if not isinstance(doc, dict):
+        return False
+    return doc.get("kind") == KIND or ("kind" not in doc and {
+        "distance", "floor", "matched_floor", "params", "space", "candidates"} <= set(doc))
+
+
+def _is_ours(path: Path, report_ours: bool) -> bool:
+    """Whether an existing output ``path`` is one calibrate wrote: ``primitives.toml`` by its
+    ``[calibration]`` table, ``report.md`` by its title, the figures beside a report of ours."""
+    name = path.name
+    if name == "report.json":
+        return report_ours
+    try:
+        if name == "primitives.toml":
+            import tomllib
+
+            table = tomllib.loads(path.read_text(encoding="utf-8")).get("calibration")
+            return isinstance(table, dict) and {"searched", "simulator"} <= set(table)
+        if name == "report.md":
+            with path.open(encoding="utf-8") as fh:
+                return fh.readline().startswith("# Calibration against")
+        with path.open("rb") as fh:
+            return report_ours and fh.read(8) == b"\x89PNG\r\n\x1a\n"
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+
+
 def check_outputs(out: str | os.PathLike[str], *, overwrite: bool = False) -> dict[str, Path]:
-    """Refuse (ConfigError) before any work if an output exists and not ``overwrite``."""
+    """Refuse (ConfigError) before any work: an output directory that is a file, an
+    existing output without ``overwrite``, and with it any output an earlier ``simlab
+    calibrate`` did not write (a ``primitives.toml`` written by hand is never replaced)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        ensure_new(out, overwrite=False, what="output directory (a file is in the way)")
+        raise ConfigError("the output directory is a file", path=out, key="out",
+                          fix="choose another --out, or move the file out of the way")
     paths = output_paths(out)
     for path in paths.values():
+        if path.is_dir():
+            raise ConfigError("calibration output is a directory", path=path, key="out",
+                              fix="choose another --out")
         ensure_new(path, overwrite=overwrite, what="calibration output")
+    if overwrite:
+        report_ours = _report_is_ours(paths["report.json"])
+        for path in paths.values():
+            if path.exists() and not _is_ours(path, report_ours):
+                raise ConfigError("not written by simlab calibrate; --overwrite replaces "
+                                  "only calibrate's own outputs", path=path, key="overwrite",
+                                  fix="choose another --out, or move the file away")
     return paths
 
 
@@ -104,6 +158,7 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
     """The JSON report (plain types)."""
     cfg = dataclasses.asdict(result.config)
     return {
+        "kind": KIND,
         "real": {"source": result.real.source, "action_set": result.real.action_set.to_json(),
                  **result.real_summary},
         "sim": {**result.sim_summary, "walk_rows": result.final.sim.walk_rows},
@@ -131,14 +186,72 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "confirmed": [{"index": c.index, "seed": c.seed, "distance": _fin(c.distance),
                        "score": _fin(c.score), "rows": c.sim.rows}
                       for c in result.confirmed],
+        "reset_states": {"states": list(result.real.reset_states),
+                         "transitions_left_out": result.real.reset_counts},
+        "regions": result.regions,
         "transfer": None if result.transfer is None else {
             "overview": transfer_overview(result.transfer),
-            "data_curve": [{**row, "mean_ratio": _fin(row["mean_ratio"]),
-                            "worst_ratio": _fin(row["worst_ratio"])}
+            "headline": transfer_headline(result),
+            "data_curve": [{k: _fin(v) for k, v in row.items()}
                            for row in result.transfer_curve],
             "data_need": policy_data(result),
+            **_lines_json(result.twin_transfer),
             **result.transfer.to_json()},
     }
+
+
+def _lines_json(twin: Any) -> dict[str, Any]:
+    """The perfect-twin lines and the collected policy data of the transfer stage."""
+    if twin is None:
+        return {}
+    policy = None
+    if twin.policy is not None:
+        policy = {k: (v.to_json() if k == "line" else
+                      {g: _fin(r) for g, r in v.items()} if k == "goal_ratios" else _fin(v))
+                  for k, v in twin.policy.items()}
+    return {"perfect_twin_line": None if twin.line is None else twin.line.to_json(),
+            "perfect_twin_at_need": None if twin.line_at_need is None
+            else twin.line_at_need.to_json(),
+            "policy_data": policy, "goals_left_out": twin.left_out}
+
+
+def transfer_headline(result: CalibrationResult) -> str:
+    """The transfer in one line: the twins' policies against a perfect twin at the same
+    data, and at the recommended policy data (the fit, and the collected data when
+    ``policy_data``)."""
+    twin = result.twin_transfer
+    if twin is None or twin.report is None:
+        return "no transfer"
+    ratios = twin.report.overall_ratios()
+    fin = ratios[np.isfinite(ratios)]
+    n = int(np.mean([t.sim.counts.sum() for t in result.twins]))
+    mine = (f"take {fin.mean():.3f} x the real optimum's steps" if fin.size == ratios.size
+            else f"never arrive for {ratios.size - fin.size} of {ratios.size} seeds")
+    text = (f"twin policies ({len(ratios)} twins of {n:,} transitions) {mine}, a perfect "
+            f"twin at the same data {_ratio(twin.line)}"
+            f"{_gap(fin.mean() if fin.size == ratios.size else math.inf, twin.line)}")
+    if twin.need is not None:
+        fit = twin.need["limit"] + twin.need["c"] / twin.need["transitions"]
+        how = "measured (more data do not help)" if twin.need["flat"] else "the fit gives"
+        text += (f"; at the recommended {twin.need['transitions']:,.0f} transitions {how} "
+                 f"{fit:.3f}, a perfect twin {_ratio(twin.line_at_need)}"
+                 f"{_gap(fit, twin.line_at_need)}")
+    if twin.policy is not None:
+        text += (f"; the policy of {twin.policy['transitions']:,} collected transitions "
+                 f"{_cell(twin.policy['ratio'])}, a perfect twin {_ratio(twin.policy['line'])}"
+                 f"{_gap(twin.policy['ratio'], twin.policy['line'])}")
+    return text
+
+
+def _ratio(line: Any) -> str:
+    return "n/a" if line is None else _steps_ratio(line.median)
+
+
+def _gap(value: float, line: Any) -> str:
+    """`` (+x.x %)``: ``value`` over the line's median, when both are finite."""
+    if line is None or not (math.isfinite(value) and math.isfinite(line.median)):
+        return ""
+    return f" ({100 * (value / line.median - 1):+.1f} %)"
 
 
 def coverage(result: CalibrationResult) -> dict[str, Any]:
@@ -195,6 +308,7 @@ def report_markdown(result: CalibrationResult) -> str:
     for name, a, b in _side_by_side(result):
         out.write(f"| {name} | {a} | {b} |\n")
     _distance(out, result)
+    out.write(region_table(result.regions))
     out.write(_budget_section(result))
     out.write(_transfer_section(result))
     _parameters(out, result)
@@ -241,6 +355,11 @@ def _intro(out: io.StringIO, result: CalibrationResult) -> None:
               f"the same actions' primitives uniformly, starting from {where}. Simulator "
               f"`{cfg.simulator}`, pose source `{cfg.pose_source}`, {len(result.candidates)} "
               f"candidates screened, seed {cfg.seed}.\n\n")
+    if result.real.reset_states:
+        out.write(f"Reset rows: state(s) {list(result.real.reset_states)} "
+                  f"({result.real.reset_counts} real transitions) are an episode reset, not "
+                  "moves; they are left out of the distance, and in the transfer those states "
+                  "take the twins' own rows.\n\n")
     sig = result.signature
     if sig is not None:
         out.write(f"Real signature: {100 * sig.self_share:.0f} % of the transitions stay in "
@@ -265,6 +384,30 @@ def _distance(out: io.StringIO, result: CalibrationResult) -> None:
         f"the simulation ({_cell(100 * tv.real_weight_uncovered, '{:.1f}')} % of the real "
         f"visits, rule `{tv.unvisited}`), {tv.sim_only} simulated pairs absent from the real "
         "table.\n\n")
+
+
+def region_table(regions: list[dict[str, Any]]) -> str:
+    """The signature per region (:mod:`~simlab.calibration.regions`), real / twin side by
+    side, and each region's share of the distance: where a twin still differs."""
+    if not regions:
+        return ""
+    out = io.StringIO()
+    out.write("## Where the twin differs: the signature by region\n\nEach real (s, a) pair "
+              "is in a region by the free floor along its heading from the state's centre: "
+              "**wall** (an obstacle within one cell ahead), **corridor** (obstacles within "
+              "one cell on both sides), **open** (the rest). Shares of the region's "
+              "transitions, real / twin; an outcome is ahead, to a side or behind by the "
+              "bearing of its state's centre.\n\n| region | real pairs | real transitions | "
+              "TV | stay | ahead | side | behind | entropy (bits) |\n"
+              "|---|---|---|---|---|---|---|---|---|\n")
+    for row in regions:
+        r, t = row["real"], row["sim"]
+        cells = " | ".join(f"{_cell(r[k], '{:.2f}')} / {_cell(t[k], '{:.2f}')}"
+                           for k in ("stay", "ahead", "side", "behind", "entropy"))
+        out.write(f"| {row['region']} | {r['pairs']} | {r['transitions']} | "
+                  f"{_cell(row['tv'])} | {cells} |\n")
+    out.write("\n")
+    return out.getvalue()
 
 
 def _parameters(out: io.StringIO, result: CalibrationResult) -> None:
@@ -330,11 +473,16 @@ def _transfer_section(result: CalibrationResult) -> str:
         return ""
     ov = transfer_overview(result.transfer)
     out = io.StringIO()
-    out.write(f"## Transfer to the real robot\n\nA policy planned on each twin seed (its "
-              "shortest-path policy to the goal) is scored on the real model: expected "
-              f"decisions to reach each of {ov['goals']} goal states from every other "
-              "state, against the real optimum (ratio 1.000 = optimal).\n\n"
-              "| twin | steps / real optimum | worst goal | its ratio | goals never reached |"
+    out.write(f"## Transfer to the real robot\n\n**{transfer_headline(result)}.**\n\n"
+              "A policy planned on each twin seed (its shortest-path policy to the goal) is "
+              f"scored on the real model: expected decisions to reach each of {ov['goals']} "
+              "goal states from every other state, against the real optimum (1.000 = "
+              "optimal). The optimum of a model estimated from a few thousand real "
+              "transitions is biased low, and a policy is only as good as the data it is "
+              "planned on, so each score is read against a **perfect twin** (the real model "
+              "itself, walked for the same data and scored the same way, by resampling).\n\n")
+    _goal_table(out, result)
+    out.write("| twin | steps / real optimum | worst goal | its ratio | goals never reached |"
               "\n|---|---|---|---|---|\n")
     for t in ov["twins"]:
         ratio = "never" if t["ratio"] is None else f"{t['ratio']:.3f}"
@@ -342,44 +490,89 @@ def _transfer_section(result: CalibrationResult) -> str:
         out.write(f"| {t['twin']} | {ratio} | {t['worst_goal']} | {worst} | "
                   f"{t['goals_never']} |\n")
     out.write(f"\nOver the twins: mean ratio {_cell(ov['mean_ratio'])}, worst "
-              f"{_cell(ov['worst_ratio'])}. A perfect twin would score about "
-              f"{_cell(ov['perfect_twin_ratio'])} here: the real optimum of a model estimated "
-              "from this many transitions is biased low (its plan exploits the lucky "
-              "transitions of the sample), so 1.000 is out of reach even for the true robot. "
-              "The figure shows the goal where the twins do worst.\n\n"
+              f"{_cell(ov['worst_ratio'])}; a perfect twin of unlimited data scores about "
+              f"{_cell(ov['perfect_twin_ratio'])} (the bias of the real optimum alone). The "
+              "figure shows the goal where the twins do worst.\n\n"
               "![transfer](transfer.png)\n\n")
     if len(result.transfer_curve) > 1:
-        out.write("A twin's policy is as good as the data it is planned on. The same twin "
-                  "walks pooled into fewer, larger twins (same score):\n\n"
-                  "| walks per twin | twins | transitions per twin | steps / real optimum "
-                  "(mean) | worst |\n|---|---|---|---|---|\n")
-        for row in result.transfer_curve:
-            mean, worst = (("never" if math.isinf(row[k]) else _cell(row[k]))
-                           for k in ("mean_ratio", "worst_ratio"))
-            out.write(f"| {row['walks']} | {row['pools']} | {row['transitions']} | {mean} | "
-                      f"{worst} |\n")
-        need = policy_data(result)
-        if need is None:
-            out.write("\nCollect at least the transitions of the row that reaches the "
-                      "perfect-twin score before training the policy you take to the robot "
-                      "(`simlab collect --hours` with the calibrated primitives).\n\n")
-        else:
-            hours = ("" if need["hours"] is None else
-                     f" (about {need['hours']:.0f} h of robot time at the real rate)")
-            out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + "
-                      f"{need['c']:.0f} / transitions: a twin of unlimited data would score "
-                      f"about {need['limit']:.3f}, and **{need['transitions']:,.0f} twin "
-                      f"transitions**{hours} bring a policy within {need['tolerance']} of "
-                      "it. Collect that much with the calibrated primitives before training "
-                      "the policy you take to the robot: "
-                      f"`{collect_line(result.real.action_set, need)}`.\n\n")
+        _curve_table(out, result)
     return out.getvalue()
 
 
+def _goal_table(out: io.StringIO, result: CalibrationResult) -> None:
+    """Per goal: the twins' mean ratio against the perfect twin at the same data, and at
+    the recommended data (with the collected policy data's score when there is one)."""
+    twin = result.twin_transfer
+    if twin is None or twin.line is None:
+        return
+    at_need = None if twin.line_at_need is None else twin.line_at_need.goal_medians
+    policy = twin.policy
+    out.write("| goal | twins (mean) | perfect twin, same data | gap | perfect twin, "
+              "recommended data |" + (" policy data | gap |" if policy else "") + "\n|"
+              + "---|" * (7 if policy else 5) + "\n")
+    for k, g in enumerate(result.transfer.goals):
+        r = np.array([t.ratio for t in g.twins])
+        mean = float(r.mean()) if np.isfinite(r).all() else math.inf
+        line = float(twin.line.goal_medians[k])
+        row = (f"| {g.name} | {_steps_ratio(mean)} | {_cell(line)} | {_pct(mean, line)} | "
+               f"{_cell(None if at_need is None else float(at_need[k]))} |")
+        if policy:
+            pr = policy["goal_ratios"][g.name]
+            pl = float(policy["line"].goal_medians[k])
+            row += f" {_steps_ratio(pr)} | {_pct(pr, pl)} |"
+        out.write(row + "\n")
+    out.write("\n")
+
+
+def _steps_ratio(x: float) -> str:
+    return "never" if math.isinf(x) else _cell(x)
+
+
+def _pct(value: float, line: float) -> str:
+    if not (math.isfinite(value) and math.isfinite(line) and line > 0):
+        return "n/a"
+    return f"{100 * (value / line - 1):+.1f} %"
+
+
+def _curve_table(out: io.StringIO, result: CalibrationResult) -> None:
+    """The data curve with the perfect twin at each size, the fitted policy data and its
+    collect command."""
+    out.write("A twin's policy is as good as the data it is planned on. The same twin "
+              "walks pooled into fewer, larger twins (same score), beside a perfect twin of "
+              "the same data:\n\n| walks per twin | twins | transitions per twin | steps / "
+              "real optimum (mean) | worst | perfect twin |\n|---|---|---|---|---|---|\n")
+    for row in result.transfer_curve:
+        mean, worst, line = (_steps_ratio(row[k]) if row.get(k) is not None else "n/a"
+                             for k in ("mean_ratio", "worst_ratio", "perfect_ratio"))
+        out.write(f"| {row['walks']} | {row['pools']} | {row['transitions']} | {mean} | "
+                  f"{worst} | {line} |\n")
+    need = policy_data(result)
+    if need is None:
+        out.write("\nCollect at least the transitions of the row that reaches the "
+                  "perfect-twin score before training the policy you take to the robot "
+                  "(`simlab collect --hours` with the calibrated primitives).\n\n")
+        return
+    hours = ("" if need["hours"] is None else
+             f" (about {need['hours']:.0f} h of robot time at the real rate)")
+    if need["flat"]:
+        out.write(f"\nThe score does not fall with more data: the twins' policies are limited "
+                  f"by the twin, not its data (about {need['limit']:.3f}); **"
+                  f"{need['transitions']:,.0f} twin transitions**{hours}, the largest pool, "
+                  "are the policy data recommended")
+    else:
+        out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
+                  f"transitions: a twin of unlimited data would score about "
+                  f"{need['limit']:.3f}, and **{need['transitions']:,.0f} twin transitions**"
+                  f"{hours} bring a policy within {need['tolerance']} of it")
+    out.write(". Collect that much with the calibrated primitives before training the "
+              f"policy you take to the robot: `{collect_line(result.real.action_set, need)}` "
+              "(or `simlab calibrate --policy-data` collects and scores it).\n\n")
+
+
 def policy_data(result: CalibrationResult) -> dict[str, Any] | None:
-    """:func:`~simlab.calibration.stages.data_need` of the transfer's data curve, with the
-    robot hours of those transitions at the real table's rate (None when unknown)."""
-    need = data_need(result.transfer_curve)
+    """:func:`~simlab.calibration.policies.policy_need` of the transfer's data curve, with
+    the robot hours of those transitions at the real table's rate (None when unknown)."""
+    need = policy_need(result.transfer_curve)
     if need is None:
         return None
     n_real = int(result.real.counts.sum())

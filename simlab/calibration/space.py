@@ -129,7 +129,31 @@ class ParameterSpace:
                          for p in self.specs])
 
     def check_fields(self, base: Any) -> None:
-        """Raise ConfigError unless every name is a numeric field of the record ``base``."""
+        """Raise ConfigError unless every name is a numeric field of the record ``base`` and
+        every value the search may draw is one the record takes: each choice of a named
+        field, each bound of a number, and the corners of all lows and all highs together
+        (fields the record checks jointly, such as ``wall_slide + wall_back <= 1``). So a
+        bad space fails at load, not when the optimiser first draws the bad value."""
+        self._check_names(base)
+        for p in self.specs:
+            values = p.choices if p.categorical else (p.low, p.high)
+            for v in values:
+                self._try(base, {p.name: v}, f"parameters.{p.name}", v)
+        for corner in ("low", "high"):
+            point = {p.name: getattr(p, corner) for p in self.specs if not p.categorical}
+            if len(point) > 1:
+                self._try(base, point, "parameters", corner + "s")
+
+    @staticmethod
+    def _try(base: Any, values: dict[str, Any], key: str, shown: Any) -> None:
+        try:
+            dataclasses.replace(base, **values)
+        except (ConfigError, ValueError, TypeError) as exc:
+            problem = exc.problem if isinstance(exc, ConfigError) else str(exc)
+            raise ConfigError(f"{shown!r} is not a value of {type(base).__name__}: {problem}",
+                              key=key, fix="change the range or the choices") from None
+
+    def _check_names(self, base: Any) -> None:
         fields = {f.name for f in dataclasses.fields(base)}
         for p in self.specs:
             if p.name not in fields:
@@ -190,7 +214,8 @@ def load_space(path: str | os.PathLike[str]) -> ParameterSpace:
 
 def default_space(primitives: Sequence[int], simulator: str = "physics", *,
                   cell_size: float | None = None,
-                  speed_fields: Sequence[str] = ()) -> ParameterSpace:
+                  speed_fields: Sequence[str] = (), mode: str | None = None
+                  ) -> ParameterSpace:
     """The default search.
 
     **Physics**: everything that shapes a real robot's T, so that the README command alone
@@ -214,6 +239,26 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
     speeds are used. **Kinematic** (the physics-free dry run): drive time and the two
     noise levels. The decision latency is never searched: it changes the rate of
     transitions, not T, and is set in closed form when the real hours are known.
+
+    **A robot that drives until its state changes** (``mode = "until_state_change"``, the
+    start a real table's signature asks for,
+    :func:`~simlab.calibration.signature.signature_base`): the mode is the signature's and
+    ``drive_time`` only sizes the detector's corridor with ``detector_margin`` (a ridge),
+    so neither is searched; instead what such a robot's moves are made of, each measured
+    on the ISIR lab's data (the fields are :class:`~simlab.physics.motion.PrimitiveParams`'s):
+
+    * ``max_drive_time``, ``detector_margin``, ``pose_noise_xy``, ``wheel_noise`` and the
+      used speed as above;
+    * ``pose_noise_persistence`` (0-0.95): a localization error that persists between
+      decisions;
+    * ``localization_hz`` (1-10 Hz, log): the stop waits for the localization's update;
+    * ``wall_slide`` (0-0.8) and ``wall_back`` (0-0.2): what a refused move does at a wall
+      (their sum stays below 1 on the whole range);
+    * ``min_drive`` (0 to half a cell): the shortest drive a state change may end;
+    * ``heading_tolerance`` (1-10 degrees, log): how far from its heading the robot starts
+      driving after the rotation in place (the ISIR robot within ~6 degrees). The rotation's
+      rate (``turn_rate``) is not searched: it changes how long a move takes, not where it
+      ends (measured on the ISIR lab: no change of the distance beyond its noise).
     """
     prims = np.asarray(primitives)
     if simulator != "physics":
@@ -232,11 +277,25 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
         drive_max = (min(drive_max[0], 0.5 * cell_size / fastest),
                      max(drive_max[1], 2.0 * cell_size / slowest))
         noise_high = max(noise_high, 0.25 * cell_size)
-    specs = [ParamSpec("mode", choices=("fixed", "until_state_change")),
-             ParamSpec("drive_time", *drive, "log"),
-             ParamSpec("max_drive_time", *drive_max, "log"),
-             ParamSpec("detector_margin", 0.0, 0.15),
-             ParamSpec("pose_noise_xy", 0.0, noise_high),
-             ParamSpec("wheel_noise", 0.0, 0.1)]
+    if mode == "until_state_change":
+        specs = [ParamSpec("max_drive_time", *drive_max, "log"),
+                 ParamSpec("detector_margin", 0.0, 0.15),
+                 ParamSpec("pose_noise_xy", 0.0, noise_high),
+                 ParamSpec("pose_noise_persistence", 0.0, 0.95),
+                 ParamSpec("localization_hz", 1.0, 10.0, "log"),
+                 ParamSpec("wall_slide", 0.0, 0.8),
+                 ParamSpec("wall_back", 0.0, 0.2),
+                 ParamSpec("min_drive", 0.0, 0.5 * cell_size if cell_size is not None
+                           and math.isfinite(cell_size) and cell_size > 0 else 0.2),
+                 ParamSpec("heading_tolerance", math.radians(1.0), math.radians(10.0),
+                           "log"),
+                 ParamSpec("wheel_noise", 0.0, 0.1)]
+    else:
+        specs = [ParamSpec("mode", choices=("fixed", "until_state_change")),
+                 ParamSpec("drive_time", *drive, "log"),
+                 ParamSpec("max_drive_time", *drive_max, "log"),
+                 ParamSpec("detector_margin", 0.0, 0.15),
+                 ParamSpec("pose_noise_xy", 0.0, noise_high),
+                 ParamSpec("wheel_noise", 0.0, 0.1)]
     specs += [ParamSpec(f, 0.05, 0.26) for f in speed_fields]
     return ParameterSpace(tuple(specs))

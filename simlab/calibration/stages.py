@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from simlab.base.errors import ConfigError, warn
+from simlab.base.errors import ConfigError
 from simlab.calibration.budget import Budgets, size_budgets
 from simlab.calibration.config import CalibrationConfig, RealTable
 from simlab.calibration.metrics import (
@@ -63,6 +63,18 @@ from simlab.calibration.metrics import (
     entropy_per_action,
     table_summary,
 )
+from simlab.calibration.policies import (
+    DATA_NEED_TOLERANCE,
+    TRANSFER_BOOT,
+    TwinTransfer,
+    collect_policy_data,
+    data_need,
+    score_policy_data,
+    transfer_stage,
+    warn_all,
+)
+from simlab.calibration.regions import pair_regions, region_signature
+from simlab.calibration.resets import reset_warning, resolve_reset_states, without_rows
 from simlab.calibration.search import (
     Candidate,
     evaluate_points,
@@ -80,7 +92,10 @@ from simlab.calibration.signature import (
     used_speed_field,
 )
 from simlab.calibration.space import ParameterSpace
-from simlab.calibration.walks import SimTable, WalkRunner, pool_tables
+from simlab.calibration.walks import SimTable, WalkJob, WalkRunner, pool_tables
+
+__all__ = ["DATA_NEED_TOLERANCE", "TRANSFER_BOOT", "CalibrationResult", "calibrate",
+           "data_need", "default_base"]
 
 
 @dataclass(frozen=True)
@@ -127,6 +142,12 @@ class CalibrationResult:
     warnings: list[str] = field(default_factory=list)
     #: the screening's own best (its winner before confirmation)
     screen_best: int = 0
+    #: the transfer stage (:class:`~simlab.calibration.policies.TwinTransfer`): perfect-twin
+    #: lines, policy data; None without twins
+    twin_transfer: Any = None
+    #: the signature per region, real and twin side by side
+    #: (:func:`~simlab.calibration.regions.region_signature`)
+    regions: list[dict[str, Any]] = field(default_factory=list)
 
 
 
@@ -219,6 +240,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     config = CalibrationConfig() if config is None else config
     t0 = time.perf_counter()
     setup = _setup(real, arena, states, space, base, config)
+    real = setup.real
     rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(2)[1])
     floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
     budgets = size_budgets(real, config, floor, rng)
@@ -234,42 +256,88 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         if config.confirm:
             done = _confirm_stage(runner, cands, screen_best, ctx,
                                   (budgets.confirm_hours, budgets.confirm_transitions))
+        params, fitted = _fit_latency(params_at(setup.space, setup.base,
+                                                cands[done.best].unit), real, done.final.sim)
+        twin = _twin_stage(runner, real, done, setup, config, params)
     finally:
         runner.close()
-    params, fitted = _fit_latency(params_at(setup.space, setup.base, cands[done.best].unit),
-                                  real, done.final.sim)
     final = done.final
     matched = bootstrap_floor(real.counts, rng, n_boot=config.n_boot,
                               other_n=final.sim.counts.sum(axis=2))
     sim_hours = final.sim.hours
     if fitted:
         sim_hours = final.sim.rows * (final.sim.mean_duration + params.decision_latency) / 3600
-    sim_summary = table_summary(final.sim.counts, hours=sim_hours, blocked=final.sim.blocked)
+    sim_counts = without_rows(final.sim.counts, real.reset_states)
+    sim_summary = table_summary(sim_counts, hours=sim_hours, blocked=final.sim.blocked)
     late = None if config.simulator != "physics" else self_share_warning(
         setup.signature.self_share, float(sim_summary["self_transition_share"]))
-    if late is not None:
-        warn(late)
-        setup.warnings.append(late)
-    transfer, curve = _transfer(real, done.twins, setup, config)
+    warn_all([late] if late is not None else [], setup.warnings)
+    if twin is not None:
+        warn_all(twin.warnings, setup.warnings)
     return CalibrationResult(
         config=config, space=setup.space, base=setup.base, params=params, candidates=cands,
         best=done.best, final=final, floor=floor, matched_floor=matched, real=real,
         real_summary=table_summary(real.counts, hours=real.hours, blocked=real.blocked),
         sim_summary=sim_summary,
-        agreement=argmax_agreement(final.sim.counts, real.counts),
+        agreement=argmax_agreement(sim_counts, real.counts),
         entropy_real=entropy_per_action(real.counts),
-        entropy_sim=entropy_per_action(final.sim.counts),
+        entropy_sim=entropy_per_action(sim_counts),
         latency_fitted=fitted, wall_seconds=time.perf_counter() - t0, notes=done.notes,
         start_confirmed=done.start, signature=setup.signature, budgets=budgets,
-        confirmed=done.confirmed, twins=done.twins, transfer=transfer,
-        transfer_curve=curve, warnings=setup.warnings, screen_best=screen_best,
+        confirmed=done.confirmed, twins=done.twins,
+        transfer=None if twin is None else twin.report,
+        transfer_curve=[] if twin is None else twin.curve, warnings=setup.warnings,
+        screen_best=screen_best, twin_transfer=twin,
+        regions=_region_rows(setup, real, final),
     )
+
+
+def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: _Setup,
+                config: CalibrationConfig, params: Any) -> TwinTransfer | None:
+    """The transfer stage of the twin walks
+    (:func:`~simlab.calibration.policies.transfer_stage`), then with ``policy_data`` the
+    recommended data collected with the calibrated ``params`` and scored."""
+    rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(11,)))
+    twin = transfer_stage(real, [t.sim.counts for t in done.twins],
+                          [f"twin seed {t.seed}" for t in done.twins], setup.goals,
+                          setup.disc.centres, rng)
+    if twin is None or twin.report is None or not config.policy_data:
+        return twin
+    if twin.need is None:
+        twin.warnings.append("--policy-data: nothing collected, the transfer gives no "
+                             "policy-data figure")
+        return twin
+    job = WalkJob(index=0, arena=setup.arena, states=setup.disc, params=params, hours=None,
+                  transitions=1, seed=0, simulator=config.simulator,
+                  pose_source=config.pose_source, action_set=real.action_set,
+                  start_states=config.start_states, n_states=int(setup.disc.n_states))
+    counts = collect_policy_data(runner, job, round(twin.need["transitions"]),
+                                 config.workers, config.seed + 1000)
+    twin.policy = score_policy_data(twin, counts, real.action_set, setup.disc.centres, rng)
+    return twin
+
+
+def _region_rows(setup: _Setup, real: RealTable, final: Candidate) -> list[dict[str, Any]]:
+    """Real and twin signatures per region (:mod:`~simlab.calibration.regions`) side by
+    side: ``region``, then ``real`` and ``sim`` dicts and the region's ``tv``."""
+    if setup.regions is None:
+        return []
+    heads = real.action_set.headings()
+    centres = setup.disc.centres
+    r = region_signature(real.counts, setup.regions, centres, heads,
+                         final.tv.per_pair, real.counts.sum(axis=2))
+    s = region_signature(without_rows(final.sim.counts, real.reset_states), setup.regions,
+                         centres, heads)
+    return [{"region": a["region"], "tv": a.pop("tv"), "real": a, "sim": b}
+            for a, b in zip(r, s, strict=True)]
 
 
 
 @dataclass
 class _Setup:
-    """What :func:`calibrate` checked and derived before any simulation."""
+    """What :func:`calibrate` checked and derived before any simulation: ``real`` is the
+    real table without its reset rows; ``regions`` (S, A) the region of each real pair
+    (:mod:`~simlab.calibration.regions`; None without physics)."""
 
     arena: Any
     disc: Any
@@ -278,6 +346,8 @@ class _Setup:
     base: Any
     space: ParameterSpace
     warnings: list[str]
+    real: RealTable
+    regions: NDArray[np.int64] | None = None
 
 
 
@@ -300,6 +370,14 @@ def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | Non
     parse_start_states(config.start_states, int(disc.n_states))
     goals = _goal_states(config, int(disc.n_states))
     aset = real.action_set
+    resets = resolve_reset_states(config.reset_states, real.counts, disc.centres)
+    warned: list[str] = []
+    if resets:
+        warn_all([reset_warning(resets, real.counts, disc.centres,
+                                "the distance and the transfer")], warned)
+        left = without_rows(real.counts, resets)
+        real = dataclasses.replace(real, counts=left, reset_states=resets,
+                                   reset_counts=int(real.counts.sum() - left.sum()))
     sig = real_signature(real.counts, disc.centres)
     if base is None:
         base = default_base(config.simulator)
@@ -308,12 +386,13 @@ def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | Non
     if space is None:
         space = default_space(aset.primitives(), config.simulator, cell_size=sig.cell_size,
                               speed_fields=used_speed_field(aset) if aset.n_actions == 8
-                              else ())
+                              else (), mode=getattr(base, "mode", None))
     space.check_fields(base)
-    warned = reach_warnings(sig, space, base, aset)
-    for w in warned:
-        warn(w)
-    return _Setup(arena_cfg, disc, goals, sig, base, space, warned)
+    warn_all(reach_warnings(sig, space, base, aset), warned)
+    regions = None
+    if config.simulator == "physics" and math.isfinite(sig.cell_size):
+        regions = pair_regions(arena_cfg, disc.centres, aset.headings(), sig.cell_size)
+    return _Setup(arena_cfg, disc, goals, sig, base, space, warned, real, regions)
 
 
 
@@ -353,85 +432,6 @@ def _confirm_stage(runner: WalkRunner, cands: list[Candidate], screen_best: int,
                       start=_pooled(runs[0], 0, ctx),
                       confirmed=[c for i in runs for c in runs[i]], twins=twins,
                       notes=[_confirm_note(cands, runs, best, screen_best)])
-
-
-
-def _transfer(real: RealTable, twins: list[Candidate], setup: _Setup,
-              config: CalibrationConfig) -> tuple[Any, list[dict[str, Any]]]:
-    """The transfer report of the twin walks on the real model (None without twins), every
-    goal of ``setup.goals`` with its perfect-twin floor (the real optimum of an estimated
-    model is biased low); and the transfer against the twins' own data: the twin walks
-    pooled k = 1, 2, 4, ... at a time (disjoint pools), each pool's policies scored the
-    same way (:meth:`~simlab.calibration.transfer.TransferResult.overall_ratios`)."""
-    if not twins:
-        return None, []
-    from simlab.calibration.transfer import TransferModel, transfer_report
-
-    def model(counts: NDArray[np.int64], name: str) -> TransferModel:
-        return TransferModel.from_counts(counts, name=name, action_set=real.action_set,
-                                         centres=setup.disc.centres)
-
-    real_model = model(real.counts, real.source or "real")
-    goals = {f"s{g}": [g] for g in setup.goals}
-    report = transfer_report(
-        real_model, [model(t.sim.counts, f"twin seed {t.seed}") for t in twins], goals,
-        n_boot=TRANSFER_BOOT,
-        rng=np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(11,))))
-    curve = []
-    for k in _pool_sizes(len(twins)):
-        pools = [twins[i:i + k] for i in range(0, len(twins) - k + 1, k)]
-        counts = [sum(t.sim.counts for t in pool) for pool in pools]
-        ratios = report.overall_ratios() if k == 1 else transfer_report(
-            real_model, [model(c, f"{k} walks") for c in counts], goals).overall_ratios()
-        curve.append({"walks": k, "pools": len(pools),
-                      "transitions": int(sum(int(c.sum()) for c in counts) // len(counts)),
-                      "mean_ratio": float(np.mean(ratios)),
-                      "worst_ratio": float(np.max(ratios))})
-    return report, curve
-
-
-#: How close to a twin of unlimited data the recommended policy data come (steps over the
-#: real optimum, absolute).
-DATA_NEED_TOLERANCE = 0.01
-
-
-def data_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANCE
-              ) -> dict[str, float] | None:
-    """How many twin transitions a policy needs, from the transfer's data curve.
-
-    A policy planned on a model estimated from ``N`` transitions exploits that sample's
-    noise; its excess over what unlimited data would give shrinks about as ``1/N`` (each
-    transition probability's error variance does). Fits ``ratio(N) = limit + c / N`` by
-    least squares to the curve's mean ratios and returns ``limit`` (a twin with unlimited
-    data), ``c`` and ``transitions`` = ``c / tolerance`` (the data at which the excess is
-    ``tolerance``); None with fewer than two sizes, a non-finite ratio, or a curve that
-    does not fall with more data (``c <= 0``).
-    """
-    rows = [r for r in curve if math.isfinite(r["mean_ratio"])]
-    if len(rows) < 2 or len(rows) < len(curve):
-        return None
-    x = np.array([1.0 / r["transitions"] for r in rows])
-    y = np.array([r["mean_ratio"] for r in rows])
-    A = np.stack([np.ones_like(x), x], axis=1)
-    (limit, c), *_ = np.linalg.lstsq(A, y, rcond=None)
-    if not c > 0:
-        return None
-    return {"limit": float(limit), "c": float(c), "tolerance": float(tolerance),
-            "transitions": float(c / tolerance)}
-
-
-def _pool_sizes(n: int) -> list[int]:
-    """Twin walks pooled per twin in the data curve: 1, 2, 4, ... below ``n``, then ``n``."""
-    sizes, k = [], 1
-    while k < n:
-        sizes.append(k)
-        k *= 2
-    return [*sizes, n]
-
-
-
-#: Resamples of the transfer report's perfect-twin floor (per goal).
-TRANSFER_BOOT = 30
 
 
 

@@ -33,19 +33,20 @@ def run(args: argparse.Namespace) -> int:
           f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement "
           f"{_num(100 * r.agreement, '{:.0f}')} %")
     if r.transfer is not None:
-        from simlab.calibration.report import policy_data, transfer_overview
+        from simlab.calibration.report import policy_data, transfer_headline, transfer_overview
 
         ov = transfer_overview(r.transfer)
         ratios = [t["ratio"] for t in ov["twins"]]
         shown = ", ".join("never" if x is None else f"{x:.3f}" for x in ratios)
-        print(f"transfer: twin policies on the real model take {shown} x the real optimum's "
-              f"steps ({len(ratios)} twin seeds, {ov['goals']} goals)")
+        print(f"transfer ({ov['goals']} goals): {transfer_headline(r)}; per twin seed "
+              f"{shown}")
         need = policy_data(r)
         if need is not None:
             hours = "" if need["hours"] is None else f" ({need['hours']:.0f} h)"
-            print(f"policy data: {need['transitions']:,} twin transitions{hours} bring a twin "
-                  f"policy within {need['tolerance']} of unlimited twin data "
-                  f"({need['limit']:.3f} x the optimum)")
+            gain = ("more data do not improve the twins' policies" if need["flat"] else
+                    f"bring a twin policy within {need['tolerance']} of unlimited twin data")
+            print(f"policy data: {need['transitions']:,} twin transitions{hours} ({gain}; "
+                  f"{need['limit']:.3f} x the optimum)")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0
 

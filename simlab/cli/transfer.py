@@ -21,6 +21,10 @@ def run(args: argparse.Namespace) -> int:
     from simlab.calibration.transfer import TransferConfig, transfer_command
 
     done = transfer_command(TransferConfig.from_args(args))
-    print(done.result.summary_line())
+    result = done.result
+    if len(result.goals) > 1 or any(ln is not None for ln in result.lines):
+        print(result.overview_line())
+    if len(result.goals) <= 3:
+        print(result.summary_line())
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0

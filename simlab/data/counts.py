@@ -359,3 +359,20 @@ def load_counts(
              DuplicateRowsWarning)
     return CountTable(counts=counts, rows=len(raw), duplicates=duplicates, path=path,
                       format=fmt, metadata=meta)
+
+
+def check_action_width(table: CountTable, *, given: bool, flag: str = "--n-actions") -> None:
+    """Refuse a table read as simlab's 16 actions only because no action count was
+    ``given``, while every action of its file lies in 0..7: that is the shape of an
+    8-action robot's data (its entropies of actions 8..15 would be NaN and a twin's
+    "fast" columns would score nothing); the numbering cannot be guessed, so it is asked."""
+    if given or table.n_actions != 16:
+        return
+    used = np.flatnonzero(table.counts.sum(axis=(0, 2)))
+    if used.size and int(used.max()) < 8:
+        raise CountsFileError(
+            "every action in the file is in 0..7, but without an action count it is read as "
+            "simlab's 16 actions (8..15 the fast moves, never taken here)", path=table.path,
+            key="a", fix=f"give {flag} 8 and the robot's --convention (ccw-east for the ISIR "
+            f"robot), or {flag} 16 for a 16-action robot that only took its slow moves")
+

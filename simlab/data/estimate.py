@@ -141,7 +141,7 @@ class EstimateConfig(ActionSetOptions):
             raise ConfigError("--n-actions/--convention/--speed describe a --counts table; a "
                               "dataset records its own action set", key="n_actions",
                               fix="drop them, or re-import the data with the right convention")
-        if self.n_actions is not None or self.convention != "simlab":
+        if self.n_actions is not None or self.convention is not None:
             self.make_action_set(N_ACTIONS)  # a bad convention names its field here
         if self.n_states is not None:
             validation.whole(self.n_states, "n_states", minimum=1)
@@ -305,7 +305,7 @@ def _count_model(src: _Source, storage: str) -> CountModel | SparseCountModel:
 
 def _from_counts(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
     """Counts and centres of an external count table (its action set as given)."""
-    from simlab.data.counts import load_counts
+    from simlab.data.counts import check_action_width, load_counts
 
     n_states = cfg.n_states
     if disc is not None and n_states is not None and int(n_states) != disc.n_states:
@@ -316,6 +316,7 @@ def _from_counts(cfg: EstimateConfig, disc: Any, arena_cfg: Any) -> _Source:
     action_set = cfg.table_action_set()
     table = load_counts(cfg.counts, n_states=disc.n_states if disc is not None else n_states,
                         n_actions=action_set.n_actions)  # type: ignore[arg-type]
+    check_action_width(table, given=cfg.n_actions is not None or cfg.action_set is not None)
     source = {
         "counts": str(Path(cfg.counts)),  # type: ignore[arg-type]
         "format": table.format,

@@ -99,9 +99,14 @@ class PoseLog:
         return self.cell >= self.n_cells_at
 
 
-#: Largest magnitude of a log value: 1e9 (s, m, rad, cells). A pose 1,000,000 km away is a
-#: unit or parsing mistake, and beyond it the segmentation's squares overflow.
+#: Largest magnitude of a log value but the time: 1e9 (m, rad, cells). A pose 1,000,000 km
+#: away is a unit or parsing mistake, and beyond it the segmentation's squares overflow.
 MAX_LOG_VALUE = 1e9
+
+#: Largest magnitude of a log time (s): a robot's own log stamps in UNIX time (about 1.5e9 s
+#: in the ISIR lab's logs; float64 keeps them to a microsecond); 1e11 s is over 3,000 years,
+#: so a log in milliseconds (1.5e12) is refused with the unit named.
+MAX_LOG_TIME = 1e11
 
 
 def _number(token: str, path: Path, lineno: int, column: str, whole: bool) -> float:
@@ -114,8 +119,9 @@ def _number(token: str, path: Path, lineno: int, column: str, whole: bool) -> fl
         shown = token if len(token) <= 30 else f"{token[:20]}... ({len(token)} characters)"
         raise ConfigError(f"expected {kind}, got {shown!r}", path=path,
                           key=f"line {lineno}: {column}")
-    if abs(value) > MAX_LOG_VALUE:
-        raise ConfigError(f"{value:g} is beyond +-{MAX_LOG_VALUE:g}", path=path,
+    limit = MAX_LOG_TIME if column == "t" else MAX_LOG_VALUE
+    if abs(value) > limit:
+        raise ConfigError(f"{value:g} is beyond +-{limit:g}", path=path,
                           key=f"line {lineno}: {column}",
                           fix="times in s, positions in m, yaw in rad")
     return value
@@ -161,6 +167,11 @@ def read_pose_log(path: str | os.PathLike[str]) -> PoseLog:
     n_cells, n_cells_at = None, None
     if width == 6:
         n_cells_at = data[:, 5].astype(np.int64)
+        if n_cells_at.min() < 0:
+            k = int(np.argmin(n_cells_at))
+            raise ConfigError(f"negative n_cells {n_cells_at[k]} at sample {k + 1}",
+                              path=path, key="n_cells",
+                              fix="n_cells counts the states built so far (0 or more)")
         down = np.flatnonzero(np.diff(n_cells_at) < 0)
         if down.size:
             k = int(down[0])
@@ -404,10 +415,29 @@ def _check_poses(log: PoseLog, map_path: str | os.PathLike[str], flip_y: bool) -
 
     check = check_points(read_map(map_path, flip_y=flip_y), log.xy, what="pose sample")
     if check.bad.size > MAX_OFF_MAP_FRACTION * len(log.xy) or check.flip_suggested:
-        raise ConfigError(check.message(), path=log.path, key="poses",
-                          fix=None if check.flip_suggested else
+        raise ConfigError(_off_map(check), path=log.path, key="poses",
+                          fix="the map image is probably stored bottom row first: try "
+                          "--flip-y" if check.flip_suggested else
                           "poses must be in the map's frame, in metres")
     return int(check.bad.size)
+
+
+def _off_map(check: Any) -> str:
+    """One short line for the pose samples off the map's free pixels: how many, of which
+    kind, the first one (a log has thousands of samples: they are not listed)."""
+    bad = check.bad
+    kinds = np.bincount(check.status[bad], minlength=4)
+    parts = [f"{kinds[i]} {word}" for i, word in
+             ((1, "on occupied pixels"), (2, "on unknown pixels"), (3, "outside the map"))
+             if kinds[i]]
+    k = int(bad[0])
+    text = (f"{bad.size} of {len(check.xy)} pose samples are not on free pixels of the map "
+            f"({', '.join(parts)}; the first: sample {k + 1} at ({check.xy[k, 0]:.4g}, "
+            f"{check.xy[k, 1]:.4g}))")
+    if check.flip_suggested:
+        text += (f"; {int(check.free_if_flipped[bad].sum())} of them are free on the map "
+                 "image flipped vertically")
+    return text
 
 
 def _check_near_centres(log: PoseLog, centres: NDArray[np.float64]) -> None:

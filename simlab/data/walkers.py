@@ -162,6 +162,7 @@ class PhysicsWalker:
                            and getattr(params, "mode", "fixed") == "until_state_change")
         self._noise_rng: np.random.Generator | None = None
         self._last_pose: NDArray[np.float64] | None = None
+        self._error = np.zeros(3)
         self.decision_latency = float(params.decision_latency)
         self.world = World(arena, gui=False, physics_hz=physics_hz)
         try:
@@ -188,7 +189,8 @@ class PhysicsWalker:
         at rest, keeping every body added since the last :meth:`reset` (an episode's
         restart: the robot is set down at a start and its localization restarts there, as
         AMCL is given the pose it was put down at). Unlike :meth:`reset` no time or
-        contact state is rebuilt; the next reading is drawn afresh."""
+        contact state is rebuilt; the next reading, and a persistent localization error
+        (``pose_noise_persistence``), are drawn afresh."""
         self.world.set_pose(np.asarray(pose, dtype=np.float64))
         self.source.reset(self.world, source_rng)
         self.driver.scan_beams = getattr(self.source, "scan_beams", None)
@@ -205,8 +207,7 @@ class PhysicsWalker:
             if self._last_pose is None:
                 base = (self.world.pose() if self._localized
                         else self._source_now())
-                self._last_pose = self._noisy_pose(np.asarray(base, dtype=np.float64),
-                                                   self.params, self._noise_rng)
+                self._last_pose = self._first_reading(np.asarray(base, dtype=np.float64))
             return self._last_pose
         return self._source_now()
 
@@ -229,20 +230,46 @@ class PhysicsWalker:
             # A part starts with a fresh reading (parts are computed on their own).
             assert self._noise_rng is not None
             if self._last_pose is None:
-                self._last_pose = self._noisy_pose(np.asarray(before, dtype=np.float64),
-                                                   self.params, self._noise_rng)
+                self._last_pose = self._first_reading(np.asarray(before, dtype=np.float64))
             before = self._last_pose
-            after = self._noisy_pose(np.asarray(after, dtype=np.float64), self.params,
-                                     self._noise_rng)
+            after = np.asarray(after, dtype=np.float64)
+            if self.params.pose_noise_persistence:
+                after = after + self._next_error()
+                after[2] = float(np.arctan2(np.sin(after[2]), np.cos(after[2])))
+            else:
+                after = self._noisy_pose(after, self.params, self._noise_rng)
             self._last_pose = after
         return self._outcome(res, before, after)
+
+    def _first_reading(self, pose: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A part's first reading of ``pose`` (3,): the error drawn from its stationary
+        spread (parts are computed on their own)."""
+        assert self._noise_rng is not None
+        reading = self._noisy_pose(pose, self.params, self._noise_rng)
+        if self.params.pose_noise_persistence:
+            self._error = reading - pose
+            self._error[2] = float(np.arctan2(np.sin(self._error[2]), np.cos(self._error[2])))
+        return reading
+
+    def _next_error(self) -> NDArray[np.float64]:
+        """The localization error (3,) of the next decision: drawn afresh, or with
+        ``pose_noise_persistence`` rho the AR(1) step ``rho e + sqrt(1 - rho^2) sigma z``
+        from the last one (one draw of three normals either way, so the streams agree)."""
+        assert self._noise_rng is not None
+        fresh = self._noisy_pose(np.zeros(3), self.params, self._noise_rng)
+        rho = float(self.params.pose_noise_persistence)
+        if rho:
+            fresh = rho * self._error + math.sqrt(1.0 - rho * rho) * fresh
+            self._error = fresh
+        return fresh
 
     def _localized_step(self, action: int, rng: np.random.Generator) -> StepOutcome:
         """A robot whose states come from its localization drives until its *localized*
         state changes (truth pose source with pose noise, drive-until-state-change mode).
 
-        Decision: the localization error is drawn anew at each decision and held during
-        the move; the move ends when the state of (true position + that error) leaves its
+        Decision: the localization error of each decision (:meth:`_next_error`: drawn anew,
+        or drifting from the last one with ``pose_noise_persistence``) is held during the
+        move; the move ends when the state of (true position + that error) leaves its
         value at the start, and that reading is the recorded end pose. The recorded start
         pose stays the previous move's end reading (a transition starts where the last
         one's reading ended), so a jump of the estimate between two decisions shows as
@@ -251,10 +278,9 @@ class PhysicsWalker:
         """
         assert self._noise_rng is not None and self._point_state is not None
         if self._last_pose is None:
-            self._last_pose = self._noisy_pose(self.world.pose(), self.params,
-                                               self._noise_rng)
+            self._last_pose = self._first_reading(self.world.pose())
         before = self._last_pose
-        offset = self._noisy_pose(np.zeros(3), self.params, self._noise_rng)
+        offset = self._next_error()
         point_state, ox, oy = self._point_state, float(offset[0]), float(offset[1])
         self.driver.watch_state = lambda xy: point_state(float(xy[0]) + ox, float(xy[1]) + oy)
         res = self.driver.execute(action, rng).result

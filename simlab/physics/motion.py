@@ -96,9 +96,12 @@ MODES = ("fixed", "until_state_change")
 _ZERO_OK = frozenset({
     "decision_latency", "detector_margin", "detector_side_margin", "settle_time",
     "min_turn_rate", "wheel_noise", "wheel_noise_tick", "slip", "pose_noise_xy",
-    "pose_noise_yaw",
+    "pose_noise_yaw", "pose_noise_persistence", "localization_hz", "stop_delay",
+    "min_drive", "turn_rate", "wall_slide", "wall_back",
 })
 _STRINGS = {"heading_source": ("truth", "odometry"), "mode": MODES}
+#: Fields that are probabilities or correlations (``< 1`` for the persistence).
+_FRACTIONS = ("pose_noise_persistence", "wall_slide", "wall_back")
 
 
 @dataclass(frozen=True)
@@ -128,7 +131,42 @@ class PrimitiveParams:
       it, as they would a soft floor; must be < 1);
     * ``pose_noise_xy`` (m) and ``pose_noise_yaw`` (rad): Gaussian noise added to the
       poses the pose source reports (and so to the recorded poses and states); applied by
-      the collection walker (:func:`noisy_pose`), not by the primitive.
+      the collection walker (:func:`noisy_pose`), not by the primitive;
+    * ``pose_noise_persistence``: the correlation of that error from one decision to the
+      next, in [0, 1): 0 draws it afresh at each decision, ``rho`` makes it the AR(1)
+      process ``e_k = rho e_(k-1) + sqrt(1 - rho^2) sigma z_k`` (same spread, drifting).
+      A robot localized by AMCL carries its estimate's error from one move to the next:
+      the filter updates only after the robot moved (``update_min_d`` 0.2 m,
+      ``update_min_a`` pi/6 in ROS amcl's defaults) and its cloud moves little per update.
+      Redrawn at each decision, a robot resting near a boundary reads the other side at
+      random, and a tiny move "back" is recorded as a stay (in the ISIR lab the twin so
+      stayed in 15 % of the decisions in the three large open states, the robot in none).
+
+    The stop of ``until_state_change`` (the real robot's, Chartouny et al. 2024, sec. 3)
+    reads the *localized* state, which a real robot gets at the localization's rate and
+    acts on after a delay:
+
+    * ``localization_hz``: rate (Hz) of the localized pose the stop rule reads, at a random
+      phase per primitive (one ``rng`` draw); 0 reads it at every control tick;
+    * ``stop_delay``: seconds from the update that shows the new state to the brake;
+    * ``min_drive``: metres a drive covers before a state change may end it (the detector
+      and the time limit still can). In the ISIR lab the robot stops a median 5.5 cm past a
+      cell boundary (75th percentile 16.6 cm: within one update of ~0.5 s at 0.25 m/s) and
+      its cell-changing drives are 0.25-0.30 m.
+
+    The rotation and the robot at a wall:
+
+    * ``turn_rate``: rad/s of the rotation in place (0: the robot's ``w_max``); the ISIR
+      robot turns a median 71 degrees in 2-4 s before it drives;
+    * ``wall_slide`` and ``wall_back``: what a move the detector refuses does instead
+      (before it starts or while it drives): with probability ``wall_slide`` the robot
+      turns to the first free heading among the commanded one +-45 and +-90 degrees
+      (the side tried first drawn at random) and drives there by the same stop rule; with
+      probability ``wall_back`` it backs off, reversing along its heading by the same rule,
+      if nothing is behind it; otherwise it stays (the thesis robot's refusal). A real
+      robot's local reaction to an obstacle ahead is not a refusal: with a wall within
+      0.3 m ahead of its cell centre the ISIR robot ends in a sideways neighbour in 16 % of
+      its moves and in one behind in 9 %; refusing, the twin did so in 8.5 % and 2.2 %.
     """
 
     slow_speed: float = 0.10
@@ -154,6 +192,13 @@ class PrimitiveParams:
     slip: float = 0.0
     pose_noise_xy: float = 0.0
     pose_noise_yaw: float = 0.0
+    pose_noise_persistence: float = 0.0
+    localization_hz: float = 0.0
+    stop_delay: float = 0.0
+    min_drive: float = 0.0
+    turn_rate: float = 0.0
+    wall_slide: float = 0.0
+    wall_back: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -166,6 +211,20 @@ class PrimitiveParams:
         if self.slip >= 1.0:
             raise ConfigError(f"must be < 1 (a fraction of the distance), got {self.slip!r}",
                               key="PrimitiveParams.slip")
+        for name in _FRACTIONS:
+            value = getattr(self, name)
+            if value > 1.0 or (value == 1.0 and name == "pose_noise_persistence"):
+                raise ConfigError(f"must be {'< 1' if name == 'pose_noise_persistence' else '<= 1'}"
+                                  f", got {value!r}", key=f"PrimitiveParams.{name}")
+        if self.wall_slide + self.wall_back > 1.0:
+            raise ConfigError(f"wall_slide + wall_back = {self.wall_slide + self.wall_back:g} "
+                              "is more than 1 (they are probabilities of one move)",
+                              key="PrimitiveParams.wall_back")
+
+    @property
+    def reacts_at_walls(self) -> bool:
+        """Whether a refused move may slide or back off (:attr:`wall_slide`, ``wall_back``)."""
+        return bool(self.wall_slide or self.wall_back)
 
     @property
     def has_motion_noise(self) -> bool:
@@ -279,7 +338,9 @@ class PrimitiveResult:
     ``until_state_change`` mode ``"state_change"``, ``"detector"`` (blocked while driving)
     or ``"timeout"``; ``drive_duration`` is the time driven (s). ``pose_turned`` is the
     true pose after the rotation (before the check and the drive): the turn in place moves
-    the centre by a few mm, which is the turn's error, not the drive's.
+    the centre by a few mm, which is the turn's error, not the drive's. ``reaction`` says
+    what a refused move did instead (``"slide"``, ``"back"``; empty when it did not react,
+    see ``wall_slide``): ``blocked`` is then False, the robot moved.
     """
 
     action: int
@@ -294,6 +355,7 @@ class PrimitiveResult:
     stop_reason: str = "fixed"
     drive_duration: float = 0.0
     pose_turned: NDArray[np.float64] | None = None
+    reaction: str = ""
 
 
 #: Speeds below which the robot counts as at rest (m/s, rad/s).
@@ -445,6 +507,8 @@ def _rotate(run: _Run) -> float:
     world, p, target, heading = run.world, run.p, run.target, run.heading
     command, advance, tick = world.drive.command, run.stepper.advance, run.noise.tick
     w_max = world.robot_spec.w_max
+    if p.turn_rate and p.turn_rate < w_max:
+        w_max = p.turn_rate
     err = wrap_angle(target - heading())
     bulk = abs(err) - 0.25
     if bulk > 0:  # open loop at w_max for the bulk, then a closed-loop approach
@@ -482,7 +546,8 @@ class _Detector:
     block: this cuts the check's cost by 2/3), and only as far as the corridor's farthest
     corner plus ten noise sigmas (``reach``, m; a shorter ray test is ~3x cheaper; anything
     beyond cannot read as inside the corridor). The corridor is that of the longer nominal
-    drive (``max(slow, fast) * drive_time + detector_margin``).
+    drive (``max(slow, fast) * drive_time + detector_margin``). ``behind``: the same check
+    for a drive in reverse (the cone behind the robot, the footprint mirrored).
     """
 
     beams: NDArray[np.int64]
@@ -490,25 +555,34 @@ class _Detector:
     footprint: tuple[float, float, float, float]
     margin: float
     side_margin: float
+    behind: bool = False
 
     @classmethod
-    def of(cls, world: World, p: PrimitiveParams) -> _Detector:
+    def of(cls, world: World, p: PrimitiveParams, *, behind: bool = False) -> _Detector:
         spec, lidar = world.robot_spec, world.lidar_spec
         corridor = max(p.slow_speed, p.fast_speed) * p.drive_time + p.detector_margin
-        beams = detector_beams(lidar.n_beams, lidar.range_min, spec.lidar_offset[0],
-                               spec.footprint, corridor, p.detector_side_margin)
-        _, x_max, _, y_max = spec.footprint
-        reach = (math.hypot(x_max + corridor - spec.lidar_offset[0],
-                            y_max + p.detector_side_margin)
+        sensor_x, footprint = spec.lidar_offset[0], spec.footprint
+        if behind:  # the reverse drive seen in a frame turned by 180 degrees
+            x_min, x_max, y_min, y_max = footprint
+            sensor_x, footprint = -sensor_x, (-x_max, -x_min, -y_max, -y_min)
+        beams = detector_beams(lidar.n_beams, lidar.range_min, sensor_x, footprint,
+                               corridor, p.detector_side_margin)
+        if behind:
+            beams = np.sort((beams + lidar.n_beams // 2) % lidar.n_beams)
+            beams.setflags(write=False)
+        _, x_max, _, y_max = footprint
+        reach = (math.hypot(x_max + corridor - sensor_x, y_max + p.detector_side_margin)
                  + 10.0 * lidar.noise_sigma + 0.01)
-        return cls(beams, max(reach, lidar.range_min + 0.01), spec.footprint,
-                   p.detector_margin, p.detector_side_margin)
+        return cls(beams, max(reach, lidar.range_min + 0.01), footprint,
+                   p.detector_margin, p.detector_side_margin, behind)
 
     def check(self, world: World, rng: np.random.Generator,
               distance: float) -> tuple[bool, LidarScan]:
         """(blocked, the scan) for a drive of ``distance`` (m); the noise comes from ``rng``."""
         scan = world.scan(rng, beams=self.beams, reach=self.reach)
-        return corridor_blocked(scan, distance, self.footprint, self.margin,
+        seen = scan if not self.behind else dataclasses.replace(
+            scan, angles=scan.angles + math.pi, sensor_offset=-scan.sensor_offset)
+        return corridor_blocked(seen, distance, self.footprint, self.margin,
                                 self.side_margin), scan
 
     def blocked(self, world: World, rng: np.random.Generator, distance: float) -> bool:
@@ -521,22 +595,64 @@ class _Detector:
         return self.check(world, rng, distance)[0]
 
 
-def _until_state_change(world: World, rng: np.random.Generator, detector: _Detector,
-                        distance: float, state_of: StateOf,
-                        start: NDArray[np.float64]) -> Callable[[], str | None]:
-    """The stop rule of ``until_state_change`` mode, asked after every control tick: the
-    state of the true position left the state of ``start`` (3,), or the detector, re-run
-    on the nominal drive's corridor (``distance``, m), says blocked."""
-    s0 = int(state_of(start[:2]))
+class _StopRule:
+    """The stop rule of ``until_state_change`` mode, asked after every control tick.
 
-    def until() -> str | None:
-        if int(state_of(world.pose()[:2])) != s0:
+    The drive ends when the localized state has left the state of ``start`` (3,) for
+    ``stop_delay`` seconds, counted from the localization update that showed it, an update
+    counting only once the drive has covered ``min_drive``; or when the detector, re-run on
+    the nominal drive's corridor (``distance``, m), says blocked. Updates come at
+    ``localization_hz`` from a random phase (one ``rng`` draw), each reading the position
+    of its instant (interpolated between the two control ticks around it); with
+    ``localization_hz`` 0 every tick is an update. ``state_of`` is the localized state of
+    a true position (the walker adds the localization error).
+    """
+
+    def __init__(self, world: World, rng: np.random.Generator, detector: _Detector,
+                 distance: float, state_of: StateOf, start: NDArray[np.float64],
+                 p: PrimitiveParams) -> None:
+        self.world, self.rng, self.detector, self.distance = world, rng, detector, distance
+        self.state_of, self.s0 = state_of, int(state_of(start[:2]))
+        self.delay, self.min_drive = p.stop_delay, p.min_drive
+        self.period = 1.0 / p.localization_hz if p.localization_hz else 0.0
+        self.last = (world.time, world.pose()[:2])
+        self.origin = self.last[1]
+        self.next_update = world.time + (self.period * float(rng.random()) if self.period
+                                         else 0.0)
+        self.seen: float | None = None
+
+    def _changed(self, xy: NDArray[np.float64]) -> bool:
+        if self.min_drive and self.origin is not None and float(
+                np.hypot(*(xy - self.origin))) < self.min_drive:
+            return False
+        return int(self.state_of(xy)) != self.s0
+
+    def _look(self, now: float, xy: NDArray[np.float64]) -> None:
+        """Read the updates since the last tick; note the first that shows a change."""
+        if not self.period:
+            if self._changed(xy):
+                self.seen = now
+            return
+        t0, xy0 = self.last
+        while self.next_update <= now + 1e-9:
+            u = self.next_update
+            f = (u - t0) / (now - t0) if now > t0 else 1.0
+            self.next_update += self.period
+            if self._changed(xy0 + f * (xy - xy0)):
+                self.seen = u
+                return
+
+    def __call__(self) -> str | None:
+        world = self.world
+        now, xy = world.time, world.pose()[:2]
+        if self.seen is None:
+            self._look(now, xy)
+        self.last = (now, xy)
+        if self.seen is not None and now >= self.seen + self.delay - 1e-9:
             return "state_change"
-        if detector.blocked(world, rng, distance):
+        if self.detector.blocked(world, self.rng, self.distance):
             return "detector"
         return None
-
-    return until
 
 
 def _drive(run: _Run, v: float, until: Callable[[], str | None] | None) -> tuple[str, float]:
@@ -631,16 +747,72 @@ def execute_primitive(
     distance = v * p.drive_time                                   # 2. check the corridor
     detector = _Detector.of(world, p)
     blocked, scan = detector.check(world, rng, distance)
-    reason, driven = "blocked", 0.0
+    reason, driven, reaction = "blocked", 0.0, ""
+    drive = _DriveOf(run, rng, distance, state_of, pose_before)
     if not blocked:                                               # 3. drive
-        until = None
-        if p.mode == "until_state_change" and state_of is not None:  # checked above
-            until = _until_state_change(world, rng, detector, distance, state_of, pose_before)
-        reason, driven = _drive(run, v, until)
+        reason, driven = drive(v, detector)
+    if p.reacts_at_walls and reason in ("blocked", "detector"):   # 3b. react at the wall
+        reason, moved, reaction = _react(drive, v)
+        driven += moved
+        blocked = blocked and not reaction
     _brake(run)                                                   # 4. brake
     return PrimitiveResult(
         action=int(action), blocked=blocked, pose_before=pose_before,
         pose_after=world.pose(), odom_before=odom_before, odom_after=world.odometry(),
         duration=world.time - t0, heading_error=heading_error, scan=scan,
         stop_reason=reason, drive_duration=driven, pose_turned=pose_turned,
+        reaction=reaction,
     )
+
+
+@dataclass(frozen=True)
+class _DriveOf:
+    """A straight drive of one primitive in either sense, with its stop rule: ``run`` and
+    ``rng`` of the primitive, the nominal ``distance`` (m) of the detector's corridor, the
+    discretizer's ``state_of`` (None in fixed mode) and the primitive's ``start`` pose."""
+
+    run: _Run
+    rng: np.random.Generator
+    distance: float
+    state_of: StateOf | None
+    start: NDArray[np.float64]
+
+    def __call__(self, v: float, detector: _Detector) -> tuple[str, float]:
+        """Drive at ``v`` (m/s, < 0 in reverse) watched by ``detector``: (reason, s)."""
+        p = self.run.p
+        until = None
+        if p.mode == "until_state_change" and self.state_of is not None:
+            until = _StopRule(self.run.world, self.rng, detector, self.distance,
+                              self.state_of, self.start, p)
+        return _drive(self.run, v, until)
+
+
+#: Headings a sliding robot tries, relative to the commanded one (rad; the sign of each
+#: pair drawn once): the nearest first.
+_SLIDE_TURNS = (math.pi / 4, math.pi / 2)
+
+
+def _react(drive: _DriveOf, v: float) -> tuple[str, float, str]:
+    """A refused move's reaction (``wall_slide`` / ``wall_back``, :class:`PrimitiveParams`):
+    (stop reason, time driven in s, ``"slide"``/``"back"`` or ``""`` when it stayed)."""
+    run, rng = drive.run, drive.rng
+    p, world = run.p, run.world
+    u = float(rng.random())
+    if u < p.wall_slide:
+        side = 1.0 if rng.random() < 0.5 else -1.0
+        for turn in _SLIDE_TURNS:
+            for sign in (side, -side):
+                aside = dataclasses.replace(run, target=float(wrap_angle(run.target
+                                                                         + sign * turn)))
+                _rotate(aside)
+                detector = _Detector.of(world, p)
+                if not detector.check(world, rng, drive.distance)[0]:
+                    reason, driven = dataclasses.replace(drive, run=aside)(v, detector)
+                    return reason, driven, "slide"
+        return "blocked", 0.0, ""
+    if u < p.wall_slide + p.wall_back:
+        behind = _Detector.of(world, p, behind=True)
+        if not behind.check(world, rng, drive.distance)[0]:
+            reason, driven = drive(-v, behind)
+            return reason, driven, "back"
+    return "blocked", 0.0, ""

@@ -44,6 +44,12 @@ class TrainTask:
                               fix="use 'per-step' or 'episodic'")
         for key in ("goal_states", "start_states"):
             object.__setattr__(self, key, v.state_ids(getattr(self, key), key))
+        both = set(self.goal_states or ()) & set(self.start_states or ())
+        if self.mode == "episodic" and both:
+            raise ConfigError(f"start state {min(both)} is a goal state: an episode starting "
+                              "there ends before its first step, so nothing is learned or "
+                              "scored", key="start_states",
+                              fix="give start states apart from the goal states")
         if self.unvisited is not None and self.unvisited not in ("mask", "self-loop"):
             raise ConfigError(f"unknown rule {self.unvisited!r}", key="unvisited",
                               fix="use 'mask' or 'self-loop'")

@@ -52,14 +52,18 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     assert f"winner: candidate #{report['best_candidate']} of 3" in printed
     winners = {c["index"] for c in report["confirmed"] if c["index"] == report["best_candidate"]}
     assert winners == {report["best_candidate"]}
-    # five twin seeds scored on the real model, every state a goal (9 states)
+    # three twin seeds scored on the real model, every state a goal (9 states)
     overview = report["transfer"]["overview"]
-    assert len(overview["twins"]) == 5 and overview["goals"] == 9
+    assert len(overview["twins"]) == 3 and overview["goals"] == 9
     assert all(t["ratio"] is None or t["ratio"] >= 1.0 - 1e-9 for t in overview["twins"])
-    assert f"{len(overview['twins'])} twin seeds" in printed
-    # the same five walks pooled 1, 2, 4 and 5 at a time; one walk per twin is the overview
+    assert f"({len(overview['twins'])} twins of" in printed
+    # read against a perfect twin at the same data, in the summary and the report
+    assert "a perfect twin at the same data" in printed
+    assert report["transfer"]["perfect_twin_line"]["n_boot"] > 0
+    assert all("perfect_ratio" in r for r in report["transfer"]["data_curve"])
+    # the same three walks pooled 1, 2 and 3 at a time; one walk per twin is the overview
     curve = report["transfer"]["data_curve"]
-    assert [(r["walks"], r["pools"]) for r in curve] == [(1, 5), (2, 2), (4, 1), (5, 1)]
+    assert [(r["walks"], r["pools"]) for r in curve] == [(1, 3), (2, 1), (3, 1)]
     sizes = [r["transitions"] for r in curve]
     assert all(a < b for a, b in itertools.pairwise(sizes))
     assert curve[0]["mean_ratio"] == pytest.approx(overview["mean_ratio"])
@@ -167,7 +171,7 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     text = parser.format_help()
-    assert "(default 16)" in text and "(default excess)" in text and "--no-confirm" in text
+    assert "(default 28)" in text and "(default excess)" in text and "--no-confirm" in text
     cfg = CalibrateConfig.from_args(parser.parse_args(
         ["--config", str(toml), "--out", "o", "--candidates", "3"]))
     assert cfg.real_action_set() == CCW8 and cfg.real == str(real)
@@ -218,8 +222,9 @@ def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_pat
     the collect command of that data."""
     import simlab.calibration.report as report_mod
 
-    need = {"limit": 1.06, "c": 500.0, "tolerance": 0.01, "transitions": 50_000.0}
-    monkeypatch.setattr(report_mod, "data_need", lambda curve: dict(need))
+    need = {"limit": 1.06, "c": 500.0, "tolerance": 0.01, "transitions": 50_000.0,
+            "flat": False}
+    monkeypatch.setattr(report_mod, "policy_need", lambda curve: dict(need))
     real, states, hours = inputs
     out = tmp_path / "cal"
     assert main(argv(real, states, out, "--real-hours", f"{hours}")) == 0
@@ -231,3 +236,25 @@ def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_pat
     assert "**50,000 twin transitions**" in md and f"--hours {math.ceil(h)} " in md
     report = json.loads((out / "report.json").read_text())
     assert report["transfer"]["data_need"]["hours"] == pytest.approx(h)
+
+
+def test_policy_data_is_collected_and_scored_against_the_perfect_twin(lattice9, tmp_path,
+                                                                      capsys) -> None:
+    # moves of about a cell (1.5 s) and 6 h of real data: twins whose policies arrive
+    states = tmp_path / "states.json"
+    lattice9.save(states)
+    sim = hidden_walk(lattice9, KinematicParams(drive_time=1.5), CCW8, 6.0, 4, "kinematic")
+    real = write_counts_csv(tmp_path / "real.csv", sim.counts)
+    out = tmp_path / "cal"
+    assert main(argv(real, states, out, "--real-hours", f"{sim.hours}", "--policy-data",
+                     "--goal-states", "0,8")) == 0
+    printed = capsys.readouterr().out
+    tr = json.loads((out / "report.json").read_text())["transfer"]
+    need, policy = tr["data_need"], tr["policy_data"]
+    assert need is not None  # three sizes whose twins arrive: a fit, or the largest pool
+    # the recommended transitions, walked and scored on every goal
+    assert policy["transitions"] == need["transitions"]
+    assert set(policy["goal_ratios"]) == {g["name"] for g in tr["goals"]}
+    assert policy["line"]["transitions"] == policy["transitions"]
+    assert "the policy of" in printed and "collected transitions" in printed
+    assert "| policy data | gap |" in (out / "report.md").read_text()

@@ -104,3 +104,34 @@ def test_a_categorical_field_round_trips_and_reads_from_toml(tmp_path: Path) -> 
         ParamSpec("mode", choices=("fixed",))
     with pytest.raises(ConfigError, match="not a number"):
         ParameterSpace((ParamSpec("mode", 0.0, 1.0),)).check_fields(PrimitiveParams())
+
+
+def test_the_space_of_a_robot_that_drives_until_its_state_changes() -> None:
+    """The mode is the signature's and drive_time only sizes the detector's corridor with
+    its margin: neither is searched; the fields of such a robot's moves are, each range a
+    value the record takes (its corners too: wall_slide + wall_back <= 1)."""
+    from simlab.physics.motion import PrimitiveParams
+
+    space = default_space(np.arange(8, 16), "physics", cell_size=0.7,
+                          speed_fields=("fast_speed",), mode="until_state_change")
+    assert space.names == ("max_drive_time", "detector_margin", "pose_noise_xy",
+                           "pose_noise_persistence", "localization_hz", "wall_slide",
+                           "wall_back", "min_drive", "heading_tolerance", "wheel_noise",
+                           "fast_speed")
+    specs = {p.name: p for p in space.specs}
+    assert specs["min_drive"].high == pytest.approx(0.35)
+    assert specs["wall_slide"].high + specs["wall_back"].high <= 1.0
+    space.check_fields(PrimitiveParams(mode="until_state_change"))
+
+
+def test_a_space_whose_corner_the_record_refuses_fails_at_load(tmp_path: Path) -> None:
+    from simlab.physics.motion import PrimitiveParams
+
+    path = tmp_path / "space.toml"
+    path.write_text("[parameters.wall_slide]\nlow = 0.0\nhigh = 0.8\n"
+                    "[parameters.wall_back]\nlow = 0.0\nhigh = 0.5\n")
+    with pytest.raises(ConfigError, match=r"parameters: 'highs'.*wall_slide \+ wall_back"):
+        load_space(path).check_fields(PrimitiveParams())
+    path.write_text('[parameters.mode]\nchoices = ["fixed", "teleport"]\n')
+    with pytest.raises(ConfigError, match=r"parameters\.mode: 'teleport'"):
+        load_space(path).check_fields(PrimitiveParams())

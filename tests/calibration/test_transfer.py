@@ -1,5 +1,5 @@
 """The transfer report: expected steps to the goal on the real model (hand-solved chains,
-properties on random MDPs), the 16 -> 8 action mapping, twins as models and as Q-tables, and
+properties on random MDPs), the action mapping, twins as models and as Q-tables, and
 ``simlab transfer`` end to end."""
 
 from __future__ import annotations
@@ -206,10 +206,10 @@ def test_16_primitives_map_onto_the_robots_8_actions() -> None:
         twin_columns(None, CCW8, n_twin=16, n_real=8)
 
 
-def test_a_16_action_twin_is_scored_on_its_8_matching_columns() -> None:
+def test_a_twin_in_another_numbering_of_the_same_actions_is_scored_through_it() -> None:
     real = TransferModel.from_counts(lattice_counts(CCW8), action_set=CCW8)
-    # the twin's fast primitives jump two cells: taking all 16 columns would plan with them
-    twin = TransferModel.from_counts(lattice_counts(SIMLAB16), action_set=SIMLAB16, name="t")
+    simlab8 = parse_action_set(8, "simlab")
+    twin = TransferModel.from_counts(lattice_counts(simlab8), action_set=simlab8, name="t")
     res = transfer_report(real, [twin], {"corner": [8]})
     g = res.goals[0]
     t = g.twins[0]
@@ -218,6 +218,17 @@ def test_a_16_action_twin_is_scored_on_its_8_matching_columns() -> None:
     # from the far corner: two diagonal moves of 1 / 0.8 tries each
     assert g.optimum[0] == pytest.approx(2 / 0.8)
     assert t.policy[0] == 7  # ccw-east 7 = SE
+
+
+def test_a_16_action_twin_of_an_8_action_robot_is_refused() -> None:
+    """A twin that walked simlab's 16 primitives did not walk the robot's 8 actions (its data
+    spread over moves the robot does not have, at simlab's speeds): refused, naming the
+    collect options, instead of scored on 8 of its columns."""
+    real = TransferModel.from_counts(lattice_counts(CCW8), action_set=CCW8)
+    twin = TransferModel.from_counts(lattice_counts(SIMLAB16), action_set=SIMLAB16, name="t")
+    with pytest.raises(ConfigError, match=r"16 actions against the real model's 8.*"
+                       r"--n-actions 8"):
+        transfer_report(real, [twin], {"corner": [8]})
 
 
 def test_a_twin_equal_to_the_real_model_scores_the_optimum_exactly() -> None:
@@ -267,7 +278,7 @@ def test_starts_without_a_real_way_to_the_goal_are_dropped() -> None:
     mask = np.ones((4, 2), dtype=bool)
     mask[0, 1] = False
     real = TransferModel(T=line(), allowed=mask, name="real")
-    res = transfer_report(real, [real], {"end": [3]}, starts=[0, 1, 3])
+    res = transfer_report(real, [real], {"end": [3]}, starts=[0, 1])
     g = res.goals[0]
     assert g.unreachable_starts == (0,) and g.starts.tolist() == [1]
     assert g.optimum_mean == 2.0
@@ -307,21 +318,18 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     for seed, success in ((0, 0.9), (1, 0.6)):
         estimate(out=d / f"twin{seed}" / "mdp.npz",
                  counts=write_counts(d / f"twin{seed}.csv",
-                                     lattice_counts(SIMLAB16, success=success)),
-                 states=states, plot=False)
-    # a Q-table directory as `simlab train` writes it: Q, goal_mask, valid, action set
-    # slow columns: minus the expected steps of the twin's slow-primitive optimum; fast
-    # columns (not real actions) look best and are skipped
-    twin = TransferModel.from_counts(lattice_counts(SIMLAB16), action_set=SIMLAB16)
-    slow = CCW8.primitives()
-    V = optimal_steps(twin.T[:, slow], [8])
-    Q = np.zeros((9, 16))
-    Q[:, slow] = -(1.0 + twin.T[:, slow] @ V)
+                                     lattice_counts(CCW8, success=success)),
+                 states=states, n_actions=8, convention="ccw-east", plot=False)
+    # a Q-table directory as `simlab train` writes it: Q, goal_mask, valid, action set;
+    # Q = minus the expected steps of the twin's optimum
+    twin = TransferModel.from_counts(lattice_counts(CCW8), action_set=CCW8)
+    V = optimal_steps(twin.T, [8])
+    Q = -(1.0 + twin.T @ V)
     goal = np.zeros(9, dtype=bool)
     goal[8] = True
     (d / "q").mkdir()
     save_q_table(d / "q" / "q_s8.npz", Q, metadata={"goal": "s8",
-                                                   "action_set": SIMLAB16.to_json()},
+                                                   "action_set": CCW8.to_json()},
                  arrays={"goal_mask": goal})
     return {"dir": d, "states": states, "real_csv": real_csv,
             "real": d / "real" / "mdp.npz", "twin0": d / "twin0" / "mdp.npz",
@@ -341,7 +349,10 @@ def test_cli_end_to_end(files, tmp_path, capsys) -> None:
             str(files["twin1"]), str(files["q"]), "--goal-states", "8", "--states",
             str(files["states"]), "--map", str(map_yaml), "--n-boot", "20", "--out", str(out)]
     assert main(argv) == 0
-    line_out = capsys.readouterr().out.splitlines()[0]
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("over 1 goals, steps / real optimum (summed): ")
+    assert "against a perfect twin's" in lines[0]  # the model twins have counts
+    line_out = lines[1]
     assert line_out.startswith("twin policy: mean ") and "real optimum 2.03" in line_out
     assert sorted(p.name for p in out.iterdir()) == ["transfer.json", "transfer.md",
                                                      "transfer.png"]
@@ -454,3 +465,60 @@ def test_overall_ratio_sums_steps_over_goals_before_dividing() -> None:
     assert [g.optimum_mean for g in res.goals] == pytest.approx([1.5, 1.0])
     ratios = res.overall_ratios()
     assert ratios[0] == pytest.approx(1.0) and np.isinf(ratios[1])
+
+
+def test_the_perfect_twin_line_is_one_on_sure_moves_and_falls_with_more_data() -> None:
+    from simlab.calibration.transfer.score import perfect_twin_line
+
+    sure = TransferModel.from_counts(lattice_counts(CCW8, success=1.0), action_set=CCW8)
+    res = transfer_report(sure, [sure], {"corner": [8], "middle": [4]})
+    line = perfect_twin_line(sure, res, np.full((9, 8), 3), n_boot=5,
+                             rng=np.random.default_rng(0))
+    # sure moves: every twin sample is the model itself, so is every real resample
+    assert line.overall.tolist() == [1.0] * 5 and line.median == 1.0
+    assert line.goal_medians.tolist() == [1.0, 1.0]
+    rng = np.random.default_rng(3)
+    noisy = TransferModel.from_counts(rng.multinomial(30, lattice_counts(CCW8, n=30,
+                                                                         success=0.5) / 30),
+                                      action_set=CCW8)
+    res = transfer_report(noisy, [noisy], {"corner": [8]})
+    few = perfect_twin_line(noisy, res, np.full((9, 8), 2), n_boot=40,
+                            rng=np.random.default_rng(1))
+    many = perfect_twin_line(noisy, res, np.full((9, 8), 2000), n_boot=40,
+                             rng=np.random.default_rng(1))
+    assert few.transitions == 9 * 8 * 2 and many.transitions == 9 * 8 * 2000
+    assert 1.0 <= many.median <= few.median
+    again = perfect_twin_line(noisy, res, np.full((9, 8), 2), n_boot=40,
+                              rng=np.random.default_rng(1))
+    np.testing.assert_array_equal(again.overall, few.overall)  # by seed
+
+
+def test_a_summary_of_twins_that_never_arrive_says_so_without_a_percentage() -> None:
+    real = TransferModel(T=line(0.5), allowed=np.ones((4, 2), dtype=bool), name="real")
+    bad = line(0.5)
+    bad[0, 0] = [0.0, 0.0, 0.0, 1.0]
+    twin = TransferModel(T=bad, allowed=np.ones((4, 2), dtype=bool), name="twin")
+    text = transfer_report(real, [twin], {"end": [3]}).summary_line()
+    assert "(never)" not in text and "never arrive from some start (no mean)" in text
+    assert "none arrives; real optimum 4.00 steps" in text
+
+
+def test_mask_leaves_out_pairs_the_real_robot_only_stayed_in() -> None:
+    """A line 0 - 1 - 2 (goal): at 1 the real robot tried "right" only in place (its
+    estimate: stays for good), the twin believes it moves; "slow right" moves half the
+    time in both. Under ``stay`` the twin's policy is trapped at 1; under ``mask`` it
+    chooses among the pairs the real robot left its state in."""
+    P = np.zeros((3, 2, 3))
+    for s in range(3):
+        P[s, 0, min(s + 1, 2)] = 1.0
+        P[s, 1, s] += 0.5
+        P[s, 1, min(s + 1, 2)] += 0.5
+    real_T = P.copy()
+    real_T[1, 0] = [0.0, 1.0, 0.0]
+    real = TransferModel(T=real_T, allowed=np.ones((3, 2), dtype=bool), name="real")
+    twin = TransferModel(T=P, allowed=np.ones((3, 2), dtype=bool), name="twin")
+    stay = transfer_report(real, [twin], {"end": [2]}).goals[0].twins[0]
+    assert np.isinf(stay.steps[:2]).all()
+    mask = transfer_report(real, [twin], {"end": [2]}, untried="mask").goals[0].twins[0]
+    assert mask.policy[1] == 1 and mask.steps[1] == pytest.approx(2.0)
+    assert mask.steps[0] == pytest.approx(3.0)

@@ -226,6 +226,8 @@ def test_poses_far_from_every_centre_are_refused_without_a_map(tmp_path: Path) -
     ("0 0 0 0 0 0\n1 0 0 0 0 0\n", "no state was ever built"),
     ("0 0 0 0 -1\n1 0 0 0 3\n", "negative cell -1 at sample 1"),
     ("0 0 0 0\n1 2e12 0 0\n", "line 2: x: 2e\\+12 is beyond"),
+    ("1.5e12 0 0 0\n1.6e12 0 0 0\n", "line 1: t: 1.5e\\+12 is beyond.*times in s"),
+    ("0 0 0 0 0 -4\n1 0 0 0 0 1\n", "negative n_cells -4 at sample 1"),
     ("0 0 0 0 4 4\n1 0 0 0 3 4\n", r"cell values 3\.\.4 outside 0\.\.3"),
 ])
 def test_bad_logs_name_file_and_line(tmp_path: Path, text: str, message: str) -> None:
@@ -234,6 +236,22 @@ def test_bad_logs_name_file_and_line(tmp_path: Path, text: str, message: str) ->
     with pytest.raises(ConfigError, match=message) as exc:
         read_pose_log(path)
     assert str(path) in str(exc.value)
+
+
+def test_a_log_in_unix_time_loads_as_it_comes(tmp_path: Path) -> None:
+    """The ISIR lab's own logs stamp their samples in UNIX time (t ~ 1.5e9 s): the same
+    motion shifted to 1.5e9 s gives the same decisions, actions and durations."""
+    samples, _ = _simulate(PLAN, np.random.default_rng(4))
+    local = read_pose_log(_write_log(tmp_path / "local.log", samples))
+    shifted = samples.copy()
+    shifted[:, 0] += 1_500_000_000.0
+    unix = read_pose_log(_write_log(tmp_path / "unix.log", shifted))
+    assert unix.t[0] == pytest.approx(1.5e9)
+    a = segment_decisions(local.t, local.xy, local.yaw)
+    b = segment_decisions(unix.t, unix.xy, unix.yaw)
+    for name in ("start", "end", "move_start", "blocked"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    np.testing.assert_allclose(b.heading, a.heading, atol=1e-6)
 
 
 def test_segmentation_refuses_bad_arrays() -> None:
@@ -339,7 +357,9 @@ def test_poses_are_checked_against_a_map_and_a_flipped_image_is_spotted(
         import_log(log, states=states, out=tmp_path / "b", map=flipped)
     text = str(exc.value)
     assert f"{len(samples)} of {len(samples)} pose samples are not on free pixels" in text
-    assert "pose sample 0 " in text and "--flip-y" in text
+    assert "the first: sample 1 at" in text and "--flip-y" in text
+    # one short line and a count, not every sample
+    assert len(text) < 400 and "pose sample 1 " not in text
     assert not (tmp_path / "b").exists()
     res = import_log(log, states=states, out=tmp_path / "c", map=flipped, flip_y=True)
     assert res.off_map == 0 and open_dataset(tmp_path / "c").manifest["provenance"]["flip_y"]

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import errno
+import json
 import os
 from pathlib import Path
 
@@ -103,3 +104,62 @@ def test_a_real_table_on_a_corner_of_the_lab_is_said_without_numpy_text(work: Pa
     assert any("only 3 of 25 states (6 transitions)" in ln for ln in warnings), res.stderr
     assert not any("NaN" in ln or "slice" in ln for ln in res.stderr.splitlines())
     assert "nan" not in res.stdout
+
+
+@pytest.mark.parametrize(("name", "text"), [
+    ("primitives.toml", "# my robot, measured by hand\n[primitives]\nfast_speed = 0.25\n"),
+    ("report.json", '{"my": "notes"}\n'),
+])
+def test_overwrite_never_replaces_a_file_the_user_wrote(work: Path, capsys, name: str,
+                                                        text: str) -> None:
+    (work / "cal").mkdir()
+    (work / "cal" / name).write_text(text)
+    before = tree_hashes(work)
+    assert_refused(run_cli(_argv(work, extra="--overwrite"), capsys), name,
+                   "not written by simlab calibrate")
+    assert tree_hashes(work) == before
+
+
+def test_overwrite_still_replaces_calibrates_own_outputs(work: Path, capsys) -> None:
+    assert run_cli(_argv(work), capsys).code == 0
+    res = run_cli(_argv(work, extra="--overwrite --seed 3"), capsys)
+    assert res.code == 0, res.stderr
+    assert json.loads((work / "cal" / "report.json").read_text())["config"]["seed"] == 3
+
+
+def test_an_output_directory_that_is_a_file_is_not_answered_with_overwrite(
+        work: Path, capsys) -> None:
+    (work / "afile").write_text("x")
+    before = tree_hashes(work)
+    for extra in ("", "--overwrite"):
+        res = run_cli(_argv(work, out="afile", extra=extra), capsys)
+        assert_refused(res, "afile", "is a file")
+        assert "--overwrite" not in res.stderr
+    assert tree_hashes(work) == before
+
+
+def test_a_space_file_with_a_bad_choice_fails_at_load_naming_the_file(work: Path,
+                                                                      capsys) -> None:
+    (work / "space.toml").write_text('[parameters.mode]\nchoices = ["fixed", "teleport"]\n'
+                                     "[parameters.drive_time]\nlow = 0.2\nhigh = 1.0\n")
+    argv = _argv(work, extra=f"--space {work}/space.toml")
+    argv[argv.index("kinematic")] = "physics"  # mode is a field of the physics record
+    before = tree_hashes(work)
+    assert_refused(run_cli(argv, capsys), "space.toml", "parameters.mode", "teleport")
+    assert tree_hashes(work) == before and not (work / "cal").exists()
+
+
+@pytest.mark.parametrize(("extra", "field"), [
+    ("--confirm-hours 1e9", "confirm_hours"),
+    ("--screen-share 1e9", "screen_share"),
+    ("--hours-per-candidate 1e9", "hours_per_candidate"),
+])
+def test_walk_sizes_are_bounded(work: Path, capsys, extra: str, field: str) -> None:
+    argv = _argv(work)
+    for flag in ("--confirm-hours", "--hours-per-candidate"):  # the FAST budgets
+        if flag in extra:
+            k = argv.index(flag)
+            del argv[k:k + 2]
+    before = tree_hashes(work)
+    assert_refused(run_cli(argv + extra.split(), capsys), field)
+    assert tree_hashes(work) == before and not (work / "cal").exists()

@@ -32,10 +32,17 @@ Decisions:
   policy among the pairs the real robot tried (a twin that knows the real coverage).
 * **Ties.** Among actions whose expected steps are equal within ``1e-9`` (relative), the
   lowest action index; a state with no way to the goal takes its lowest allowed action.
-* **Action sets.** Twin and real model must hold the same primitives. A twin of simlab's 16
-  primitives is read on an 8-action real set through the columns
+* **Action sets.** Twin and real model must hold the same actions: a twin in another
+  numbering of them is read through the columns
   :meth:`simlab.base.actions.ActionSet.primitives` gives (the twin's action doing each real
-  action); a real action the twin has no column for is an error.
+  action). A twin of another number of
+  actions is refused: a twin of simlab's 16 primitives did not walk an 8-action robot's
+  actions (its data are spread over moves the robot does not have, at simlab's speeds),
+  so it is collected in the robot's action set instead.
+* **Untried and stay-only pairs.** The rule ``untried="mask"`` chooses a twin's policy among
+  the pairs the real robot tried *and was seen to leave its state in*: a pair tried only in
+  place holds the robot for good on the real model (with a few transitions per pair, a
+  move that leaves one time in ten often never did in the sample).
 * **Starts.** Default: every non-goal state the real robot left at least once. Start states
   from which even the real optimum cannot reach the goal are dropped (reported as
   ``unreachable_starts``): no policy can be scored there. Mean steps over the starts are

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,7 +16,14 @@ from simlab.base.errors import ConfigError
 from simlab.base.options import command, option
 from simlab.calibration.transfer.models import QTableTwin, TransferModel, load_twin
 from simlab.calibration.transfer.render import plot_transfer, transfer_markdown
-from simlab.calibration.transfer.score import KIND, UNTRIED_RULES, TransferResult, transfer_report
+from simlab.calibration.transfer.score import (
+    KIND,
+    UNTRIED_RULES,
+    TransferResult,
+    columns_of,
+    perfect_twin_line,
+    transfer_report,
+)
 
 #: Files of ``simlab transfer`` in its ``--out`` directory.
 FILES = ("transfer.json", "transfer.md", "transfer.png")
@@ -53,8 +61,12 @@ class TransferConfig(ActionSetOptions):
         "stay", "a twin action the real robot never tried in that state: stay = it stays "
         "put there (never arrives); mask = choose the twin's policy among the tried ones",
         choices=tuple(UNTRIED_RULES))
-    n_boot: int = option(200, "resamples of the perfect-twin floor (0: none; needs the "
-                         "real counts)")
+    reset_states: str = option(
+        "auto", "real rows that are an episode reset, not moves: auto (recognised from the "
+        "states' centres), none, or ids such as 18; they take the twins' own rows",
+        metavar="auto|none|LIST")
+    n_boot: int = option(200, "resamples of the perfect-twin floor and of the perfect twin "
+                         "at each twin's data (0: none; needs the real counts)")
     seed: int = option(0, "seed of those resamples")
     plot: bool = option(True, "the figure transfer.png (--no-plot skips it)")
     overwrite: bool = option(False, "replace the outputs of an earlier `simlab transfer`")
@@ -129,7 +141,7 @@ def _check_outputs(cfg: TransferConfig) -> dict[str, Path]:
 
 
 def _real_model(cfg: TransferConfig, n_states: int, disc: Any) -> TransferModel:
-    from simlab.data.counts import load_counts
+    from simlab.data.counts import check_action_width, load_counts
     from simlab.data.mdp import load_mdp
 
     real = Path(cfg.real)
@@ -144,6 +156,7 @@ def _real_model(cfg: TransferConfig, n_states: int, disc: Any) -> TransferModel:
         return model
     aset = cfg.make_action_set(16)
     table = load_counts(real, n_states=n_states, n_actions=aset.n_actions)
+    check_action_width(table, given=cfg.n_actions is not None)
     centres = None if disc is None else disc.centres
     return TransferModel.from_counts(table.counts, name=str(real), action_set=aset,
                                      centres=centres)
@@ -164,6 +177,36 @@ def _goals(cfg: TransferConfig, real: TransferModel,
         return dict(first.goals)
     raise ConfigError("no goal: neither the real model nor the first twin records one",
                       path=cfg.real, key="goal_states", fix="give --goal-states, e.g. 18,34")
+
+
+def _without_resets(cfg: TransferConfig, real: TransferModel,
+                    twins: Sequence[TransferModel | QTableTwin]
+                    ) -> tuple[TransferModel, tuple[int, ...]]:
+    """The real model with its reset rows (:mod:`simlab.calibration.resets`) replaced by
+    the model twins' own rows (their mean; their counts summed when every one has them),
+    warned in one line; unchanged when there is none or no model twin to take rows from."""
+    from simlab.base.errors import warn
+    from simlab.calibration.resets import reset_warning, resolve_reset_states
+
+    table = real.counts if real.counts is not None else (real.T > 0) * real.allowed[..., None]
+    resets = resolve_reset_states(cfg.reset_states, table, real.centres)
+    if not resets:
+        return real, ()
+    models = [t for t in twins if isinstance(t, TransferModel)]
+    if not models:
+        warn(f"state(s) {list(resets)}: the real rows are an episode reset, but the twins "
+             "are Q-tables with no rows to put in their place: kept (give a twin's mdp.npz "
+             "too, or --reset-states none to silence this)")
+        return real, ()
+    idx = list(resets)
+    cols = [columns_of(t, real) for t in models]
+    T_rows = np.mean([t.T[idx][:, c] for t, c in zip(models, cols, strict=True)], axis=0)
+    counted = all(t.counts is not None for t in models)
+    count_rows = sum(t.counts[idx][:, c] for t, c in zip(models, cols, strict=True)) \
+        if counted else None
+    warn(reset_warning(resets, table, real.centres, "the transfer: the twins' own rows "
+                       "stand in for them"))
+    return real.with_rows(resets, T_rows, count_rows), resets
 
 
 @command(TransferConfig)
@@ -187,19 +230,25 @@ def transfer_command(cfg: TransferConfig) -> TransferFiles:
     n_states = disc.n_states if disc is not None else twins[0].n_states
     real = _real_model(cfg, n_states, disc)
     goals = _goals(cfg, real, twins)
+    real, resets = _without_resets(cfg, real, twins)
+    rng = np.random.default_rng(cfg.seed)
     try:
         result = transfer_report(real, twins, goals, cfg.start_states, weights=cfg.weights,
-                                 untried=cfg.untried, n_boot=cfg.n_boot,
-                                 rng=np.random.default_rng(cfg.seed))
+                                 untried=cfg.untried, n_boot=cfg.n_boot, rng=rng)
     except ConfigError as exc:
         if exc.path is not None or exc.key not in ("goal_states", "start_states"):
             raise
         raise ConfigError(exc.problem, path=cfg.real, key=exc.key, fix=exc.fix) from None
+    result = dataclasses.replace(result, reset_states=resets, lines=tuple(
+        perfect_twin_line(real, result, t.counts.sum(axis=2)[:, columns_of(t, real)],
+                          n_boot=cfg.n_boot, rng=rng)
+        if cfg.n_boot and real.counts is not None and isinstance(t, TransferModel)
+        and t.counts is not None else None for t in twins))
     with output_transaction(cfg.out, paths.values(), overwrite=cfg.overwrite,
                             what="transfer output") as txn:
         atomic_write_json(txn.path(paths["transfer.json"]),
                           {**result.to_json(), "config": cfg.to_dict()})
-        atomic_write_text(txn.path(paths["transfer.md"]), transfer_markdown(result))
+        atomic_write_text(txn.path(paths["transfer.md"]), transfer_markdown(result, figure=cfg.plot))
         if cfg.plot:
             plot_transfer(result, txn.path(paths["transfer.png"]), grid=grid, disc=disc)
     return TransferFiles(result=result, files=paths)

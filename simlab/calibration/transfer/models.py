@@ -64,6 +64,24 @@ class TransferModel:
     def n_actions(self) -> int:
         return int(self.T.shape[1])
 
+    def with_rows(self, states: tuple[int, ...], T_rows: NDArray[np.float64],
+                  count_rows: NDArray[np.int64] | None) -> TransferModel:
+        """A copy whose rows of ``states`` are ``T_rows`` (k, A, S) (tried where they hold
+        an outcome other than the row's own self-loop for untried pairs), with their counts
+        ``count_rows`` (k, A, S) when known (else the counts are dropped if they were kept)."""
+        T, allowed = self.T.copy(), self.allowed.copy()
+        idx = list(states)
+        T[idx] = T_rows
+        allowed[idx] = count_rows.sum(axis=2) > 0 if count_rows is not None else True
+        counts = None
+        if self.counts is not None and count_rows is not None:
+            counts = self.counts.copy()
+            counts[idx] = count_rows
+        visits = None if counts is None else counts.sum(axis=(1, 2)).astype(np.int64)
+        return TransferModel(T=T, allowed=allowed, name=self.name, action_set=self.action_set,
+                             visits=visits if visits is not None else self.visits,
+                             centres=self.centres, goals=self.goals, counts=counts)
+
     @classmethod
     def from_counts(cls, counts: ArrayLike, *, name: str = "counts",
                     action_set: ActionSet | None = None,

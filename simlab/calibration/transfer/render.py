@@ -22,8 +22,9 @@ from simlab.calibration.transfer.score import (
 )
 
 
-def transfer_markdown(result: TransferResult) -> str:
-    """The markdown report: per goal, the real optimum and every twin's score."""
+def transfer_markdown(result: TransferResult, *, figure: bool = True) -> str:
+    """The markdown report: per goal, the real optimum and every twin's score; ``figure``:
+    link ``transfer.png`` (written beside it)."""
     out = io.StringIO()
     out.write(f"# Transfer of twin policies to {result.real_name}\n\n")
     aset = "unknown action set" if result.action_set is None else result.action_set.describe()
@@ -35,6 +36,10 @@ def transfer_markdown(result: TransferResult) -> str:
               "not one of the real optimal ones; its one-step regret is the extra expected "
               "steps of that action once. Start states are weighted "
               f"`{result.weighting}`.\n")
+    if result.reset_states:
+        out.write(f"\nReal state(s) {list(result.reset_states)}: their recorded rows are an "
+                  "episode reset, not moves; the twins' own rows stand in for them.\n")
+    _overview(out, result)
     for g in result.goals:
         s = g.summary()
         out.write(f"\n## Goal {g.name} (states {', '.join(map(str, np.flatnonzero(g.goal)))})"
@@ -57,7 +62,9 @@ def transfer_markdown(result: TransferResult) -> str:
                   f"{fmt_steps(s['worst'])}, best {fmt_steps(s['best'])}, spread (std) "
                   f"{fmt_steps(s['spread'])} steps; mean over the optimum "
                   f"{fmt_pct(s['excess'])}.\n")
-        if g.floor is not None:
+        if g.floor is not None and not math.isfinite(g.floor.median):
+            out.write(f"\nNo perfect-twin line: {g.floor.phrase().removeprefix('no perfect-twin score: ')}.\n")
+        elif g.floor is not None:
             f = g.floor
             out.write(f"\nThe real optimum of an estimated model is biased low, so even a "
                       "perfect twin scores above it. A perfect twin (the real robot's own "
@@ -67,8 +74,28 @@ def transfer_markdown(result: TransferResult) -> str:
                       f"{fmt_pct(f.high - 1.0)}). The resamples never hold a transition the "
                       "real data missed, so with few transitions per pair this gap is "
                       "rather a lower bound.\n")
-    out.write("\n![transfer](transfer.png)\n")
+    if figure:
+        out.write("\n![transfer](transfer.png)\n")
     return out.getvalue()
+
+
+def _overview(out: io.StringIO, result: TransferResult) -> None:
+    """Every goal at once, per twin: summed steps over the summed real optimum, and the
+    perfect twin at the same data (the twin's own visit counts) beside it."""
+    ov = result.overview()
+    if len(result.goals) < 2 and not any(ln is not None for ln in result.lines):
+        return
+    out.write(f"\n## Over the {ov['goals']} goal(s)\n\nSteps summed over the goals over the "
+              "real optimum summed the same way. A perfect twin (the real model itself, "
+              "walked for the twin's own visits, scored the same way, by resampling) shows "
+              "what the data alone cost: the gap is the twin's.\n\n| twin | steps / real "
+              "optimum | perfect twin, same data | gap |\n|---|---|---|---|\n")
+    for t in ov["twins"]:
+        r = "never" if t["ratio"] is None else f"{t['ratio']:.3f}"
+        line = "n/a" if t["perfect_twin_same_data"] is None else \
+            f"{t['perfect_twin_same_data']:.3f}"
+        gap = "n/a" if t["gap"] is None else f"{100 * t['gap']:+.1f} %"
+        out.write(f"| `{t['twin']}` | {r} | {line} | {gap} |\n")
 
 
 def _cell(x: float, fmt: str) -> str:

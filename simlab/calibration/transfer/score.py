@@ -34,7 +34,8 @@ KIND = "simlab-transfer"
 UNTRIED_RULES = {
     "stay": "the twin's policy as it is; an untried real (s, a) keeps the robot in place, "
             "so it never arrives from there",
-    "mask": "the twin's policy chosen among the (s, a) the real robot tried",
+    "mask": "the twin's policy chosen among the (s, a) the real robot tried and was seen "
+            "to leave its state in",
 }
 
 
@@ -113,12 +114,44 @@ class TransferResult:
     weighting: str
     centres: NDArray[np.float64] | None = None
     untried: str = "stay"
+    #: per twin, the perfect twin at that twin's data (:func:`perfect_twin_line`; None
+    #: where it is not computed: a Q-table twin, no real counts, no resamples)
+    lines: tuple[Any, ...] = ()
+    #: real states whose rows were an episode reset, given the twins' rows
+    reset_states: tuple[int, ...] = ()
+
+    def overview(self) -> dict[str, Any]:
+        """Over every goal: each twin's ratio of summed steps to the summed real optimum
+        (:meth:`overall_ratios`), and the perfect twin at the same data beside it."""
+        ratios = self.overall_ratios()
+        lines = self.lines or (None,) * len(ratios)
+        return {"goals": len(self.goals), "twins": [
+            {"twin": n, "ratio": _num(float(r)),
+             "perfect_twin_same_data": None if ln is None else _num(ln.median),
+             "gap": None if ln is None or not (math.isfinite(r) and math.isfinite(ln.median))
+             else float(r / ln.median - 1.0)}
+            for n, r, ln in zip(self.twin_names, ratios, lines, strict=True)]}
+
+    def overview_line(self) -> str:
+        """The overview in one line (several goals): per twin its ratio and the line."""
+        parts = []
+        for t in self.overview()["twins"]:
+            r = "never" if t["ratio"] is None else f"{t['ratio']:.3f}"
+            line = ("" if t["perfect_twin_same_data"] is None else
+                    f" against a perfect twin's {t['perfect_twin_same_data']:.3f} at the same "
+                    f"data" + ("" if t["gap"] is None else f" ({100 * t['gap']:+.1f} %)"))
+            parts.append(f"{t['twin']}: {r}{line}")
+        return (f"over {len(self.goals)} goals, steps / real optimum (summed): "
+                + "; ".join(parts))
 
     def to_json(self) -> dict[str, Any]:
         """Plain types; infinite steps are ``null`` ("never")."""
         return {
             "kind": KIND,
             "real": self.real_name,
+            "over_goals": self.overview(),
+            "perfect_twin_lines": [None if ln is None else ln.to_json() for ln in self.lines],
+            "reset_states": list(self.reset_states),
             "twins": list(self.twin_names),
             "action_set": None if self.action_set is None else self.action_set.to_json(),
             "weights": self.weighting,
@@ -151,14 +184,18 @@ class TransferResult:
             s = g.summary()
             label = "twin policy" if len(self.goals) == 1 else f"goal {g.name}: twin policy"
             never = int(np.sum(~np.isfinite(g.means)))
-            mean = (f"mean {fmt_steps(s['mean'])} steps" if math.isfinite(s["mean"]) else
-                    f"{never} of {len(g.twins)} twin(s) never arrive from some start, best "
-                    f"{fmt_steps(s['best'])} steps")
-            part = (f"{label}: {mean}, worst {fmt_steps(s['worst'])}, real optimum "
-                    f"{fmt_steps(g.optimum_mean)} ({fmt_pct(s['excess'])})")
+            if math.isfinite(s["mean"]):
+                mean = (f"mean {fmt_steps(s['mean'])} steps ({fmt_pct(s['excess'])} over the "
+                        f"real optimum {fmt_steps(g.optimum_mean)}), worst "
+                        f"{fmt_steps(s['worst'])}")
+            else:
+                best = (f"the best {fmt_steps(s['best'])} steps" if math.isfinite(s["best"])
+                        else "none arrives")
+                mean = (f"{never} of {len(g.twins)} twin(s) never arrive from some start "
+                        f"(no mean), {best}; real optimum {fmt_steps(g.optimum_mean)} steps")
+            part = f"{label}: {mean}"
             if g.floor is not None:
-                part += (f"; a perfect twin would score {fmt_pct(g.floor.median - 1.0)} (95 %: "
-                         f"{fmt_pct(g.floor.low - 1.0)} to {fmt_pct(g.floor.high - 1.0)})")
+                part += "; " + g.floor.phrase()
             parts.append(part)
         return "; ".join(parts)
 
@@ -218,7 +255,12 @@ def _start_states(real: TransferModel, goal: NDArray[np.bool_],
     if bad:
         raise ConfigError(f"states {bad} not in [0, {S})", key="start_states")
     ids = np.unique(ids.astype(np.int64))
-    return ids[~goal[ids]]
+    if goal[ids].any():
+        raise ConfigError(f"start state {int(ids[goal[ids]][0])} is a goal state: a policy "
+                          "starting there has arrived before its first step, so there is "
+                          "nothing to score", key="start_states",
+                          fix="give start states apart from the goal")
+    return ids
 
 
 def _weights(real: TransferModel, starts: NDArray[np.int64], weighting: str
@@ -259,7 +301,8 @@ def _twin_policy_for(twin: TransferModel | QTableTwin, goal: NDArray[np.bool_], 
         return policy_from_q(table, columns, restrict)
     mask = twin.allowed[:, columns]
     if restrict is not None:
-        mask = mask & restrict
+        narrowed = mask & restrict
+        mask = np.where(narrowed.any(axis=1, keepdims=True), narrowed, mask)
     return twin_policy(twin.T[:, columns], goal, mask)
 
 
@@ -305,11 +348,16 @@ def transfer_report(
             Q-table, bad start states or weights.
     """
     _check_options(twins, goals, weights, untried, n_boot, rng)
-    restrict = real.allowed if untried == "mask" else None
-    cols = [_columns(t, real) for t in twins]
+    restrict = moving_pairs(real) if untried == "mask" else None
+    cols = [columns_of(t, real) for t in twins]
     out = []
     for gname, gspec in goals.items():
         g = goal_mask(gspec, real.n_states)
+        if not reached(real, g):
+            raise ConfigError(f"the real robot never reached goal {gname} (no real "
+                              f"transition ends in state(s) {np.flatnonzero(g).tolist()}): "
+                              "no policy can be scored towards it", key="goal_states",
+                              fix="choose a goal the real data reach")
         V, Q, _ = solve_shortest_path(real.T, g, real.allowed)
         st = _start_states(real, g, starts)
         unreachable = tuple(int(s) for s in st if not np.isfinite(V[s]))
@@ -332,6 +380,21 @@ def transfer_report(
                           centres=real.centres, untried=untried)
 
 
+def moving_pairs(real: TransferModel) -> NDArray[np.bool_]:
+    """(S, A) bool the pairs the real robot tried and was seen to leave its state in at
+    least once: what a twin that knows the real coverage chooses among (rule ``mask``). A
+    pair tried only in place, every outcome a stay, holds the robot there for good on the
+    real model, whatever the twin believes it does."""
+    rows = np.arange(real.n_states)
+    return real.allowed & (real.T[rows, :, rows] < 1.0)
+
+
+def reached(real: TransferModel, goal: NDArray[np.bool_]) -> bool:
+    """Whether some tried real pair outside ``goal`` (S,) bool leads into it."""
+    into = real.T[~goal][:, :, goal].sum(axis=2) * real.allowed[~goal]
+    return bool((into > 0).any())
+
+
 def _check_options(twins: Sequence[Any], goals: Mapping[str, ArrayLike], weights: str,
                    untried: str, n_boot: int, rng: np.random.Generator | None) -> None:
     if not twins:
@@ -347,12 +410,19 @@ def _check_options(twins: Sequence[Any], goals: Mapping[str, ArrayLike], weights
                           fix="pass rng=np.random.default_rng(seed), or n_boot=0")
 
 
-def _columns(twin: TransferModel | QTableTwin, real: TransferModel) -> NDArray[np.int64]:
+def columns_of(twin: TransferModel | QTableTwin, real: TransferModel) -> NDArray[np.int64]:
     """(A_real,) the twin's column of each real action, once the states agree."""
     if twin.n_states != real.n_states:
         raise ConfigError(f"{twin.n_states} states against the real model's {real.n_states}",
                           path=twin.name, key="states",
                           fix="use twins built on the real model's states file")
+    if twin.n_actions != real.n_actions:
+        raise ConfigError(f"{twin.n_actions} actions against the real model's "
+                          f"{real.n_actions}: a twin of a robot walks that robot's own actions "
+                          "(its data spread over primitives the robot does not have)",
+                          path=twin.name, key="action_set",
+                          fix="collect the twin in the real action set (collect --n-actions "
+                          f"{real.n_actions} --convention ... --speed ...) and estimate it")
     return twin_columns(twin.action_set, real.action_set, n_twin=twin.n_actions,
                         n_real=real.n_actions, where=twin.name)
 
@@ -393,10 +463,24 @@ class TransferFloor:
     low: float
     high: float
 
+    @property
+    def never_share(self) -> float:
+        """Share of the resamples on which the perfect twin's plan never arrives."""
+        return float(np.mean(np.isinf(self.ratios))) if self.ratios.size else math.nan
+
+    def phrase(self) -> str:
+        """The floor in words: its median and band, or why there is none."""
+        if math.isfinite(self.median):
+            return (f"a perfect twin would score {fmt_pct(self.median - 1.0)} (95 %: "
+                    f"{fmt_pct(self.low - 1.0)} to {fmt_pct(self.high - 1.0)})")
+        return (f"no perfect-twin score: even the real robot's own plan never arrives on "
+                f"{100 * self.never_share:.0f} % of the real data's resamples (too few real "
+                "transitions per pair to score policies by their steps)")
+
     def to_json(self) -> dict[str, Any]:
         return {"n_boot": int(self.ratios.size), "ratio_median": _num(self.median),
                 "ratio_low_2.5": _num(self.low), "ratio_high_97.5": _num(self.high),
-                "never_share": float(np.mean(~np.isfinite(self.ratios)))}
+                "never_share": self.never_share}
 
 
 def transfer_floor(real: TransferModel, goal: ArrayLike, starts: ArrayLike,
@@ -451,3 +535,95 @@ def transfer_floor(real: TransferModel, goal: ArrayLike, starts: ArrayLike,
         return TransferFloor(ratios=ratios, median=math.nan, low=math.nan, high=math.nan)
     q = np.quantile(r, [0.5, 0.025, 0.975], method="inverted_cdf")
     return TransferFloor(ratios=ratios, median=float(q[0]), low=float(q[1]), high=float(q[2]))
+
+
+@dataclass(frozen=True)
+class PerfectLine:
+    """What a perfect twin of a given amount of data scores (:func:`perfect_twin_line`).
+
+    ``overall`` (n_boot,) its summed steps over the summed real optimum, over the goals, per
+    resample (inf: it never arrives from some start); ``per_goal`` (n_goals, n_boot) the
+    same per goal; ``transitions`` the twin's data; ``median``/``goal_medians`` their
+    medians over the resamples.
+    """
+
+    transitions: int
+    overall: NDArray[np.float64]
+    per_goal: NDArray[np.float64]
+    goal_names: tuple[str, ...]
+
+    @property
+    def median(self) -> float:
+        return _median(self.overall)
+
+    @property
+    def goal_medians(self) -> NDArray[np.float64]:
+        return np.array([_median(r) for r in self.per_goal])
+
+    def to_json(self) -> dict[str, Any]:
+        return {"transitions": self.transitions, "n_boot": int(self.overall.size),
+                "ratio_median": _num(self.median),
+                "ratio_low_2.5": _num(_quantile(self.overall, 0.025)),
+                "ratio_high_97.5": _num(_quantile(self.overall, 0.975)),
+                "never_share": float(np.mean(np.isinf(self.overall))) if self.overall.size
+                else None,
+                "per_goal": {n: _num(m) for n, m in zip(self.goal_names, self.goal_medians,
+                                                        strict=True)}}
+
+
+def _median(x: NDArray[np.float64]) -> float:
+    return _quantile(x, 0.5)
+
+
+def _quantile(x: NDArray[np.float64], q: float) -> float:
+    x = x[~np.isnan(x)]
+    return float(np.quantile(x, q, method="inverted_cdf")) if x.size else math.nan
+
+
+def perfect_twin_line(real: TransferModel, result: TransferResult, visits: ArrayLike, *,
+                      n_boot: int, rng: np.random.Generator) -> PerfectLine:
+    """The score of a perfect twin with the data ``visits`` (S, A) (transitions per pair),
+    on the goals and starts of ``result``, by parametric bootstrap of the real counts.
+
+    A twin equal to the true robot, walked for ``visits``, is still an estimate: its plan
+    exploits the noise of its own sample, and it is scored on a real model that is itself an
+    estimate (whose optimum is biased low, :func:`transfer_floor`). Each resample draws both
+    from the real model ``T`` (standing for the truth): the twin's counts
+    ``Multinomial(visits(s, a), T(s, a, .))`` on the pairs the real robot tried (its other
+    pairs stay untried), and a real model at the real counts' sizes; the twin's shortest-path
+    policy is scored on that real model against its optimum, as :func:`transfer_report`
+    scores a twin. A calibrated twin is read against this line at its own data: the gap is
+    what the calibration leaves, the rest is data.
+    """
+    from simlab.data.count_model import transition_matrix
+
+    if real.counts is None:
+        raise ConfigError("the real model has no counts", path=real.name, key="counts",
+                          fix="give the real count file or an mdp.npz with counts")
+    v = np.where(real.allowed, np.asarray(visits, dtype=np.int64), 0)
+    n_real = real.counts.sum(axis=2)
+    P = real.T / real.T.sum(axis=2, keepdims=True)
+    goals = result.goals
+    per_goal = np.full((len(goals), int(n_boot)), math.nan)
+    overall = np.full(int(n_boot), math.nan)
+    for b in range(int(n_boot)):
+        T_twin, seen = transition_matrix(rng.multinomial(v, P))
+        T_real, tried = transition_matrix(rng.multinomial(n_real, P))
+        steps_sum = opt_sum = 0.0
+        for k, g in enumerate(goals):
+            V = solve_shortest_path(T_real, g.goal, tried)[0]
+            pi = solve_shortest_path(T_twin, g.goal, seen)[2]
+            h = evaluate_policy(T_real, pi, g.goal, tried)
+            keep = np.isfinite(V[g.starts]) & (g.weights > 0)
+            if not keep.any():
+                continue
+            w = g.weights[keep] / g.weights[keep].sum()
+            opt = float(np.sum(V[g.starts][keep] * w))
+            hk = h[g.starts][keep]
+            mean = math.inf if not np.all(np.isfinite(hk)) else float(np.sum(hk * w))
+            per_goal[k, b] = mean / opt if opt > 0 else math.nan
+            steps_sum += mean
+            opt_sum += opt
+        overall[b] = steps_sum / opt_sum if opt_sum > 0 else math.nan
+    return PerfectLine(transitions=int(v.sum()), overall=overall, per_goal=per_goal,
+                       goal_names=tuple(g.name for g in goals))
