@@ -156,6 +156,19 @@ def spelled_path(value: Any, key: str) -> Any:
     return value
 
 
+def arena_ref(value: Any, key: str = "arena") -> Any:
+    """An arena option: a built-in name, a ``.toml`` path or (from Python) an
+    :class:`~simlab.physics.arena.ArenaConfig`; returned unchanged."""
+    from simlab.physics.arena import ArenaConfig
+
+    if not isinstance(value, ArenaConfig) and (not isinstance(value, str | os.PathLike)
+                                               or not str(value)):
+        raise ConfigError(f"expected an arena name or .toml path, got {value!r}", key=key,
+                          fix='a built-in name such as "table", or the .toml of simlab '
+                              "arena-from-map")
+    return value
+
+
 def _path(value: Any, key: str | None) -> Path:
     if not isinstance(value, str | os.PathLike) or not str(value):
         raise ConfigError(f"expected a path, got {value!r}", key=key)
@@ -210,3 +223,35 @@ def state_ids(value: Any, key: str) -> tuple[int, ...] | None:
     if len(set(ids)) != len(ids):
         raise ConfigError(f"a state is listed twice in {list(ids)}", key=key)
     return ids
+
+
+def table_of(cls: Any, value: Any, key: str, *, path: Where = None) -> Any:
+    """An instance of the dataclass ``cls`` built from ``value``, a table of a config file
+    (a dict of field names): an unknown field or a value of the wrong kind is a
+    ConfigError naming ``key.field`` (not a ``TypeError`` from the constructor). Numeric
+    fields (a float or int default) need numbers; the constructor's own checks follow."""
+    import dataclasses
+
+    if isinstance(value, cls):
+        return value
+    if not isinstance(value, dict):
+        raise ConfigError(f"expected a table of {cls.__name__} fields, got {value!r}",
+                          key=key, path=path)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(value) - set(fields))
+    if unknown:
+        raise ConfigError(f"unknown field(s) {', '.join(unknown)} of {cls.__name__}",
+                          key=f"{key}.{unknown[0]}", path=path,
+                          fix=f"allowed: {', '.join(fields)}")
+    for name, item in value.items():
+        default = fields[name].default
+        if isinstance(default, int | float) and not isinstance(default, bool):
+            number(item, f"{key}.{name}", path=path)
+    try:
+        return cls(**value)
+    except ConfigError as exc:
+        raise ConfigError(exc.problem, key=f"{key}.{(exc.key or '').split('.')[-1]}",
+                          path=path, fix=exc.fix) from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(str(exc), key=key, path=path) from None
+

@@ -373,6 +373,7 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
     physics_hz: float | None = rate_option()
 
     def validate(self) -> None:
+        v.arena_ref(self.arena)
         if self.states is None:
             raise ConfigError("a states file is required", key="states",
                               fix="--states states.json (written by `simlab discretize`)")
@@ -399,6 +400,16 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
             raise ConfigError("the kinematic simulator has no physics step", key="physics_hz",
                               fix="drop --physics-hz or use --simulator physics")
         resolve_rate(self.physics_hz)  # a rate too coarse for the primitives is refused here
+        if self.params is not None and not isinstance(self.params, str | os.PathLike):
+            self.resolved_params()  # a table of a --config file: its keys and values checked
+        if self.pose_source_options is not None and not isinstance(self.pose_source_options,
+                                                                   dict):
+            raise ConfigError(f"expected a table of the pose source's options, got "
+                              f"{self.pose_source_options!r}", key="pose_source_options")
+        if self.pose_source_options and self.pose_source != "mcl":
+            raise ConfigError(f"the {self.pose_source} pose source takes no options",
+                              key="pose_source_options",
+                              fix='drop pose_source_options, or use pose_source = "mcl"')
         if self.primitive_options_given:
             if self.simulator == "kinematic":
                 raise ConfigError("primitive settings apply to the physics simulator only",
@@ -426,6 +437,12 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
             from simlab.physics.motion import PrimitiveParams
 
             return PrimitiveParams.from_toml(self.params)
+        if isinstance(self.params, dict):  # a table of a --config file
+            if self.simulator == "kinematic":
+                return v.table_of(KinematicParams, self.params, "params")
+            from simlab.physics.motion import PrimitiveParams
+
+            return PrimitiveParams.from_json(self.params, where="params")
         return self.params
 
 

@@ -129,6 +129,8 @@ class EstimateConfig(ActionSetOptions):
     action_set: Any | None = option(None, "ActionSet of a count table (Python only)", cli=False)
 
     def validate(self) -> None:
+        if self.arena is not None:
+            validation.arena_ref(self.arena)
         if (self.dataset is None) == (self.counts is None):
             raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
                               key="source")

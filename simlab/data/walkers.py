@@ -334,13 +334,13 @@ class KinematicParams:
     decision_latency: float = 3.0
 
     def __post_init__(self) -> None:
+        from simlab.base import validation
+
         for name in ("slow_speed", "fast_speed", "drive_time", "turn_rate"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"KinematicParams.{name} must be > 0, got {getattr(self, name)}")
+            validation.positive(getattr(self, name), f"params.{name}")
         for name in ("distance_noise", "heading_noise", "clearance", "radius",
                      "decision_latency"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"KinematicParams.{name} must be >= 0, got {getattr(self, name)}")
+            validation.positive(getattr(self, name), f"params.{name}", allow_zero=True)
 
 
 def _wrap(angle: float) -> float:

@@ -169,6 +169,8 @@ class ExportMinariConfig(CommandConfig):
                                "arena name)")
 
     def validate(self) -> None:
+        if self.arena is not None:
+            validation.arena_ref(self.arena)
         if self.episode_length is not None:
             validation.whole(self.episode_length, "episode_length", minimum=1)
 

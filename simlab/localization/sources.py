@@ -97,4 +97,8 @@ def make_pose_source(name: str, world: Any, options: dict[str, Any] | None = Non
         from simlab.localization.tracker import MCLPoseSource
 
         return MCLPoseSource(world, **options)
+    if options:
+        raise ConfigError(f"the {name} pose source takes no options, got "
+                          f"{', '.join(sorted(options))}", key="pose_source_options",
+                          fix="drop them, or use the mcl pose source")
     return (TruthPose if name == "truth" else OdometryPose)(world, **options)

@@ -141,6 +141,16 @@ class MapConfig(CommandConfig):
         v.positive(self.margin, "margin", allow_zero=True)
         v.whole(self.seed, "seed")
         resolve_rate(self.physics_hz)
+        if isinstance(self.log_odds, dict):  # a table of a --config file
+            from discretize.occupancy import LogOddsParams
+
+            object.__setattr__(self, "log_odds", v.table_of(LogOddsParams, self.log_odds,
+                                                            "log_odds"))
+        if isinstance(self.primitive_params, dict):
+            from simlab.physics.motion import PrimitiveParams
+
+            object.__setattr__(self, "primitive_params", PrimitiveParams.from_json(
+                self.primitive_params, where="primitive_params"))
         if self.out is None:  # the command line's default, also for Python callers
             object.__setattr__(self, "out", Path("maps") / Path(str(self.arena)).stem)
 

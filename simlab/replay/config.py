@@ -98,6 +98,8 @@ class ReplayConfig(CommandConfig):
         v.whole(self.max_frames, "max_frames", minimum=1)
         v.executor(self.pool)
         v.spelled_path(self.primitives, "primitives")
+        v.spelled_path(self.map, "map")
+        v.arena_ref(self.arena)
         if self.physics_hz is not None:
             resolve_rate(self.physics_hz)
         if self.primitives is not None and self.params is None:

@@ -325,6 +325,8 @@ class ExportBagConfig(CommandConfig):
     overwrite: bool = option(False, "replace a bag that simlab export-bag wrote in --out")
 
     def validate(self) -> None:
+        if self.arena is not None:
+            validation.arena_ref(self.arena)
         if self.worker is not None:
             validation.whole(self.worker, "worker")
         validation.positive(self.resolution, "resolution")

@@ -167,6 +167,13 @@ class TrainConfig(CommandConfig):
         "WorkerPool gets a goal per process at a time, any other executor one)", cli=False)
 
     def validate(self) -> None:
+        if self.arena is not None:
+            v.arena_ref(self.arena)
+        if self.goals is not None and not (isinstance(self.goals, str) or (
+                isinstance(self.goals, list | tuple)
+                and all(isinstance(g, str) for g in self.goals))):
+            raise ConfigError(f"expected goal names, got {self.goals!r}", key="goals",
+                              fix="'all', names such as \"g1,g2\", or a list of names")
         v.whole(self.episodes, "episodes", minimum=1)
         v.whole(self.runs, "runs", minimum=1)
         v.whole(self.seed, "seed")

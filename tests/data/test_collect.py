@@ -312,3 +312,11 @@ def test_manifest_is_self_contained(tmp_path: Path, collect_kinematic: Collect,
     assert m["simlab_version"]
     assert sum(e["rows"] for e in m["parts"]) == 600
     assert [f["name"] for f in m["schema"]] == open_dataset(tmp_path / "m").table.column_names
+
+
+@pytest.mark.parametrize("value", ["fast", -0.1, float("nan")])
+def test_kinematic_params_name_the_field_of_a_bad_value(value) -> None:
+    """A speed that is text, negative or NaN is refused naming the field, not with a
+    comparison error from Python ('>' not supported between 'str' and 'int')."""
+    with pytest.raises(ConfigError, match=r"params\.fast_speed.*finite number > 0"):
+        KinematicParams(fast_speed=value)

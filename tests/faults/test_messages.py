@@ -67,6 +67,34 @@ CASES: list[tuple[str, Callable[[Path], None] | None, str, tuple[str, ...]]] = [
      "{w}/c.toml --steps 1", ("c.toml", "params", "[primitives] TOML path")),
     ("visitlab-show-q-binary", _write("c.npz", b"\x00\x01\xfe\xffgarbage"), "visitlab show "
      "--task nav --q {w}/c.npz", ("c.npz", "not an npz archive", "not a zip archive")),
+    # ---- a table of a --config file checked field by field, not by the constructor
+    ("collect-config-params-unknown", _write("c.toml", "params = {x = 1}\n"), "collect "
+     "--config {w}/c.toml --states {w}/states.json --transitions 5 --out {w}/o "
+     "--no-progress", ("c.toml", "params.x", "allowed")),
+    ("collect-config-kinematic-params-type", _write("c.toml", 'params = {drive_time = "x"}\n'
+                                                   'simulator = "kinematic"\n'),
+     "collect --config {w}/c.toml --states {w}/states.json --transitions 5 --out {w}/o "
+     "--no-progress", ("c.toml", "params.drive_time", "number")),
+    ("collect-config-truth-pose-options", _write("c.toml", "pose_source_options = {x = 1}\n"),
+     "collect --config {w}/c.toml --states {w}/states.json --transitions 5 --out {w}/o "
+     "--no-progress", ("c.toml", "pose_source_options", "mcl")),
+    ("collect-config-arena-number", _write("c.toml", "arena = 7\n"), "collect --config "
+     "{w}/c.toml --states {w}/states.json --transitions 5 --out {w}/o --no-progress",
+     ("c.toml", "arena", ".toml")),
+    ("map-config-primitive-params", _write("c.toml", "primitive_params = {x = 1}\n"),
+     "map --config {w}/c.toml --out {w}/m --no-progress", ("c.toml", "primitive_params.x")),
+    ("map-config-log-odds", _write("c.toml", 'log_odds = {l_occ = "high"}\n'),
+     "map --config {w}/c.toml --out {w}/m --no-progress", ("c.toml", "log_odds.l_occ",
+                                                            "number")),
+    ("replay-config-arena-number", _write("c.toml", "arena = 7\n"), "replay --config "
+     "{w}/c.toml --states {w}/states.json --qtables {w}/q --out {w}/r --no-progress",
+     ("c.toml", "arena", ".toml")),
+    ("replay-config-map-number", _write("c.toml", "map = 7\n"), "replay --config "
+     "{w}/c.toml --states {w}/states.json --qtables {w}/q --out {w}/r --no-progress",
+     ("c.toml", "map", "path")),
+    ("train-config-goals-number", _write("c.toml", "goals = 3\n"), "train --config "
+     "{w}/c.toml --mdp {w}/mdp.npz --out {w}/t --no-progress", ("c.toml", "goals",
+                                                                 "names")),
 ]
 
 #: Library wording that must never reach the user's line.
