@@ -156,19 +156,6 @@ def spelled_path(value: Any, key: str) -> Any:
     return value
 
 
-def arena_ref(value: Any, key: str = "arena") -> Any:
-    """An arena option: a built-in name, a ``.toml`` path or (from Python) an
-    :class:`~simlab.physics.arena.ArenaConfig`; returned unchanged."""
-    from simlab.physics.arena import ArenaConfig
-
-    if not isinstance(value, ArenaConfig) and (not isinstance(value, str | os.PathLike)
-                                               or not str(value)):
-        raise ConfigError(f"expected an arena name or .toml path, got {value!r}", key=key,
-                          fix='a built-in name such as "table", or the .toml of simlab '
-                              "arena-from-map")
-    return value
-
-
 def _path(value: Any, key: str | None) -> Path:
     if not isinstance(value, str | os.PathLike) or not str(value):
         raise ConfigError(f"expected a path, got {value!r}", key=key)

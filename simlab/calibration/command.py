@@ -232,7 +232,9 @@ class CalibrateConfig(ActionSetOptions):
     progress: bool = option(True, "progress bar (--no-progress hides it)")
 
     def validate(self) -> None:
-        validation.arena_ref(self.arena)
+        from simlab.physics.arena import check_arena_option
+
+        check_arena_option(self.arena)
         for key, kinds in (("real", str | os.PathLike), ("primitives", str | os.PathLike),
                            ("space", str | os.PathLike | ParameterSpace)):
             value = getattr(self, key)

@@ -373,7 +373,9 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
     physics_hz: float | None = rate_option()
 
     def validate(self) -> None:
-        v.arena_ref(self.arena)
+        from simlab.physics.arena import check_arena_option
+
+        check_arena_option(self.arena)
         if self.states is None:
             raise ConfigError("a states file is required", key="states",
                               fix="--states states.json (written by `simlab discretize`)")

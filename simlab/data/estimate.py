@@ -130,7 +130,9 @@ class EstimateConfig(ActionSetOptions):
 
     def validate(self) -> None:
         if self.arena is not None:
-            validation.arena_ref(self.arena)
+            from simlab.physics.arena import check_arena_option
+
+            check_arena_option(self.arena)
         if (self.dataset is None) == (self.counts is None):
             raise ConfigError("give either a dataset directory or --counts FILE (exactly one)",
                               key="source")

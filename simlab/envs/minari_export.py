@@ -170,7 +170,9 @@ class ExportMinariConfig(CommandConfig):
 
     def validate(self) -> None:
         if self.arena is not None:
-            validation.arena_ref(self.arena)
+            from simlab.physics.arena import check_arena_option
+
+            check_arena_option(self.arena)
         if self.episode_length is not None:
             validation.whole(self.episode_length, "episode_length", minimum=1)
 

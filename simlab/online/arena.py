@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from simlab.base import validation
 from simlab.base.actions import ActionSetOptions
 from simlab.base.errors import ConfigError
 from simlab.base.options import option
@@ -91,7 +90,9 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
                                   "physics only", key=given[0],
                                   fix="add --arena ARENA --states STATES, or drop it")
             return
-        validation.arena_ref(self.arena)
+        from simlab.physics.arena import check_arena_option
+
+        check_arena_option(self.arena)
         if self.states is None:
             raise ConfigError("a run in physics needs the arena's states", key="states",
                               fix="--states states.json (written by simlab discretize)")

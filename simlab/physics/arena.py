@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -324,6 +325,18 @@ class _Checker:
         if not isinstance(value, str) or not value:
             raise self.fail(full, f"expected a non-empty string, got {value!r}")
         return value
+
+
+def check_arena_option(value: Any, key: str = "arena") -> Any:
+    """An arena option of a command's config: a built-in name, a ``.toml`` path or (from
+    Python) an :class:`ArenaConfig`; returned unchanged, else a ConfigError naming ``key``
+    (a number or a table from a ``--config`` file)."""
+    if not isinstance(value, ArenaConfig) and (not isinstance(value, str | os.PathLike)
+                                               or not str(value)):
+        raise ConfigError(f"expected an arena name or .toml path, got {value!r}", key=key,
+                          fix='a built-in name such as "table", or the .toml of simlab '
+                              "arena-from-map")
+    return value
 
 
 def load_arena(name_or_path: str | Path) -> ArenaConfig:

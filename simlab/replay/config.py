@@ -99,7 +99,9 @@ class ReplayConfig(CommandConfig):
         v.executor(self.pool)
         v.spelled_path(self.primitives, "primitives")
         v.spelled_path(self.map, "map")
-        v.arena_ref(self.arena)
+        from simlab.physics.arena import check_arena_option
+
+        check_arena_option(self.arena)
         if self.physics_hz is not None:
             resolve_rate(self.physics_hz)
         if self.primitives is not None and self.params is None:

@@ -326,7 +326,9 @@ class ExportBagConfig(CommandConfig):
 
     def validate(self) -> None:
         if self.arena is not None:
-            validation.arena_ref(self.arena)
+            from simlab.physics.arena import check_arena_option
+
+            check_arena_option(self.arena)
         if self.worker is not None:
             validation.whole(self.worker, "worker")
         validation.positive(self.resolution, "resolution")

@@ -168,7 +168,9 @@ class TrainConfig(CommandConfig):
 
     def validate(self) -> None:
         if self.arena is not None:
-            v.arena_ref(self.arena)
+            from simlab.physics.arena import check_arena_option
+
+            check_arena_option(self.arena)
         if self.goals is not None and not (isinstance(self.goals, str) or (
                 isinstance(self.goals, list | tuple)
                 and all(isinstance(g, str) for g in self.goals))):
