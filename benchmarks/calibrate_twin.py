@@ -368,7 +368,9 @@ def main() -> None:
     parser.add_argument("--compare-hz", type=float, default=0.0,
                         help="also calibrate with this default physics rate (0: no)")
     parser.add_argument("--calibrate-args", default="",
-                        help="extra calibrate options (quoted), e.g. '--candidates 20'")
+                        help="extra calibrate options (quoted), e.g. '--candidates 20'; "
+                             "a lone flag as "
+                             "--calibrate-args=--policy-data")
     args = parser.parse_args()
     if args.lab == "isir":
         isir(args)

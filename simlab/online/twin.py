@@ -14,8 +14,9 @@ Runner ``online.twin`` (``experiments/online_isir_twin.toml``):
    :mod:`simlab.online.synthetic` built as a map (0.7 m cells, the published state ids at
    the protocol's places) with its synthetic count model as the "real" robot.
 2. **The twin.** ``twin = "calibrate"`` runs ``simlab calibrate`` against the real counts
-   (budget ``calibrate_hours_per_candidate`` / ``calibrate_candidates``); a path takes a
-   ``primitives.toml`` an earlier calibration wrote.
+   with its defaults (a budget may set ``calibrate_hours_per_candidate`` /
+   ``calibrate_candidates``; its transfer report is skipped: the experiment is the
+   transfer); a path takes a ``primitives.toml`` an earlier calibration wrote.
 3. **The tasks**, each on the real model and in physics in the twin, with the same arms,
    seeds and protocol: ``stable`` (goal 18 throughout), ``goal`` (18 -> 34 at the change)
    and ``passages`` (the published after-change models on the real model; boxes on the
@@ -187,7 +188,7 @@ def _twin_primitives(p: dict[str, Any], budget: dict[str, Any], lab: LabFiles,
         real=lab.model, n_actions=8, convention="ccw-east", speed="fast",
         real_hours=lab.real_hours, states=lab.states, arena=lab.arena, out=out,
         hours_per_candidate=budget.get("calibrate_hours_per_candidate"),
-        candidates=int(budget.get("calibrate_candidates", 16)),
+        candidates=int(budget.get("calibrate_candidates", CalibrateConfig.candidates)),
         transfer_seeds=int(budget.get("calibrate_transfer_seeds", 0)),
         seed=int(ctx.root_seed), progress=ctx.progress))
     return out / "primitives.toml"
