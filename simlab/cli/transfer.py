@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import argparse
 
+#: How to ask transfer for less when it runs out of memory (its own options).
+MEMORY_FIX = "a smaller --n-boot, fewer --sim twins or --goal-states"
+
 HELP = ("score twin policies on the real model: expected steps to the goal vs the real "
         "optimum, per-state disagreements on the map")
 
