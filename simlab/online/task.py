@@ -228,6 +228,15 @@ class OnlineTask:
                 goal = c.goal
             elif c.kind == "passages":
                 check([x for p in c.passages for x in p], "passages")
+                base = outcomes[0]
+                none = [f"{u}-{v}" for u, v in c.passages
+                        if not (base[u, :, v].any() or base[v, :, u].any())]
+                if none:
+                    raise ConfigError(f"no passage {', '.join(none)}: the model never moves "
+                                      "between these states, so closing it changes nothing",
+                                      path=source, key="passages",
+                                      fix="name neighbouring states U-V that the robot moved "
+                                          "between")
                 outcomes = ([close_passages(outcomes[0], [p]) for p in c.passages]
                             if c.use_states else [close_passages(outcomes[0], c.passages)])
             for k, T_phase in enumerate(outcomes):

@@ -55,6 +55,9 @@ def test_the_workspace_runs(ws: Path, capsys) -> None:
     (None, ["--change", "goal", "--change-at", "50", "--new-goal", "0"], ["change_at"]),
     # a passage written wrong
     (None, ["--change", "passages", "--change-at", "5", "--passages", "1_2"], ["passages"]),
+    # a passage between states the chain never moves between: closing it would change nothing
+    (None, ["--change", "passages", "--change-at", "5", "--passages", "0-3"],
+     ["mdp.npz", "passages", "no passage 0-3", "neighbouring"]),
 ])
 def test_bad_options_are_refused_before_anything_is_written(ws, monkeypatch, capsys, setup,
                                                             extra, needles) -> None:
