@@ -121,7 +121,8 @@ def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys
     argv = ["online", "--arena", "table", "--states", str(table_states), "--out", str(out),
             "--decisions", "24", "--seeds", "1", "--criteria", "mb", "entropy_and_cost",
             "--goal", "12", "--start-states", "0", "24", "--change", "passages",
-            "--passages", "11-12", "--change-at", "8", "--workers", "1", "--no-progress"]
+            "--passages", "11-12", "--change-at", "8", "--workers", "1", "--no-progress",
+            "--physics-hz", "100"]
     assert main(argv) == 0
     names = {p.name for p in out.iterdir()}
     assert names == {"decisions.parquet", "cumulative_reward.png", "cumulative_cost.png",
@@ -132,6 +133,7 @@ def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys
     summary = json.loads((out / "summary.json").read_text())
     assert summary["states"] == 25 and summary["actions"] == 16
     phys = summary["physics"]
+    assert phys["physics_hz"] == 100.0  # the rate asked for, recorded
     for arm, rec in phys["arms"].items():
         rows = table[table.arm == arm]
         assert rec["blocked"] == pytest.approx(rows.blocked.mean())
@@ -153,6 +155,9 @@ def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys
     (["--arena", "table", "--states", "S", "--goal", "12", "--start-states", "0", "--change",
       "passages", "--passages", "0-24"], "passages"),
     (["--arena", "table", "--states", "S"], "start_states"),  # the default 0, 32 of 38
+    (["MDP", "--physics-hz", "100"], "physics_hz"),  # a rate without a world
+    (["--arena", "table", "--states", "S", "--goal", "12", "--start-states", "0",
+      "--physics-hz", "20"], "minimum is 40 Hz"),
 ])
 def test_bad_arena_options_are_refused(table_states: Path, tmp_path: Path, capsys, argv,
                                        key) -> None:
