@@ -212,6 +212,26 @@ def load_space(path: str | os.PathLike[str]) -> ParameterSpace:
         raise ConfigError(exc.problem, path=path, key=exc.key, fix=exc.fix) from None
 
 
+def _ranges(prims: np.ndarray, cell_size: float | None
+            ) -> tuple[tuple[float, float], tuple[float, float], float, float]:
+    """The searched ranges sized from the real cells (see :func:`default_space`):
+    ``drive_time``'s, ``max_drive_time``'s, the highest ``pose_noise_xy`` and the highest
+    ``min_drive``."""
+    slowest = 0.10 if (prims < 8).any() else 0.22  # the published speeds
+    fastest = 0.22 if (prims >= 8).any() else 0.10
+    drive = (0.2, 2.0 if (prims < 8).any() else 1.2)
+    drive_max = (1.0, 6.0)
+    noise_high, min_drive_high = 0.1, 0.2
+    if cell_size is not None and math.isfinite(cell_size) and cell_size > 0:
+        drive = (min(drive[0], 0.2 * cell_size / fastest),
+                 max(drive[1], 2.0 * cell_size / slowest))
+        drive_max = (min(drive_max[0], 0.5 * cell_size / fastest),
+                     max(drive_max[1], 2.0 * cell_size / slowest))
+        noise_high = max(noise_high, 0.25 * cell_size)
+        min_drive_high = 0.5 * cell_size
+    return drive, drive_max, noise_high, min_drive_high
+
+
 def default_space(primitives: Sequence[int], simulator: str = "physics", *,
                   cell_size: float | None = None,
                   speed_fields: Sequence[str] = (), mode: str | None = None
@@ -266,17 +286,7 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
         return ParameterSpace((ParamSpec("drive_time", 0.2, high, "log"),
                                ParamSpec("distance_noise", 0.0, 0.5),
                                ParamSpec("heading_noise", 0.0, 0.5)))
-    slowest = 0.10 if (prims < 8).any() else 0.22  # the published speeds
-    fastest = 0.22 if (prims >= 8).any() else 0.10
-    drive = (0.2, 2.0 if (prims < 8).any() else 1.2)
-    drive_max = (1.0, 6.0)
-    noise_high = 0.1
-    if cell_size is not None and math.isfinite(cell_size) and cell_size > 0:
-        drive = (min(drive[0], 0.2 * cell_size / fastest),
-                 max(drive[1], 2.0 * cell_size / slowest))
-        drive_max = (min(drive_max[0], 0.5 * cell_size / fastest),
-                     max(drive_max[1], 2.0 * cell_size / slowest))
-        noise_high = max(noise_high, 0.25 * cell_size)
+    drive, drive_max, noise_high, min_drive_high = _ranges(prims, cell_size)
     if mode == "until_state_change":
         specs = [ParamSpec("max_drive_time", *drive_max, "log"),
                  ParamSpec("detector_margin", 0.0, 0.15),
@@ -285,8 +295,7 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
                  ParamSpec("localization_hz", 1.0, 10.0, "log"),
                  ParamSpec("wall_slide", 0.0, 0.8),
                  ParamSpec("wall_back", 0.0, 0.2),
-                 ParamSpec("min_drive", 0.0, 0.5 * cell_size if cell_size is not None
-                           and math.isfinite(cell_size) and cell_size > 0 else 0.2),
+                 ParamSpec("min_drive", 0.0, min_drive_high),
                  ParamSpec("heading_tolerance", math.radians(1.0), math.radians(10.0),
                            "log"),
                  ParamSpec("wheel_noise", 0.0, 0.1)]
