@@ -351,7 +351,7 @@ class GoalTableArenaEnv(TableArenaEnv):
         max_steps: int | None = 50,
         params: PrimitiveParams | None = None,
         render_mode: str | None = None,
-        physics_hz: float = 200.0,
+        physics_hz: float | None = None,
         action_set: ActionSet | Mapping[str, Any] | None = None,
         lidar_mode: str = "finite",
         goal_conditioned: bool = True,

@@ -61,6 +61,19 @@ def test_goal_conditioned_table_arena_is_the_goal_env_and_stays_one_through_copi
     plain.close()
 
 
+def test_the_goal_env_steps_at_the_default_rate_like_the_plain_one() -> None:
+    """Built directly, with gym.make or asked for a rate, the goal env's world steps where the
+    plain env's does (its own default once said 200 Hz when every world went to 50 Hz)."""
+    from simlab.physics.rate import DEFAULT_HZ
+
+    for env in (GoalTableArenaEnv(), TableArenaEnv(goal_conditioned=True), TableArenaEnv()):
+        assert env.world is not None and env.world.physics_hz == DEFAULT_HZ
+        env.close()
+    asked = GoalTableArenaEnv(physics_hz=100)
+    assert asked.world is not None and asked.world.physics_hz == 100
+    asked.close()
+
+
 @pytest.mark.parametrize("env_id", sorted(ENV_ENTRY_POINTS))
 def test_every_registered_env_passes_stable_baselines3_check_env(env_id: str,
                                                                  tmp_path: Path) -> None:
