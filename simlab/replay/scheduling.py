@@ -33,20 +33,24 @@ def schedule(parallel: bool, baseline: bool, mcl: bool,
 
     Decided from the core count, as the dataset's walks are: with ``parallel`` and 2 or more
     cores the random baseline gets a process of its own (it talks to this one once, at the
-    end) and so does the filter (fed scan by scan; the robot waits for it only at
-    decisions and video frames). On 2 cores that makes three processes: the learned run,
-    which also localizes, is the longest of the replay's parts, and the filter is a third
-    of its CPU. Measured on the shared 2-core VM at load 12-13 (a 1-hour mcl replay with its
-    baseline, two runs each, in turn): 52-62 s in one process, 46-48 s with the baseline
-    split, 36-47 s with both split. (An earlier rule split only onto idle cores where Linux
-    shares the CPUs per session; there the replay then ran in one process whenever the
-    machine was busy, at 7x its physics floor against the dataset's 2.5x.) Results do not
-    depend on the choice (bit-identical, tested).
+    end). The filter (fed scan by scan; the robot waits for it only at decisions and video
+    frames) gets one only when a core is left for it beside the learned run and the
+    baseline: 3 or more cores with a baseline, 2 without. On fewer it runs in this process,
+    because a third process on two cores costs more than it overlaps: every scan crosses a
+    pipe (pickled both ways, ~0.8 s of sends and ~1.2 s of waits at decisions per 3-hour
+    replay) and the three processes share two cores. Measured on the shared 2-core VM,
+    quiet (load 0.1-0.8), a 3-hour mcl replay with its baseline and video, two runs each
+    in turn: 9.6-9.7 s wall and 15.8 s CPU with the filter here, 11.3-12.0 s and 19.0 s
+    with it in a third process. (At load 12-13 the third process had won, 36-47 s against
+    46-48 s for a 1-hour replay: on a machine shared with others more processes get more of
+    it, which is no gain for the machine.) Results do not depend on the choice
+    (bit-identical, tested).
     """
     n = usable_cores() if cores is None else int(cores)
     if not parallel or n < 2:
         return False, False
-    return bool(baseline), bool(mcl)
+    split_baseline = bool(baseline)
+    return split_baseline, bool(mcl) and n >= 2 + int(split_baseline)
 
 
 @dataclass(frozen=True)

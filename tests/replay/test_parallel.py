@@ -37,7 +37,7 @@ def _logs_equal(a, b) -> None:
 @pytest.mark.parametrize("pose_source", ["truth", "mcl"])
 def test_parallel_baseline_is_bit_identical(chain, tmp_path, monkeypatch, pose_source) -> None:
     # both extra processes (baseline, filter), even on a 1- or 2-core runner
-    monkeypatch.setattr(replay_module, "usable_cores", lambda: 2)
+    monkeypatch.setattr(replay_module, "usable_cores", lambda: 3)
     assert replay_module.schedule(True, True, pose_source == "mcl") == (
         True, pose_source == "mcl")
     runs = {}
@@ -98,15 +98,17 @@ def test_a_lent_worker_runs_the_baseline_and_stays_open(chain, tmp_path, monkeyp
 
 def test_schedule_follows_the_core_count_not_the_load(monkeypatch) -> None:
     """The core count decides, as for the dataset's walks: on 2 or more cores the baseline
-    and the filter each get a process, whatever the machine's load; on 1 none."""
-    for cores, expected in ((1, (False, False)), (2, (True, True)), (8, (True, True))):
+    gets a process, whatever the machine's load; the filter gets one only with a core of
+    its own beside the runs (3 cores with a baseline, 2 without); on 1 nothing does."""
+    for cores, both, filter_alone in ((1, (False, False), False), (2, (True, False), True),
+                                      (3, (True, True), True), (8, (True, True), True)):
         monkeypatch.setattr(replay_module, "usable_cores", lambda cores=cores: cores)
-        assert replay_module.schedule(True, True, True) == expected
-        assert replay_module.schedule(True, False, True) == (False, expected[1])
-        assert replay_module.schedule(True, True, False) == (expected[0], False)
+        assert replay_module.schedule(True, True, True) == both
+        assert replay_module.schedule(True, False, True) == (False, filter_alone)
+        assert replay_module.schedule(True, True, False) == (both[0], False)
         assert replay_module.schedule(False, True, True) == (False, False)
         assert replay_module.schedule(True, False, False) == (False, False)
-        assert replay_module.schedule(True, True, True, cores=cores) == expected
+        assert replay_module.schedule(True, True, True, cores=cores) == both
 
 
 def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
