@@ -187,10 +187,11 @@ def start_ray_tally(work: Path) -> tuple[Path, Any]:
     return folder, namespace["_simlab_flush"]
 
 
-def tallied_beams(folder: Path) -> dict[str, int]:
-    """Beams counted so far by every process (ray length in m, as text -> count)."""
+def tallied_beams(folder: Path, pid: int | None = None) -> dict[str, int]:
+    """Beams counted so far by every process, or by process ``pid`` only (ray length in
+    m, as text -> count)."""
     total: dict[str, int] = {}
-    for f in folder.glob("*.json"):
+    for f in folder.glob("*.json" if pid is None else f"{pid}.json"):
         try:
             counts = json.loads(f.read_text())
         except (OSError, ValueError):  # being replaced right now: its next flush counts
@@ -229,6 +230,47 @@ def stepped_seconds(out: Path) -> dict[str, tuple[float, int]]:
     res["replay"] = (total, worlds)
     res["replay_schedule"] = rep.get("schedule")  # type: ignore[assignment]
     return res
+
+
+def replay_runs(out: Path) -> dict[str, float]:
+    """The replay's parts: the learned run's and the baseline's stepped seconds, the
+    filter's updates (0 without the mcl pose source)."""
+    rep = json.loads((out / "replay" / "replay.json").read_text())
+    updates = ((rep.get("localization") or {}).get("mcl") or {}).get("updates") or {}
+    return {"learned": float(rep["result"]["stepped_seconds"]),
+            "baseline": float((rep.get("random_baseline") or {}).get("stepped_seconds", 0.0)),
+            "updates": float(updates.get("n", 0))}
+
+
+def bare_filter_update(arena: str, repeats: int = 3, n: int = 300) -> float:
+    """Best wall seconds of one particle-filter cycle alone (the odometry motion of 2 cm,
+    the update on a scan of the filter's beams, resampling and injection as they fall;
+    the replay's default :class:`MCLParams`) on the arena's 1 cm map, from its start pose:
+    the filter's own work, which the stepping and ray floors leave out."""
+    import numpy as np
+
+    from simlab.localization.likelihood import LikelihoodField
+    from simlab.localization.maps import arena_map
+    from simlab.localization.tracker import MCLTracker
+    from simlab.physics.world import World
+
+    with World(arena) as world:
+        start = np.asarray(world.arena.start, dtype=np.float64)
+        world.reset(tuple(start))
+        field = LikelihoodField(arena_map(world.arena, 0.01))
+        rng = np.random.default_rng(0)
+        best = float("inf")
+        for _ in range(repeats):
+            tracker = MCLTracker(field, np.random.default_rng(1), initial_pose=world.pose(),
+                                 odometry=np.zeros(3))
+            beams = tracker.filter.beam_subset(world.lidar_spec.n_beams)
+            scan = world.scan(rng, beams=beams)
+            odoms = [np.array([0.02 * (k % 2), 0.0, 0.0]) for k in range(n)]
+            t = time.perf_counter()
+            for odom in odoms:  # back and forth by 2 cm: every scan updates
+                tracker.on_scan(scan, odom)
+            best = min(best, (time.perf_counter() - t) / n)
+    return best
 
 
 class CompileTimer:
@@ -281,9 +323,10 @@ def _cpu() -> float:
 def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, Any],
                 beams: dict[str, dict[str, int]], tally: Any) -> None:
     """Record each stage's CPU seconds (this process and its reaped children: the
-    dataset's and the replay's worker processes), the beams it cast (``tally()``: the
-    counts of every process so far) and the bare rates ``probe()`` measured right before
-    and right after it is built (outside its wall time)."""
+    dataset's and the replay's worker processes), the beams it cast (``tally(None)``: the
+    counts of every process so far; under ``"<stage>:here"`` those of this process,
+    ``tally(os.getpid())``) and the bare rates ``probe()`` measured right before and right
+    after it is built (outside its wall time)."""
     try:
         from simlab.orchestration.stages import PhysicsChain
     except ModuleNotFoundError:  # the code before the orchestration package (A/B runs)
@@ -293,15 +336,16 @@ def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, Any],
 
     def cached_stage(self: Any, stage: str, key: Any, build: Any) -> Any:
         def timed(d: Path) -> Any:
-            c, b = _cpu(), tally()
+            c, b, bh = _cpu(), tally(None), tally(os.getpid())
             try:
                 return build(d)
             finally:
                 cpu[stage] = cpu.get(stage, 0.0) + _cpu() - c
-                after = tally()
-                mine = beams.setdefault(stage, {})
-                for k, n in after.items():
-                    mine[k] = mine.get(k, 0) + n - b.get(k, 0)
+                for name, before, after in ((stage, b, tally(None)),
+                                            (f"{stage}:here", bh, tally(os.getpid()))):
+                    mine = beams.setdefault(name, {})
+                    for k, n in after.items():
+                        mine[k] = mine.get(k, 0) + n - before.get(k, 0)
 
         first = stage not in rates
         before = probe() if first else None
@@ -311,6 +355,38 @@ def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, Any],
         return result
 
     PhysicsChain.cached_stage = cached_stage  # type: ignore[method-assign]
+
+
+def print_replay_path(parts: dict[str, float], schedule: dict[str, bool], rec: dict[str, Any],
+                      rates: dict[str, Any], run_rates: list[Any],
+                      beams: dict[str, dict[str, int]], filter_cost: float,
+                      cores: int) -> None:
+    """The replay's floor by its parts: its two runs are independent but each is one
+    sequence of decisions, so the replay can be no shorter than its longer run at the bare
+    rates, whatever the cores. The learned run's part: its stepping, the rays this process
+    cast (with the baseline in a process of its own, they are the learned run's) and, with
+    the filter in this process, its updates at the filter's own bare cost
+    (:func:`bare_filter_update`); the baseline's: its stepping and the other rays."""
+    pair = rates.get("replay") or (run_rates[0], run_rates[-1])
+    rate = (pair[0][0] + pair[1][0]) / 2
+    ray_cost = {k: (pair[0][2][k] + pair[1][2][k]) / 2 for k in pair[0][2]}
+    here = ray_seconds(ray_cost, beams.get("replay:here", {}))
+    rays = ray_seconds(ray_cost, beams.get("replay", {}))
+    split = bool(schedule.get("baseline_process")) and parts["baseline"] > 0
+    if not split:  # one process did everything: the floor with sensors is the sum
+        return
+    filt = 0.0 if schedule.get("mcl_process") else parts["updates"] * filter_cost
+    learned = parts["learned"] / rate + here + filt
+    base = parts["baseline"] / rate + (rays - here)
+    even = (parts["learned"] / rate + parts["baseline"] / rate + rays + filt) / min(cores, 2)
+    path = max(learned, base, even)
+    wall = float(rec["stages"]["replay"]["wall_seconds"])
+    print(f"replay by its runs: learned {parts['learned']:.0f} stepped s / {rate:.0f}x + its "
+          f"rays {here:.1f} s + filter {parts['updates']:.0f} updates x "
+          f"{filter_cost * 1e6:.0f} us{' (in its own process)' if schedule.get('mcl_process') else ''}"
+          f" = {learned:.1f} s; baseline {parts['baseline']:.0f} stepped s + rays "
+          f"{rays - here:.1f} s = {base:.1f} s; the replay's floor with the filter = max(runs, "
+          f"all / cores) = {path:.1f} s; wall {wall:.1f} s = {wall / path:.2f}x it")
 
 
 def print_bounds(total: float, cpu_run: float, cores: int, floors: tuple[float, float],
@@ -383,9 +459,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder, flush = start_ray_tally(Path(tmp))
 
-        def tally() -> dict[str, int]:
+        def tally(pid: int | None) -> dict[str, int]:
             flush()
-            return tallied_beams(folder)
+            return tallied_beams(folder, pid)
 
         out = Path(args.out) if args.out else Path(tmp) / "run"
         t0 = time.perf_counter()
@@ -412,6 +488,8 @@ def main() -> None:
         run_rates.append(probe())
         rec = json.loads((out / "pipeline.json").read_text())
         stepped = stepped_seconds(out)
+        parts = replay_runs(out) if rec["stages"].get("replay", {}).get("built") else None
+    filter_cost = bare_filter_update(args.arena) if parts and parts["updates"] else 0.0
     load1 = os.getloadavg()
     print("pipeline log (time since start, bare-rate probes included):")
     print("\n".join(lines))
@@ -475,6 +553,9 @@ def main() -> None:
           f"(stages + report {total - stages_wall:.1f} s)")
     print_bounds(total, cpu_run, cores, (floor_total, sensed_total), others, args.before)
     print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}")
+    if parts:
+        print_replay_path(parts, stepped.get("replay_schedule") or {}, rec, rates, run_rates,
+                          beams, filter_cost, cores)
     warm = rec.get("warmup", {})
     print(f"numba compile in this process: {ct.seconds:.1f} s; the warm-up worker (compile + "
           f"imports, beside the map and the walk) took {warm.get('worker_seconds')} s and the "
