@@ -9,6 +9,9 @@ answer the robot needs (the pose at a decision, the particles of a video frame, 
 log at the end) waits for the filter to have caught up. The worker processes the same
 messages in the same order with the same Generator (built there from the same
 ``SeedSequence``), so every number is bit-identical to an in-process tracker (tested).
+The replay uses it only when a core is left for it beside its runs
+(:func:`simlab.replay.scheduling.schedule`): sharing a core, its messages cost more than
+it overlaps.
 
 The decision taken: a process (the filter's numpy calls hold the GIL, so a thread would
 not overlap) fed through a ``multiprocessing`` pipe; a scan is ~40 ranges, so a message
@@ -20,15 +23,15 @@ from __future__ import annotations
 import traceback
 import weakref
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
 
 
-def _serve(conn: Any, field: Any, seq: np.random.SeedSequence, params: Any,
-           initial_pose: NDArray[np.float64], odometry: NDArray[np.float64]) -> None:
-    """The worker: an MCLTracker driven by the messages of :class:`RemoteTracker`."""
+def _serve(conn: Any) -> None:
+    """The worker: an MCLTracker built from the first message of :class:`RemoteTracker`
+    and driven by the next ones."""
     import signal
 
     from simlab.localization.tracker import MCLTracker
@@ -37,9 +40,11 @@ def _serve(conn: Any, field: Any, seq: np.random.SeedSequence, params: Any,
     # it by closing the pipe; dying of it here would print a traceback beside "interrupted"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
+        field, seq, params, initial_pose, odometry = conn.recv()
         field.log_table.setflags(write=False)  # as built (the numba kernel's signature)
         tracker = MCLTracker(field, np.random.default_rng(seq), params,
                              initial_pose=initial_pose, odometry=odometry)
+        conn.send(("ok", None))
         while True:
             msg = conn.recv()
             kind = msg[0]
@@ -91,25 +96,51 @@ class RemoteTracker:
 
         ctx = multiprocessing.get_context("spawn")
         self._conn, child = ctx.Pipe()
-        self._proc = ctx.Process(target=_serve, args=(child, field, seq, params,
-                                                       np.asarray(initial_pose, np.float64),
-                                                       np.asarray(odometry, np.float64)),
-                                 daemon=True, name="simlab-mcl")
+        # The map goes through the pipe, not in the process's arguments: Python writes
+        # those to the new process while holding the reading end itself, so a worker that
+        # dies as it starts (a script calling simlab without the __main__ guard) would
+        # leave that write, megabytes of map, blocked forever. Through the pipe, its end
+        # closes with it and the send fails at once.
+        self._proc = ctx.Process(target=_serve, args=(child,), daemon=True, name="simlab-mcl")
         self._proc.start()
         child.close()
         self.filter = _FilterView(self, params.n_beams)
         # A replay that fails mid-run drops the tracker: closing the pipe ends the worker.
         weakref.finalize(self, self._conn.close)
+        try:
+            self._ask((field, seq, params, np.asarray(initial_pose, np.float64),
+                       np.asarray(odometry, np.float64)))
+        except BaseException:
+            self.close()
+            raise
 
-    def _ask(self, msg: tuple[Any, ...]) -> Any:
-        self._conn.send(msg)
+    def _answer(self) -> Any:
+        """The worker's next answer; a clear error if it failed or ended instead."""
+        while not self._conn.poll(0.2):
+            if not self._proc.is_alive():
+                self._died()
         try:
             status, value = self._conn.recv()
         except EOFError:
-            raise RuntimeError("the MCL worker process ended unexpectedly") from None
+            self._proc.join(timeout=5)
+            self._died()
         if status == "error":
             raise RuntimeError(f"the MCL worker process failed:\n{value}")
         return value
+
+    def _died(self) -> NoReturn:
+        raise RuntimeError(
+            f"the MCL worker process ended unexpectedly (exit code {self._proc.exitcode}); a "
+            "script that calls simlab must do so under `if __name__ == \"__main__\":`, "
+            "because every worker process starts by importing the script")
+
+    def _ask(self, msg: tuple[Any, ...]) -> Any:
+        try:
+            self._conn.send(msg)
+        except (BrokenPipeError, ConnectionResetError):
+            self._proc.join(timeout=5)
+            self._died()
+        return self._answer()
 
     def on_scan(self, scan: Any, odom: NDArray[np.float64]) -> None:
         """Queue ``scan`` and the odometry pose for the filter (returns at once)."""
