@@ -38,12 +38,12 @@ def schedule(parallel: bool, baseline: bool, mcl: bool,
     baseline: 3 or more cores with a baseline, 2 without. On fewer it runs in this process,
     because a third process on two cores costs more than it overlaps: every scan crosses a
     pipe (pickled both ways, ~0.8 s of sends and ~1.2 s of waits at decisions per 3-hour
-    replay) and the three processes share two cores. Measured on the shared 2-core VM,
-    quiet (load 0.1-0.8), a 3-hour mcl replay with its baseline and video, two runs each
-    in turn: 9.6-9.7 s wall and 15.8 s CPU with the filter here, 11.3-12.0 s and 19.0 s
-    with it in a third process. (At load 12-13 the third process had won, 36-47 s against
-    46-48 s for a 1-hour replay: on a machine shared with others more processes get more of
-    it, which is no gain for the machine.) Results do not depend on the choice
+    replay) and the three processes share two cores. Measured on the shared 2-core VM, a
+    3-hour mcl replay with its baseline and video, two runs each in turn: quiet (load
+    0.1-0.8) 9.6-9.7 s wall and 15.8 s CPU with the filter here against 11.3-12.0 s and
+    19.0 s with it in a third process; beside four busy processes (load 5.5) 30.4-32.2 s
+    against 32.7-35.1 s. (An earlier round had measured the third process winning at load
+    12-13, 36-47 s against 46-48 s for a 1-hour replay.) Results do not depend on the choice
     (bit-identical, tested).
     """
     n = usable_cores() if cores is None else int(cores)
