@@ -9,6 +9,7 @@ from __future__ import annotations
 from os import PathLike
 from os import sep as _sep
 from pathlib import Path as _Path
+from typing import TextIO
 
 
 class SimlabError(Exception):
@@ -71,3 +72,24 @@ def warn(message: str, category: type[Warning] = UserWarning) -> None:
     while frame.f_back is not None and frame.f_code.co_filename.startswith(_OURS):
         frame, level = frame.f_back, level + 1
     warnings.warn(message, category, stacklevel=level)
+
+
+#: The environment variable through which the command line's warning format reaches the
+#: worker processes a command starts (they inherit its environment): the line prefix
+#: (``simlab collect``), or empty when ``-q`` hides warnings. Unset outside the CLI.
+WARNING_PREFIX_ENV = "SIMLAB_WARNING_PREFIX"
+
+
+def show_warnings_as(prefix: str | None) -> None:
+    """Print every Python warning of this process as one line ``<prefix>: warning: ...``
+    on stderr (whitespace runs as single spaces, no source line); None: print none."""
+    import sys
+    import warnings
+
+    def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+             file: TextIO | None = None, line: str | None = None) -> None:
+        if prefix is not None:
+            text = " ".join(str(message).split())
+            print(f"{prefix}: warning: {text}", file=sys.stderr)
+
+    warnings.showwarning = show

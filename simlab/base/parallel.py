@@ -32,7 +32,7 @@ from types import ModuleType
 from typing import Any
 
 from simlab.base import validation
-from simlab.base.errors import ConfigError
+from simlab.base.errors import WARNING_PREFIX_ENV, ConfigError, show_warnings_as
 
 #: Where jobs can run (``--backend``).
 BACKENDS = ("local", "ray")
@@ -79,8 +79,8 @@ def _on_sigint(signum: int, frame: Any) -> None:
 
 
 def _init_worker(parent_pid: int) -> None:
-    """Initializer of every :func:`worker_pool` process: :func:`exit_with_parent`, and Ctrl-C
-    handled as the driver needs it.
+    """Initializer of every :func:`worker_pool` process: :func:`exit_with_parent`, Ctrl-C
+    handled as the driver needs it, and warnings printed as the command line prints them.
 
     Ctrl-C in a terminal sends SIGINT to the whole process group, workers included. A worker
     waiting for its next job would die of it with a ``KeyboardInterrupt`` traceback printed
@@ -93,6 +93,11 @@ def _init_worker(parent_pid: int) -> None:
 
     exit_with_parent(parent_pid)
     signal.signal(signal.SIGINT, _on_sigint)
+    # A command line's warnings read as its own lines (``simlab calibrate: warning: ...``),
+    # not as Python's two-line default pointing into multiprocessing's code.
+    prefix = os.environ.get(WARNING_PREFIX_ENV)
+    if prefix is not None:
+        show_warnings_as(prefix or None)
 
 
 def _run_job(fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any:

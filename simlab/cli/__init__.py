@@ -23,10 +23,11 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
-from simlab.base.errors import SimlabError
+from simlab.base.errors import WARNING_PREFIX_ENV, SimlabError, show_warnings_as
 
 #: How to ask for less when a command runs out of memory; a subcommand module may define its
 #: own ``MEMORY_FIX`` naming its options.
@@ -118,7 +119,6 @@ def configure_output(command: str, verbosity: int) -> None:
     WARNING), and every Python warning as one line ``simlab X: warning: ...`` (no source
     line; ``-q`` hides them)."""
     import logging
-    import warnings
 
     level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(
         max(-1, min(verbosity, 2)), logging.DEBUG)
@@ -132,12 +132,10 @@ def configure_output(command: str, verbosity: int) -> None:
         logger.addHandler(handler)
     handler.setFormatter(logging.Formatter(f"simlab {command}: %(levelname)s: %(message)s"))
 
-    def show(message, category, filename, lineno, file=None, line=None) -> None:
-        if verbosity >= 0:
-            text = " ".join(str(message).split())
-            print(f"simlab {command}: warning: {text}", file=sys.stderr)
-
-    warnings.showwarning = show
+    # the same in the worker processes the command starts (simlab.base.parallel reads it)
+    prefix = f"simlab {command}" if verbosity >= 0 else None
+    show_warnings_as(prefix)
+    os.environ[WARNING_PREFIX_ENV] = prefix or ""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -150,11 +148,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     import warnings
 
     saved_showwarning = warnings.showwarning
+    saved_prefix = os.environ.get(WARNING_PREFIX_ENV)
     configure_output(args.command, verbosity)
     try:
         return _run(args, verbosity)
     finally:
         warnings.showwarning = saved_showwarning
+        if saved_prefix is None:
+            os.environ.pop(WARNING_PREFIX_ENV, None)
+        else:
+            os.environ[WARNING_PREFIX_ENV] = saved_prefix
 
 
 def console_main() -> int:
