@@ -82,8 +82,8 @@ class ReplayConfig(CommandConfig):
                                      "comma-separated; default: all of the arena's",
                                metavar="NAMES")
     parallel: bool = option(True, "run the random baseline in a process of its own on 2 or "
-                                  "more cores, and the mcl filter too when a core is left "
-                                  "for it; bit-identical results")
+                                  "more cores, and the mcl filter too on 3 or more; "
+                                  "bit-identical results")
     pool: Any | None = option(None, "a one-process executor to run the random baseline (and "
                                     "encode the video) in, instead of a fresh process: a "
                                     "warmed worker lent by the caller, left open", cli=False)

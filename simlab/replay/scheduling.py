@@ -34,23 +34,23 @@ def schedule(parallel: bool, baseline: bool, mcl: bool,
     Decided from the core count, as the dataset's walks are: with ``parallel`` and 2 or more
     cores the random baseline gets a process of its own (it talks to this one once, at the
     end). The filter (fed scan by scan; the robot waits for it only at decisions and video
-    frames) gets one only when a core is left for it beside the learned run and the
-    baseline: 3 or more cores with a baseline, 2 without. On fewer it runs in this process,
-    because a third process on two cores costs more than it overlaps: every scan crosses a
-    pipe (pickled both ways, ~0.8 s of sends and ~1.2 s of waits at decisions per 3-hour
-    replay) and the three processes share two cores. Measured on the shared 2-core VM, a
-    3-hour mcl replay with its baseline and video, two runs each in turn: quiet (load
+    frames) gets one only on 3 or more cores, where it has a core of its own beside the
+    learned run and the baseline. On 2 it runs in this process, because a process sharing
+    a core costs more than it overlaps: every scan crosses a pipe (pickled both ways, ~0.8 s
+    of sends and ~1.2 s of waits at decisions per 3-hour replay). Measured on the shared
+    2-core VM, a 3-hour mcl replay with video, runs in turn: with its baseline, quiet (load
     0.1-0.8) 9.6-9.7 s wall and 15.8 s CPU with the filter here against 11.3-12.0 s and
-    19.0 s with it in a third process; beside four busy processes (load 5.5) 30.4-32.2 s
-    against 32.7-35.1 s. (An earlier round had measured the third process winning at load
-    12-13, 36-47 s against 46-48 s for a 1-hour replay.) Results do not depend on the choice
+    19.0 s with it in a third process, and beside four busy processes (load 5.5)
+    30.4-32.2 s against 32.7-35.1 s; without a baseline (the filter alone beside the run)
+    a tie on the wall, 11.9-12.9 s against 11.9-12.2 s, for 2 s more CPU. (An earlier
+    round had measured the third process winning at load 12-13, 36-47 s against 46-48 s
+    for a 1-hour replay.) Results do not depend on the choice
     (bit-identical, tested).
     """
     n = usable_cores() if cores is None else int(cores)
     if not parallel or n < 2:
         return False, False
-    split_baseline = bool(baseline)
-    return split_baseline, bool(mcl) and n >= 2 + int(split_baseline)
+    return bool(baseline), bool(mcl) and n >= 3
 
 
 @dataclass(frozen=True)

@@ -98,17 +98,17 @@ def test_a_lent_worker_runs_the_baseline_and_stays_open(chain, tmp_path, monkeyp
 
 def test_schedule_follows_the_core_count_not_the_load(monkeypatch) -> None:
     """The core count decides, as for the dataset's walks: on 2 or more cores the baseline
-    gets a process, whatever the machine's load; the filter gets one only with a core of
-    its own beside the runs (3 cores with a baseline, 2 without); on 1 nothing does."""
-    for cores, both, filter_alone in ((1, (False, False), False), (2, (True, False), True),
-                                      (3, (True, True), True), (8, (True, True), True)):
+    gets a process, whatever the machine's load; the filter gets one only on 3 or more,
+    where it has a core of its own; on 1 nothing does."""
+    for cores, split in ((1, (False, False)), (2, (True, False)), (3, (True, True)),
+                         (8, (True, True))):
         monkeypatch.setattr(replay_module, "usable_cores", lambda cores=cores: cores)
-        assert replay_module.schedule(True, True, True) == both
-        assert replay_module.schedule(True, False, True) == (False, filter_alone)
-        assert replay_module.schedule(True, True, False) == (both[0], False)
+        assert replay_module.schedule(True, True, True) == split
+        assert replay_module.schedule(True, False, True) == (False, split[1])
+        assert replay_module.schedule(True, True, False) == (split[0], False)
         assert replay_module.schedule(False, True, True) == (False, False)
         assert replay_module.schedule(True, False, False) == (False, False)
-        assert replay_module.schedule(True, True, True, cores=cores) == both
+        assert replay_module.schedule(True, True, True, cores=cores) == split
 
 
 def test_one_core_runs_sequentially(chain, tmp_path, monkeypatch) -> None:
