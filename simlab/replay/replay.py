@@ -65,8 +65,8 @@ Decisions where the thesis is silent:
   seconds per transition) and at the replay's own measured pace.
 * **scheduling** (``parallel=True`` on 2 or more usable cores, decided from the
   core count, :func:`schedule`): the random baseline runs in a ``spawn`` process while this
-  one drives the learned policy (and then encodes the video), and the ``mcl`` filter runs
-  in a third process fed scan by scan
+  one drives the learned policy (and then encodes the video); on 3 or more cores the
+  ``mcl`` filter runs in a third process fed scan by scan
   (:class:`~simlab.localization.remote.RemoteTracker`; the robot waits for it only at
   decisions and video frames). The worlds and seed streams are independent, so the
   results are bit-identical to ``parallel=False``; the replay's wall time becomes that
