@@ -362,6 +362,16 @@ def _instrument(cpu: dict[str, float], probe: Any, rates: dict[str, Any],
     PhysicsChain.cached_stage = cached_stage  # type: ignore[method-assign]
 
 
+def stage_rates(rates: dict[str, Any], run_rates: list[Any], name: str
+                ) -> tuple[float, float, dict[float, float]]:
+    """A stage's bare rates, the mean of the probes right before and after it (of the run's
+    first and last probes for a stage that was not built): stepping x real time per wall
+    second and per CPU second, seconds per beam by ray length."""
+    pair = rates.get(name) or (run_rates[0], run_rates[-1])
+    return ((pair[0][0] + pair[1][0]) / 2, (pair[0][1] + pair[1][1]) / 2,
+            {k: (pair[0][2][k] + pair[1][2][k]) / 2 for k in pair[0][2]})
+
+
 def print_replay_path(parts: dict[str, float], schedule: dict[str, bool], rec: dict[str, Any],
                       rates: dict[str, Any], run_rates: list[Any],
                       beams: dict[str, dict[str, int]], filter_cost: float,
@@ -372,9 +382,7 @@ def print_replay_path(parts: dict[str, float], schedule: dict[str, bool], rec: d
     cast (with the baseline in a process of its own, they are the learned run's) and, with
     the filter in this process, its updates at the filter's own bare cost
     (:func:`bare_filter_update`); the baseline's: its stepping and the other rays."""
-    pair = rates.get("replay") or (run_rates[0], run_rates[-1])
-    rate = (pair[0][0] + pair[1][0]) / 2
-    ray_cost = {k: (pair[0][2][k] + pair[1][2][k]) / 2 for k in pair[0][2]}
+    rate, _, ray_cost = stage_rates(rates, run_rates, "replay")
     here = ray_seconds(ray_cost, beams.get("replay:here", {}))
     rays = ray_seconds(ray_cost, beams.get("replay", {}))
     split = bool(schedule.get("baseline_process")) and parts["baseline"] > 0
@@ -522,10 +530,7 @@ def main() -> None:
     for name, r in rec["stages"].items():
         sec, worlds = stepped.get(name, (0.0, 1))
         wall = float(r["wall_seconds"])
-        pair = rates.get(name) or (run_rates[0], run_rates[-1])
-        rate = (pair[0][0] + pair[1][0]) / 2
-        cpu_rate = (pair[0][1] + pair[1][1]) / 2
-        ray_cost = {k: (pair[0][2][k] + pair[1][2][k]) / 2 for k in pair[0][2]}
+        rate, cpu_rate, ray_cost = stage_rates(rates, run_rates, name)
         cast = beams.get(name, {})
         n_beams = sum(cast.values())
         rays = ray_seconds(ray_cost, cast)

@@ -66,11 +66,17 @@ from simlab.localization.motion import (
 
 
 class ScanLike(Protocol):
-    """What :meth:`ParticleFilter.update` reads from a scan (e.g. a ``LidarScan``)."""
+    """What :meth:`ParticleFilter.update` reads from a scan (e.g. a ``LidarScan``, whose
+    fields are read-only: so are these)."""
 
-    ranges: NDArray[np.float64]
-    angles: NDArray[np.float64]
-    sensor_offset: NDArray[np.float64]
+    @property
+    def ranges(self) -> NDArray[np.float64]: ...
+
+    @property
+    def angles(self) -> NDArray[np.float64]: ...
+
+    @property
+    def sensor_offset(self) -> NDArray[np.float64]: ...
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,10 @@ from simlab.base.errors import ConfigError, DataError
 from simlab.data.dataset import parts_path, read_dataset
 from simlab.data.mdp import EmpiricalMDP, load_mdp
 from simlab.envs.table_arena import GoalTableArenaEnv
+from simlab.localization.likelihood import LikelihoodField
+from simlab.localization.maps import arena_map
+from simlab.localization.tracker import MCLTracker
+from simlab.physics.world import World
 
 
 def run_policy(q_file: Path, states: Path, goal: str, steps: int) -> float:
@@ -80,3 +84,12 @@ def commands(out: Path) -> None:
         print(f"simlab: {exc}")
     Q, meta = load_q_table(out / "qtables" / "q_NE.npz")
     print(simlab.__version__, Q.shape, meta.get("goal"))
+
+
+def localize() -> NDArray[np.float64]:
+    """A particle filter fed by the simulated LIDAR."""
+    with World("table") as world:
+        field = LikelihoodField(arena_map(world.arena, 0.02))
+        tracker = MCLTracker(field, np.random.default_rng(0), initial_pose=world.pose())
+        tracker.on_scan(world.scan(np.random.default_rng(1)), world.odometry())
+        return tracker.pose()
