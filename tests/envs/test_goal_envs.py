@@ -74,6 +74,23 @@ def test_the_goal_env_steps_at_the_default_rate_like_the_plain_one() -> None:
     asked.close()
 
 
+def test_the_goal_env_takes_every_option_of_the_plain_one_with_its_default() -> None:
+    """The goal env spells out the plain env's signature (typed options for its users), so a
+    default changed on one side only would drift silently, as the rate once did: every
+    parameter must agree but goal_conditioned's default."""
+    import inspect
+
+    plain = inspect.signature(TableArenaEnv.__init__).parameters
+    goal = inspect.signature(GoalTableArenaEnv.__init__).parameters
+    assert list(plain) == list(goal)
+    for name in plain:
+        a, b = plain[name], goal[name]
+        assert (a.kind, a.annotation) == (b.kind, b.annotation), name
+        if name != "goal_conditioned":
+            assert a.default == b.default, name
+    assert plain["goal_conditioned"].default is False and goal["goal_conditioned"].default
+
+
 @pytest.mark.parametrize("env_id", sorted(ENV_ENTRY_POINTS))
 def test_every_registered_env_passes_stable_baselines3_check_env(env_id: str,
                                                                  tmp_path: Path) -> None:
