@@ -44,7 +44,16 @@ def schedule(parallel: bool, baseline: bool, mcl: bool,
     30.4-32.2 s against 32.7-35.1 s; without a baseline (the filter alone beside the run)
     a tie on the wall, 11.9-12.9 s against 11.9-12.2 s, for 2 s more CPU. (An earlier
     round had measured the third process winning at load 12-13, 36-47 s against 46-48 s
-    for a 1-hour replay.) Results do not depend on the choice
+    for a 1-hour replay.)
+
+    Cheaper messages do not change this on two cores. Scans sent as raw bytes on a pipe the
+    filter does not sleep on (it reads them every 0.5 ms and before each question), so a
+    send neither pickles nor wakes it, cut the robot's own CPU from 9.3-10.2 s to 8.0-8.5 s,
+    but the wall was 10.9-12.1 s with the baseline against 9.5-10.6 s with the filter here
+    (the baseline's process and the filter's then share one core: 10 s of CPU there, and
+    the scan pipe fills), and 9.9-10.0 s against 9.7-9.8 s without a baseline: at every
+    decision the robot still waits for the filter's last update (~0.4 ms, 1.1 s per
+    replay), the one the decision needs. Results do not depend on the choice
     (bit-identical, tested).
     """
     n = usable_cores() if cores is None else int(cores)
