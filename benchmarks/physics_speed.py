@@ -41,8 +41,10 @@ def bare(seconds: float) -> tuple[float, float]:
         return n / wall, seconds / wall
 
 
-def same_motions(n: int, seed: int) -> tuple[float, float]:
-    """Bare stepping of exactly the motions of the primitive loop, without its Python.
+def same_motions(n: int, seed: int, arena: str = "table",
+                 hz: float | None = None) -> tuple[float, float]:
+    """Bare stepping of exactly the motions of the primitive loop, without its Python
+    (in ``arena`` at ``hz``, None: the default rate).
 
     The loop of ``primitives(n, seed)`` is run once while recording its wheel-motor
     commands and the number of physics steps between them; a fresh world then replays
@@ -53,7 +55,7 @@ def same_motions(n: int, seed: int) -> tuple[float, float]:
     """
     params = PrimitiveParams()
     schedule: list[tuple[int, list[float], list[float]]] = []
-    with World("table") as world:
+    with World(arena, physics_hz=hz) as world:
         drive = world.drive
         set_motors, step = drive._set_motors, world.step
         pending = [0]
@@ -76,7 +78,7 @@ def same_motions(n: int, seed: int) -> tuple[float, float]:
         end = world.pose()
         joints = drive._joints
     total = sum(k for k, _, _ in schedule)
-    with World("table") as world:  # the same start and warm-up as the recorded run
+    with World(arena, physics_hz=hz) as world:  # the same start and warm-up as recorded
         execute_primitive(world, 0, np.random.default_rng(seed), params)
         c, body = world.client, world.body
         set_motors, stepper = c.setJointMotorControlArray, c.stepSimulation

@@ -372,35 +372,55 @@ def stage_rates(rates: dict[str, Any], run_rates: list[Any], name: str
             {k: (pair[0][2][k] + pair[1][2][k]) / 2 for k in pair[0][2]})
 
 
-def print_replay_path(parts: dict[str, float], schedule: dict[str, bool], rec: dict[str, Any],
-                      rates: dict[str, Any], run_rates: list[Any],
-                      beams: dict[str, dict[str, int]], filter_cost: float,
-                      cores: int) -> float | None:
+def replay_path(parts: dict[str, float], schedule: dict[str, bool], rates: dict[str, Any],
+                run_rates: list[Any], beams: dict[str, dict[str, int]], filter_cost: float,
+                cores: int, stepping: float = 1.0) -> dict[str, float] | None:
     """The replay's floor by its parts: its two runs are independent but each is one
     sequence of decisions, so the replay can be no shorter than its longer run at the bare
     rates, whatever the cores. The learned run's part: its stepping, the rays this process
     cast (with the baseline in a process of its own, they are the learned run's) and, with
     the filter in this process, its updates at the filter's own bare cost
-    (:func:`bare_filter_update`); the baseline's: its stepping and the other rays."""
+    (:func:`bare_filter_update`); the baseline's: its stepping and the other rays.
+    ``stepping`` scales the stepping's cost (see :func:`own_motion_factor`). None when one
+    process ran both (the floor with sensors is then the sum)."""
     rate, _, ray_cost = stage_rates(rates, run_rates, "replay")
     here = ray_seconds(ray_cost, beams.get("replay:here", {}))
     rays = ray_seconds(ray_cost, beams.get("replay", {}))
-    split = bool(schedule.get("baseline_process")) and parts["baseline"] > 0
-    if not split:  # one process did everything: the floor with sensors is the sum
+    if not (schedule.get("baseline_process") and parts["baseline"] > 0):
         return None
     filt = 0.0 if schedule.get("mcl_process") else parts["updates"] * filter_cost
-    learned = parts["learned"] / rate + here + filt
-    base = parts["baseline"] / rate + (rays - here)
-    even = (parts["learned"] / rate + parts["baseline"] / rate + rays + filt) / min(cores, 2)
-    path = max(learned, base, even)
+    learned = parts["learned"] / rate * stepping + here + filt
+    base = parts["baseline"] / rate * stepping + (rays - here)
+    even = ((parts["learned"] + parts["baseline"]) / rate * stepping + rays + filt) / min(cores, 2)
+    return {"rate": rate, "here": here, "rays": rays, "learned": learned, "baseline": base,
+            "path": max(learned, base, even)}
+
+
+def print_replay_path(parts: dict[str, float], schedule: dict[str, bool], rec: dict[str, Any],
+                      path: dict[str, float], filter_cost: float) -> None:
+    """Prints :func:`replay_path` against the replay's wall time."""
     wall = float(rec["stages"]["replay"]["wall_seconds"])
+    rate, here, rays = path["rate"], path["here"], path["rays"]
     print(f"replay by its runs: learned {parts['learned']:.0f} stepped s / {rate:.0f}x + its "
           f"rays {here:.1f} s + filter {parts['updates']:.0f} updates x "
           f"{filter_cost * 1e6:.0f} us{' (in its own process)' if schedule.get('mcl_process') else ''}"
-          f" = {learned:.1f} s; baseline {parts['baseline']:.0f} stepped s + rays "
-          f"{rays - here:.1f} s = {base:.1f} s; the replay's floor with the filter = max(runs, "
-          f"all / cores) = {path:.1f} s; wall {wall:.1f} s = {wall / path:.2f}x it")
-    return path
+          f" = {path['learned']:.1f} s; baseline {parts['baseline']:.0f} stepped s + rays "
+          f"{rays - here:.1f} s = {path['baseline']:.1f} s; the replay's floor with the filter = "
+          f"max(runs, all / cores) = {path['path']:.1f} s; wall {wall:.1f} s = "
+          f"{wall / path['path']:.2f}x it")
+
+
+def own_motion_factor(arena: str, hz: float | None, repeats: int = 3) -> tuple[float, float, float]:
+    """(circle x real time, the primitives' own motions x real time, their ratio), each the
+    best of ``repeats``, measured one after the other: the bare floors step at the rate of
+    a robot driving a circle, but the robot turns in place, drives and stops, which Bullet
+    steps more slowly (``benchmarks/physics_speed.py`` (a) and (a')); the ratio scales the
+    stepping floors to the motions the stages step."""
+    from physics_speed import same_motions
+
+    circle = bare_rate(arena, 10.0, repeats, hz=hz)[0]
+    own = max(same_motions(150, seed, arena, hz)[1] for seed in range(repeats))
+    return circle, own, circle / own
 
 
 def print_bounds(total: float, cpu_run: float, cores: int, floors: tuple[float, float],
@@ -526,6 +546,7 @@ def main() -> None:
           f"{'wall/floor+rays':>15} {'CPU s':>7} {'CPU/physics+rays':>16}")
     floor_total = sensed_total = cpu_total = other_wall = 0.0
     sensed_by: dict[str, float] = {}
+    floor_by: dict[str, float] = {}
     ratios: list[str] = []
     for name, r in rec["stages"].items():
         sec, worlds = stepped.get(name, (0.0, 1))
@@ -540,6 +561,7 @@ def main() -> None:
         floor_total += floor
         sensed_total += sensed
         sensed_by[name] = sensed
+        floor_by[name] = floor
         other_wall += 0.0 if sensed else wall
         ratio = f"{wall / floor:10.2f}" if floor else f"{'-':>10}"
         sratio = f"{wall / sensed:15.2f}" if sensed else f"{'-':>15}"
@@ -567,12 +589,27 @@ def main() -> None:
     print_bounds(total, cpu_run, cores, (floor_total, sensed_total), others, args.before)
     print(f"replay schedule (extra processes): {stepped.get('replay_schedule')}")
     schedule: Any = stepped.get("replay_schedule") or {}
-    path = parts and print_replay_path(parts, schedule, rec, rates, run_rates, beams,
-                                       filter_cost, cores)
+    path = parts and replay_path(parts, schedule, rates, run_rates, beams, filter_cost, cores)
     if path:
-        bound = sensed_total - sensed_by["replay"] + path + others
+        print_replay_path(parts, schedule, rec, path, filter_cost)
+        bound = sensed_total - sensed_by["replay"] + path["path"] + others
         print(f"lower bound with the replay at its floor by its runs: {bound:.1f} s; this run "
               f"{total:.1f} s = {total / bound:.2f}x it")
+    circle, own, factor = own_motion_factor(args.arena, args.physics_hz)
+    # Every floor again with its stepping at the primitives' own rate, the replay by its runs
+    # (or its even split): the work that stays whatever the control loop costs.
+    stays = others + sum(sensed_by[n] + floor_by[n] * (factor - 1.0)
+                         for n in sensed_by if n != "replay" or not path)
+    scaled = path and replay_path(parts, schedule, rates, run_rates, beams, filter_cost, cores,
+                                  factor)
+    if scaled:
+        stays += scaled["path"]
+    print(f"the primitives' own motions step at {own:.0f}x real time against the circle's "
+          f"{circle:.0f}x ({factor:.2f}x the cost; best of 3 each, one after the other); the "
+          f"floor of the work that stays with the control loop's Python at zero (every "
+          f"stage's stepping at that rate, the replay by its runs, the stages without physics "
+          f"and the report as measured): {stays:.1f} s = {stays / (sensed_total + others):.2f}x "
+          f"the lower bound; this run {total / stays:.2f}x it")
     warm = rec.get("warmup", {})
     print(f"numba compile in this process: {ct.seconds:.1f} s; the warm-up worker (compile + "
           f"imports, beside the map and the walk) took {warm.get('worker_seconds')} s and the "
