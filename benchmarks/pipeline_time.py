@@ -40,7 +40,11 @@ runs follows: its two runs are independent but each is one chain of decisions, s
 replay can be no shorter than its longer run at the bare rates: the learned run's stepping,
 its rays (this process's beams) and, when the filter ran in this process, its updates at
 the filter's own bare cost (one tracker cycle on a scan of the arena, :func:`bare_filter_update`);
-the lower bound with that floor in place of the even split is printed too. The floors follow the
+the lower bound with that floor in place of the even split is printed too. Last, the floor
+of the work that stays whatever the control loop costs: every stage's stepping at the rate
+Bullet steps the primitives' own motions (their turns in place, drives and stops step more
+slowly than the probe's circle: :func:`own_motion_factor`), the replay by its runs, the
+stages without physics as measured. The floors follow the
 physics rate of the run (``--physics-hz``, default: simlab's default rate): the bare
 stepping rate is measured at that rate. ``--before SECONDS`` (the old code's wall time,
 measured one after the other) prints this run / before and the bounds in the same unit.
