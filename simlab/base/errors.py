@@ -79,17 +79,50 @@ def warn(message: str, category: type[Warning] = UserWarning) -> None:
 #: (``simlab collect``), or empty when ``-q`` hides warnings. Unset outside the CLI.
 WARNING_PREFIX_ENV = "SIMLAB_WARNING_PREFIX"
 
+#: The environment variable naming the folder where the command line and its worker
+#: processes mark the warnings they printed (one empty file per text), so that a warning
+#: about the command's input prints once, not once per process that meets it (every
+#: worker of a calibration reads the same states and would repeat the driver's warning).
+WARNINGS_SHOWN_ENV = "SIMLAB_WARNINGS_SHOWN"
+
+
+def _first_time(text: str, shown: set[str]) -> bool:
+    """Whether ``text`` is printed for the first time by this command: by this process
+    (``shown``), and, under the command line, by any of its processes (a file per text in
+    the folder of :data:`WARNINGS_SHOWN_ENV`, created exclusively: one process wins)."""
+    import hashlib
+    import os
+
+    if text in shown:
+        return False
+    shown.add(text)
+    folder = os.environ.get(WARNINGS_SHOWN_ENV)
+    if not folder:
+        return True
+    name = hashlib.sha256(text.encode()).hexdigest()[:32]
+    try:
+        os.close(os.open(os.path.join(folder, name), os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except FileExistsError:
+        return False
+    except OSError:  # the folder is gone (the command ended): print rather than lose it
+        return True
+    return True
+
 
 def show_warnings_as(prefix: str | None) -> None:
     """Print every Python warning of this process as one line ``<prefix>: warning: ...``
-    on stderr (whitespace runs as single spaces, no source line); None: print none."""
+    on stderr (whitespace runs as single spaces, no source line), each text once per
+    command (see :data:`WARNINGS_SHOWN_ENV`); None: print none."""
     import sys
     import warnings
+
+    shown: set[str] = set()
 
     def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
              file: TextIO | None = None, line: str | None = None) -> None:
         if prefix is not None:
             text = " ".join(str(message).split())
-            print(f"{prefix}: warning: {text}", file=sys.stderr)
+            if _first_time(text, shown):
+                print(f"{prefix}: warning: {text}", file=sys.stderr)
 
     warnings.showwarning = show

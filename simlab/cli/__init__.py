@@ -27,7 +27,12 @@ import os
 import sys
 from collections.abc import Sequence
 
-from simlab.base.errors import WARNING_PREFIX_ENV, SimlabError, show_warnings_as
+from simlab.base.errors import (
+    WARNING_PREFIX_ENV,
+    WARNINGS_SHOWN_ENV,
+    SimlabError,
+    show_warnings_as,
+)
 
 #: How to ask for less when a command runs out of memory; a subcommand module may define its
 #: own ``MEMORY_FIX`` naming its options.
@@ -145,19 +150,34 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     verbosity = args.verbose - args.quiet
+    import shutil
+    import tempfile
     import warnings
 
     saved_showwarning = warnings.showwarning
-    saved_prefix = os.environ.get(WARNING_PREFIX_ENV)
+    saved_env = {k: os.environ.get(k) for k in (WARNING_PREFIX_ENV, WARNINGS_SHOWN_ENV)}
+    # the warnings this command and its workers printed (each once: see WARNINGS_SHOWN_ENV);
+    # without a temporary folder each process says its own once, as before
+    try:
+        shown: str | None = tempfile.mkdtemp(prefix="simlab-warnings-")
+    except OSError:
+        shown = None
+    if shown is None:
+        os.environ.pop(WARNINGS_SHOWN_ENV, None)
+    else:
+        os.environ[WARNINGS_SHOWN_ENV] = shown
     configure_output(args.command, verbosity)
     try:
         return _run(args, verbosity)
     finally:
         warnings.showwarning = saved_showwarning
-        if saved_prefix is None:
-            os.environ.pop(WARNING_PREFIX_ENV, None)
-        else:
-            os.environ[WARNING_PREFIX_ENV] = saved_prefix
+        for key, value in saved_env.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        if shown is not None:
+            shutil.rmtree(shown, ignore_errors=True)
 
 
 def console_main() -> int:
