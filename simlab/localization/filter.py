@@ -422,11 +422,12 @@ class ParticleFilter:
 
     # ------------------------------------------------------------------ the cycle
     def predict(self, odom_prev: NDArray[np.float64], odom_now: NDArray[np.float64],
-                delta: NDArray[np.float64] | None = None) -> None:
+                delta: NDArray[np.float64] | tuple[float, float, float] | None = None) -> None:
         """Move the particles by the odometry motion ``odom_prev -> odom_now`` (with noise).
 
-        ``delta``: ``relative(odom_prev, odom_now)`` (3 numbers) when the caller has computed
-        it already (the tracker has, to decide whether to update; ~35 us saved per update).
+        ``delta``: ``relative(odom_prev, odom_now)`` (3 numbers: an array or a tuple of
+        floats) when the caller has computed it already (the tracker has, to decide whether
+        to update; ~35 us saved per update).
         """
         self._check_init()
         self.particles = sample_odometry_motion(self.particles, odom_prev, odom_now,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from simlab.base.errors import ConfigError
 
@@ -58,7 +58,7 @@ def _single(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
     return a.shape == (3,) and b.shape == (3,)
 
 
-def compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     """Pose composition ``a (+) b``: pose ``b`` given in the frame of ``a``; ``(..., 3)``."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
