@@ -80,7 +80,8 @@ def warn(message: str, category: type[Warning] = UserWarning) -> None:
 WARNING_PREFIX_ENV = "SIMLAB_WARNING_PREFIX"
 
 #: The environment variable naming the folder where the command line and its worker
-#: processes mark the warnings they printed (one empty file per text), so that a warning
+#: processes mark the warnings they printed (one empty file per text; the first warning
+#: makes the folder, the command line removes it at its end), so that a warning
 #: about the command's input prints once, not once per process that meets it (every
 #: worker of a calibration reads the same states and would repeat the driver's warning).
 WARNINGS_SHOWN_ENV = "SIMLAB_WARNINGS_SHOWN"
@@ -101,10 +102,11 @@ def _first_time(text: str, shown: set[str]) -> bool:
         return True
     name = hashlib.sha256(text.encode()).hexdigest()[:32]
     try:
+        os.makedirs(folder, exist_ok=True)
         os.close(os.open(os.path.join(folder, name), os.O_CREAT | os.O_EXCL | os.O_WRONLY))
     except FileExistsError:
         return False
-    except OSError:  # the folder is gone (the command ended): print rather than lose it
+    except OSError:  # no folder can be made there: print rather than lose the warning
         return True
     return True
 

@@ -157,15 +157,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     saved_showwarning = warnings.showwarning
     saved_env = {k: os.environ.get(k) for k in (WARNING_PREFIX_ENV, WARNINGS_SHOWN_ENV)}
     # the warnings this command and its workers printed (each once: see WARNINGS_SHOWN_ENV);
-    # without a temporary folder each process says its own once, as before
-    try:
-        shown: str | None = tempfile.mkdtemp(prefix="simlab-warnings-")
-    except OSError:
-        shown = None
-    if shown is None:
-        os.environ.pop(WARNINGS_SHOWN_ENV, None)
-    else:
-        os.environ[WARNINGS_SHOWN_ENV] = shown
+    # the folder is made by the first warning, so a command that warns of nothing makes none
+    shown = os.path.join(tempfile.gettempdir(),
+                         f"simlab-warnings-{os.getpid()}-{os.urandom(6).hex()}")
+    os.environ[WARNINGS_SHOWN_ENV] = shown
     configure_output(args.command, verbosity)
     try:
         return _run(args, verbosity)
@@ -176,8 +171,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 os.environ.pop(key, None)
             else:
                 os.environ[key] = value
-        if shown is not None:
-            shutil.rmtree(shown, ignore_errors=True)
+        shutil.rmtree(shown, ignore_errors=True)
 
 
 def console_main() -> int:
