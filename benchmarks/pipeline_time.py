@@ -420,7 +420,7 @@ def own_motion_factor(arena: str, hz: float | None, repeats: int = 3) -> tuple[f
     a robot driving a circle, but the robot turns in place, drives and stops, which Bullet
     steps more slowly (``benchmarks/physics_speed.py`` (a) and (a')); the ratio scales the
     stepping floors to the motions the stages step."""
-    from physics_speed import same_motions
+    from physics_speed import same_motions  # benchmarks/ is on sys.path as the script's dir
 
     circle = bare_rate(arena, 10.0, repeats, hz=hz)[0]
     own = max(same_motions(150, seed, arena, hz)[1] for seed in range(repeats))
