@@ -6,8 +6,10 @@
     0.0   1.20 0.40 0.00   7 38
     0.5   1.20 0.40 0.00   7 38
 
-``t`` seconds (strictly increasing), ``x y`` metres and ``yaw`` radians in the map frame,
-optionally the robot's own state number ``cell`` and the number of states ``n_cells``.
+``t`` seconds (strictly increasing), ``x y`` metres and ``yaw`` radians in the map frame
+(wrapped or counting whole turns: the dataset stores it in ``(-pi, pi]``,
+:func:`stored_yaw`), optionally the robot's own state number ``cell`` and the number of
+states ``n_cells``.
 Every line has the same number of columns (4, 5 or 6). There is **no action column**: the
 actions are inferred from the motion (about 2 Hz is enough).
 
@@ -296,6 +298,17 @@ def wrap_angle(a: Any) -> NDArray[np.float64]:
     return (np.asarray(a, dtype=np.float64) + math.pi) % (2 * math.pi) - math.pi
 
 
+def stored_yaw(yaw: Any) -> NDArray[np.float64]:
+    """Yaws ``(N,)`` (rad) as a dataset stores them: in ``(-pi, pi]``, the range of the
+    ``atan2`` of a pose message's quaternion, so that a log's dataset and the same log
+    through a ROS bag agree bit for bit. A robot's log may unwrap its yaw (the ISIR logs
+    count whole turns); values already in range are kept as they are (``(a + pi) % 2pi
+    - pi`` would move them by an ulp), the others are wrapped."""
+    a = np.asarray(yaw, dtype=np.float64)
+    inside = (a > -math.pi) & (a <= math.pi)
+    return np.where(inside, a, -wrap_angle(-a))
+
+
 def interval_labels(t: Any, xy: Any, yaw: Any, params: SegmentParams) -> NDArray[np.int8]:
     """``(N-1,)`` label of each sample interval: 2 move, 1 turn, 0 idle."""
     t = np.asarray(t, dtype=np.float64)
@@ -533,7 +546,7 @@ def import_log(cfg: ImportLogConfig) -> ImportLogResult:
         dec = Decisions(**{f.name: getattr(dec, f.name)[keep] for f in fields(Decisions)})
     s, s2, source = _log_states(plog, dec, disc, cfg.use_cell_column)
     actions = decision_actions(dec, aset, segment)
-    pose = np.column_stack([plog.xy, plog.yaw])
+    pose = np.column_stack([plog.xy, stored_yaw(plog.yaw)])
     walk = TransitionArrays(t=plog.t[dec.start], a=actions, pose=pose[dec.start],
                             pose_next=pose[dec.end], blocked=dec.blocked,
                             duration=plog.t[dec.end] - plog.t[dec.start], s=s, s_next=s2)
