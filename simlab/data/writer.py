@@ -335,6 +335,7 @@ def write_dataset(
     *,
     part_size: int = DEFAULT_PART_SIZE,
     overwrite: bool = False,
+    workers: Sequence[int] | None = None,
 ) -> WriteResult:
     """Write a simlab transition dataset (Parquet parts + ``_manifest.json``) into ``out``.
 
@@ -344,6 +345,9 @@ def write_dataset(
         info: manifest content (discretizer, action set, pose source, provenance...).
         part_size: rows per part file (>= 1).
         overwrite: replace a dataset already in ``out``.
+        workers: the worker number of each walk (distinct, 0..999; default 0, 1, ...):
+            an import keeps the numbers its source recorded (worker 1's walk alone stays
+            worker 1; the manifest's ``workers`` is then the largest number + 1).
 
     Returns:
         :class:`WriteResult`. Read it back with :func:`simlab.data.dataset.open_dataset`.
@@ -353,13 +357,14 @@ def write_dataset(
             a non-empty ``out`` without ``overwrite``. Nothing is written then.
     """
     walks = _checked_walks(walks, info, part_size)
+    numbers = _worker_numbers(workers, len(walks))
     disc = load_discretizer(info.discretizer)
     n_states = int(disc.n_states)
     n_actions = info.action_set.n_actions if info.action_names is None \
         else len(info.action_names)
     states = [_states(walk, disc, n_states, n_actions, w) for w, walk in enumerate(walks)]
     schema = transition_schema(info.pose_source)
-    manifest = _manifest(info, disc, n_actions, len(walks), part_size, schema)
+    manifest = _manifest(info, disc, n_actions, max(numbers) + 1, part_size, schema)
     out = Path(out)
     created = not out.exists()
     try:
@@ -369,8 +374,8 @@ def write_dataset(
             _clear(out, overwrite, remove=False)  # refuse before any work
             staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
             try:
-                written = _write_walks(staging, walks, states, info, schema, manifest,
-                                       part_size, disc)
+                written = _write_walks(staging, walks, numbers, states, info, schema,
+                                       manifest, part_size, disc)
                 _clear(out, overwrite)  # the old dataset goes only once the new one is whole
                 os.replace(staging / PARTS_DIR, out / PARTS_DIR)
                 os.replace(manifest_path(staging), manifest_path(out))  # last: a dataset now
@@ -388,17 +393,30 @@ def write_dataset(
     return WriteResult(out=out, manifest=written, rows=sum(len(w) for w in walks))
 
 
-def _write_walks(out: Path, walks: list[TransitionArrays], states: list[Any],
-                 info: DatasetInfo, schema: pa.Schema, manifest: dict[str, Any],
-                 part_size: int, disc: Any) -> dict[str, Any]:
-    """The parts of every walk, then the manifest (its ``parts`` filled in as written);
-    returns the manifest as written."""
-    for w, walk in enumerate(walks):
+def _worker_numbers(workers: Sequence[int] | None, n: int) -> list[int]:
+    """The worker number of each of ``n`` walks: ``workers`` checked, or 0..n-1."""
+    if workers is None:
+        return list(range(n))
+    numbers = list(workers)
+    if (len(numbers) != n or len(set(numbers)) != n
+            or not all(isinstance(w, int | np.integer) and not isinstance(w, bool)
+                       and 0 <= w <= 999 for w in numbers)):
+        raise ConfigError(f"expected {n} distinct whole numbers 0..999, one per walk, got "
+                          f"{numbers!r}", key="workers")
+    return [int(w) for w in numbers]
+
+
+def _write_walks(out: Path, walks: list[TransitionArrays], numbers: list[int],
+                 states: list[Any], info: DatasetInfo, schema: pa.Schema,
+                 manifest: dict[str, Any], part_size: int, disc: Any) -> dict[str, Any]:
+    """The parts of every walk (walk k as worker ``numbers[k]``), then the manifest (its
+    ``parts`` filled in as written); returns the manifest as written."""
+    for walk, w, walk_states in zip(walks, numbers, states, strict=True):
         n = len(walk)
         starts = range(0, n, int(part_size)) if n else []
         for p, start in enumerate(starts):
             rows = slice(start, min(n, start + int(part_size)))
-            table = _part_table(walk, rows, w, p, states[w], info.pose_source, schema)
+            table = _part_table(walk, rows, w, p, walk_states, info.pose_source, schema)
             entry = write_part(out, w, p, table, disc.content_hash())
             last = rows.stop - 1
             entry.update(t_end=float(walk.t[last] + walk.duration[last]),

@@ -40,6 +40,9 @@ topic                  type                                  content
 ``/simlab/goals``      ``visualization_msgs/msg/MarkerArray`` the goal areas, once, latched
 ``/simlab/human``      ``visualization_msgs/msg/MarkerArray`` the human per sample (when
                                                              there is one)
+``/robot_description`` ``std_msgs/msg/String``                the robot's URDF text, once,
+                                                             latched (as
+                                                             ``robot_state_publisher``)
 =====================  ====================================  ===============================
 
 Latched topics are recorded with the transient-local durability that ``tf_static`` and
@@ -53,8 +56,18 @@ The robot's frames and wheel angles are those :mod:`simlab.ros.frames` derives f
 URDF and the motion (``robot``); without them, ``/tf_static`` holds the two transforms of
 ``base_offset`` and ``scan_offset`` and there is no ``/joint_states``.
 
-Poses are float64 in the messages (exact); yaw goes through a quaternion (scipy's
-``Rotation``; exact to ~1e-16 rad); scans are float32 as in ``LaserScan``.
+Poses are float64 in the messages (exact). A yaw goes through a planar quaternion
+``(0, 0, sin(yaw/2), cos(yaw/2))`` whose ``z`` and ``w`` are moved by a few units in the
+last place so that :func:`quat_yaws` gives the yaw back bit for bit (any yaw in
+``[-pi, pi]``; others come back wrapped into that range); the quaternion is unit to
+~4e-16. Scans are float32 as in ``LaserScan``.
+
+Times: a stamp is the nearest whole nanosecond to ``t0 + t`` (computed in integers, so
+that a UNIX time of ~1.7e9 s loses nothing to float64 sums), and a time read back is the
+float64 nearest to the stamp's nanoseconds (:func:`seconds`). So ``t`` comes back
+**exactly** when it is a whole number of nanoseconds, and whenever it is 2**23 s (97
+days) or more, where float64 steps are coarser than a nanosecond (a log stamped in UNIX
+time); any other ``t`` comes back to the nearest nanosecond (at most 0.5 ns off).
 """
 
 from __future__ import annotations
@@ -86,6 +99,7 @@ TOPICS = {
     "action": "/simlab/action", "blocked": "/simlab/blocked", "duration": "/simlab/duration",
     "cells": "/simlab/cells", "goals": "/simlab/goals", "human": "/simlab/human",
     "true_pose": "/simlab/true_pose", "joint_states": "/joint_states",
+    "robot_description": "/robot_description",
 }
 _TYPES = {
     "/tf_static": "tf2_msgs/msg/TFMessage", "/tf": "tf2_msgs/msg/TFMessage",
@@ -99,11 +113,13 @@ _TYPES = {
     "/simlab/human": "visualization_msgs/msg/MarkerArray",
     "/simlab/true_pose": "geometry_msgs/msg/PoseStamped",
     "/joint_states": "sensor_msgs/msg/JointState",
+    "/robot_description": "std_msgs/msg/String",
 }
-#: Topics published once and latched: ``static_transform_broadcaster`` and ``map_server``
-#: offer them transient-local (REP-105 tooling; ROS 2 docs "About Quality of Service
-#: settings"), and a late subscriber only gets them if the bag replays them that way.
-LATCHED = ("/tf_static", "/map", "/simlab/cells", "/simlab/goals")
+#: Topics published once and latched: ``static_transform_broadcaster``, ``map_server`` and
+#: ``robot_state_publisher`` (``/robot_description``) offer them transient-local (REP-105
+#: tooling; ROS 2 docs "About Quality of Service settings"), and a late subscriber only gets
+#: them if the bag replays them that way.
+LATCHED = ("/tf_static", "/map", "/simlab/cells", "/simlab/goals", "/robot_description")
 
 #: Value of the ``simlab.writer`` custom-data key: the mark of a bag this module wrote.
 WRITER_MARK = "simlab.ros.bag"
@@ -145,7 +161,10 @@ class BagTrajectory:
     the sample index where each independent walk begins (several workers' walks laid one
     after the other: the odometry's twist and covariance restart there; None: one walk);
     ``robot`` the :class:`~simlab.ros.frames.RobotFrames` to publish (every fixed joint,
-    the wheels and ``/joint_states``; None: only the two offsets above, no wheels).
+    the wheels, ``/joint_states`` and ``/robot_description``; None: only the two offsets
+    above, no wheels); ``t_ns`` (n,) and ``action_t_ns`` (k,) int64 the same times in
+    whole nanoseconds from ``t = 0``, exact (read back: the stamps minus the time origin;
+    to write: the stamps, else the nearest nanoseconds of ``t`` and ``action_t``).
     """
 
     t: NDArray[np.float64]
@@ -170,6 +189,8 @@ class BagTrajectory:
     custom: dict[str, str] | None = None
     walk_starts: NDArray[np.int64] | None = None
     robot: RobotFrames | None = None
+    t_ns: NDArray[np.int64] | None = None
+    action_t_ns: NDArray[np.int64] | None = None
 
 
 def _rosbags() -> tuple[Any, Any, Any]:
@@ -202,18 +223,80 @@ def _latched_qos() -> Any:
                avoid_ros_namespace_conventions=False)
 
 
+def _planar_yaw(z: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Yaw (rad, ``[-pi, pi]``) of planar quaternions ``(0, 0, z, w)``: ``2 atan2(z, w)``
+    of the one of ``q``, ``-q`` (the same rotation) with ``w >= 0``."""
+    flip = (w < 0) | ((w == 0) & (z < 0))
+    return 2.0 * np.arctan2(np.where(flip, -z, z), np.where(flip, -w, w))
+
+
+#: Units in the last place by which :func:`yaw_quats` moves ``z`` or ``w`` at most.
+_NUDGES = 4
+
+
 def yaw_quats(yaw: Any) -> NDArray[np.float64]:
-    """Quaternions ``(..., 4)`` (x, y, z, w) of rotations by ``yaw`` (...,) rad about z (one
-    scipy call for a whole trajectory: a ``Rotation`` per message costs ~60 us)."""
+    """Quaternions ``(..., 4)`` (x, y, z, w) of rotations by ``yaw`` (...,) rad about z,
+    read back exactly by :func:`quat_yaws`.
+
+    ``(0, 0, sin(yaw/2), cos(yaw/2))`` rounds to float64, so its yaw is off by an ulp about
+    one time in ten; the nearest quaternion whose yaw is the given one bit for bit (``z``
+    or ``w`` moved by at most :data:`_NUDGES` ulps, which keeps it unit to ~4e-16) is taken
+    instead. A yaw outside ``[-pi, pi]`` is kept as its rotation (read back wrapped).
+    Vectorized: one pass per nudge for a whole trajectory."""
     yaw = np.asarray(yaw, dtype=np.float64)
-    return Rotation.from_euler("z", yaw.reshape(-1, 1)).as_quat().reshape(*yaw.shape, 4)
+    flat = yaw.reshape(-1)
+    z0, w0 = np.sin(flat / 2), np.cos(flat / 2)
+    z, w = z0.copy(), w0.copy()
+    inside = np.abs(flat) <= math.pi  # outside: no exact target, the rounded q is kept
+    target = np.where(inside, flat, np.nan)
+    found = ~inside | (_planar_yaw(z0, w0) == target)
+    for k in range(1, _NUDGES + 1):
+        for dz, dw in ((k, 0), (-k, 0), (0, k), (0, -k)):
+            if found.all():
+                break
+            zc = z0 + dz * np.spacing(z0) if dz else z0
+            wc = w0 + dw * np.spacing(w0) if dw else w0
+            hit = ~found & (_planar_yaw(zc, wc) == target)
+            z, w = np.where(hit, zc, z), np.where(hit, wc, w)
+            found |= hit
+    out = np.zeros((flat.size, 4))
+    out[:, 2], out[:, 3] = z, w
+    return out.reshape(*yaw.shape, 4)
 
 
 def quat_yaws(quats: Any) -> NDArray[np.float64]:
-    """Yaws ``(...,)`` (rad) of quaternions ``(..., 4)`` (x, y, z, w): the first angle of
-    the intrinsic z-y'-x'' (yaw, pitch, roll) decomposition."""
-    q = np.asarray(quats, dtype=np.float64)
-    return Rotation.from_quat(q.reshape(-1, 4)).as_euler("ZYX")[:, 0].reshape(q.shape[:-1])
+    """Yaws ``(...,)`` (rad, ``[-pi, pi]``) of quaternions ``(..., 4)`` (x, y, z, w): the
+    first angle of the intrinsic z-y'-x'' (yaw, pitch, roll) decomposition; for a planar
+    quaternion (``x = y = 0``, as a ground robot's localizer and odometry publish them)
+    ``2 atan2(z, w)``, which gives :func:`yaw_quats`' yaws back exactly."""
+    q = np.asarray(quats, dtype=np.float64).reshape(-1, 4)
+    yaw = _planar_yaw(q[:, 2], q[:, 3])
+    tilted = (q[:, 0] != 0) | (q[:, 1] != 0)
+    if tilted.any():
+        yaw[tilted] = Rotation.from_quat(q[tilted]).as_euler("ZYX")[:, 0]
+    return yaw.reshape(np.shape(quats)[:-1])
+
+
+def nanoseconds(t: Any) -> NDArray[np.int64]:
+    """``(...,)`` int64: the whole nanoseconds nearest to ``t`` (...,) s (>= 0). Whole seconds
+    and the rest are converted apart (``t - floor(t)`` is exact), so a UNIX time of ~1.7e9 s
+    is stamped to the nanosecond, not to float64's 256 ns steps of ``t * 1e9``."""
+    t = np.asarray(t, dtype=np.float64)
+    whole = np.floor(t)
+    return whole.astype(np.int64) * 10**9 + np.rint((t - whole) * 1e9).astype(np.int64)
+
+
+def seconds(ns: Any) -> NDArray[np.float64]:
+    """``(...,)`` float64 s nearest to ``ns`` (...,) whole nanoseconds (correctly rounded:
+    ``seconds(nanoseconds(t)) == t`` for every ``t`` that is a whole number of nanoseconds
+    and every ``t >= 2**23`` s). Beyond 2**53 ns (104 days) int64 -> float64 would round
+    first, so those go through Python's exact integer division."""
+    ns = np.asarray(ns, dtype=np.int64)
+    out = ns.astype(np.float64) / 1e9
+    big = np.abs(ns) >= 2**53
+    if big.any():
+        out[big] = [n / 10**9 for n in ns[big].tolist()]
+    return out
 
 
 def _quat(yaw: float) -> tuple[float, float, float, float]:
@@ -492,6 +575,9 @@ def _check(traj: BagTrajectory) -> int:
     n = len(t)
     if n == 0 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0:
         raise ConfigError("sample times must be >= 0 and strictly increasing", key="t")
+    if traj.t_ns is not None and (np.shape(traj.t_ns) != (n,)
+                                  or np.any(np.diff(traj.t_ns) < 0)):
+        raise ConfigError(f"expected shape ({n},), increasing like t", key="t_ns")
     for name in ("pose", "odom", "human", "truth"):
         a = getattr(traj, name)
         if a is not None and np.shape(a) != (n, 3):
@@ -501,7 +587,7 @@ def _check(traj: BagTrajectory) -> int:
                           key="scans")
     if traj.actions is not None:
         k = len(traj.actions)
-        for name in ("action_t", "blocked", "duration"):
+        for name in ("action_t", "blocked", "duration", "action_t_ns"):
             a = getattr(traj, name)
             if (a is None and name == "action_t") or (a is not None and np.shape(a) != (k,)):
                 raise ConfigError(f"expected shape ({k},) like actions, got "
@@ -652,12 +738,12 @@ def _set_custom_data(w: Any, traj: BagTrajectory, origin_ns: int) -> None:
         w.set_custom_data("simlab.pose_source", str(traj.pose_source))
 
 
-def _put_actions(put: Any, types: Any, traj: BagTrajectory, t0: float) -> None:
-    """One ``/simlab/action`` message per decision (at ``t0 + action_t``, s), with its
-    ``/simlab/blocked`` and ``/simlab/duration`` when the trajectory has them."""
-    action_t = np.asarray(traj.action_t, dtype=np.float64)  # _check: (k,)
-    for k, (a, ta) in enumerate(zip(traj.actions, action_t, strict=True)):
-        ns = round((t0 + float(ta)) * 1e9)
+def _put_actions(put: Any, types: Any, traj: BagTrajectory, origin_ns: int) -> None:
+    """One ``/simlab/action`` message per decision (stamped ``origin_ns`` + ``action_t``),
+    with its ``/simlab/blocked`` and ``/simlab/duration`` when the trajectory has them."""
+    rel = (nanoseconds(np.asarray(traj.action_t, dtype=np.float64))  # _check: (k,)
+           if traj.action_t_ns is None else np.asarray(traj.action_t_ns, dtype=np.int64))
+    for k, (a, ns) in enumerate(zip(traj.actions, (origin_ns + rel).tolist(), strict=True)):
         put("/simlab/action", ns, types["std_msgs/msg/Int32"](data=int(a)))
         if traj.blocked is not None:
             put("/simlab/blocked", ns, types["std_msgs/msg/Bool"](data=bool(traj.blocked[k])))
@@ -669,7 +755,7 @@ def _put_actions(put: Any, types: Any, traj: BagTrajectory, t0: float) -> None:
 def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: float) -> None:
     m = _Msgs(ts)
     latched = [_latched_qos()]
-    origin_ns = round(t0 * 1e9)
+    origin_ns = int(nanoseconds(t0))
     try:
         w_cm = rb.Writer(out, version=9, storage_plugin=plugin.MCAP)
     except rb.WriterError as exc:
@@ -686,12 +772,16 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
 
         _set_custom_data(w, traj, origin_ns)
         t = np.asarray(traj.t, dtype=np.float64)
-        stamps = [round((t0 + float(ti)) * 1e9) for ti in t]
+        rel = nanoseconds(t) if traj.t_ns is None else np.asarray(traj.t_ns, dtype=np.int64)
+        stamps = (origin_ns + rel).tolist()
         pose = np.asarray(traj.pose, dtype=np.float64)
         odom = pose if traj.odom is None else np.asarray(traj.odom, dtype=np.float64)
         map_odom = compose(pose, inverse(odom))
         twist, pose_cov, twist_cov = _odometry_motion(t, odom, traj.walk_starts)
         put("/tf_static", stamps[0], m.tf_message(_static_transforms(m, stamps[0], traj)))
+        if traj.robot is not None and traj.robot.description is not None:
+            put("/robot_description", stamps[0],
+                ts.types["std_msgs/msg/String"](data=traj.robot.description))
         q_map_odom, q_odom, q_pose = (yaw_quats(a[:, 2]) for a in (map_odom, odom, pose))
         q_truth = None if traj.truth is None else yaw_quats(np.asarray(traj.truth)[:, 2])
         robot = traj.robot
@@ -730,7 +820,7 @@ def _write(rb: Any, ts: Any, plugin: Any, out: Path, traj: BagTrajectory, t0: fl
                 put("/simlab/true_pose", ns, ts.types["geometry_msgs/msg/PoseStamped"](
                     header=m.header(ns, "map"), pose=m.pose(*traj.truth[i], quat=q_truth[i])))
         if traj.actions is not None:
-            _put_actions(put, ts.types, traj, t0)
+            _put_actions(put, ts.types, traj, origin_ns)
 
 
 def _static_transforms(m: _Msgs, ns: int, traj: BagTrajectory) -> list[Any]:
@@ -764,7 +854,9 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     ``/odom`` fills ``odom`` when it is not the pose topic and has the same stamps. Scans
     are taken when every pose sample has one with the same stamp (exact nanoseconds; else
     ``scans`` is None); the state and goal topics likewise (by bag time). Times are seconds
-    since ``t0`` (s; default: the bag's recorded time origin, else the first pose stamp).
+    since ``t0`` (s; default: the bag's recorded time origin, else the first pose stamp),
+    the float64 nearest to the stamps' whole nanoseconds (which are ``t_ns`` and
+    ``action_t_ns``).
     A missing or damaged bag, or a pose topic that is absent, empty or not a pose, is a
     :class:`~simlab.base.errors.DataError` naming the bag (or :class:`ConfigError` when the
     path does not exist).
@@ -782,11 +874,12 @@ def read_bag(path: str | os.PathLike[str], *, pose_topic: str | None = None,
     topics, pose_topic = _read_topics(path, pose_topic, scan_topic, action_topic)
     if not topics.get(pose_topic):
         raise DataError(f"{path}: pose_topic: {pose_topic!r} has no messages")
-    if t0 is None and "simlab.time_origin_ns" in custom:
+    t0_ns = None if t0 is None else int(nanoseconds(t0))
+    if t0_ns is None and "simlab.time_origin_ns" in custom:
         with contextlib.suppress(TypeError, ValueError):
-            t0 = int(custom["simlab.time_origin_ns"]) * 1e-9
+            t0_ns = int(custom["simlab.time_origin_ns"])
     try:
-        traj = _trajectory(topics, pose_topic, scan_topic, action_topic, t0, path)
+        traj = _trajectory(topics, pose_topic, scan_topic, action_topic, t0_ns, path)
     except DataError:
         raise
     except _READ_FAILURES as exc:
@@ -865,7 +958,7 @@ def _planar(rows: Any) -> NDArray[np.float64]:
 
 
 def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str | None,
-                action_topic: str | None, t0: float | None, path: Path) -> BagTrajectory:
+                action_topic: str | None, t0_ns: int | None, path: Path) -> BagTrajectory:
     try:
         msgs = sorted(topics[pose_topic], key=lambda e: _stamp_ns(e[1].header))
         pose = _planar([_pose_of(m) for _, m, _ in msgs])
@@ -875,7 +968,7 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                         f"PoseWithCovarianceStamped, PoseStamped or Odometry topic with "
                         f"--pose-topic)") from None
     stamps = [_stamp_ns(m.header) for _, m, _ in msgs]  # int ns (exact keys)
-    t0_ns = stamps[0] if t0 is None else round(float(t0) * 1e9)
+    t0_ns = stamps[0] if t0_ns is None else t0_ns
 
     def aligned(topic: str | None, value: Any) -> list[Any] | None:
         if topic is None or topic not in topics:
@@ -897,12 +990,13 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                                 s0.scan_time)
     state = aligned("/simlab/state", lambda m: int(m.data))
     goal = aligned("/simlab/goal", lambda m: str(m.data))
-    actions = action_t = blocked = duration = None
+    actions = action_t = action_t_ns = blocked = duration = None
     if action_topic is not None and action_topic in topics:
         acts = sorted(topics[action_topic], key=lambda e: e[0])
         actions = np.array([int(m.data) for _, m, _ in acts], dtype=np.int64)
         action_ns = [ns for ns, _, _ in acts]
-        action_t = np.array([(ns - t0_ns) * 1e-9 for ns in action_ns])
+        action_t_ns = np.array([ns - t0_ns for ns in action_ns], dtype=np.int64)
+        action_t = seconds(action_t_ns)
 
         def per_action(topic: str, value: Any, dtype: Any) -> NDArray[Any] | None:
             by_ns = {ns: value(m) for ns, m, _ in topics.get(topic, [])}
@@ -922,8 +1016,9 @@ def _trajectory(topics: dict[str, list[Any]], pose_topic: str, scan_topic: str |
                 offset = (v.x, v.y, v.z)
             elif tr.child_frame_id == "base_link" and tr.header.frame_id == "base_footprint":
                 base = (v.x, v.y, v.z)
+    t_ns = np.array([ns - t0_ns for ns in stamps], dtype=np.int64)
     return BagTrajectory(
-        t=((np.array(stamps, dtype=np.int64) - t0_ns) * 1e-9).astype(np.float64), pose=pose,
+        t=seconds(t_ns), t_ns=t_ns, action_t_ns=action_t_ns, pose=pose,
         odom=None if odom is None else _planar(odom),
         scans=None if scans is None else np.stack(scans), scan_geometry=geometry,
         state=None if state is None else np.array(state, dtype=np.int64),

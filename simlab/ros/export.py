@@ -28,7 +28,8 @@ set, the dataset's pose source and the time origin in the bag's ``custom_data``,
 record (``simlab.arena``, with the TOML file's path when the arena came from one) goes
 along, so the imported dataset exports again without ``--arena``. The states' Voronoi cells
 and the arena's goal areas are ``MarkerArray`` topics (``/simlab/cells``,
-``/simlab/goals``), the ``tf_static`` transforms are the robot URDF's joints, and beams
+``/simlab/goals``), the ``tf_static`` transforms are the robot URDF's joints,
+``/robot_description`` its text (so that RViz draws the robot from the bag alone), and beams
 that face a surface nearer than ``range_min`` read ``-inf`` (REP-117).
 
 Safety: the output is checked before any work (an existing path is replaced only with
@@ -121,7 +122,10 @@ def _walk(tab: Any, pose_source: str | None) -> dict[str, Any]:
 def _laid_end_to_end(walks: list[dict[str, Any]]) -> tuple[dict[str, Any], list[float]]:
     """The walks one after the other in bag time: walk k starts ``WALK_GAP`` (whole
     seconds) after walk k-1's last sample. Returns the joined arrays (``walk_starts``: the
-    sample index where each walk begins) and each walk's time offset (s)."""
+    sample index where each walk begins; ``t_ns``, ``action_t_ns``: the bag times in whole
+    nanoseconds) and each walk's time offset (s)."""
+    from simlab.ros.bag import nanoseconds
+
     offsets, end = [], None
     for w in walks:
         off = 0.0 if end is None else float(math.ceil(end - w["t"][0]) + WALK_GAP)
@@ -134,6 +138,12 @@ def _laid_end_to_end(walks: list[dict[str, Any]]) -> tuple[dict[str, Any], list[
     joined["t"] = np.concatenate([w["t"] + off for w, off in zip(walks, offsets, strict=True)])
     joined["action_t"] = np.concatenate([w["action_t"] + off
                                          for w, off in zip(walks, offsets, strict=True)])
+    # the stamps in integers: a walk's own nanoseconds plus its whole seconds, so that
+    # import-bag takes the offset away again without a float64 rounding (bag.nanoseconds)
+    for key in ("t", "action_t"):
+        joined[f"{key}_ns"] = np.concatenate([
+            nanoseconds(w[key]) + nanoseconds(off)
+            for w, off in zip(walks, offsets, strict=True)])
     joined["walk_starts"] = np.cumsum([0] + [len(w["t"]) for w in walks[:-1]]).astype(np.int64)
     return joined, offsets
 
@@ -219,7 +229,8 @@ def _from_replay(path: Path) -> dict[str, Any]:
             "actions": tab.column("a").to_numpy().astype(np.int64), "action_t": t,
             "blocked": blocked, "duration": dur, "action_set": summary.get("action_set"),
             "pose_source": "truth", "centres": _replay_centres(summary), "custom": None,
-            "arena": summary["arena"], "walk_starts": None}
+            "arena": summary["arena"], "walk_starts": None, "t_ns": None,
+            "action_t_ns": None}
 
 
 def _replay_centres(summary: dict[str, Any]) -> np.ndarray | None:
@@ -408,6 +419,7 @@ def export_bag(cfg: ExportBagConfig) -> ExportBagResult:
                          map=grid, scan_offset=(sx - bx, sy - by, sz - bz),
                          base_offset=(bx, by, bz),
                          scene=scene, custom=rec["custom"], walk_starts=rec["walk_starts"],
-                         robot=robot_frames(robot.urdf_path))
+                         robot=robot_frames(robot.urdf_path), t_ns=rec["t_ns"],
+                         action_t_ns=rec["action_t_ns"])
     path = write_bag(out, traj, t0=cfg.start_time, overwrite=cfg.overwrite)
     return ExportBagResult(out=path, samples=len(rec["t"]), source=kind)

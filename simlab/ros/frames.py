@@ -1,8 +1,9 @@
 """The robot's frames as a bag publishes them: the URDF's joints and the wheels' angles.
 
 A TurtleBot3 recorded with ``ros2 bag record -a`` carries what its ``robot_state_publisher``
-sends: every fixed joint of the description on ``/tf_static`` and the wheels' continuous
-joints on ``/tf``, from the wheel angles of ``/joint_states``. :func:`robot_frames` reads
+sends: the description itself (the URDF's text on ``/robot_description``), every fixed
+joint of it on ``/tf_static`` and the wheels' continuous joints on ``/tf``, from the wheel
+angles of ``/joint_states``. :func:`robot_frames` reads
 them from simlab's URDF (with yourdfpy, by joint type and name), so that RViz and Foxglove
 draw the whole robot from the bag alone, and a user's own ``robot_state_publisher`` (fed
 the same URDF) finds its ``/joint_states``.
@@ -22,6 +23,7 @@ from __future__ import annotations
 import itertools
 import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,12 +50,14 @@ class Joint:
 class RobotFrames:
     """What ``robot_state_publisher`` would publish for the robot: ``fixed`` joints (on
     ``/tf_static``), the ``wheels`` (left, right: continuous joints on ``/tf`` and
-    ``/joint_states``), the wheel radius and separation (m)."""
+    ``/joint_states``), the wheel radius and separation (m), and the URDF's text as it
+    publishes it on ``/robot_description`` (None: not published)."""
 
     fixed: tuple[Joint, ...]
     wheels: tuple[Joint, Joint]
     wheel_radius: float
     wheel_separation: float
+    description: str | None = None
 
     def wheel_quats(self, k: int, angles: NDArray[np.float64]) -> NDArray[np.float64]:
         """``(n, 4)`` quaternions (x, y, z, w) of wheel ``k`` (0 left, 1 right) turned by
@@ -77,6 +81,7 @@ def robot_frames(urdf_path: str | os.PathLike[str] | None = None) -> RobotFrames
     try:
         urdf = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
                                   load_collision_meshes=False)
+        text = Path(path).read_text(encoding="utf-8")
     except Exception as exc:  # yourdfpy raises lxml's and its own errors
         raise ConfigError(f"cannot read the URDF's joints ({exc})", path=path) from None
     joints = {}
@@ -93,7 +98,7 @@ def robot_frames(urdf_path: str | os.PathLike[str] | None = None) -> RobotFrames
     wheels = (joints[spec.left_wheel_joint], joints[spec.right_wheel_joint])
     fixed = tuple(j for j in joints.values() if j.axis is None)
     return RobotFrames(fixed=fixed, wheels=wheels, wheel_radius=float(spec.wheel_radius),
-                       wheel_separation=float(spec.wheel_separation))
+                       wheel_separation=float(spec.wheel_separation), description=text)
 
 
 def wheel_angles(t: NDArray[np.float64], odom: NDArray[np.float64], radius: float,

@@ -229,7 +229,8 @@ def _check_out(out: Path, bag: Path, overwrite: bool) -> None:
                           fix="choose another --out, or pass --overwrite to replace it")
 
 
-def _write(out: Path, walk: Any, info: Any, overwrite: bool, part_size: int | None) -> None:
+def _write(out: Path, walk: Any, workers: list[int], info: Any, overwrite: bool,
+           part_size: int | None) -> None:
     """``write_dataset`` into the staging directory of one output transaction, renamed
     into ``out`` at the end; then the old dataset's parts that the new one does not list
     are removed. OS errors name ``out``, not the staging directory."""
@@ -240,7 +241,7 @@ def _write(out: Path, walk: Any, info: Any, overwrite: bool, part_size: int | No
     try:
         with output_transaction(out, overwrite=overwrite, what="dataset") as txn:
             result = write_dataset(txn.staging, walk, info,
-                                   part_size=part_size or DEFAULT_PART_SIZE)
+                                   part_size=part_size or DEFAULT_PART_SIZE, workers=workers)
         listed = {Path(str(e.get("file", ""))).name for e in result.manifest.get("parts", [])}
         if (out / PARTS_DIR).is_dir():
             for old in (out / PARTS_DIR).iterdir():
@@ -270,11 +271,12 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
     disc = load_states(states) if isinstance(states, str | os.PathLike) else states
     traj = read_bag(bag, pose_topic=pose_topic, action_topic=action_topic)
     aset = cfg.make_action_set(traj.action_set)
-    walks, source = [], ""
-    for lo, hi, offset in _walk_spans(traj, bag):  # one per worker of a simlab dataset
+    walks, workers, source = [], [], ""
+    for lo, hi, offset, worker in _walk_spans(traj, bag):  # one per worker of a simlab dataset
         walk, source = _walk_transitions(traj, lo, hi, offset, cfg, aset, action_topic,
                                          pose_topic)
         walks.append(walk)
+        workers.append(worker)
     pose_source = _pose_source(traj, pose_topic)
     info = DatasetInfo(
         discretizer=disc, action_set=aset, pose_source=pose_source,
@@ -287,32 +289,37 @@ def import_bag(cfg: ImportBagConfig) -> ImportBagResult:
                     "segmentation": json.loads(json.dumps(asdict(segment)))},
         arena=_arena_record(traj.custom, bag), parameters={"importer": "ros-bag"})
     part_size = (traj.custom or {}).get("simlab.part_size", "")
-    _write(out, walks, info, cfg.overwrite,
+    _write(out, walks, workers, info, cfg.overwrite,
            int(part_size) if part_size.isdigit() and int(part_size) > 0 else None)
     return ImportBagResult(out=out, samples=len(traj.t), decisions=sum(len(w) for w in walks),
                            blocked=int(sum(np.sum(w.blocked) for w in walks)),
                            action_source=source)
 
 
-def _walk_spans(traj: Any, bag: Path) -> list[tuple[float, float, float]]:
-    """``(start, end, offset)`` (s, bag time) of each walk in the bag: one per worker
-    when simlab export-bag laid several walks one after the other (its ``simlab.walks``
-    record: each walk's time offset), else the whole bag; a walk's own times are bag
-    times minus its offset."""
+def _walk_spans(traj: Any, bag: Path) -> list[tuple[float, float, float, int]]:
+    """``(start, end, offset, worker)`` (s, bag time) of each walk in the bag: one per
+    worker when simlab export-bag laid walks one after the other (its ``simlab.walks``
+    record: each walk's worker and whole-second time offset; a bag of ``--worker 1`` holds
+    worker 1's walk, imported as worker 1), else the whole bag as worker 0; a walk's own
+    times are bag times minus its offset."""
     record = (traj.custom or {}).get("simlab.walks")
     if record is None:
-        return [(-np.inf, np.inf, 0.0)]
+        return [(-np.inf, np.inf, 0.0, 0)]
     try:
-        offsets = [float(w["offset"]) for w in json.loads(record)]
-    except (TypeError, ValueError, KeyError):
-        offsets = []
-    if not offsets or sorted(offsets) != offsets or not np.all(np.isfinite(offsets)):
+        walks = json.loads(record)
+        offsets = [float(w["offset"]) for w in walks]
+        workers = [int(w.get("worker", k)) for k, w in enumerate(walks)]
+    except (TypeError, ValueError, KeyError, AttributeError):
+        offsets, workers = [], []
+    if (not offsets or sorted(offsets) != offsets or not np.all(np.isfinite(offsets))
+            or len(set(workers)) != len(workers) or not all(0 <= w <= 999 for w in workers)):
         raise ConfigError("custom_data: simlab.walks is not a list of walks with increasing "
-                          "offsets", path=bag / "metadata.yaml", key="simlab.walks",
+                          "offsets and distinct workers 0..999", path=bag / "metadata.yaml",
+                          key="simlab.walks",
                           fix="export the dataset again with simlab export-bag")
     ends = [*offsets[1:], np.inf]
-    return [(lo if k else -np.inf, hi, lo) for k, (lo, hi) in
-            enumerate(zip(offsets, ends, strict=True))]
+    return [(lo if k else -np.inf, hi, lo, w) for k, (lo, hi, w) in
+            enumerate(zip(offsets, ends, workers, strict=True))]
 
 
 def _walk_transitions(traj: Any, lo: float, hi: float, offset: float, cfg: ImportBagConfig,
@@ -322,15 +329,23 @@ def _walk_transitions(traj: Any, lo: float, hi: float, offset: float, cfg: Impor
     times from ``offset``; and where the actions came from."""
     from simlab.data.poselog import decision_actions, segment_decisions
     from simlab.data.writer import TransitionArrays
+    from simlab.ros.bag import nanoseconds, seconds
 
     segment = cfg.segment_params()
     keep = (traj.t >= lo) & (traj.t < hi)
-    t = traj.t[keep] - offset
+    # the walk's own times from the stamps' whole nanoseconds (exact; bag.seconds)
+    offset_ns = int(nanoseconds(offset))
+
+    def walk_time(t: Any, t_ns: Any, rows: Any) -> Any:
+        return t[rows] - offset if t_ns is None else seconds(t_ns[rows] - offset_ns)
+
+    t = walk_time(traj.t, traj.t_ns, keep)
     xy, yaw = traj.pose[keep, :2], traj.pose[keep, 2]
     if traj.actions is not None and traj.action_t is not None:
         k = (traj.action_t >= lo) & (traj.action_t < hi)
         start, end, blocked, actions, duration = _decisions_from_actions(
-            t, xy, yaw, traj.actions[k], traj.action_t[k] - offset, segment, aset.n_actions,
+            t, xy, yaw, traj.actions[k], walk_time(traj.action_t, traj.action_t_ns, k),
+            segment, aset.n_actions,
             None if traj.blocked is None else traj.blocked[k],
             None if traj.duration is None else traj.duration[k])
         source = f"action topic {action_topic}"
