@@ -522,3 +522,31 @@ def test_mask_leaves_out_pairs_the_real_robot_only_stayed_in() -> None:
     mask = transfer_report(real, [twin], {"end": [2]}, untried="mask").goals[0].twins[0]
     assert mask.policy[1] == 1 and mask.steps[1] == pytest.approx(2.0)
     assert mask.steps[0] == pytest.approx(3.0)
+
+
+def test_an_mdp_whose_t_and_counts_disagree_is_refused(files, tmp_path, capsys) -> None:
+    """T is scored on and the counts feed the floor's bootstrap: an mdp.npz whose T is not
+    its counts normalised (T edited, counts from another run) is refused, naming the file,
+    both fields and the fix, whether it is the real model or a twin."""
+    from simlab.cli import main
+
+    with np.load(files["real"], allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    tried = np.argwhere(arrays["counts"].sum(axis=2) > 0)[3]
+    row = arrays["T"][tuple(tried)]
+    arrays["T"][tuple(tried)] = 0.5 * row + 0.5 * np.roll(row, 1)  # still a distribution
+    bad = tmp_path / "edited" / "mdp.npz"
+    bad.parent.mkdir()
+    np.savez(bad, **arrays)
+    for real, sim in ((bad, files["twin0"]), (files["real"], bad)):
+        code = main(["transfer", "--real", str(real), "--sim", str(sim), "--goal-states", "8",
+                     "--out", str(tmp_path / "out"), "--no-plot", "--n-boot", "5"])
+        err = capsys.readouterr().err
+        assert code != 0 and not (tmp_path / "out").exists()
+        assert str(bad) in err and "T, counts" in err and "T and counts disagree" in err
+        assert f"({tried[0]}, {tried[1]})" in err and "re-estimate" in err
+        assert len(err.strip().splitlines()) == 1
+    # the file as simlab estimate wrote it is accepted
+    assert main(["transfer", "--real", str(files["real"]), "--sim", str(files["twin0"]),
+                 "--goal-states", "8", "--out", str(tmp_path / "ok"), "--no-plot",
+                 "--n-boot", "5"]) == 0

@@ -101,8 +101,10 @@ class TransferModel:
         stored (visits, tried pairs), else its ``visited`` mask, else every pair allowed."""
         T = np.asarray(mdp.T, dtype=np.float64)
         S, A = T.shape[:2]
+        name = name or str(mdp.source or "mdp")
         visits = None
         if mdp.counts is not None:
+            check_counts_agree(T, np.asarray(mdp.counts), name)
             allowed = np.asarray(mdp.counts).sum(axis=2) > 0
             visits = np.asarray(mdp.counts).sum(axis=(1, 2)).astype(np.int64)
         elif mdp.visited is not None:
@@ -113,11 +115,45 @@ class TransferModel:
         if mdp.goal_masks is not None:
             goals = {str(n): np.asarray(m, dtype=bool)
                      for n, m in zip(mdp.goal_names, mdp.goal_masks, strict=True)}
-        return cls(T=T, allowed=allowed, name=name or str(mdp.source or "mdp"),
+        return cls(T=T, allowed=allowed, name=name,
                    action_set=mdp.action_set, visits=visits,
                    counts=None if mdp.counts is None else np.asarray(mdp.counts, np.int64),
                    centres=None if mdp.centres is None else np.asarray(mdp.centres),
                    goals=goals)
+
+
+#: Largest difference between ``T`` and its counts normalised that is still agreement (the
+#: row-sum tolerance of an mdp.npz, :mod:`simlab.data.mdp`).
+COUNTS_ATOL = 1e-6
+
+
+def check_counts_agree(T: ArrayLike, counts: ArrayLike, name: str) -> None:
+    """Refuse a model whose ``T`` (S, A, S) is not its ``counts`` (S, A, S) normalised on
+    the tried pairs (``n(s, a) > 0``; an untried pair's row is a rule, not data).
+
+    A transfer scores on ``T`` and draws its floor from the counts (parametric bootstrap,
+    :func:`~simlab.calibration.transfer.score.transfer_floor`): a file whose two arrays
+    disagree (``T`` edited or smoothed, counts from another run) would judge the twins
+    against one model and the floor against another. :class:`ConfigError` naming the file,
+    both fields and the first pair that disagrees."""
+    T = np.asarray(T, dtype=np.float64)
+    c = np.asarray(counts, dtype=np.float64)
+    n = c.sum(axis=2)
+    tried = n > 0
+    freq = np.divide(c, n[..., None], out=np.zeros_like(c), where=tried[..., None])
+    gap = np.where(tried[..., None], np.abs(T - freq), 0.0).max(axis=2)
+    bad = gap > COUNTS_ATOL
+    if not bad.any():
+        return
+    s, a = (int(i) for i in np.argwhere(bad)[0])
+    sp = int(np.argmax(np.abs(T[s, a] - freq[s, a])))
+    raise ConfigError(
+        f"T and counts disagree on {int(bad.sum())} of {int(tried.sum())} tried (s, a) "
+        f"pairs, e.g. ({s}, {a}): T = {T[s, a, sp]:.6g} but counts give "
+        f"{int(c[s, a, sp])}/{int(n[s, a])} = {freq[s, a, sp]:.6g} at s' = {sp}; the transfer "
+        f"would score on T and draw its floor from the counts", path=name, key="T, counts",
+        fix="re-estimate the mdp.npz with simlab estimate (T is the counts normalised), "
+            "or give the count file itself instead")
 
 
 @dataclass(frozen=True, eq=False)
