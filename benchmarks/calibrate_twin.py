@@ -140,8 +140,8 @@ def simlab(*argv: object, log: Path | None = None,
 
 
 def run_calibrate(real: Path, states: Path, arena: Path, hours: str, out: Path,
-                  args: argparse.Namespace, *, reuse: bool, env: dict[str, str] | None = None
-                  ) -> tuple[dict, float, float]:
+                  args: argparse.Namespace, *, reuse: bool, env: dict[str, str] | None = None,
+                  seed: int = 0) -> tuple[dict, float, float]:
     """``simlab calibrate`` as the README gives it (8 ccw-east actions at the fast speed);
     (its report.json, wall s, load average over the run); an earlier run's report with
     ``reuse``. ``env``: the subprocess's environment (another default rate)."""
@@ -149,8 +149,9 @@ def run_calibrate(real: Path, states: Path, arena: Path, hours: str, out: Path,
     if reuse and (out / "report.json").is_file() and timing.is_file():
         t = json.loads(timing.read_text())
         return json.loads((out / "report.json").read_text()), t["wall"], t["load"]
-    extra = ["--candidates", "4", "--confirm-top", "1", "--transfer-seeds", "2",
+    extra = ["--candidates", "6", "--confirm-top", "1", "--transfer-seeds", "2",
              "--confirm-hours", "1"] if args.quick else []
+    extra += ["--seed", seed]
     extra += args.calibrate_args.split()
     load0 = os.getloadavg()[0]
     stdout, wall = simlab("calibrate", "--real", real, "--states", states, "--arena", arena,
@@ -196,6 +197,77 @@ def print_calibration(rep: dict, wall: float, load: float) -> None:
         rep["params"][k], str) else f"{k}={rep['params'][k]}" for k in searched))
     print(f"wall time of calibrate: {wall:.0f} s on {os.cpu_count()} cores at load "
           f"{load:.1f} (target < 900 s)")
+
+
+def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
+    """One seed's figures against the targets (the per-seed table's row)."""
+    d, mf = rep["distance"]["distance"], rep["matched_floor"]["median"]
+    gap = rep.get("signature_gap") or {}
+    tr = rep.get("transfer") or {}
+    ov = tr.get("overview") or {}
+    twins = [t.get("ratio") for t in ov.get("twins", [])]
+    need = tr.get("data_need") or {}
+    at_need = tr.get("perfect_twin_at_need") or {}
+    fit = (need["limit"] + need["c"] / need["transitions"]) if need else None
+    perfect = at_need.get("median")
+    return {"seed": seed, "tv_over_matched": d / mf, "self_twin": rep["sim"][
+                "self_transition_share"], "self_real": rep["real"]["self_transition_share"],
+            "self_visits_twin": gap.get("self_share"), "self_visits_real":
+                gap.get("self_share_real"),
+            "h_twin": rep["sim"]["mean_entropy_bits"], "h_real": rep["real"][
+                "mean_entropy_bits"], "h_matched_twin": gap.get("entropy_bits"),
+            "h_matched_real": gap.get("entropy_bits_real"), "regions_tv": gap.get("regions_tv"),
+            "blocked": rep["sim"]["blocked_rate"],
+            "twin_ratios": twins, "never": sum(x is None for x in twins),
+            "fit_at_need": fit, "perfect_at_need": perfect,
+            "at_need_over_perfect": fit / perfect if fit and perfect else None,
+            "ensemble": len((rep.get("ensemble") or {}).get("members", [])),
+            "wall": wall, "load": load, "params": {x["name"]: rep["params"][x["name"]]
+                                                   for x in rep["space"]}}
+
+
+def _f(x: Any, fmt: str = "{:.3f}") -> str:
+    return "n/a" if x is None else fmt.format(x)
+
+
+def print_seeds(rows: list[dict[str, Any]]) -> None:
+    """The per-seed table, then the spread across seeds of every figure that moves."""
+    print("\nper seed (targets: TV <= 1.5x the matched floor, spread <= 0.1x; self share "
+          "within +-0.03 and entropy within +-0.05 bits of the robot's; at the recommended "
+          "data <= 1.03x the perfect twin; every twin arrives; <= 900 s quiet):")
+    print("seed | TV/matched | self twin/robot (own walk; at robot's visits) | entropy "
+          "twin/robot (plug-in; matched draws) | regions TV | blocked | twin ratios | "
+          "at need / perfect | ensemble | wall s (load)")
+    for r in rows:
+        ratios = ", ".join(_f(x) if x is not None else "never" for x in r["twin_ratios"])
+        print(f"{r['seed']} | {r['tv_over_matched']:.2f} | {_f(r['self_twin'])}/"
+              f"{_f(r['self_real'])}; {_f(r['self_visits_twin'])}/{_f(r['self_visits_real'])}"
+              f" | {_f(r['h_twin'], '{:.2f}')}/{_f(r['h_real'], '{:.2f}')}; "
+              f"{_f(r['h_matched_twin'], '{:.2f}')}/{_f(r['h_matched_real'], '{:.2f}')} | "
+              f"{_f(r['regions_tv'])} | {_f(r['blocked'])} | {ratios} | "
+              f"{_f(r['at_need_over_perfect'])} | {r['ensemble']} | {r['wall']:.0f} "
+              f"({r['load']:.1f})")
+    if len(rows) < 2:
+        return
+    print("\nspread across seeds (min - max, max - min):")
+    for key, label in (("tv_over_matched", "TV / matched floor"),
+                       ("self_twin", "self share, own walk"),
+                       ("self_visits_twin", "self share at the robot's visits"),
+                       ("h_twin", "entropy per action, plug-in (bits)"),
+                       ("h_matched_twin", "entropy per action, matched draws (bits)"),
+                       ("regions_tv", "outcomes per region TV"),
+                       ("at_need_over_perfect", "at the recommended data / perfect twin"),
+                       ("wall", "wall s")):
+        v = [r[key] for r in rows if r[key] is not None]
+        if v:
+            print(f"  {label}: {min(v):.3f} - {max(v):.3f} ({max(v) - min(v):.3f})")
+    print("  calibrated fields (min - max):")
+    for name in rows[0]["params"]:
+        v = [r["params"][name] for r in rows]
+        if isinstance(v[0], str):
+            print(f"    {name}: {sorted(set(v))}")
+        else:
+            print(f"    {name}: {min(v):.4g} - {max(v):.4g}")
 
 
 def compare_rate(args: argparse.Namespace, calibrate: Any, root: Path, rep: dict,
@@ -258,9 +330,17 @@ def isir(args: argparse.Namespace) -> None:
         simlab("estimate", "--counts", lab / "realisticNavWorld.json", "--n-actions", 8,
                "--convention", "ccw-east", "--states", states, "--arena", arena, "--out",
                model, "--no-plot", "--overwrite")
-    rep, wall, load = run_calibrate(lab / "realisticNavWorld.json", states, arena, "13",
-                                    root / "cal", args, reuse=args.reuse)
-    print_calibration(rep, wall, load)
+    rows = []
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        out = root / ("cal" if args.seeds == 1 else f"cal-seed{seed}")
+        rep, wall, load = run_calibrate(lab / "realisticNavWorld.json", states, arena, "13",
+                                        out, args, reuse=args.reuse, seed=seed)
+        print_calibration(rep, wall, load)
+        rows.append(seed_row(seed, rep, wall, load))
+        print_seeds(rows)
+    if args.seeds > 1:
+        print(f"files in {root}")
+        return
     compare_rate(args, lambda out, env: run_calibrate(
         lab / "realisticNavWorld.json", states, arena, "13", out, args, reuse=args.reuse,
         env=env), root, rep, wall)
@@ -341,10 +421,19 @@ def synthetic(args: argparse.Namespace) -> None:
     print(f"real signature: self-transition share {sig.self_share:.2f}, mean entropy "
           f"{sig.mean_entropy:.2f} bits, {sig.pairs_visited}/{sig.pairs} pairs, "
           f"{sig.states_visited}/{sig.states} states")
-    out = root / "cal"
-    rep, wall, load = run_calibrate(real_csv, states, arena, f"{info['hours']:.4f}", out, args,
-                                    reuse=args.reuse)
-    print_calibration(rep, wall, load)
+    rows = []
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
+        out = root / ("cal" if args.seeds == 1 else f"cal-seed{seed}")
+        rep, wall, load = run_calibrate(real_csv, states, arena, f"{info['hours']:.4f}", out,
+                                        args, reuse=args.reuse, seed=seed)
+        print_calibration(rep, wall, load)
+        rows.append(seed_row(seed, rep, wall, load))
+        print_seeds(rows)
+        hidden = {k: v for k, v in HIDDEN.items() if k in rep["params"]}
+        print(f"hidden {hidden}\nfound  { {k: rep['params'][k] for k in hidden} }")
+    if args.seeds > 1:
+        print(f"files in {root}")
+        return
     compare_rate(args, lambda out, env: run_calibrate(
         real_csv, states, arena, f"{info['hours']:.4f}", out, args, reuse=args.reuse,
         env=env), root, rep, wall)
@@ -362,6 +451,10 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small budgets (smoke run)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=7, help="seed of the hidden walk")
+    parser.add_argument("--seeds", type=int, default=1,
+                        help="calibrate seeds to run (per-seed table and spread; with more "
+                             "than one the policy-data and rate steps are skipped)")
+    parser.add_argument("--first-seed", type=int, default=0, help="first calibrate seed")
     parser.add_argument("--keep", type=Path, default=None, help="keep the files here")
     parser.add_argument("--reuse", action="store_true",
                         help="reuse the files already in --keep (lab, calibration, data)")

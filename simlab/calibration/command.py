@@ -181,9 +181,22 @@ class CalibrateConfig(ActionSetOptions):
         "transitions)")
     screen_share: float = option(0.25, "screening walk size as a share of the real "
                                  "transitions")
-    candidates: int = option(28, "candidates screened, the starting point included")
-    confirm_top: int = option(2, "best screened candidates re-simulated on fresh seeds "
-                              "(the starting point too); the winner is picked there")
+    candidates: int = option(36, "candidates walked at the search's first rung, the "
+                             "starting point included")
+    confirm_top: int = option(4, "best candidates of the search's last rung re-simulated on "
+                              "fresh seeds (the starting point too); the winner is picked "
+                              "there, and those within sampling of it form the twin ensemble")
+    sampler: str = option("tpe", "Optuna sampler proposing the candidates: TPE, CMA-ES "
+                          "(needs the cmaes package), scrambled Sobol or random",
+                          choices=("tpe", "cmaes", "qmc", "random"))
+    batch: int = option(4, "candidates proposed at a time (the search does not depend on "
+                        "--workers: same seed, same twin on any machine)")
+    eta: int = option(3, "successive halving: the best 1/ETA of a rung walk ETA times more "
+                      "at the next")
+    rungs: int = option(2, "rungs of the search before the confirmation (1: no promotion)")
+    signature_weight: float = option(
+        0.01, "weight of the signature penalty (self-transition share, entropy per action, "
+        "outcomes per region, each against its tolerance) in the signature objective")
     confirm_seeds: int = option(1, "fresh seeds of each confirmed candidate")
     confirm_hours: float | None = option(
         None, "simulated hours of each confirming walk (default: sized from the matched "
@@ -215,9 +228,10 @@ class CalibrateConfig(ActionSetOptions):
     unvisited: str = option("max", "real pairs the simulation never tried: a full miss "
                             "(max, default) or left out and reported", choices=("report", "max"))
     objective: str = option(
-        "excess", "minimised: the TV distance in excess of its sampling floor (unbiased with "
-        "few real visits per pair), the plain visit-weighted TV distance, or bits per real "
-        "transition under the simulated T", choices=("excess", "tv", "loglik"))
+        "signature", "minimised: the TV distance in excess of its sampling floor plus the "
+        "robot's signature (self-transition share, entropy per action, outcomes per region), "
+        "that excess alone, the plain visit-weighted TV distance, or bits per real "
+        "transition under the simulated T", choices=("signature", "excess", "tv", "loglik"))
     confirm: bool = option(True, "re-simulate the best candidates on fresh seeds and pick "
                            "the winner there (--no-confirm skips it, and the transfer report)")
     reset_states: str = option(
@@ -247,7 +261,8 @@ class CalibrateConfig(ActionSetOptions):
         """The search options as the :class:`CalibrationConfig` Python callers use."""
         return CalibrationConfig(
             hours_per_candidate=self.hours_per_candidate, candidates=self.candidates,
-            workers=self.workers, seed=self.seed, simulator=self.simulator,
+            workers=self.workers, seed=self.seed, sampler=self.sampler, batch=self.batch,
+            eta=self.eta, rungs=self.rungs, signature_weight=self.signature_weight, simulator=self.simulator,
             pose_source=self.pose_source, n_boot=self.n_boot, unvisited=self.unvisited,
             objective=self.objective, confirm=self.confirm, progress=self.progress,
             screen_share=self.screen_share, confirm_hours=self.confirm_hours,

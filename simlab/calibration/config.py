@@ -60,42 +60,53 @@ class CalibrationConfig:
     Attributes:
         hours_per_candidate: simulated hours of each screening walk (> 0); None (default)
             sizes it from the real table: ``screen_share`` of its transitions.
-        candidates: number of candidates screened (>= 2), the starting point included.
-            28 by default: a robot that drives until its state changes searches 11 fields
-            (a Sobol design of half the candidates and a refinement of the other half:
-            about 1.3 points per field each).
-        workers: walks simulated at once, one process each (1 = in this process).
-            The refinement rounds have this many candidates, so the search is identical
-            for the same (seed, workers), like ``collect``; the initial design is not
-            affected.
-        seed: the walks' seed (common to all candidates) and the optimiser's seed; the
-            confirming and twin walks use ``seed + 1``, ``seed + 2``, ...
+        candidates: candidates walked at rung 0 of the search (>= 2), the starting point
+            included. 36 by default: the successive halving promotes a third to rung 1 and
+            the best ``confirm_top`` of those to the confirmation
+            (:mod:`~simlab.calibration.search`).
+        workers: walks simulated at once, one process each (1 = in this process). The
+            search does not depend on it (its batches are ``batch`` candidates), so the same
+            seed gives the same twin with any number of workers.
+        batch: candidates asked of the sampler at a time (>= 1); the sampler learns from a
+            batch's scores before the next.
+        sampler: Optuna's sampler proposing the candidates: ``"tpe"`` (default), ``"cmaes"``
+            (needs the ``cmaes`` package), ``"qmc"`` (scrambled Sobol, no learning) or
+            ``"random"``.
+        eta: promotion factor of the successive halving (>= 2): a third of a rung's
+            candidates walk three times more at the next rung.
+        rungs: rungs of the search before the confirmation (>= 1; 1 = no promotion, the
+            confirmation takes the best rung-0 candidates).
+        signature_weight: weight of the signature penalty of the ``signature`` objective
+            (:mod:`~simlab.calibration.objective`; >= 0).
+        seed: the search's seed: rung ``k``'s walks use ``seed + k`` (common to every
+            candidate of the rung), the confirming walks the seeds after the rungs', the
+            twin walks the ones after those.
         simulator: ``"physics"`` or ``"kinematic"`` (physics-free dry runs and tests).
         pose_source: pose source of the walks (``truth``, ``odometry``, ``mcl``); the
             localization error of a real robot's states is searched as ``pose_noise_xy``.
-        shrink: factor of the refinement step per round (0 < shrink <= 1).
-        step: initial refinement step, in unit-cube coordinates (> 0).
         n_boot: bootstrap resamples of the sampling floor.
         unvisited: real pairs the simulation never tried: ``"max"`` (default: a full miss,
             TV = 1, so covering less never pays) or ``"report"`` (left out of the mean and
             counted in the report).
-        objective: what the search minimises: ``"excess"`` (default: the visit-weighted
-            TV distance minus what sampling alone gives if the candidate were the truth,
-            :func:`~simlab.calibration.metrics.excess_distance`), ``"tv"`` (the plain
-            distance; with a few real visits per pair it favours too-certain simulators:
-            on a 36-state kinematic lattice with 365 and 1,167 real transitions, two seeds
-            each, hidden drive time 0.8 s was found at 0.45-0.64 s by ``tv`` and at
-            0.65-1.17 s by ``excess``: no longer biased low, but as spread) or ``"loglik"``
-            (bits per real transition under the simulated T,
-            :func:`~simlab.calibration.metrics.cross_entropy`). The report always gives the
-            plain TV distance.
+        objective: what the search minimises: ``"signature"`` (default: ``excess`` plus
+            the penalty of the twin's signature against the robot's, its self-transition
+            share, entropy per action and outcomes per region at the robot's own visits,
+            :mod:`~simlab.calibration.objective`), ``"excess"`` (the visit-weighted TV
+            distance minus what sampling alone gives if the candidate were the truth,
+            :func:`~simlab.calibration.metrics.excess_distance`; it charges over-dispersed
+            twins less), ``"tv"`` (the plain distance; with a few real visits per pair it
+            favours too-certain simulators) or ``"loglik"`` (bits per real transition under
+            the simulated T, :func:`~simlab.calibration.metrics.cross_entropy`). The report
+            always gives the plain TV distance and the signature.
         confirm: re-simulate the best candidates on fresh seeds and pick the winner there.
         progress: tqdm bar over candidates.
         screen_share: screening walk size as a share of the real transitions (> 0; used
             when ``hours_per_candidate`` is None).
         confirm_hours: simulated hours of each confirming walk; None (default) sizes it
             from the matched floor (:func:`~simlab.calibration.budget.size_budgets`).
-        confirm_top: screened candidates confirmed (>= 1), besides the starting point.
+        confirm_top: candidates of the search's last rung confirmed (>= 1), besides the
+            starting point; the confirmed candidates within sampling of the winner form the
+            twin ensemble.
         confirm_seeds: fresh seeds each confirmed candidate walks (>= 1).
         transfer_seeds: twin seeds of the transfer report (0 = no transfer report); 3 by
             default: each is read against the perfect twin at its own data, so a few
@@ -116,21 +127,24 @@ class CalibrationConfig:
     """
 
     hours_per_candidate: float | None = None
-    candidates: int = 28
+    candidates: int = 36
     workers: int = 2
+    batch: int = 4
+    sampler: str = "tpe"
+    eta: int = 3
+    rungs: int = 2
+    signature_weight: float = 0.01
     seed: int = 0
     simulator: str = "physics"
     pose_source: str = "truth"
-    shrink: float = 0.6
-    step: float = 0.15
     n_boot: int = 200
     unvisited: str = "max"
-    objective: str = "excess"
+    objective: str = "signature"
     confirm: bool = True
     progress: bool = True
     screen_share: float = 0.25
     confirm_hours: float | None = None
-    confirm_top: int = 2
+    confirm_top: int = 4
     confirm_seeds: int = 1
     transfer_seeds: int = 3
     start_states: Any = "all"
@@ -153,8 +167,11 @@ class CalibrationConfig:
         validation.whole(self.workers, k + "workers", minimum=1)
         validation.whole(self.seed, k + "seed", minimum=0)
         validation.choice(self.simulator, ("physics", "kinematic"), k + "simulator")
-        validation.number(self.shrink, k + "shrink", low=0.0, low_open=True, high=1.0)
-        validation.positive(self.step, k + "step")
+        validation.whole(self.batch, k + "batch", minimum=1)
+        validation.choice(self.sampler, SAMPLERS, k + "sampler")
+        validation.whole(self.eta, k + "eta", minimum=2)
+        validation.whole(self.rungs, k + "rungs", minimum=1)
+        validation.number(self.signature_weight, k + "signature_weight", low=0.0)
         validation.whole(self.n_boot, k + "n_boot", minimum=1)
         validation.choice(self.unvisited, ("report", "max"), k + "unvisited")
         validation.choice(self.objective, OBJECTIVES, k + "objective")
@@ -172,7 +189,10 @@ class CalibrationConfig:
 
 
 #: What the search may minimise (:class:`CalibrationConfig.objective`).
-OBJECTIVES = ("tv", "excess", "loglik")
+OBJECTIVES = ("signature", "excess", "tv", "loglik")
+
+#: Optuna samplers that may propose the candidates (:class:`CalibrationConfig.sampler`).
+SAMPLERS = ("tpe", "cmaes", "qmc", "random")
 
 #: Longest walk a calibration stage may be given (simulated hours): 1,000 h is ~1 million
 #: transitions of a real robot's pace, days of wall time; more is a typo, not a budget.

@@ -66,7 +66,7 @@ def pair_regions(arena: Any, centres: ArrayLike, headings: ArrayLike,
     return out
 
 
-def _outcome_classes(centres: NDArray[np.float64], headings: NDArray[np.float64]
+def outcome_classes(centres: NDArray[np.float64], headings: NDArray[np.float64]
                      ) -> NDArray[np.int64]:
     """(S, A, S) class of each outcome: 0 stay, 1 ahead, 2 side, 3 behind."""
     S = len(centres)
@@ -88,7 +88,7 @@ def region_signature(counts: ArrayLike, regions: NDArray[np.int64], centres: Arr
     ``tv_per_pair`` (S, A) the mean ``tv`` weighted by ``weights`` (S, A) (the real visits;
     NaN pairs, untried by the twin, count as 1)."""
     n = np.asarray(counts, dtype=np.float64)
-    cls = _outcome_classes(np.asarray(centres, dtype=np.float64),
+    cls = outcome_classes(np.asarray(centres, dtype=np.float64),
                            np.asarray(headings, dtype=np.float64))
     n_sa = n.sum(axis=2)
     p = n / np.maximum(n_sa, 1.0)[..., None]

@@ -173,9 +173,12 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "config": cfg,
         "best_candidate": result.best,
         "candidates": [{"index": c.index, "stage": c.stage, "values": c.values,
-                        "distance": _fin(c.distance), "rows": c.sim.rows,
-                        "real_only_pairs": c.tv.real_only,
+                        "distance": _fin(c.distance), "score": _fin(c.score),
+                        "rows": c.sim.rows, "real_only_pairs": c.tv.real_only,
                         "wall_seconds": c.sim.wall_seconds} for c in result.candidates],
+        "signature_gap": None if result.final.gap is None else result.final.gap.to_json(),
+        "search": search_json(result),
+        "ensemble": ensemble_json(result),
         "wall_seconds": result.wall_seconds,
         "notes": result.notes,
         "warnings": result.warnings,
@@ -198,6 +201,62 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
             **_lines_json(result.twin_transfer),
             **result.transfer.to_json()},
     }
+
+
+def search_json(result: CalibrationResult) -> dict[str, Any] | None:
+    """The search's rungs (each candidate's pooled score there), its picks and the share of
+    the rung-0 score each field explains."""
+    found = result.search
+    if found is None:
+        return None
+    rungs = [{"rung": 1, "walk": _size(found.sizes[0]),
+              "candidates": [{"index": c.index, "score": _fin(c.score),
+                              "distance": _fin(c.distance), "rows": c.sim.rows}
+                             for c in found.candidates]}]
+    for k, rung in enumerate(found.rungs, start=1):
+        rungs.append({"rung": k + 1, "walk": _size(found.sizes[k]),
+                      "candidates": [{"index": c.index, "score": _fin(c.score),
+                                      "distance": _fin(c.distance), "rows": c.sim.rows}
+                                     for c in rung]})
+    return {"sampler": result.config.sampler, "eta": result.config.eta, "rungs": rungs,
+            "picks": found.picks, "importance": found.importance}
+
+
+def _size(size: tuple[float | None, int | None]) -> dict[str, Any]:
+    return {"hours": size[0], "transitions": size[1]}
+
+
+def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
+    """Per searched field: the ensemble's values (lowest, highest), that span as a share
+    of the searched range (unit-cube width), the share of the search's score the field
+    explains, and ``told``: whether the data pin it down (its members agree within a
+    quarter of the range, or the field explains at least 5 % of the score)."""
+    members = result.ensemble
+    imp = result.search.importance if result.search is not None else {}
+    rows = []
+    for k, spec in enumerate(result.space.specs):
+        units = np.array([c.unit[k] for c in members]) if members else np.zeros(0)
+        vals = [c.values[spec.name] for c in members]
+        width = float(units.max() - units.min()) if units.size else math.nan
+        share = imp.get(spec.name)
+        told = bool(units.size and (width <= 0.25 or (share is not None and share >= 0.05)))
+        row: dict[str, Any] = {"field": spec.name, "span_of_range": _fin(width),
+                               "importance": share, "told": told}
+        if spec.categorical:
+            row["values"] = sorted(set(vals))
+        else:
+            row["low"] = min(vals) if vals else None
+            row["high"] = max(vals) if vals else None
+        rows.append(row)
+    return rows
+
+
+def ensemble_json(result: CalibrationResult) -> dict[str, Any]:
+    """The twin ensemble: its members (the winner first) and the spread field by field."""
+    return {"members": [{"index": c.index, "distance": _fin(c.distance),
+                         "score": _fin(c.score), "values": c.values}
+                        for c in result.ensemble],
+            "spread": ensemble_spread(result)}
 
 
 def _lines_json(twin: Any) -> dict[str, Any]:
@@ -308,10 +367,12 @@ def report_markdown(result: CalibrationResult) -> str:
     for name, a, b in _side_by_side(result):
         out.write(f"| {name} | {a} | {b} |\n")
     _distance(out, result)
+    out.write(signature_section(result))
     out.write(region_table(result.regions))
     out.write(_budget_section(result))
     out.write(_transfer_section(result))
     _parameters(out, result)
+    out.write(ensemble_section(result))
     _search_table(out, result)
     out.write("\n![calibration](calibration.png)\n")
     return out.getvalue()
@@ -421,6 +482,56 @@ def _parameters(out: io.StringIO, result: CalibrationResult) -> None:
     out.write("\n" + ("Decision latency fitted to the real transitions per hour.\n"
                       if result.latency_fitted else
                       "Decision latency not fitted (real duration unknown).\n"))
+
+
+def signature_section(result: CalibrationResult) -> str:
+    """The twin's signature against the robot's at the robot's visits, with tolerances."""
+    from simlab.calibration.objective import TOLERANCES
+
+    gap = result.final.gap
+    if gap is None:
+        return ""
+    ok = gap.within()
+    rows = [("self-transition share", gap.self_share_real, gap.self_share,
+             TOLERANCES["self_share"], ok.get("self_share")),
+            ("entropy per action (bits, at matched draws)", gap.entropy_real, gap.entropy,
+             TOLERANCES["entropy"], ok.get("entropy")),
+            ("outcomes per region (TV)", 0.0, gap.regions, TOLERANCES["regions"],
+             ok.get("regions"))]
+    out = io.StringIO()
+    out.write("\n## Signature at the robot's visits\n\nThe twin's moves on the pairs the "
+              "robot tried, weighted by the robot's visits (the search's objective holds each "
+              "within its tolerance):\n\n| | robot | twin | tolerance | within |\n"
+              "|---|---|---|---|---|\n")
+    for name, real, twin, tol, within in rows:
+        mark = "n/a" if within is None else ("yes" if within else "**no**")
+        out.write(f"| {name} | {_cell(real)} | {_cell(twin)} | {tol:g} | {mark} |\n")
+    out.write("\n")
+    return out.getvalue()
+
+
+def ensemble_section(result: CalibrationResult) -> str:
+    """The twin ensemble and how sure the twin is, field by field."""
+    if not result.ensemble:
+        return ""
+    out = io.StringIO()
+    ids = ", ".join(f"#{c.index}" for c in result.ensemble)
+    out.write(f"\n## How sure the twin is\n\nTwin ensemble: {ids} (the confirmed candidates "
+              "within sampling of the winner: no more than the matched floor's 95 % "
+              "half-width above its distance). Their values field by field, the span as a "
+              "share of the searched range, and the share of the search's score the field "
+              "explains (PED-ANOVA over the first rung); a field is *not told* by the data "
+              "when the members disagree by more than a quarter of its range and it explains "
+              "under 5 % of the score:\n\n| field | ensemble values | span of range | "
+              "explains | told by the data |\n|---|---|---|---|---|\n")
+    for row in ensemble_spread(result):
+        vals = (", ".join(row["values"]) if "values" in row else
+                f"{_value(row['low'])} - {_value(row['high'])}")
+        share = "n/a" if row["importance"] is None else f"{100 * row['importance']:.0f} %"
+        out.write(f"| {row['field']} | {vals} | {_cell(row['span_of_range'], '{:.2f}')} | "
+                  f"{share} | {'yes' if row['told'] else '**not told**'} |\n")
+    out.write("\n")
+    return out.getvalue()
 
 
 def _search_table(out: io.StringIO, result: CalibrationResult) -> None:
@@ -611,18 +722,19 @@ def plot_calibration(result: CalibrationResult, path: Path) -> None:
     ax1, ax2 = fig.subplots(1, 2)
     idx = np.array([c.index for c in result.candidates])
     dist = np.array([c.distance for c in result.candidates])
-    init = np.array([c.stage == "init" for c in result.candidates])
     conf = result.confirmed
     ax1.axhspan(result.floor.low, result.floor.high, color="0.85", label="floor (95 %)")
     ax1.axhline(result.matched_floor.median, color="0.4", ls="--", label="matched floor")
-    ax1.plot(idx[init], dist[init], "o", label="initial design")
-    ax1.plot(idx[~init], dist[~init], "s", label="refinement")
+    ax1.plot(idx, dist, "o", ms=4, label="rung 1 (every candidate)")
+    for k, rung in enumerate(result.search.rungs if result.search is not None else []):
+        ax1.plot([c.index for c in rung], [c.distance for c in rung], "s", mfc="none",
+                 label=f"rung {k + 2} (walks pooled)")
     ax1.plot(idx, np.minimum.accumulate(dist), "-", color="k", lw=1, label="best so far")
     if conf:
         ax1.plot([c.index for c in conf], [c.distance for c in conf], "x", color="tab:red",
                  label="confirming walks (fresh seeds)")
-    ax1.set_xlabel("candidate")
-    ax1.set_ylabel("visit-weighted TV distance")
+    ax1.set_xlabel("candidate (order proposed)")
+    ax1.set_ylabel("visit-weighted TV distance (0-1)")
     ax1.legend(fontsize=7)
     a = np.arange(result.entropy_real.size)
     ax2.bar(a - 0.2, np.nan_to_num(result.entropy_real), 0.4, label="real")

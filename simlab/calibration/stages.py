@@ -63,6 +63,7 @@ from simlab.calibration.metrics import (
     entropy_per_action,
     table_summary,
 )
+from simlab.calibration.objective import Reference
 from simlab.calibration.policies import (
     DATA_NEED_TOLERANCE,
     TRANSFER_BOOT,
@@ -77,6 +78,7 @@ from simlab.calibration.regions import pair_regions, region_signature
 from simlab.calibration.resets import reset_warning, resolve_reset_states, without_rows
 from simlab.calibration.search import (
     Candidate,
+    SearchResult,
     evaluate_points,
     make_candidate,
     params_at,
@@ -148,6 +150,11 @@ class CalibrationResult:
     #: the signature per region, real and twin side by side
     #: (:func:`~simlab.calibration.regions.region_signature`)
     regions: list[dict[str, Any]] = field(default_factory=list)
+    #: the search: its rungs, picks and the share of the score each field explains
+    search: SearchResult | None = None
+    #: the confirmed candidates within sampling of the winner (the winner first): the twin
+    #: ensemble, and how sure the twin is field by field
+    ensemble: list[Candidate] = field(default_factory=list)
 
 
 
@@ -162,15 +169,9 @@ def _fit_latency(params: Any, real: RealTable, sim: SimTable) -> tuple[Any, bool
 
 
 
-def _picks(cands: list[Candidate], top: int) -> list[int]:
-    """The ``top`` best distinct screened candidates, then the starting point (index 0)."""
-    picks: list[int] = []
-    for i in sorted(range(len(cands)), key=lambda i: (cands[i].score, i)):
-        if not any(np.allclose(cands[i].unit, cands[j].unit, atol=1e-9) for j in picks):
-            picks.append(i)
-        if len(picks) == top:
-            break
-    return picks + ([0] if 0 not in picks else [])
+def _picks(found: SearchResult) -> list[int]:
+    """The search's picks for the confirmation, then the starting point (index 0)."""
+    return found.picks + ([0] if 0 not in found.picks else [])
 
 
 
@@ -180,13 +181,14 @@ def _pooled(runs: list[Candidate], index: int, ctx: dict[str, Any]) -> Candidate
 
 
 
-def _confirm(runner: WalkRunner, cands: list[Candidate], ctx: dict[str, Any],
+def _confirm(runner: WalkRunner, found: SearchResult, ctx: dict[str, Any],
              budget: tuple[float | None, int | None], bar: Any
              ) -> tuple[int, dict[int, list[Candidate]]]:
     """Re-simulate the picks on the fresh seeds; the winner has the lowest mean score."""
     cfg: CalibrationConfig = ctx["config"]
-    picks = _picks(cands, cfg.confirm_top)
-    seeds = [cfg.seed + 1 + k for k in range(cfg.confirm_seeds)]
+    cands = found.candidates
+    picks = _picks(found)
+    seeds = [cfg.seed + cfg.rungs + k for k in range(cfg.confirm_seeds)]
     jobs = [(i, seed) for seed in seeds for i in picks]
     runs: dict[int, list[Candidate]] = {i: [] for i in picks}
     for k in range(0, len(jobs), max(cfg.workers, 1)):
@@ -209,7 +211,7 @@ def _twins(runner: WalkRunner, winner: Candidate, confirmed: list[Candidate],
     twins = [dataclasses.replace(c, stage="twin") for c in confirmed][:cfg.transfer_seeds]
     extra = cfg.transfer_seeds - len(twins)
     if extra > 0:
-        seeds = [cfg.seed + 1 + cfg.confirm_seeds + k for k in range(extra)]
+        seeds = [cfg.seed + cfg.rungs + cfg.confirm_seeds + k for k in range(extra)]
         done = evaluate_points(runner, [winner.unit] * extra, "twin", winner.index, ctx,
                          seeds=seeds, budget=budget)
         twins += [dataclasses.replace(c, index=winner.index) for c in done]
@@ -245,16 +247,19 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
     budgets = size_budgets(real, config, floor, rng)
     screen = (budgets.screen_hours, budgets.screen_transitions)
+    reference = Reference.build(real.counts, setup.regions, setup.disc.centres,
+                                real.action_set.headings())
     runner = WalkRunner(int(config.workers), config.address)
     try:
-        cands, screen_best = search(real, setup.arena, setup.disc, space=setup.space,
-                                    base=setup.base, config=config, runner=runner,
-                                    screen=screen)
+        found = search(real, setup.arena, setup.disc, space=setup.space, base=setup.base,
+                       config=config, runner=runner, screen=screen, reference=reference)
+        cands, screen_best = found.candidates, found.best
         ctx = walk_context(real, setup.arena, setup.disc, setup.space, setup.base, config,
-                       config.seed, screen)
-        done = _Confirmed(best=screen_best, final=cands[screen_best])
+                           config.seed, screen, reference)
+        last = found.rungs[-1] if found.rungs else cands
+        done = _Confirmed(best=screen_best, final=next(c for c in last if c.index == screen_best))
         if config.confirm:
-            done = _confirm_stage(runner, cands, screen_best, ctx,
+            done = _confirm_stage(runner, found, ctx,
                                   (budgets.confirm_hours, budgets.confirm_transitions))
         params, fitted = _fit_latency(params_at(setup.space, setup.base,
                                                 cands[done.best].unit), real, done.final.sim)
@@ -287,7 +292,8 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         confirmed=done.confirmed, twins=done.twins,
         transfer=None if twin is None else twin.report,
         transfer_curve=[] if twin is None else twin.curve, warnings=setup.warnings,
-        screen_best=screen_best, twin_transfer=twin,
+        screen_best=screen_best, twin_transfer=twin, search=found,
+        ensemble=_ensemble(done, matched),
         regions=_region_rows(setup, real, final),
     )
 
@@ -315,6 +321,18 @@ def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: _S
                                  config.workers, config.seed + 1000)
     twin.policy = score_policy_data(twin, counts, real.action_set, setup.disc.centres, rng)
     return twin
+
+
+def _ensemble(done: _Confirmed, matched: Floor) -> list[Candidate]:
+    """The confirmed candidates (each pooled over its confirming walks) whose distance lies
+    within sampling of the winner's: no more than the matched floor's 95 % half-width
+    (``high - median``) above it; the winner first. Empty without confirmation."""
+    if not done.pooled:
+        return []
+    width = matched.high - matched.median if math.isfinite(matched.high) else 0.0
+    others = sorted((c for c in done.pooled if c.index != done.best),
+                    key=lambda c: (c.distance, c.index))
+    return [done.final] + [c for c in others if c.distance <= done.final.distance + width]
 
 
 def _region_rows(setup: _Setup, real: RealTable, final: Candidate) -> list[dict[str, Any]]:
@@ -407,31 +425,36 @@ class _Confirmed:
     confirmed: list[Candidate] = field(default_factory=list)
     twins: list[Candidate] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: every confirmed candidate's confirming walks pooled
+    pooled: list[Candidate] = field(default_factory=list)
 
 
 
-def _confirm_stage(runner: WalkRunner, cands: list[Candidate], screen_best: int,
-                   ctx: dict[str, Any], budget: tuple[float | None, int | None]
-                   ) -> _Confirmed:
+def _confirm_stage(runner: WalkRunner, found: SearchResult, ctx: dict[str, Any],
+                   budget: tuple[float | None, int | None]) -> _Confirmed:
     """Confirm the best screened candidates and the start on fresh seeds, pick the winner
     there, then walk its twin seeds (one progress bar over all these walks)."""
     from tqdm.auto import tqdm
 
     cfg: CalibrationConfig = ctx["config"]
-    n_picks = len(_picks(cands, cfg.confirm_top))
+    cands = found.candidates
+    n_picks = len(_picks(found))
     extra = max(cfg.transfer_seeds - cfg.confirm_seeds, 0)
-    bar = tqdm(total=n_picks * cfg.confirm_seeds + extra, desc="calibrate: confirm",
+    what = (f"{budget[0]:g} h" if budget[0] is not None else f"{budget[1]:,} transitions")
+    bar = tqdm(total=n_picks * cfg.confirm_seeds + extra,
+               desc=f"calibrate: confirm ({what} a walk)",
                unit="walk", disable=not cfg.progress)
     try:
-        best, runs = _confirm(runner, cands, ctx, budget, bar)
+        best, runs = _confirm(runner, found, ctx, budget, bar)
         twins = _twins(runner, cands[best], runs[best], ctx, budget, bar) \
             if cfg.transfer_seeds else []
     finally:
         bar.close()
-    return _Confirmed(best=best, final=_pooled(runs[best], best, ctx),
-                      start=_pooled(runs[0], 0, ctx),
+    pooled = {i: _pooled(runs[i], i, ctx) for i in runs}
+    return _Confirmed(best=best, final=pooled[best], start=pooled[0],
+                      pooled=list(pooled.values()),
                       confirmed=[c for i in runs for c in runs[i]], twins=twins,
-                      notes=[_confirm_note(cands, runs, best, screen_best)])
+                      notes=[_confirm_note(cands, runs, best, found.best)])
 
 
 
@@ -451,8 +474,8 @@ def _confirm_note(cands: list[Candidate], runs: dict[int, list[Candidate]], best
     text = (f"confirmed on {len(next(iter(runs.values())))} fresh seed(s) (mean distance "
             f"per candidate: {', '.join(parts)}); the winner is #{best}")
     if best != screen_best:
-        text += (f", not the screening's best #{screen_best} (distance "
-                 f"{cands[screen_best].distance:.4f} on the screening seed)")
+        text += (f", not the search's best #{screen_best} (distance "
+                 f"{cands[screen_best].distance:.4f} on its rung-1 walk)")
     if best == 0:
         text += ": no screened candidate beat the starting point on the fresh seeds"
     return text

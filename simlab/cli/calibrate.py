@@ -32,6 +32,15 @@ def run(args: argparse.Namespace) -> int:
           f"{_num(r.matched_floor.median)}); the twin tried {tv.common} of "
           f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement "
           f"{_num(100 * r.agreement, '{:.0f}')} %")
+    gap = r.final.gap
+    if gap is not None:
+        print(f"signature at the robot's visits, twin / robot: stays {_num(gap.self_share)} / "
+              f"{_num(gap.self_share_real)}, entropy per action {_num(gap.entropy, '{:.2f}')} / "
+              f"{_num(gap.entropy_real, '{:.2f}')} bits, outcomes per region TV "
+              f"{_num(gap.regions)}")
+    if len(r.ensemble) > 1:
+        print(f"twin ensemble: {len(r.ensemble)} confirmed candidates within sampling of the "
+              "winner (report.md: how sure the twin is, field by field)")
     if r.transfer is not None:
         from simlab.calibration.report import policy_data, transfer_headline, transfer_overview
 

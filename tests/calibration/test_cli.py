@@ -171,7 +171,8 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     text = parser.format_help()
-    assert "(default 28)" in text and "(default excess)" in text and "--no-confirm" in text
+    assert "(default 36)" in text and "(default signature)" in text and "--no-confirm" in text
+    assert "(default tpe)" in text and "--eta" in text
     cfg = CalibrateConfig.from_args(parser.parse_args(
         ["--config", str(toml), "--out", "o", "--candidates", "3"]))
     assert cfg.real_action_set() == CCW8 and cfg.real == str(real)

@@ -39,6 +39,9 @@ def test_hidden_kinematic_parameters_are_recovered(lattice16) -> None:
     assert res.candidates[0].distance > res.matched_floor.high
     # the winner, re-simulated on a fresh seed, lies within sampling noise of a perfect fit
     assert res.final.stage == "pooled"  # its confirming walks on fresh seeds, pooled
+    # the signature at the robot's visits: a twin of the hidden robot shows its stays
+    gap = res.final.gap
+    assert gap is not None and abs(gap.self_share - gap.self_share_real) < 0.05
     # (20 % above the band's top: the winner's parameters carry the search's own error)
     assert res.final.distance <= 1.2 * res.matched_floor.high
     assert res.matched_floor.median >= res.floor.median  # fewer simulated visits than real
@@ -84,24 +87,49 @@ def test_same_seed_same_search_and_common_random_numbers(lattice9) -> None:
 
 
 @pytest.mark.slow
-def test_parallel_candidates_are_reproducible(lattice9) -> None:
-    """Two processes: same seed -> same search; the initial design does not depend on the
-    number of workers (refinement rounds do: their size is the number of workers)."""
+def test_the_search_does_not_depend_on_the_number_of_workers(lattice9) -> None:
+    """Candidates are proposed in batches of their own size, so one process and two give
+    the same candidates, scores, promotions and winner (and the same run twice does)."""
     real = real_table(hidden_walk(lattice9, KinematicParams(), SIMLAB16, 0.5, 5, "kinematic"),
                       SIMLAB16)
     space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),))
     kw = dict(hours_per_candidate=0.3, candidates=6, seed=1, simulator="kinematic",
-              n_boot=10, progress=False, confirm=False)
+              n_boot=10, progress=False, confirm=False, batch=3, confirm_top=1)
     one = calibrate(real, "table", lattice9, space=space,
                     config=CalibrationConfig(workers=1, **kw))
     two = calibrate(real, "table", lattice9, space=space,
                     config=CalibrationConfig(workers=2, **kw))
-    again = calibrate(real, "table", lattice9, space=space,
-                      config=CalibrationConfig(workers=2, **kw))
-    assert [c.distance for c in two.candidates] == [c.distance for c in again.candidates]
-    init = [c.distance for c in one.candidates if c.stage == "init"]
-    assert init == [c.distance for c in two.candidates if c.stage == "init"]
-    assert len(init) == 3
+    assert [c.values for c in one.candidates] == [c.values for c in two.candidates]
+    assert [c.score for c in one.candidates] == [c.score for c in two.candidates]
+    assert one.search is not None and two.search is not None
+    assert [[c.index for c in r] for r in one.search.rungs] == \
+        [[c.index for c in r] for r in two.search.rungs]
+    assert one.best == two.best and one.params == two.params
+
+
+def test_successive_halving_promotes_the_best_third_on_pooled_walks(lattice9) -> None:
+    """Rung 2 walks the best third of rung 1 (by score, distinct points) on the rung's own
+    seed, three times the rung-1 size, and scores each on both its walks pooled."""
+    real = real_table(hidden_walk(lattice9, KinematicParams(drive_time=0.9), SIMLAB16, 1.0,
+                                  5, "kinematic"), SIMLAB16)
+    space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),))
+    cfg = CalibrationConfig(hours_per_candidate=0.2, candidates=9, workers=1, seed=4,
+                            simulator="kinematic", n_boot=10, progress=False, confirm=False,
+                            batch=3, eta=3, rungs=2, confirm_top=1)
+    res = calibrate(real, "table", lattice9, space=space, config=cfg)
+    found = res.search
+    assert found is not None and len(found.rungs) == 1
+    promoted = [c.index for c in found.rungs[0]]
+    ranked = sorted(found.candidates, key=lambda c: (c.score, c.index))
+    assert promoted == [c.index for c in ranked[:3]]
+    for c in found.rungs[0]:
+        first = found.candidates[c.index].sim
+        assert c.sim.rows > first.rows          # its rung-1 walk and the rung-2 walk
+        assert c.seed == cfg.seed + 1           # the rung's common seed
+        assert c.stage == "rung 2"
+    assert found.sizes[0] == (0.2, None) and found.sizes[1][0] == pytest.approx(0.6)
+    assert res.best == found.picks[0] == min(found.rungs[0], key=lambda c: (c.score,
+                                                                            c.index)).index
 
 
 def test_inconsistent_inputs_are_refused_before_simulating(lattice9) -> None:
