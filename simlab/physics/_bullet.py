@@ -57,6 +57,20 @@ def quiet_stdout() -> Iterator[None]:
 
 with quiet_stdout():
     import pybullet
-    from pybullet_utils.bullet_client import BulletClient
+    from pybullet_utils.bullet_client import BulletClient as _BulletClient
+
+
+class BulletClient(_BulletClient):
+    """pybullet_utils' client, safe to lose half-made.
+
+    Its ``__init__`` stores the client id only once ``pybullet.connect`` returns, and its
+    ``__del__`` reads that id: a Ctrl-C inside ``connect`` (e.g. while Minari builds the env
+    of an export to read its spaces) left an object whose ``__del__`` fell through to
+    ``getattr(pybullet, "_client")`` and printed an ignored ``AttributeError`` traceback
+    after the command's one-line report. The class default ``-1`` (no connection) makes
+    that ``__del__`` a no-op.
+    """
+
+    _client = -1
 
 __all__ = ["BulletClient", "pybullet", "quiet_stdout"]

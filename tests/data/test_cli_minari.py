@@ -267,3 +267,29 @@ def test_minari_export_takes_the_config_or_its_fields(kinematic_dataset: Path,
     with pytest.raises(ConfigError, match="episode_length"):
         export_minari(kinematic_dataset, "simlab/zero-v0", episode_length=0)
     assert "simlab/zero-v0" not in minari.list_local_datasets()
+
+
+def test_ctrl_c_while_minari_builds_the_env_is_one_line_and_130(
+        kinematic_dataset: Path, minari_home: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # Minari makes the recorded env to read its spaces: a Ctrl-C inside PyBullet's connect
+    # left a half-made client whose destructor printed an AttributeError traceback
+    import sys
+
+    from simlab.physics._bullet import pybullet
+
+    def interrupted(*args: object, **kwargs: object) -> int:
+        raise KeyboardInterrupt
+
+    ignored: list[object] = []
+    monkeypatch.setattr(pybullet, "connect", interrupted)
+    monkeypatch.setattr(sys, "unraisablehook", ignored.append)
+    code = main(["export-minari", str(kinematic_dataset), "--id", "simlab/cut-v0"])
+    import gc
+
+    gc.collect()
+    err = capsys.readouterr().err
+    assert code == 130
+    assert err == "simlab export-minari: interrupted\n"
+    assert ignored == []
+    assert not (minari_home / "simlab" / "cut-v0").exists()
