@@ -26,6 +26,7 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from simlab.base.errors import (
     WARNING_PREFIX_ENV,
@@ -175,24 +176,50 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def console_main() -> int:
-    """The ``simlab`` program (console script and ``python -m simlab``): :func:`main`, and
-    once Ctrl-C has been reported, a second SIGINT can no longer kill the exit.
+    """The ``simlab`` program (console script and ``python -m simlab``): :func:`main`, with
+    Ctrl-C reported in one line and exit code 130 wherever it lands.
 
-    A SIGINT that lands inside compiled (numba) code can surface twice: once where the
-    command reports it, and again while the interpreter shuts down, which then dies by the
-    signal (exit -2) after printing ``interrupted``. So after an interrupt SIGINT gets a
-    no-op handler (not ``SIG_IGN``: a pending signal would then print a race warning) and
-    a KeyboardInterrupt that escapes :func:`main` is exit code 130 too. Only the program
-    does this: in-process callers of :func:`main` (tests, notebooks) keep their handler."""
+    * A KeyboardInterrupt that escapes :func:`main` (Ctrl-C during the imports a command
+      makes before it runs) is ``simlab: interrupted``, exit code 130.
+    * Once Ctrl-C has arrived, the destructors of objects it left half-made print nothing
+      (a PyBullet client cut off inside ``connect``, an llvmlite pass of a numba compile):
+      Python would report each as an ignored exception with a traceback after the line
+      that already says what happened.
+    * Once the command has returned, its exit code stands: SIGINT is ignored from then on.
+      A SIGINT that lands inside compiled (numba) code can surface again during shutdown,
+      and Python restores the default action of SIGINT while it finalizes (a handler of
+      our own is dropped then; only ``SIG_IGN`` is kept), so a Ctrl-C in the last moments
+      killed the process by the signal (exit -2, nothing printed) even after the export
+      it interrupted had been reported, or had finished. Switching to ``SIG_IGN`` while a
+      caught signal is pending makes Python report ``Signal 2 ignored due to race
+      condition``: that report is dropped with the others.
+
+    Only the program does this: in-process callers of :func:`main` (tests, notebooks) keep
+    their handlers and hooks."""
     import signal
 
+    interrupted = False
+
+    def on_sigint(signum: int, frame: object) -> None:
+        nonlocal interrupted
+        interrupted = True
+        raise KeyboardInterrupt
+
+    report_unraisable = sys.unraisablehook
+
+    def unraisable(args: Any) -> None:
+        race = isinstance(args.exc_value, OSError) and "race condition" in str(args.exc_value)
+        if not (interrupted or race):
+            report_unraisable(args)
+
+    signal.signal(signal.SIGINT, on_sigint)
+    sys.unraisablehook = unraisable
     try:
         code = main()
     except KeyboardInterrupt:
         print("simlab: interrupted", file=sys.stderr)
         code = 130
-    if code == 130:
-        signal.signal(signal.SIGINT, lambda *_: None)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     return code
 
 

@@ -156,6 +156,44 @@ def test_a_second_sigint_after_the_report_cannot_kill_the_exit(how: str) -> None
     assert ("simlab: interrupted" in res.stderr) == (how == "raise")
 
 
+@pytest.mark.parametrize("code", [0, 130])
+def test_a_sigint_while_python_finalizes_cannot_change_the_exit(code: int) -> None:
+    # Python gives SIGINT its default action back while it finalizes: a Ctrl-C in the last
+    # moments of an export killed it by the signal (-2, nothing printed)
+    script = ("import os, signal, sys, time\n"
+              "import simlab.cli as cli\n"
+              f"cli.main = lambda argv=None: {code}\n"
+              "class Late:\n"
+              "    def __del__(self):\n"
+              "        os.kill(os.getpid(), signal.SIGINT)\n"
+              "        time.sleep(0.2)\n"
+              "late = Late()\n"  # deleted with the module, after the handlers are gone
+              "sys.exit(cli.console_main())\n")
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert res.returncode == code, (res.returncode, res.stderr)
+    assert res.stderr == ""
+
+
+def test_after_ctrl_c_half_made_objects_die_silently() -> None:
+    # the debris of an interrupt (a PyBullet client cut off in connect, an llvmlite pass of
+    # a numba compile) printed "Exception ignored" tracebacks after the one-line report
+    script = ("import signal, sys\n"
+              "import simlab.cli as cli\n"
+              "class Debris:\n"
+              "    def __del__(self):\n"
+              "        raise AttributeError('half made')\n"
+              "def fake(argv=None):\n"
+              "    keep = Debris()\n"
+              "    signal.raise_signal(signal.SIGINT)\n"
+              "cli.main = fake\n"
+              "sys.exit(cli.console_main())\n")
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(Path(__file__).parents[2])})
+    assert res.returncode == 130
+    assert res.stderr == "simlab: interrupted\n"
+
+
 def test_worker_initializer_exits_when_the_parent_is_gone() -> None:
     code = ("import os, time\n"
             "from simlab.base.parallel import exit_with_parent\n"
