@@ -90,6 +90,18 @@ def test_colour_and_ascii_images_read_the_same(tmp_path, rng):
         assert read_map(tmp_path / f"{name}.yaml").same_as(m), name
 
 
+def test_a_pgm_of_a_small_maxval_is_scaled_as_map_server_does(tmp_path):
+    # the reason the PGM reader is ours (benchmarks/pgm_reader.py): OpenCV returns the
+    # pixels of a P5 whose maxval is not 255 or 65535 unscaled, map_server scales them
+    from discretize.mapio import read_image
+
+    values = np.array([[0, 20, 100]], dtype=np.uint8)
+    (tmp_path / "m.pgm").write_bytes(b"P5\n3 1\n100\n" + values.tobytes())
+    np.testing.assert_array_equal(read_image(tmp_path / "m.pgm"), [[0, 51, 255]])
+    (tmp_path / "a.pgm").write_bytes(b"P2\n# ascii\n3 1\n100\n0 20 100\n")
+    np.testing.assert_array_equal(read_image(tmp_path / "a.pgm"), [[0, 51, 255]])
+
+
 def test_ros_interpretation_by_hand():
     # p = (255 - v) / 255: v=0 -> 1.0, v=254 -> 0.0039, v=205 -> 0.19608, v=166 -> 0.349,
     # v=100 -> 0.6078, v=80 -> 0.686.
