@@ -1,4 +1,4 @@
-"""The standard-library URDF reader gives what yourdfpy gave (issue 17: no trimesh import)."""
+"""The standard-library URDF reader gives what yourdfpy gives, without yourdfpy's imports."""
 
 from __future__ import annotations
 
@@ -50,3 +50,19 @@ def test_rpy_origin_and_bad_xml(tmp_path) -> None:
     bad.write_text("<robot name='r'><link name='a'>")
     with pytest.raises(ConfigError, match=r"bad\.urdf.*cannot parse URDF"):
         _parse_urdf(bad)
+
+
+def test_loading_the_robot_imports_no_yourdfpy_calibration_guard() -> None:
+    # the reason the reader is ours (benchmarks/urdf_reader.py): yourdfpy and trimesh cost
+    # every fresh process (walk workers, envs) 0.7-1.0 s of imports
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "from simlab.physics.robot import load_robot_spec\n"
+            "from simlab.physics.urdf_merge import merged_urdf_path\n"
+            "merged_urdf_path(load_robot_spec().urdf_path)\n"
+            "print(sorted(m for m in ('yourdfpy', 'trimesh', 'lxml') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
