@@ -155,13 +155,26 @@ def _plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _module_q(path, run: int, seed_index: int):
+def _module_q(path, run: int, seed_index: int, task: str):
+    """The Q table of the module of ``task`` (``nav``, ``social``, ``gotohuman``: each is
+    also the ``visitlab combined`` option that takes it) from a ``visitlab train`` curves
+    file; a file trained on another task (modules given in the wrong order) is refused
+    naming the file, the task it holds and the option it goes to."""
     from simlab.base.errors import ConfigError
+    from simlab.visitlab import TASKS
     from simlab.visitlab.results import load_results
 
     runs = load_results(path)
     if not 0 <= run < len(runs):
         raise ConfigError(f"expected a run index in 0..{len(runs) - 1}", path=path, key="--run")
+    held = runs[run].config.get("task")
+    if held is not None and held != task:
+        raise ConfigError(
+            f"holds a '{held}' module (visitlab train --task {held}), but --{task} takes "
+            f"the '{task}' module", path=path, key=f"--{task}",
+            fix=(f"give this file to --{held}, and to --{task} the curves.npz of visitlab "
+                 f"train --task {task}") if held in TASKS else
+                f"give --{task} the curves.npz of visitlab train --task {task}")
     q = runs[run].q
     if not 0 <= seed_index < q.shape[0]:
         raise ConfigError(f"expected a seed index in 0..{q.shape[0] - 1}", path=path,
@@ -188,9 +201,9 @@ def _combined(args: argparse.Namespace) -> int:
     cfg = CombinedConfig.from_args(args)
     if cfg.gif:
         ensure_new(cfg.gif, overwrite=cfg.overwrite, what="GIF")
-    nav, _ = _module_q(cfg.nav, cfg.run, cfg.seed_index)
-    social, social_cfg = _module_q(cfg.social, cfg.run, cfg.seed_index)
-    gth, _ = _module_q(cfg.gotohuman, cfg.run, cfg.seed_index)
+    nav, _ = _module_q(cfg.nav, cfg.run, cfg.seed_index, "nav")
+    social, social_cfg = _module_q(cfg.social, cfg.run, cfg.seed_index, "social")
+    gth, _ = _module_q(cfg.gotohuman, cfg.run, cfg.seed_index, "gotohuman")
     human = cfg.human
     if human is None:
         trained = social_cfg.get("human")

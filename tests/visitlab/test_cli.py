@@ -123,10 +123,15 @@ def test_combined_runs_trained_modules_and_writes_a_gif(tmp_path, capsys):
     assert (tmp_path / "ep.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
     assert main(args) == 2  # the GIF exists
     assert "already exists" in capsys.readouterr().err
-    # a table of another module does not fit as the navigation module
-    assert main([*args[:2], "--nav", str(tmp_path / "gth" / "curves.npz"), *args[4:],
-                 "--overwrite"]) == 2
-    assert "nav_q" in capsys.readouterr().err
+    # modules given in the wrong order: the file, the module it holds and where it goes
+    for option, wrong, home in (("--nav", "gth", "--gotohuman"), ("--nav", "soc", "--social"),
+                                ("--social", "nav", "--nav")):
+        swapped = [*args]
+        swapped[swapped.index(option) + 1] = str(tmp_path / wrong / "curves.npz")
+        assert main([*swapped, "--overwrite"]) == 2
+        err = capsys.readouterr().err
+        assert str(tmp_path / wrong / "curves.npz") in err and f"{option}:" in err, err
+        assert f"give this file to {home}" in err and len(err.strip().splitlines()) == 1
 
 
 def test_start_and_goal_are_navigation_options(tmp_path, capsys):
