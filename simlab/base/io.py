@@ -155,6 +155,12 @@ def exclusive_directory(path: str | os.PathLike[str], *, what: str = "output dir
     ``--out``) would interleave their parts and manifests; the second one stops with a
     :class:`ConfigError` instead. The lock lives on the directory itself (no lock file is
     left behind) and is released when the block ends or the process dies.
+
+    Why ``flock`` here and filelock (simlab's lock library) everywhere else: filelock locks
+    a file it opens read-write, so it cannot lock a directory (``FileLock(directory)``
+    raises ``IsADirectoryError``, filelock 4.3), and the lock file it needs instead stays
+    after release: one in or beside every ``--out`` the user names. The mechanism is the
+    same (filelock is ``flock`` on POSIX).
     """
     import fcntl  # POSIX only; imported here so that simlab.base.io itself imports anywhere
 

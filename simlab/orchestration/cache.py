@@ -13,15 +13,14 @@ older code stay until the cache folder is deleted).
 A folder is complete when its marker ``_stage.json`` exists (``{"key", "summary",
 "wall_seconds"}``, written last, atomically); a folder without it (an interrupted build)
 is deleted and rebuilt, and a build that raises removes its folder at once (a failed
-start never blocks the rerun). A lock file per stage (``fcntl.flock``,
-``<root>/.<stage>-<digest>.lock``) keeps two processes from building the same stage at
-once.
+start never blocks the rerun). A lock file per stage (``filelock.FileLock``, simlab's one
+lock library; ``<root>/.<stage>-<digest>.lock``) keeps two processes from building the same
+stage at once.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import functools
 import hashlib
 import json
@@ -91,15 +90,13 @@ def stage_key(stage: str, key: Mapping[str, Any], fingerprint: str) -> tuple[str
 
 @contextlib.contextmanager
 def file_lock(path: Path) -> Iterator[None]:
-    """Hold an exclusive ``flock`` on ``path`` (created if needed) for the block: two
-    processes never build the same cached stage at once."""
+    """Hold the lock file ``path`` (created if needed) for the block, waiting for another
+    holder: two processes never build the same cached stage at once."""
+    from filelock import FileLock
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+    with FileLock(path):
+        yield
 
 
 @dataclass(frozen=True)
