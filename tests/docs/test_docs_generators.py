@@ -158,11 +158,14 @@ def test_the_api_reference_covers_every_public_module() -> None:
     pages = {p: simlab_docs.api_markdown(p) for p in simlab_docs.API_PAGES}
     rendered = {line[4:] for text in pages.values() for line in text.splitlines()
                 if line.startswith("::: ")}
+    # the hand-made pages (simlab.envs) render their modules by their own ::: lines
+    for page in (ROOT / "docs" / "pages" / "api").glob("*.md"):
+        rendered |= {line[4:].strip() for line in page.read_text().splitlines()
+                     if line.startswith("::: ")}
     for package in ("simlab", "discretize"):
         for name in simlab_docs.public_modules(package):
-            if name.startswith("simlab.envs"):
-                continue  # docs/pages/api/envs.md and the environments page
             assert name in rendered, name
+    assert "simlab.envs.minari_export" in rendered
     assert {"simlab.ros.bag", "simlab.online.meta", "simlab.calibration.transfer.score",
             "simlab.replay.loop", "simlab.localization.filter",
             "simlab.orchestration.pipeline", "simlab.experiments.spec"} <= rendered
@@ -183,3 +186,116 @@ def test_rest_roles_become_links_where_the_target_is_rendered() -> None:
     assert markdown_of(text, known.get) == (
         "Use [`simlab.agents.greedy`][simlab.agents.policy.greedy], "
         "[`greedy`][simlab.agents.policy.greedy] or `_x`.")
+
+
+#: The modules whose docstrings hold reST tables (simple tables: ``=====  =====``).
+TABLE_MODULES = ("simlab.physics.rate", "simlab.data.schema", "simlab.ros.bag",
+                 "simlab.agents.registry", "simlab.orchestration.stages",
+                 "simlab.experiments", "simlab.visitlab.actions", "simlab.visitlab.humans")
+#: A line of a reST table's border or grid, as it would show in a page rendered raw.
+REST_TABLE_ROW = r"(?m)^\s*(?:={3,}(?: +={3,})+|\+(?:-{3,}\+)+|\+(?:={3,}\+)+)\s*$"
+
+
+def _rendered_docstrings(package: str) -> dict[str, str]:
+    """Every docstring of ``package`` as the site renders it: loaded by griffe with the
+    site's extension (mkdocs.yml), then Markdown with the site's extensions."""
+    griffe = pytest.importorskip("griffe")
+    import markdown
+    import yaml
+
+    config = yaml.safe_load((ROOT / "mkdocs.yml").read_text())
+    extensions = [e if isinstance(e, str) else next(iter(e))
+                  for e in config["markdown_extensions"]]
+    loaded = griffe.load(package, search_paths=[str(ROOT)], extensions=griffe.load_extensions(
+        str(ROOT / "docs" / "griffe_rest.py")))
+    from griffe_rest import _walk
+
+    return {obj.path: markdown.markdown(obj.docstring.value, extensions=extensions)
+            for obj in _walk(loaded) if obj.docstring is not None}
+
+
+def test_rest_tables_render_as_tables_and_no_border_row_is_left() -> None:
+    import re
+
+    html = {**_rendered_docstrings("simlab"), **_rendered_docstrings("discretize")}
+    left = {path: re.search(REST_TABLE_ROW, text).group(0).strip()
+            for path, text in html.items() if re.search(REST_TABLE_ROW, text)}
+    assert left == {}
+    for module in TABLE_MODULES:
+        assert "<table>" in html[module], module
+    rate = html["simlab.physics.rate"]
+    assert "<th>rate (Hz)</th>" in rate and "<td>99.8 %</td>" in rate
+    topics = html["simlab.ros.bag"]
+    assert "<code>geometry_msgs/msg/PoseWithCovarianceStamped</code>" in topics
+    assert topics.count("<tr>") == 18  # the header and the 17 topics
+
+
+def test_simple_and_grid_tables_become_pipe_tables() -> None:
+    pytest.importorskip("griffe")
+    from griffe_rest import tables_to_markdown
+
+    simple = ("Keys:\n\n====  =========\nkey   meaning\n====  =========\n``a``  first,\n"
+              "      continued\n``long-key``  overflows its column\n====  =========\n\nEnd.")
+    assert tables_to_markdown(simple) == (
+        "Keys:\n\n| key | meaning |\n|---|---|\n| ``a`` | first, continued |\n"
+        "| ``long-key`` | overflows its column |\n\nEnd.")
+    headless = "=====  =====\n>=     a | b\n=====  =====\n"
+    assert tables_to_markdown(headless) == "|  |  |\n|---|---|\n| >= | a \\| b |\n"
+    grid = ("+-----+---------+\n| k   | meaning |\n+=====+=========+\n| a   | one     |\n"
+            "|     | two     |\n+-----+---------+\n| b   | three   |\n+-----+---------+\n")
+    assert tables_to_markdown(grid) == (
+        "| k | meaning |\n|---|---|\n| a | one two |\n| b | three |\n")
+    prose = "A heading\n=========\n\nand ``x == y``.\n"
+    assert tables_to_markdown(prose) == prose
+
+
+class _Page:
+    def __init__(self, uri: str) -> None:
+        self.file = type("F", (), {"src_uri": uri})()
+
+
+def test_an_unknown_marker_stops_the_build_naming_page_and_marker() -> None:
+    pytest.importorskip("mkdocs")
+    import hooks
+    from mkdocs.exceptions import PluginError
+
+    page = "# Guide\n\n<!-- simlab:dataset -->\n\n<!-- simlab:comands -->\n"
+    with pytest.raises(PluginError) as exc:
+        hooks.on_page_markdown(page, _Page("guide.md"), None, None)
+    text = str(exc.value)
+    assert "guide.md" in text and "<!-- simlab:comands -->" in text and "\n" not in text
+    assert "commands" in text  # the known names are listed
+    with pytest.raises(PluginError, match="simlab:api:nosuch"):
+        hooks.on_page_markdown("<!-- simlab:api:nosuch -->", _Page("api/x.md"), None, None)
+    assert "| column |" in hooks.on_page_markdown("<!-- simlab:dataset -->", _Page("d.md"),
+                                                  None, None)
+
+
+def test_a_site_folder_that_cannot_be_written_is_one_line(tmp_path: Path, monkeypatch) -> None:
+    pytest.importorskip("mkdocs")
+    import errno
+    import os
+    import tempfile
+
+    import hooks
+    from mkdocs.exceptions import PluginError
+
+    (tmp_path / "file").write_text("x")
+    cases = [(tmp_path / "file" / "site", "Not a directory")]
+    if os.geteuid() != 0:  # root writes into a read-only folder anyway
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        cases.append((ro / "site", "Permission denied"))
+    for site, reason in cases:
+        with pytest.raises(PluginError) as exc:
+            hooks.on_pre_build({"site_dir": str(site)})
+        text = str(exc.value)
+        assert str(site) in text and reason in text and "\n" not in text, text
+
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", str(tmp_path / "site"))
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", read_only)
+    with pytest.raises(PluginError, match=r"cannot write the site into .*Read-only file"):
+        hooks.on_pre_build({"site_dir": str(tmp_path / "site")})
