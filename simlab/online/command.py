@@ -566,7 +566,8 @@ def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
         if txn is not None:
             extra: dict[str, Any] = {}
             if world.lab is not None:
-                from simlab.online.arena import PHYSICS_RUN_FIELDS, physics_figures
+                from simlab.online.arena import PHYSICS_RUN_FIELDS
+                from simlab.online.physics_plots import physics_figures
 
                 extra = dict(run_fields=PHYSICS_RUN_FIELDS, extra_figures=physics_figures(
                     logs, world.lab, world.task, cfg.window) if cfg.plots else None)

@@ -35,7 +35,8 @@ import numpy as np
 
 from simlab.base.io import atomic_write, atomic_write_bytes, atomic_write_json, atomic_write_text
 
-__all__ = ["DECISION_DOCS", "MARKER", "decision_docs", "summarize", "write_outputs"]
+__all__ = ["DECISION_DOCS", "MARKER", "decision_docs", "online_figures", "summarize",
+           "window_centres", "write_outputs"]
 
 #: ``summary.json``'s ``command`` value: what ``--overwrite`` recognises as its own.
 MARKER = "simlab online"
@@ -87,6 +88,13 @@ def windows(x: np.ndarray, w: int) -> np.ndarray:
     pad = np.full((runs, k * w), np.nan)
     pad[:, :n] = x
     return np.nanmean(pad.reshape(runs, k, w), axis=2)
+
+
+def window_centres(n: int, w: int) -> np.ndarray:
+    """(ceil(n / w),) the middle of each window of :func:`windows` in decisions: the last,
+    partial window is drawn at the middle of the decisions it holds, inside the run."""
+    starts = np.arange(0, n, w, dtype=float)
+    return (starts + np.minimum(starts + w, n)) / 2.0
 
 
 def _stack(logs: list[dict[str, np.ndarray]], col: str) -> np.ndarray:
@@ -255,19 +263,19 @@ def _protocol_line(protocol: dict[str, Any]) -> str:
             + (f"; given against it: {', '.join(given)}." if given else "."))
 
 
-def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, Any],
-             window: int) -> dict[str, bytes]:
-    import matplotlib
-
-    matplotlib.use("Agg")
+def online_figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, Any],
+                   window: int) -> dict[str, Any]:
+    """File name -> matplotlib Figure: cumulative reward, cumulative planning cost and the
+    share of model-based decisions per window, per arm; x from 0 to the runs' length."""
     from matplotlib.figure import Figure
 
     at = summary["task"]["changes"][0]["at"] if summary["task"]["changes"] else None
+    n = max(r["reward"].shape[0] for runs in logs.values() for r in runs)
     out = {}
     for fname, col, ylabel, cum in (
-            ("cumulative_reward.png", "reward", "cumulative reward", True),
+            ("cumulative_reward.png", "reward", "cumulative reward (sum of rewards)", True),
             ("cumulative_cost.png", "backups", "cumulative planning cost (backups)", True),
-            ("mb_share.png", "expert", f"share of MB decisions (window {window})", False)):
+            ("mb_share.png", "expert", f"MB decisions (share, window {window})", False)):
         fig = Figure(figsize=(6.4, 4.2), layout="constrained")
         ax = fig.add_subplot()
         for name, runs in logs.items():
@@ -280,16 +288,27 @@ def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, An
                 # a cumulative sum is >= 0: the band of one std is clipped there
                 ax.fill_between(t, np.maximum(mean - std, 0.0), mean + std, alpha=0.15)
             else:
-                y = windows(x, window).mean(0)
-                t = (np.arange(y.shape[0]) + 0.5) * window
-                ax.plot(t, y, marker="o", ms=3, label=name)
+                ax.plot(window_centres(x.shape[1], window), windows(x, window).mean(0),
+                        marker="o", ms=3, label=name)
         if at is not None:
             ax.axvline(at, color="k", ls="--", lw=1, label="change")
         if col == "backups":
             ax.set_yscale("symlog")
-        ax.set_xlabel("decision")
+        ax.set_xlabel("decision (count)")
+        ax.set_xlim(0, n)
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=7)
+        out[fname] = fig
+    return out
+
+
+def _figures(logs: dict[str, list[dict[str, np.ndarray]]], summary: dict[str, Any],
+             window: int) -> dict[str, bytes]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    out = {}
+    for fname, fig in online_figures(logs, summary, window).items():
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=90)
         out[fname] = buf.getvalue()
