@@ -115,6 +115,7 @@ def draw_states(
         _draw_eroded_border(ax, grid, robot_radius)
     pts = _local_xy(grid, disc.centres)
     _draw_centres(ax, pts, numbers)
+    _legend(ax, robot_radius)
     if crop:
         x_min, x_max, y_min, y_max = known_bounds(grid, pts)
         ax.set_xlim(x_min, x_max)
@@ -196,6 +197,18 @@ def _draw_eroded_border(ax, grid: OccupancyMap, robot_radius: float) -> None:
                    linestyles="--")
 
 
+def _legend(ax, robot_radius: float | None) -> None:
+    """What the red dots and the dashed red line are."""
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], ls="none", marker="o", color="tab:red", markersize=3,
+                      label="state centres (numbered)")]
+    if robot_radius is not None:
+        handles.append(Line2D([], [], color="tab:red", lw=0.8, ls="--",
+                              label=f"free space eroded by the robot radius ({robot_radius:.3f} m)"))
+    ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.8)
+
+
 def _draw_centres(ax, pts: np.ndarray, numbers: bool) -> None:
     """The centres ``pts`` (S, 2) in the axes' frame as red dots, numbered if asked."""
     ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", markersize=3)
@@ -215,6 +228,22 @@ def render_states_png(
     dpi: int = 150,
 ) -> bytes:
     """The figure as PNG bytes (Agg backend, nothing written to disk)."""
+    fig = states_figure(grid, disc, visits, robot_radius=robot_radius, title=title)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def states_figure(
+    grid: OccupancyMap,
+    disc: Discretizer,
+    visits: np.ndarray | None = None,
+    *,
+    robot_radius: float | None = DEFAULT_ROBOT_RADIUS,
+    title: str | None = None,
+):
+    """The figure (a matplotlib Figure, no pyplot state): :func:`draw_states` with a title
+    and, when ``visits`` are given, a colour bar of visits per state."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(6.4, 6.4 if visits is None else 7.2))
@@ -227,11 +256,9 @@ def render_states_png(
     ax.set_title(title)
     if mappable is not None:
         cbar = fig.colorbar(mappable, ax=ax, orientation="horizontal", fraction=0.05, pad=0.08)
-        cbar.set_label("log10(visits)")
+        cbar.set_label("visits per state (log10 of the count)")
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
+    return fig
 
 
 def plot_states(

@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -140,37 +141,43 @@ def compare(physics: SparseModel, grid: SparseModel) -> Comparison:
         visited_pairs=(len(physics.pairs), len(grid.pairs)))
 
 
-def plot_comparison(result: Comparison, out: str | os.PathLike[str]) -> Path:
-    """The figure "social states vs tabular, side by side" (PNG at ``out``): per-state
+def comparison_figure(result: Comparison) -> Any:
+    """The figure "social states vs tabular, side by side" (a matplotlib Figure): per-state
     coverage on the (level x distance, direction x angle) chart for both models, mean
-    entropy per action, agreement per action."""
-    import matplotlib
+    entropy per action (bits), agreement per action (share of common pairs)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    fig = Figure(figsize=(11, 8), layout="constrained")
+    axes = fig.subplots(2, 2)
     for ax, cov, name in zip(axes[0], result.coverage, ("physics (empirical)", "grid (tabular)"),
                              strict=True):
         im = ax.imshow(cov.reshape(40, 64), aspect="auto", vmin=0, vmax=1, cmap="viridis")
         ax.set_title(f"{name}: actions tried per state")
-        ax.set_xlabel("required direction x angle")
-        ax.set_ylabel("level x distance class")
-        fig.colorbar(im, ax=ax)
+        ax.set_xlabel("required direction x angle (chart column)")
+        ax.set_ylabel("level x distance class (chart row)")
+        fig.colorbar(im, ax=ax, label="actions tried (share of the actions)")
     x = np.arange(result.entropy.shape[1])
     axes[1, 0].bar(x - 0.2, result.entropy[0], 0.4, label="physics")
     axes[1, 0].bar(x + 0.2, result.entropy[1], 0.4, label="grid")
-    axes[1, 0].set_title("mean entropy per action (bits)")
-    axes[1, 0].set_xlabel("action")
+    axes[1, 0].set_title("mean entropy per action")
+    axes[1, 0].set_xlabel("action (index)")
+    axes[1, 0].set_ylabel("entropy of T(s, a, .) (bits)")
     axes[1, 0].legend()
     axes[1, 1].bar(x, result.agreement_per_action)
     axes[1, 1].set_ylim(0, 1)
     axes[1, 1].set_title(f"most likely s' agrees: {result.agreement:.0%} of "
                          f"{result.common_pairs} common (s, a)")
-    axes[1, 1].set_xlabel("action")
+    axes[1, 1].set_xlabel("action (index)")
+    axes[1, 1].set_ylabel("agreement (share of common states)")
     fig.suptitle("social states vs tabular, side by side")
-    fig.tight_layout()
+    return fig
+
+
+def plot_comparison(result: Comparison, out: str | os.PathLike[str]) -> Path:
+    """:func:`comparison_figure` as a PNG at ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
     path = Path(out)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    comparison_figure(result).savefig(path, dpi=80)
     return path

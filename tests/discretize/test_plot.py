@@ -59,3 +59,19 @@ def test_figure_with_and_without_visits(tmp_path, room):
     with pytest.raises(ConfigError, match="already exists"):
         plot_states(path, room, disc)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig.png"]  # no temporary left
+
+
+def test_the_figure_reads_on_its_own(room):
+    from discretize.plot import states_figure
+
+    disc = Discretizer.from_map(room, 12)
+    fig = states_figure(room, disc, visits=np.arange(12) ** 2)
+    ax, bar = fig.axes
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("x (m)", "y (m)")
+    assert "visits per state" in bar.get_xlabel()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[0] == "state centres (numbered)"
+    assert "eroded by the robot radius" in labels[1] and " m)" in labels[1]
+    plain = states_figure(room, disc, robot_radius=None)
+    assert len(plain.axes) == 1  # no colour bar without visits
+    assert len(plain.axes[0].get_legend().get_texts()) == 1

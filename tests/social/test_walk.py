@@ -131,6 +131,15 @@ def test_compare_with_itself_and_the_grid(dataset, tmp_path):
     assert r.coverage.shape == (2, 2560) and r.entropy.shape == (2, 22)
     assert r.visited_pairs == (len(phys.pairs), len(sparse_model(*g1).pairs))
     assert plot_comparison(r, tmp_path / "cmp.png").stat().st_size > 0
+    from simlab.social.compare import comparison_figure
+
+    fig = comparison_figure(r)
+    maps, bars = fig.axes[:2], fig.axes[2:4]
+    colour_bars = fig.axes[4:]
+    assert len(colour_bars) == 2
+    assert all("share of the actions" in c.get_ylabel() for c in colour_bars)
+    assert all("(" in ax.get_xlabel() and "(" in ax.get_ylabel() for ax in maps + bars)
+    assert "(bits)" in bars[0].get_ylabel() and bars[0].get_legend() is not None
 
 
 class _TinyStates:
