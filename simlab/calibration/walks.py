@@ -142,13 +142,15 @@ def pool_tables(tables: list[SimTable]) -> SimTable:
 class WalkRunner:
     """Simulates candidate tables on the one parallel layer (:mod:`simlab.base.parallel`): in
     this process for one worker, else a pool of ``workers`` processes (one arena per
-    process, workers exit with us), or Ray tasks on ``address``; tables come back in job
+    process, workers exit with us), or Ray tasks on ``address`` (or, with ``backend =
+    "ray"`` and no address, on the Ray runtime this process runs); tables come back in job
     order."""
 
-    def __init__(self, workers: int, address: str | None = None) -> None:
+    def __init__(self, workers: int, address: str | None = None, *,
+                 backend: str = "local") -> None:
         from simlab.base.parallel import make_executor
 
-        if address is not None:
+        if address is not None or backend == "ray":
             self._executor = make_executor("ray", address=address)
         else:
             self._executor = make_executor("local", workers=workers)

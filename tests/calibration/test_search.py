@@ -169,3 +169,36 @@ def test_data_need_refuses_curves_it_cannot_extrapolate(ratios: list[float]) -> 
 
     curve = [{"transitions": 8000 * (k + 1), "mean_ratio": r} for k, r in enumerate(ratios)]
     assert data_need(curve) is None
+
+
+@pytest.mark.slow
+def test_the_search_on_ray_tasks_is_the_local_search(lattice9) -> None:
+    """The same candidates, scores, promotions and winner whether the walks run as Ray
+    tasks or as local processes: the search depends on its seed only."""
+    ray = pytest.importorskip("ray")
+    from simlab.calibration.search import search
+    from simlab.calibration.walks import WalkRunner
+
+    real = real_table(hidden_walk(lattice9, KinematicParams(drive_time=0.9), SIMLAB16, 0.5, 5,
+                                  "kinematic"), SIMLAB16)
+    space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),
+                            ParamSpec("clearance", 0.0, 0.5)))
+    cfg = CalibrationConfig(hours_per_candidate=0.2, candidates=6, workers=2, seed=2,
+                            simulator="kinematic", progress=False, batch=3, confirm_top=1)
+    found = {}
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        for backend in ("ray", "local"):
+            runner = WalkRunner(2, backend=backend)
+            try:
+                found[backend] = search(real, "table", lattice9, space=space,
+                                        base=KinematicParams(), config=cfg, runner=runner)
+            finally:
+                runner.close()
+    finally:
+        ray.shutdown()
+    a, b = found["ray"], found["local"]
+    assert [c.values for c in a.candidates] == [c.values for c in b.candidates]
+    assert [c.score for c in a.candidates] == [c.score for c in b.candidates]
+    assert [[c.score for c in r] for r in a.rungs] == [[c.score for c in r] for r in b.rungs]
+    assert a.picks == b.picks
