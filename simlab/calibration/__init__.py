@@ -14,8 +14,11 @@ made to move like the real robot whose transitions thesis 3.2.5 counted.
   real action set, on the parallel layer;
 * :mod:`simlab.calibration.budget` — how many transitions each stage walks, sized from the
   matched floor;
-* :mod:`simlab.calibration.search` — the seeded derivative-free search over the space;
-* :mod:`simlab.calibration.stages` — :func:`~simlab.calibration.stages.calibrate`: screen,
+* :mod:`simlab.calibration.objective` — what the search minimises: a distance and the
+  robot's signature at its own visits;
+* :mod:`simlab.calibration.search` — the seeded multi-fidelity search over the space
+  (Optuna's samplers, successive halving);
+* :mod:`simlab.calibration.stages` — :func:`~simlab.calibration.stages.calibrate`: search,
   confirm the best on fresh seeds, walk the twins and score their transfer;
 * :mod:`simlab.calibration.transfer` — twin policies scored on the real model
   (``simlab transfer``): shortest-path solvers, models, the score, its report and command;

@@ -62,6 +62,9 @@ class TwinTransfer:
     policy: dict[str, Any] | None = None
     left_out: list[int] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: the twin ensemble's pooled walks against as many of the winner's, each planned on
+    #: and scored on the real model (:func:`ensemble_transfer`); None without an ensemble
+    ensemble: dict[str, Any] | None = None
 
 
 def data_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANCE
@@ -274,6 +277,33 @@ def score_policy_data(out: TwinTransfer, counts: NDArray[np.int64], action_set: 
     return {"transitions": int(counts.sum()), "ratio": float(rep.overall_ratios()[0]),
             "goal_ratios": goal_ratios, "line": line,
             "never_goals": [n for n, r in goal_ratios.items() if not math.isfinite(r)]}
+
+
+def ensemble_transfer(out: TwinTransfer, members: list[NDArray[np.int64]],
+                      winner: list[NDArray[np.int64]], action_set: Any, centres: Any
+                      ) -> dict[str, Any] | None:
+    """Does a twin ensemble transfer better than its winner? The confirming walks of ``k``
+    ensemble members pooled (domain randomisation over what the data allow) against ``k``
+    of the winner's own twin walks pooled (same number of walks of the same size), each
+    planned on and scored on the real model: ``members``, ``transitions`` of each pool,
+    ``ensemble_ratio``, ``winner_ratio`` (steps over the real optimum's, summed over the
+    goals) and ``better`` (the ensemble's ratio is lower). None with fewer than two members
+    or winner walks, or no transfer report."""
+    k = min(len(members), len(winner))
+    if out.report is None or k < 2:
+        return None
+    from simlab.calibration.transfer import TransferModel, transfer_report
+
+    pools = {"ensemble": sum(members[:k]), "winner": sum(winner[:k])}
+    models = [TransferModel.from_counts(c, name=f"{name} ({k} walks)", action_set=action_set,
+                                        centres=centres) for name, c in pools.items()]
+    named = {g.name: g.goal for g in out.report.goals}
+    ratios = transfer_report(out.real_model, models, named).overall_ratios()
+    e, w = float(ratios[0]), float(ratios[1])
+    return {"members": k, "transitions": int(pools["ensemble"].sum()),
+            "winner_transitions": int(pools["winner"].sum()),
+            "ensemble_ratio": e, "winner_ratio": w,
+            "better": bool(math.isfinite(e) and (not math.isfinite(w) or e < w))}
 
 
 def warn_all(messages: list[str], into: list[str]) -> None:

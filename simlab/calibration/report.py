@@ -268,7 +268,9 @@ def _lines_json(twin: Any) -> dict[str, Any]:
         policy = {k: (v.to_json() if k == "line" else
                       {g: _fin(r) for g, r in v.items()} if k == "goal_ratios" else _fin(v))
                   for k, v in twin.policy.items()}
-    return {"perfect_twin_line": None if twin.line is None else twin.line.to_json(),
+    ens = None if twin.ensemble is None else {k: _fin(v) for k, v in twin.ensemble.items()}
+    return {"ensemble_against_winner": ens,
+            "perfect_twin_line": None if twin.line is None else twin.line.to_json(),
             "perfect_twin_at_need": None if twin.line_at_need is None
             else twin.line_at_need.to_json(),
             "policy_data": policy, "goals_left_out": twin.left_out}
@@ -530,6 +532,17 @@ def ensemble_section(result: CalibrationResult) -> str:
         share = "n/a" if row["importance"] is None else f"{100 * row['importance']:.0f} %"
         out.write(f"| {row['field']} | {vals} | {_cell(row['span_of_range'], '{:.2f}')} | "
                   f"{share} | {'yes' if row['told'] else '**not told**'} |\n")
+    twin = result.twin_transfer
+    ens = None if twin is None else twin.ensemble
+    if ens is not None:
+        verdict = ("transfers better than" if ens["better"] else "does not transfer better "
+                   "than")
+        out.write(f"\nPlanned on the walks of {ens['members']} ensemble members pooled "
+                  f"({ens['transitions']:,} transitions), a policy takes "
+                  f"{_steps_ratio(ens['ensemble_ratio'])} x the real optimum's steps; on as "
+                  f"many of the winner's own walks ({ens['winner_transitions']:,}), "
+                  f"{_steps_ratio(ens['winner_ratio'])}: the ensemble {verdict} the single "
+                  "twin here.\n")
     out.write("\n")
     return out.getvalue()
 

@@ -10,32 +10,25 @@ Every real ``(s, a)`` pair counts in the distance: a pair the walk never tried i
 miss (``unvisited = "max"``), so a candidate cannot win by covering less.
 
 **Budgets** are sized from the real table
-(:func:`~simlab.calibration.budget.size_budgets`): the screening walks have
+(:func:`~simlab.calibration.budget.size_budgets`): the first rung's walks have
 ``screen_share`` of the real transitions (cheap and noisy), the confirming walks the
 smallest multiple of them whose *matched floor* (the distance at which a perfect simulator
 with that many transitions would still lie from the real table) is within 35 % of the
 bootstrap floor of the real table itself; the report prints the whole table of budgets.
 
-**Common random numbers**: every candidate walks with the same seed, so the same action
-sequence and the same noise draws; differences between candidates are the parameters, not
-the luck of the draw.
+**Search** (:mod:`~simlab.calibration.search`): Optuna proposes the candidates, successive
+halving promotes the best of each rung to longer walks on the rung's common seed, and the
+objective (:mod:`~simlab.calibration.objective`) holds the robot's signature beside the
+distance.
 
-**Optimiser** (derivative-free, seeded): the first candidate is the base record (today's
-defaults, clipped into the space) so the report shows where calibration started; then a
-scrambled Sobol design over the unit cube fills half of the budget; the rest is local
-refinement in rounds of ``workers`` candidates: the minimum of a quadratic fitted by least
-squares to the candidates nearest the best (it averages the walks' noise over many points),
-then a compass search around the best point so far (``+- step`` along each coordinate, the
-step shrinking by ``shrink`` after a full poll found nothing better). Candidates of a round
-run in parallel on :mod:`simlab.base.parallel` (local processes, or Ray with ``address``).
-
-**Confirmation** (``confirm``): the ``confirm_top`` best distinct screened candidates and
-the starting point are re-simulated in physics on ``confirm_seeds`` fresh seeds at the
-confirming budget; the **winner** is the one with the lowest mean score there (the screening
-best is flattered by its own seed), and the distance reported is that of its pooled
-confirming walks, free of the selection's luck. The winner's confirming walks, plus fresh
-ones up to ``transfer_seeds``, are the twin seeds of the transfer report
-(:mod:`simlab.calibration.transfer`).
+**Confirmation** (``confirm``): the ``confirm_top`` best candidates of the search's last
+rung and the starting point are re-simulated in physics on ``confirm_seeds`` fresh seeds at
+the confirming budget; the **winner** is the one with the lowest mean score there (the
+search's best is flattered by its own seeds), and the distance reported is that of its
+pooled confirming walks, free of the selection's luck. The confirmed candidates within
+sampling of the winner form the **twin ensemble** (``CalibrationResult.ensemble``). The
+winner's confirming walks, plus fresh ones up to ``transfer_seeds``, are the twin seeds of
+the transfer report (:mod:`simlab.calibration.transfer`).
 
 **Decision latency** does not change T, only the rate of transitions; when the real table's
 duration is known (``real.hours``) the calibrated latency is set in closed form so that the
@@ -70,6 +63,7 @@ from simlab.calibration.policies import (
     TwinTransfer,
     collect_policy_data,
     data_need,
+    ensemble_transfer,
     score_policy_data,
     transfer_stage,
     warn_all,
@@ -269,6 +263,11 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     final = done.final
     matched = bootstrap_floor(real.counts, rng, n_boot=config.n_boot,
                               other_n=final.sim.counts.sum(axis=2))
+    ensemble = _ensemble(done, matched)
+    if twin is not None:
+        twin.ensemble = ensemble_transfer(
+            twin, [c.sim.counts for c in ensemble], [t.sim.counts for t in done.twins],
+            real.action_set, setup.disc.centres)
     sim_hours = final.sim.hours
     if fitted:
         sim_hours = final.sim.rows * (final.sim.mean_duration + params.decision_latency) / 3600
@@ -293,7 +292,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         transfer=None if twin is None else twin.report,
         transfer_curve=[] if twin is None else twin.curve, warnings=setup.warnings,
         screen_best=screen_best, twin_transfer=twin, search=found,
-        ensemble=_ensemble(done, matched),
+        ensemble=ensemble,
         regions=_region_rows(setup, real, final),
     )
 

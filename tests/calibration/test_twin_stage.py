@@ -169,3 +169,25 @@ def test_a_flat_curve_recommends_its_largest_pool_and_says_the_twin_is_the_limit
     falling = [{"transitions": n, "mean_ratio": 1.05 + 500 / n} for n in (8000, 16000)]
     assert policy_need(falling)["flat"] is False
     assert policy_need(curve[:1]) is None
+
+
+def test_an_ensemble_is_scored_against_as_many_of_the_winner_s_walks() -> None:
+    """Members that move as the robot does against winner walks that always stay: planned on
+    the stays, the policy never arrives; on the members, it does. One member is no
+    ensemble."""
+    from simlab.calibration.policies import ensemble_transfer
+
+    real = lattice_counts(CCW8, n=20)
+    out = transfer_stage(RealTable(real, CCW8), [real], ["t"], [8], lattice().centres,
+                         np.random.default_rng(0))
+    stays = np.zeros_like(real)
+    stays[np.arange(9), :, np.arange(9)] = 20
+    good = [lattice_counts(CCW8, n=20, success=p) for p in (0.7, 0.8, 0.9)]
+    res = ensemble_transfer(out, good, [stays, stays, stays], CCW8, lattice().centres)
+    assert res is not None and res["members"] == 3
+    assert res["transitions"] == sum(int(g.sum()) for g in good)
+    assert math.isfinite(res["ensemble_ratio"]) and math.isinf(res["winner_ratio"])
+    assert res["better"]
+    flipped = ensemble_transfer(out, [stays, stays], good, CCW8, lattice().centres)
+    assert flipped is not None and not flipped["better"] and flipped["members"] == 2
+    assert ensemble_transfer(out, good[:1], good, CCW8, lattice().centres) is None
