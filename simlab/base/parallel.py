@@ -26,13 +26,17 @@ shared file system. Ray is an optional extra (``pip install "simlab[ray]"``).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from simlab.base import validation
 from simlab.base.errors import WARNING_PREFIX_ENV, ConfigError, show_warnings_as
+
+if TYPE_CHECKING:
+    from multiprocessing.managers import SyncManager
 
 #: Where jobs can run (``--backend``).
 BACKENDS = ("local", "ray")
@@ -78,6 +82,50 @@ def _on_sigint(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def _sigint_held() -> Iterator[None]:
+    """Ctrl-C held back while a worker process starts, and handled after.
+
+    Ctrl-C in a terminal reaches the whole process group. A worker still importing (a
+    ``spawn`` child needs ~1 s before its initializer runs) would die of it with a
+    ``KeyboardInterrupt`` traceback of the import it was in. A blocked signal mask is
+    inherited through fork and exec, so the child starts with SIGINT blocked and unblocks
+    it once its handler is in place (:func:`_init_worker`, :func:`_init_manager`), as
+    :mod:`multiprocessing.resource_tracker` starts its own process.
+
+    In the driver the signal is only postponed: another thread of this process (a progress
+    bar's, the executor's) may still take it, so the main thread's handler is replaced by
+    one that notes it, and the signal is raised again once the start is over. A
+    ``KeyboardInterrupt`` in the middle of a start would leave a started process that no
+    one owns (a manager ignoring SIGINT then holds the interpreter's exit forever). The
+    resource tracker is started first: a spawn starts it if it is not running, and it
+    unblocks SIGINT after its own start (it does not restore the mask it found)."""
+    import signal
+    import threading
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    main = threading.current_thread() is threading.main_thread()
+    caught: list[int] = []
+    handler = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum)) \
+        if main else None
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        if main:
+            signal.signal(signal.SIGINT, signal.SIG_DFL if handler is None else handler)
+            if caught:
+                signal.raise_signal(signal.SIGINT)
+
+
+def _unblock_sigint() -> None:
+    import signal
+
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _init_worker(parent_pid: int) -> None:
     """Initializer of every :func:`worker_pool` process: :func:`exit_with_parent`, Ctrl-C
     handled as the driver needs it, and warnings printed as the command line prints them.
@@ -93,6 +141,7 @@ def _init_worker(parent_pid: int) -> None:
 
     exit_with_parent(parent_pid)
     signal.signal(signal.SIGINT, _on_sigint)
+    _unblock_sigint()  # blocked since the process started (:func:`_sigint_held`)
     # A command line's warnings read as its own lines (``simlab calibrate: warning: ...``),
     # not as Python's two-line default pointing into multiprocessing's code.
     prefix = os.environ.get(WARNING_PREFIX_ENV)
@@ -121,7 +170,8 @@ class WorkerPool(cf.ProcessPoolExecutor):
         self.processes = int(processes)
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future[Any]:
-        return super().submit(_run_job, fn, *args, **kwargs)
+        with _sigint_held():  # a submit starts the next worker process
+            return super().submit(_run_job, fn, *args, **kwargs)
 
     def stop_now(self) -> None:
         """Cancel the jobs not started and end the worker processes at once (SIGTERM), for
@@ -146,6 +196,33 @@ def worker_pool(processes: int) -> WorkerPool:
 
     return WorkerPool(processes, mp_context=multiprocessing.get_context("spawn"),
                       initializer=_init_worker, initargs=(os.getpid(),))
+
+
+def _init_manager() -> None:
+    """Initializer of a :func:`manager`'s server process: Ctrl-C ignored (see
+    :func:`manager`), then unblocked (:func:`_sigint_held`)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _unblock_sigint()
+
+
+def manager() -> SyncManager:
+    """A started ``spawn`` :class:`multiprocessing.managers.SyncManager`, whose proxies
+    (a progress queue) travel to :func:`worker_pool` jobs. The caller shuts it down.
+
+    Decision: the manager outlives Ctrl-C and the pool. Its server ignores SIGINT, so only
+    its owner ends it, and that owner stops the pool's workers first
+    (:meth:`LocalExecutor.stop_now`): a worker of a stopped driver may still be unpickling
+    a queued job, and a proxy whose manager has gone fails there with a
+    ``FileNotFoundError`` traceback per worker."""
+    import multiprocessing
+    from multiprocessing.managers import SyncManager
+
+    made = SyncManager(ctx=multiprocessing.get_context("spawn"))
+    with _sigint_held():
+        made.start(_init_manager)
+    return made
 
 
 def spawn_worker() -> WorkerPool:
@@ -292,6 +369,10 @@ class _Executor:
     def describe(self) -> str:
         return f"{self.name} ({self.workers} worker{'s' if self.workers != 1 else ''})"
 
+    def stop_now(self) -> None:
+        """End the jobs at once and read no result (a stopping driver); the executor stays
+        usable. Only local processes are ended (:meth:`WorkerPool.stop_now`)."""
+
     def close(self) -> None:
         """Release the workers (idempotent)."""
 
@@ -337,9 +418,9 @@ class LocalExecutor(_Executor):
         if workers is None:
             workers = os.cpu_count() or 1
         self.workers = validation.whole(workers, "workers", minimum=1)
-        self._pool: cf.ProcessPoolExecutor | None = None
+        self._pool: WorkerPool | None = None
 
-    def _get_pool(self) -> cf.ProcessPoolExecutor:
+    def _get_pool(self) -> WorkerPool:
         if self._pool is None:
             self._pool = worker_pool(self.workers)
         return self._pool
@@ -363,6 +444,11 @@ class LocalExecutor(_Executor):
             for f in futures:
                 f.cancel()
             raise
+
+    def stop_now(self) -> None:
+        if self._pool is not None:
+            self._pool.stop_now()
+            self._pool = None
 
     def close(self) -> None:
         if self._pool is not None:

@@ -217,9 +217,13 @@ class _DecisionBar:
         if where == "in-process":
             self.queue = _Direct(self._bar)
             return
-        import multiprocessing
+        from simlab.base.parallel import manager
 
-        self._manager = multiprocessing.get_context("spawn").Manager()
+        try:
+            self._manager = manager()
+        except BaseException:
+            self._bar.close()
+            raise
         self.queue = self._manager.Queue()
         self._thread = threading.Thread(target=self._drain, daemon=True)
         self._thread.start()
@@ -243,13 +247,20 @@ class _DecisionBar:
 def run_physics_jobs(jobs: list[dict[str, Any]], executor: Any, progress: bool,
                      total: int) -> list[dict[str, np.ndarray]]:
     """Every physics run of ``jobs`` (keyword arguments of :func:`run_physics_job`) on
-    ``executor``, with a bar of decisions (``total``) when ``progress``."""
+    ``executor``, with a bar of decisions (``total``) when ``progress``.
+
+    A run that fails or a Ctrl-C ends the executor's workers before the bar's queue goes:
+    a queued job still holds the queue's proxy (:func:`simlab.base.parallel.manager`)."""
     bar = _DecisionBar(total, progress, getattr(executor, "name", ""))
     try:
         if bar.queue is not None:
             jobs = [{**j, "progress": bar.queue} for j in jobs]
         return executor.map(run_physics_job, jobs, desc="online runs (physics)",
                             progress=progress and bar.queue is None)
+    except BaseException:
+        if bar.queue is not None:
+            executor.stop_now()
+        raise
     finally:
         bar.close()
 
