@@ -45,7 +45,10 @@ stuck in one (deepest penetration 5 mm at 40 Hz, 1.4 mm at 200 Hz), the scans ke
 0.2 s schedule at all of them. The default is 50 Hz: the fastest faithful rate (2.2x the
 CPU per transition of 200 Hz); the lowest, 40 Hz, needs 40 iterations and Bullet's contacts
 (with the threshold its start overshoots by 5.5 %) and is slower (1.6x). 40 Hz is the
-minimum: nothing coarser was measured faithful.
+minimum: nothing coarser was measured faithful. 2000 Hz is the maximum: twice the 960 Hz
+reference every row was measured against, ten times the finest row. A finer step was never
+measured and gains nothing the reference did not show, while every simulated second costs
+its rate in steps (1e9 Hz ran until killed).
 """
 
 from __future__ import annotations
@@ -57,7 +60,7 @@ from typing import Any
 from simlab.base.errors import ConfigError
 from simlab.base.options import option
 
-__all__ = ["DEFAULT_HZ", "MIN_HZ", "RECORDLESS_HZ", "SETTINGS", "StepSettings", "check_rate",
+__all__ = ["DEFAULT_HZ", "MAX_HZ", "MIN_HZ", "RECORDLESS_HZ", "SETTINGS", "StepSettings", "check_rate",
            "rate_option", "resolve_rate", "settings_for"]
 
 #: Physics steps per simulated second of every world unless another rate is asked for:
@@ -65,6 +68,9 @@ __all__ = ["DEFAULT_HZ", "MIN_HZ", "RECORDLESS_HZ", "SETTINGS", "StepSettings", 
 DEFAULT_HZ = 50.0
 #: The coarsest rate allowed: the coarsest measured faithful (coarser is refused).
 MIN_HZ = 40.0
+#: The finest rate allowed: twice the step-size benchmark's 960 Hz reference (module
+#: docstring; finer is refused).
+MAX_HZ = 2000.0
 #: ``(rate Hz, solver iterations, contact processing threshold m or None)``, finest first:
 #: a rate takes the settings of the first row at or below it (None: Bullet's default,
 #: every point of a contact manifold goes to the solver). Each row is the cheapest setting
@@ -101,24 +107,29 @@ def settings_for(hz: float) -> StepSettings:
 
 
 def check_rate(hz: Any, key: str = "physics_hz") -> float:
-    """``hz`` as a float of at least :data:`MIN_HZ` Hz, else :class:`ConfigError` naming
-    ``key`` and the minimum."""
+    """``hz`` as a float from :data:`MIN_HZ` to :data:`MAX_HZ` Hz, else :class:`ConfigError`
+    naming ``key`` and the range."""
+    fix = f"give {MIN_HZ:g} to {MAX_HZ:g} Hz (default {DEFAULT_HZ:g})"
     if isinstance(hz, bool) or not isinstance(hz, int | float) or not math.isfinite(hz):
-        raise ConfigError(f"expected a rate in Hz, got {hz!r}", key=key,
-                          fix=f"give {MIN_HZ:g} Hz or more (default {DEFAULT_HZ:g})")
+        raise ConfigError(f"expected a rate in Hz, got {hz!r}", key=key, fix=fix)
     if hz < MIN_HZ - 1e-9:
         raise ConfigError(
             f"{hz:g} Hz is too coarse for the motion primitives: the minimum is {MIN_HZ:g} Hz "
-            "(the coarsest rate whose primitives were measured to end where 200 Hz's do)",
-            key=key, fix=f"give {MIN_HZ:g} Hz or more (default {DEFAULT_HZ:g})")
+            "(the coarsest rate whose primitives were measured to end where 200 Hz's do); "
+            f"the range is {MIN_HZ:g} to {MAX_HZ:g} Hz", key=key, fix=fix)
+    if hz > MAX_HZ + 1e-9:
+        raise ConfigError(
+            f"{hz:g} Hz is finer than any step measured: the maximum is {MAX_HZ:g} Hz (twice "
+            "the 960 Hz reference of the step-size benchmark; every simulated second costs "
+            f"its rate in steps); the range is {MIN_HZ:g} to {MAX_HZ:g} Hz", key=key, fix=fix)
     return float(hz)
 
 
 def rate_option() -> Any:
     """The ``--physics-hz`` field of a physics command's config (None: the command's default
     rate; read it with :func:`resolve_rate`)."""
-    return option(None, f"physics steps per simulated second (default {DEFAULT_HZ:g}; at least "
-                  f"{MIN_HZ:g})", metavar="HZ")
+    return option(None, f"physics steps per simulated second (default {DEFAULT_HZ:g}; "
+                  f"{MIN_HZ:g} to {MAX_HZ:g})", metavar="HZ")
 
 
 def resolve_rate(hz: Any, default: float | None = None) -> float:

@@ -14,6 +14,7 @@ from simlab.base.errors import ConfigError
 from simlab.physics.motion import PrimitiveParams, execute_primitive
 from simlab.physics.rate import (
     DEFAULT_HZ,
+    MAX_HZ,
     MIN_HZ,
     RECORDLESS_HZ,
     SETTINGS,
@@ -25,11 +26,40 @@ from simlab.physics.world import World
 
 def test_a_rate_below_the_minimum_is_refused_naming_the_minimum() -> None:
     assert check_rate(MIN_HZ) == MIN_HZ and check_rate(int(DEFAULT_HZ)) == DEFAULT_HZ
-    with pytest.raises(ConfigError, match=rf"physics_hz: .*the minimum is {MIN_HZ:g} Hz"):
+    with pytest.raises(ConfigError, match=rf"physics_hz: .*the range is {MIN_HZ:g} to "
+                       rf"{MAX_HZ:g} Hz"):
         check_rate(MIN_HZ - 1)
     for bad in ("fast", True, math.nan, math.inf, None):
         with pytest.raises(ConfigError, match="physics_hz"):
             check_rate(bad)
+
+
+def test_a_rate_above_the_maximum_is_refused_naming_the_range() -> None:
+    """1e9 Hz ran every physics command until it was killed: the finest rate is bounded."""
+    assert check_rate(MAX_HZ) == MAX_HZ
+    for hz in (MAX_HZ + 1, 1e9):
+        with pytest.raises(ConfigError, match=rf"physics_hz: .*finer than any step measured: "
+                           rf"the maximum is {MAX_HZ:g} Hz .*the range is {MIN_HZ:g} to "
+                           rf"{MAX_HZ:g} Hz"):
+            check_rate(hz)
+
+
+@pytest.mark.parametrize("command", [
+    "online --arena table --states {states} --goal 12 --start-states 0 --decisions 4 "
+    "--seeds 1 --workers 1 --no-plots --out {out}",
+    "map --minutes 0.1 --out {out}",
+    "collect --states {states} --transitions 4 --out {out} --no-progress"])
+def test_every_physics_command_refuses_a_rate_above_the_maximum(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str) -> None:
+    from simlab.cli import main
+
+    states = _lattice().save(tmp_path / "s.json")
+    argv = [*command.format(states=states, out=tmp_path / "o").split(), "--physics-hz", "1e9"]
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "physics_hz" in err and f"the range is {MIN_HZ:g} to {MAX_HZ:g} Hz" in err, err
+    assert not (tmp_path / "o").exists()
 
 
 def test_the_minimum_is_the_coarsest_measured_row() -> None:
@@ -115,7 +145,7 @@ def test_the_commands_refuse_a_coarse_rate_and_a_dataset_at_another_says_so(
     states = _lattice().save(tmp_path / "s.json")
     code = main(["collect", "--states", str(states), "--out", str(tmp_path / "x"),
                  "--transitions", "4", "--physics-hz", f"{MIN_HZ / 2:g}", "--no-progress"])
-    assert code == 2 and f"the minimum is {MIN_HZ:g} Hz" in capsys.readouterr().err
+    assert code == 2 and f"the range is {MIN_HZ:g} to {MAX_HZ:g} Hz" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
     other = 200.0 if DEFAULT_HZ != 200.0 else MIN_HZ
     assert main(["collect", "--states", str(states), "--out", str(tmp_path / "y"),
