@@ -102,6 +102,42 @@ _ZERO_OK = frozenset({
 _STRINGS = {"heading_source": ("truth", "odometry"), "mode": MODES}
 #: Fields that are probabilities or correlations (``< 1`` for the persistence).
 _FRACTIONS = ("pose_noise_persistence", "wall_slide", "wall_back")
+#: TurtleBot3 Burger limits (ROBOTIS e-Manual, specifications): v_max 0.22 m/s (the Waffle
+#: Pi's 0.26), w_max 2.84 rad/s.
+_V_MAX, _W_MAX = 0.22, 2.84
+#: ``field: (low, high, unit, why)``: the values a TurtleBot3 can have, each bound well
+#: beyond what a real robot shows. A field of :data:`_ZERO_OK` may also be 0 (its "off"
+#: or default). Out of range, a primitive never ends (``turn_rate = 1e-9`` never finishes
+#: the first turn, ``localization_hz = 1e-9`` never reads the new state) or means nothing
+#: (``min_drive = 100`` m on a lab's floor). The calibration's default search
+#: (:func:`simlab.calibration.space.default_space`: drive times up to two cells at
+#: 0.10 m/s, ``min_drive`` up to half a cell, ``localization_hz`` 1-10 Hz, speeds up to
+#: 0.26 m/s...) lies well inside.
+_RANGES: dict[str, tuple[float, float, str, str]] = {
+    "slow_speed": (0.0, 0.3, "m/s", f"v_max {_V_MAX} m/s, 0.26 for a Waffle Pi"),
+    "fast_speed": (0.0, 0.3, "m/s", f"v_max {_V_MAX} m/s, 0.26 for a Waffle Pi"),
+    "drive_time": (0.0, 60.0, "s", "a minute of driving crosses any lab"),
+    "max_drive_time": (0.0, 60.0, "s", "a minute of driving crosses any lab"),
+    "turn_rate": (0.05, _W_MAX, "rad/s", f"w_max {_W_MAX} rad/s; slower, a quarter turn "
+                  "takes over 30 s"),
+    "min_turn_rate": (0.0, _W_MAX, "rad/s", f"w_max {_W_MAX} rad/s"),
+    "heading_tolerance": (0.0, math.pi / 4, "rad", "45 degrees"),
+    "localization_hz": (0.2, 100.0, "Hz", "AMCL updates at 1-10 Hz; slower, a drive "
+                        "never reads its new state"),
+    "stop_delay": (0.0, 5.0, "s", f"5 s at {_V_MAX} m/s ends a metre past the boundary"),
+    "min_drive": (0.0, 2.0, "m", "several cells"),
+    "detector_margin": (0.0, 1.0, "m", "the LIDAR's corridor ahead"),
+    "detector_side_margin": (0.0, 1.0, "m", "the LIDAR's corridor beside"),
+    "pose_noise_xy": (0.0, 1.0, "m", "a localization error of a lab's width"),
+    "pose_noise_yaw": (0.0, math.pi, "rad", "half a turn"),
+    "wheel_noise": (0.0, 1.0, "", "a relative spread"),
+    "wheel_noise_tick": (0.0, 1.0, "", "a relative spread"),
+    "fine_hz": (1.0, 2000.0, "Hz", "the physics' own range"),
+    "hold_hz": (1.0, 2000.0, "Hz", "the physics' own range"),
+    "turn_timeout": (0.0, 60.0, "s", "a minute"),
+    "settle_time": (0.0, 60.0, "s", "a minute"),
+    "settle_timeout": (0.0, 60.0, "s", "a minute"),
+}
 
 
 @dataclass(frozen=True)
@@ -208,6 +244,18 @@ class PrimitiveParams:
                 validation.choice(value, _STRINGS[f.name], key)
             else:
                 validation.positive(value, key, allow_zero=f.name in _ZERO_OK)
+        for name, (low, high, unit, why) in _RANGES.items():
+            value = getattr(self, name)
+            if value == 0.0 and name in _ZERO_OK:
+                continue
+            if not low <= value <= high:
+                zero = " (or 0)" if name in _ZERO_OK and low > 0 else ""
+                raise ConfigError(
+                    f"{value!r} is outside the range a TurtleBot3 can have: {low:g} to "
+                    f"{high:g}{' ' + unit if unit else ''}{zero} ({why})",
+                    key=f"PrimitiveParams.{name}",
+                    fix=f"give {name} from {low:g} to {high:g}{' ' + unit if unit else ''}"
+                    f"{zero}")
         if self.slip >= 1.0:
             raise ConfigError(f"must be < 1 (a fraction of the distance), got {self.slip!r}",
                               key="PrimitiveParams.slip")
