@@ -99,6 +99,11 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
         if self.map is not None and self.pose_source != "mcl":
             raise ConfigError("--map is the particle filter's map", key="map",
                               fix="add --pose-source mcl or drop --map")
+        if self.mcl_map != "updated" and self.pose_source != "mcl":
+            raise ConfigError(f"--mcl-map {self.mcl_map} is what the particle filter's map "
+                              f"does after a box is added; --pose-source {self.pose_source} "
+                              "has no filter", key="mcl_map",
+                              fix="add --pose-source mcl or drop --mcl-map")
         resolve_rate(self.physics_hz)
 
 
