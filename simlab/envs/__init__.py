@@ -28,6 +28,11 @@ ENV_ENTRY_POINTS: dict[str, str] = {
     "simlab/TableSocial-v0": "simlab.social.env:TableSocialEnv",
 }
 
+#: The ids whose env steps a PyBullet world: each takes ``physics_hz`` (Hz,
+#: :mod:`simlab.physics.rate`; default the rate of ``collect`` and ``replay``).
+PHYSICS_ENV_IDS = ("simlab/TableArena-v0", "simlab/TableArenaStates-v0",
+                   "simlab/TableSocial-v0")
+
 #: Episode limits registered with Gymnasium (``spec.max_episode_steps``; ``TimeLimit``
 #: truncates, ``gym.make(id, max_episode_steps=N)`` overrides), and the keyword that turns
 #: the env's own limit off so only the registered one applies. Thesis: 50-step trials.

@@ -41,16 +41,22 @@ class TableSocialEnv(gym.Env):
       pose.
     * **Info** ``level``, ``moved``, ``duration``, ``blocked``, ``time``, ``robot_pose``,
       ``human_pose``.
+    * **Physics** steps at ``physics_hz`` as every physics env (default
+      :data:`simlab.physics.rate.DEFAULT_HZ`; outside
+      :data:`~simlab.physics.rate.MIN_HZ`-:data:`~simlab.physics.rate.MAX_HZ` is refused).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
     def __init__(self, config: SocialConfig | None = None, *,
-                 max_steps: int | None = 40) -> None:
+                 max_steps: int | None = 40, physics_hz: float | None = None) -> None:
+        from simlab.physics.rate import resolve_rate
+
         if max_steps is not None and max_steps < 1:
             raise ValueError(f"max_steps must be >= 1 or None, got {max_steps}")
-        self._config = {"config": config, "max_steps": max_steps}
-        self.task: SocialTable | None = SocialTable(config)
+        physics_hz = resolve_rate(physics_hz)
+        self._config = {"config": config, "max_steps": max_steps, "physics_hz": physics_hz}
+        self.task: SocialTable | None = SocialTable(config, physics_hz=physics_hz)
         self.max_steps = None if max_steps is None else int(max_steps)
         self.observation_space = spaces.Discrete(N_SOCIAL_STATES)
         self.action_space = spaces.Discrete(N_SOCIAL_ACTIONS)

@@ -278,7 +278,8 @@ class SocialTable:
     """The robot and a human on the table (module docstring). Call :meth:`reset` first.
 
     ``world``: an existing :class:`~simlab.physics.world.World` (not closed by this
-    object), else one is built from ``config.arena`` and closed by :meth:`close`.
+    object), else one is built from ``config.arena``, stepping at ``physics_hz``
+    (:func:`simlab.physics.rate.resolve_rate`), and closed by :meth:`close`.
     ``pose_estimate``: the robot's pose estimate (a :class:`PoseEstimate`, e.g. a test
     stub); default the config's ``pose_source`` (none for ``"truth"``: the true pose).
     """
@@ -286,10 +287,17 @@ class SocialTable:
     n_actions = N_SOCIAL_ACTIONS
 
     def __init__(self, config: SocialConfig | None = None, world: World | None = None, *,
-                 pose_estimate: PoseEstimate | None = None) -> None:
+                 pose_estimate: PoseEstimate | None = None,
+                 physics_hz: float | None = None) -> None:
+        from simlab.physics.rate import resolve_rate
+
         self.config = config or SocialConfig()
         self._own_world = world is None
-        self.world = world if world is not None else World(self.config.arena)
+        if world is not None and physics_hz is not None:
+            raise ConfigError("give the world or its rate, not both", key="physics_hz",
+                              fix="build the World with physics_hz=")
+        self.world = world if world is not None else World(
+            self.config.arena, physics_hz=resolve_rate(physics_hz))
         if pose_estimate is None and self.config.pose_source != "truth":
             pose_estimate = SourceEstimate(self.config.pose_source, self.world,
                                            self.config.pose_source_options)
