@@ -209,7 +209,7 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
     need = tr.get("data_need") or {}
     at_need = tr.get("perfect_twin_at_need") or {}
     fit = (need["limit"] + need["c"] / need["transitions"]) if need else None
-    perfect = at_need.get("median")
+    perfect = at_need.get("ratio_median")
     return {"seed": seed, "tv_over_matched": d / mf, "self_twin": rep["sim"][
                 "self_transition_share"], "self_real": rep["real"]["self_transition_share"],
             "self_visits_twin": gap.get("self_share"), "self_visits_real":
@@ -222,6 +222,7 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
             "fit_at_need": fit, "perfect_at_need": perfect,
             "at_need_over_perfect": fit / perfect if fit and perfect else None,
             "ensemble": len((rep.get("ensemble") or {}).get("members", [])),
+            "ensemble_vs_winner": tr.get("ensemble_against_winner"),
             "wall": wall, "load": load, "params": {x["name"]: rep["params"][x["name"]]
                                                    for x in rep["space"]}}
 
@@ -247,6 +248,12 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
               f"{_f(r['regions_tv'])} | {_f(r['blocked'])} | {ratios} | "
               f"{_f(r['at_need_over_perfect'])} | {r['ensemble']} | {r['wall']:.0f} "
               f"({r['load']:.1f})")
+    for r in rows:
+        e = r["ensemble_vs_winner"]
+        if e:
+            print(f"  seed {r['seed']}: ensemble of {e['members']} pooled "
+                  f"{_f(e['ensemble_ratio'])} against the winner's walks "
+                  f"{_f(e['winner_ratio'])} x the real optimum")
     if len(rows) < 2:
         return
     print("\nspread across seeds (min - max, max - min):")

@@ -195,7 +195,7 @@ class CalibrateConfig(ActionSetOptions):
                       "at the next")
     rungs: int = option(2, "rungs of the search before the confirmation (1: no promotion)")
     signature_weight: float = option(
-        0.01, "weight of the signature penalty (self-transition share, entropy per action, "
+        0.02, "weight of the signature penalty (self-transition share, entropy per action, "
         "outcomes per region, each against its tolerance) in the signature objective")
     confirm_seeds: int = option(1, "fresh seeds of each confirmed candidate")
     confirm_hours: float | None = option(

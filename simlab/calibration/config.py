@@ -133,7 +133,7 @@ class CalibrationConfig:
     sampler: str = "tpe"
     eta: int = 3
     rungs: int = 2
-    signature_weight: float = 0.01
+    signature_weight: float = 0.02
     seed: int = 0
     simulator: str = "physics"
     pose_source: str = "truth"

@@ -187,7 +187,8 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "signature": None if result.signature is None else result.signature.to_json(),
         "budgets": None if result.budgets is None else result.budgets.to_json(),
         "confirmed": [{"index": c.index, "seed": c.seed, "distance": _fin(c.distance),
-                       "score": _fin(c.score), "rows": c.sim.rows}
+                       "score": _fin(c.score), "rows": c.sim.rows,
+                       "signature_gap": None if c.gap is None else c.gap.to_json()}
                       for c in result.confirmed],
         "reset_states": {"states": list(result.real.reset_states),
                          "transitions_left_out": result.real.reset_counts},
