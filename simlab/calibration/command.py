@@ -241,6 +241,10 @@ class CalibrateConfig(ActionSetOptions):
     policy_data: bool = option(
         False, "collect the policy data the transfer recommends with the calibrated "
         "primitives and score the policy planned on them (adds that walk's time)")
+    untried: str = option(
+        "stay", "transfer: a twin action the real robot never tried in that state: stay = "
+        "it stays put there (never arrives); mask = choose the twin's policy among the tried "
+        "ones", choices=("stay", "mask"))
     seed: int = option(0, "seed of walks and search")
     overwrite: bool = option(False, "replace the outputs of an earlier simlab calibrate")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
@@ -271,7 +275,8 @@ class CalibrateConfig(ActionSetOptions):
             start_states=None if str(self.start_states).strip().lower() == "none"
             else self.start_states,
             goal_states=validation.state_ids(self.goal_states, "goal_states"),
-            reset_states=self.reset_states, policy_data=self.policy_data)
+            reset_states=self.reset_states, policy_data=self.policy_data,
+            untried=self.untried)
 
     def real_action_set(self) -> ActionSet | None:
         """What the real table's actions mean; None when no field of the group was given

@@ -123,7 +123,12 @@ class CalibrationConfig:
             transfer, with a warning.
         policy_data: after the transfer report, collect the policy data it recommends
             with the calibrated primitives (one walk from every state) and score the
-            policy planned on them against the perfect-twin line at that data.
+            policy planned on them against the perfect-twin line at that data. It needs
+            the transfer report it is sized from (``confirm`` and ``transfer_seeds`` > 0).
+        untried: how the transfer scores a twin's action the real robot never tried:
+            ``"stay"`` (default: the robot stays put there, as a policy that trusts the twin
+            would find) or ``"mask"`` (the twin's policy is chosen among the pairs the real
+            robot tried).
     """
 
     hours_per_candidate: float | None = None
@@ -152,6 +157,7 @@ class CalibrationConfig:
     goal_states: tuple[int, ...] | None = None
     reset_states: Any = "auto"
     policy_data: bool = False
+    untried: str = "stay"
 
     def __post_init__(self) -> None:
         k = "calibration."
@@ -178,6 +184,13 @@ class CalibrationConfig:
         validation.whole(self.confirm_top, k + "confirm_top", minimum=1)
         validation.whole(self.confirm_seeds, k + "confirm_seeds", minimum=1)
         validation.whole(self.transfer_seeds, k + "transfer_seeds", minimum=0)
+        validation.choice(self.untried, ("stay", "mask"), k + "untried")
+        if self.policy_data and not (self.confirm and self.transfer_seeds > 0):
+            why = "--no-confirm" if not self.confirm else "--transfer-seeds 0"
+            raise ConfigError(f"--policy-data is sized from the transfer report, which {why} "
+                              "leaves out: nothing would be collected", key=k + "policy_data",
+                              fix="drop --policy-data, or keep the confirmation and at least "
+                              "one transfer seed")
         if self.start_states is not None:
             from simlab.data.collect import parse_start_states
 

@@ -62,6 +62,9 @@ class TwinTransfer:
     policy: dict[str, Any] | None = None
     left_out: list[int] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: how a twin's action the real robot never tried is scored (``stay`` or ``mask``,
+    #: :func:`~simlab.calibration.transfer.score.transfer_report`)
+    untried: str = "stay"
     #: the twin ensemble's pooled walks against as many of the winner's, each planned on
     #: and scored on the real model (:func:`ensemble_transfer`); None without an ensemble
     ensemble: dict[str, Any] | None = None
@@ -138,11 +141,13 @@ def reached_goals(counts: NDArray[np.int64], goals: list[int]) -> tuple[list[int
 
 
 def transfer_stage(real: Any, twin_counts: list[NDArray[np.int64]], twin_names: list[str],
-                   goals: list[int], centres: Any, rng: np.random.Generator
-                   ) -> TwinTransfer | None:
+                   goals: list[int], centres: Any, rng: np.random.Generator,
+                   untried: str = "stay") -> TwinTransfer | None:
     """The twin seeds' transfer, the data curve with its perfect-twin lines, the data a
     policy needs and the perfect twin there (module docstring); None without twins.
-    ``rng`` draws every resample."""
+    ``rng`` draws every resample; ``untried``: how a twin's action the real robot never
+    tried is scored (``stay``: it stays put; ``mask``: the twin's policy among the tried
+    pairs), in every score of the stage."""
     if not twin_counts:
         return None
     from simlab.calibration.transfer import TransferModel, transfer_report
@@ -155,7 +160,7 @@ def transfer_stage(real: Any, twin_counts: list[NDArray[np.int64]], twin_names: 
     real_counts = real_transfer_counts(real, twin_counts)
     kept, left_out = reached_goals(real_counts, goals)
     out = TwinTransfer(report=None, real_model=model(real_counts, real.source or "real"),
-                       left_out=left_out)
+                       left_out=left_out, untried=untried)
     if left_out:
         out.warnings.append(f"goal state(s) {left_out} left out of the transfer: no real "
                             "transition ends there (the real robot never reached them)")
@@ -164,7 +169,7 @@ def transfer_stage(real: Any, twin_counts: list[NDArray[np.int64]], twin_names: 
     named = {f"s{g}": [g] for g in kept}
     out.report = transfer_report(out.real_model, [model(c, n) for c, n in
                                                   zip(twin_counts, twin_names, strict=True)],
-                                 named, n_boot=TRANSFER_BOOT, rng=rng)
+                                 named, n_boot=TRANSFER_BOOT, rng=rng, untried=untried)
     out.line = perfect_twin_line(out.real_model, out.report, twin_counts[0].sum(axis=2),
                                  n_boot=LINE_BOOT, rng=rng)
     out.curve = _curve(out, twin_counts, model, named, rng)
@@ -190,7 +195,8 @@ def _curve(out: TwinTransfer, twin_counts: list[NDArray[np.int64]], model: Any,
     for k in pool_sizes(len(twin_counts)):
         pools = [sum(twin_counts[i:i + k]) for i in range(0, len(twin_counts) - k + 1, k)]
         ratios = out.report.overall_ratios() if k == 1 else transfer_report(
-            out.real_model, [model(c, f"{k} walks") for c in pools], named).overall_ratios()
+            out.real_model, [model(c, f"{k} walks") for c in pools], named,
+            untried=out.untried).overall_ratios()
         line = out.line if k == 1 else perfect_twin_line(
             out.real_model, out.report,
             np.rint(np.mean([c.sum(axis=2) for c in pools], axis=0)).astype(np.int64),
@@ -221,8 +227,8 @@ def transfer_warnings(out: TwinTransfer) -> list[str]:
                 f", seen {min(n[p] for p in trapped)}-{max(n[p] for p in trapped)} times each")
         cause = (f"their policies choose {len(trapped)} (s, a) the real robot only stayed in "
                  f"or never tried{seen}: the real data are too thin there to say it moves "
-                 "(`simlab transfer --untried mask` chooses among the pairs the real robot "
-                 "moved in)" if trapped else
+                 "(`--untried mask`, on calibrate and transfer, plans among the pairs the "
+                 "real robot tried)" if trapped else
                  "their policies loop between states on the real model (the twin's data are "
                  "too few to plan there: see the pooled rows of the data curve)")
         warned.append(f"{len(never)} of {len(rep.twin_names)} twin seeds never arrive at some "
@@ -270,7 +276,7 @@ def score_policy_data(out: TwinTransfer, counts: NDArray[np.int64], action_set: 
     twin = TransferModel.from_counts(counts, name="policy data", action_set=action_set,
                                      centres=centres)
     named = {g.name: g.goal for g in out.report.goals}
-    rep = transfer_report(out.real_model, [twin], named)
+    rep = transfer_report(out.real_model, [twin], named, untried=out.untried)
     line = perfect_twin_line(out.real_model, out.report, counts.sum(axis=2),
                              n_boot=LINE_BOOT, rng=rng)
     goal_ratios = {g.name: float(g.twins[0].ratio) for g in rep.goals}
@@ -298,7 +304,8 @@ def ensemble_transfer(out: TwinTransfer, members: list[NDArray[np.int64]],
     models = [TransferModel.from_counts(c, name=f"{name} ({k} walks)", action_set=action_set,
                                         centres=centres) for name, c in pools.items()]
     named = {g.name: g.goal for g in out.report.goals}
-    ratios = transfer_report(out.real_model, models, named).overall_ratios()
+    ratios = transfer_report(out.real_model, models, named,
+                             untried=out.untried).overall_ratios()
     e, w = float(ratios[0]), float(ratios[1])
     return {"members": k, "transitions": int(pools["ensemble"].sum()),
             "winner_transitions": int(pools["winner"].sum()),

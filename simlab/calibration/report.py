@@ -287,8 +287,15 @@ def transfer_headline(result: CalibrationResult) -> str:
     ratios = twin.report.overall_ratios()
     fin = ratios[np.isfinite(ratios)]
     n = int(np.mean([t.sim.counts.sum() for t in result.twins]))
-    mine = (f"take {fin.mean():.3f} x the real optimum's steps" if fin.size == ratios.size
-            else f"never arrive for {ratios.size - fin.size} of {ratios.size} seeds")
+    if fin.size == ratios.size:
+        mine = f"take {fin.mean():.3f} x the real optimum's steps"
+    elif fin.size:
+        mine = (f": {fin.size} of {ratios.size} seeds take {fin.mean():.3f} x the real "
+                f"optimum's steps, {ratios.size - fin.size} never arrive"
+                + (" (--untried mask plans among the pairs the real robot tried)"
+                   if twin.untried == "stay" else ""))
+    else:
+        mine = f"never arrive for any of {ratios.size} seeds"
     text = (f"twin policies ({len(ratios)} twins of {n:,} transitions) {mine}, a perfect "
             f"twin at the same data {_ratio(twin.line)}"
             f"{_gap(fin.mean() if fin.size == ratios.size else math.inf, twin.line)}")

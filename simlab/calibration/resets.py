@@ -78,19 +78,33 @@ def resolve_reset_states(option: Any, counts: ArrayLike, centres: ArrayLike | No
 
 def reset_warning(states: tuple[int, ...], counts: ArrayLike, centres: ArrayLike | None,
                   where: str) -> str:
-    """One line naming the reset states, where their transitions land and what is done."""
+    """One line naming the reset states, where their transitions land and what is done.
+
+    A state named by hand whose rows do not look like a reset (:func:`detect_reset_states`:
+    some transition stays or lands within :data:`RESET_JUMP_CELLS` cells) is said to be
+    left out *as asked*, with what its rows look like, not called a reset."""
     n = np.asarray(counts)
-    parts = []
+    looks = set(detect_reset_states(n, centres)) if centres is not None else set(states)
+    resets, moves = [], []
     for s in states:
         targets = np.flatnonzero(n[s].sum(axis=0))
         jump = ""
         if centres is not None and targets.size:
             d = np.linalg.norm(np.asarray(centres)[targets] - np.asarray(centres)[s], axis=1)
-            jump = f" jump {d.min():.1f}-{d.max():.1f} m"
-        parts.append(f"state {s}'s {int(n[s].sum())} transitions{jump} (to "
-                     f"{', '.join(map(str, targets.tolist()))})")
-    return (f"{'; '.join(parts)}: an episode reset, not a move; left out of {where} "
-            "(--reset-states none keeps them)")
+            verb = "jump" if s in looks else "end"
+            jump = f" {verb} {d.min():.1f}-{d.max():.1f} m away"
+        text = (f"state {s}'s {int(n[s].sum())} transitions{jump} (to "
+                f"{', '.join(map(str, targets.tolist()))})")
+        (resets if s in looks else moves).append(text)
+    lines = []
+    if resets:
+        lines.append(f"{'; '.join(resets)}: an episode reset, not a move; left out of "
+                     f"{where} (--reset-states none keeps them)")
+    if moves:
+        lines.append(f"{'; '.join(moves)}: named by --reset-states, though they look like "
+                     f"moves (a reset's every transition jumps over {RESET_JUMP_CELLS:g} "
+                     f"cells and none stays); left out of {where} as asked")
+    return "; ".join(lines)
 
 
 def without_rows(counts: ArrayLike, states: tuple[int, ...]) -> NDArray[np.int64]:

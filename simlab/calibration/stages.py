@@ -305,7 +305,7 @@ def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: _S
     rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(11,)))
     twin = transfer_stage(real, [t.sim.counts for t in done.twins],
                           [f"twin seed {t.seed}" for t in done.twins], setup.goals,
-                          setup.disc.centres, rng)
+                          setup.disc.centres, rng, untried=config.untried)
     if twin is None or twin.report is None or not config.policy_data:
         return twin
     if twin.need is None:

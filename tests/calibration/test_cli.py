@@ -178,6 +178,13 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
     assert cfg.real_action_set() == CCW8 and cfg.real == str(real)
     assert cfg.search_config() == CalibrationConfig(candidates=3, seed=3, simulator="kinematic",
                                                     confirm=False)
+    # every search option of the command reaches the search
+    cfg = CalibrateConfig.from_args(parser.parse_args(
+        ["--config", str(toml), "--out", "o", "--sampler", "qmc", "--batch", "2", "--eta", "4",
+         "--rungs", "3", "--signature-weight", "0.05", "--untried", "mask"]))
+    assert cfg.search_config() == CalibrationConfig(
+        candidates=5, seed=3, simulator="kinematic", confirm=False, sampler="qmc", batch=2,
+        eta=4, rungs=3, signature_weight=0.05, untried="mask")
     toml.write_text("candidatez = 3\n")
     err = refused(argv(real, states, tmp_path / "out", "--config", str(toml)), capsys)
     assert str(toml) in err and "candidatez" in err

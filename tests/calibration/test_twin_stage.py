@@ -59,8 +59,16 @@ def test_a_reset_row_is_recognised_by_its_jumps_and_nothing_else_is() -> None:
     with pytest.raises(ConfigError, match="state 9 is not one of the 9 states"):
         resolve_reset_states("9", reset, centres)
     line = reset_warning((8,), reset, centres, "the distance")
-    assert "state 8's 40 transitions jump 1.4-1.4 m (to 0)" in line
-    assert "--reset-states none" in line
+    assert "state 8's 40 transitions jump 1.4-1.4 m away (to 0)" in line
+    assert "an episode reset" in line and "--reset-states none" in line
+    # a state named by hand whose rows are ordinary moves is left out as asked, not
+    # called a reset (the centre state stays or moves to a neighbour, 0.0-0.7 m away)
+    moved = reset_warning((4,), reset, centres, "the distance")
+    assert "episode reset" not in moved
+    assert "state 4's 80 transitions end 0.0-0.7 m away" in moved
+    assert "look like moves" in moved and "left out of the distance as asked" in moved
+    both = reset_warning((4, 8), reset, centres, "the distance")
+    assert "state 8's 40 transitions jump" in both and "state 4's" in both
     left = without_rows(reset, (8,))
     assert left[8].sum() == 0 and (left[:8] == reset[:8]).all()
 
@@ -191,3 +199,37 @@ def test_an_ensemble_is_scored_against_as_many_of_the_winner_s_walks() -> None:
     flipped = ensemble_transfer(out, [stays, stays], good, CCW8, lattice().centres)
     assert flipped is not None and not flipped["better"] and flipped["members"] == 2
     assert ensemble_transfer(out, good[:1], good, CCW8, lattice().centres) is None
+
+
+def test_policy_data_without_a_transfer_report_is_refused() -> None:
+    """--policy-data is sized from the transfer report: without it nothing would be
+    collected, silently."""
+    with pytest.raises(ConfigError, match="--no-confirm leaves out"):
+        CalibrationConfig(policy_data=True, confirm=False)
+    with pytest.raises(ConfigError, match="--transfer-seeds 0 leaves out"):
+        CalibrationConfig(policy_data=True, transfer_seeds=0)
+    with pytest.raises(ConfigError, match=r"calibration\.untried"):
+        CalibrationConfig(untried="skip")
+    assert CalibrationConfig(policy_data=True).policy_data
+
+
+def test_the_headline_says_what_the_seeds_that_arrive_take() -> None:
+    """One twin seed of three never arrives: the headline still gives the other two's
+    figure and how to plan among the pairs the robot tried."""
+    from types import SimpleNamespace
+
+    from simlab.calibration.policies import TwinTransfer
+    from simlab.calibration.report import transfer_headline
+
+    report = SimpleNamespace(overall_ratios=lambda: np.array([1.10, math.inf, 1.20]))
+    twin = TwinTransfer(report=report, real_model=None,
+                        line=SimpleNamespace(median=1.05))
+    sim = SimpleNamespace(counts=np.full((2, 1, 2), 500, dtype=np.int64))
+    result = SimpleNamespace(twin_transfer=twin, twins=[SimpleNamespace(sim=sim)] * 3)
+    line = transfer_headline(result)
+    assert "2 of 3 seeds take 1.150 x the real optimum's steps, 1 never arrive" in line
+    assert "--untried mask" in line and "a perfect twin at the same data 1.050" in line
+    twin.untried = "mask"
+    assert "--untried mask" not in transfer_headline(result)
+    report.overall_ratios = lambda: np.array([math.inf, math.inf])
+    assert "never arrive for any of 2 seeds" in transfer_headline(result)
