@@ -9,9 +9,11 @@ by ``collect`` (31 of 41 centres off the table) and ``replay`` (19.8 goals/h ins
   Decision: a Voronoi centre is placed in eroded free space, so every centre of a matching
   states file is free; map-made states can put a centre or two on a mapping artefact, so
   up to :data:`MAX_BAD_FRACTION` of the centres only warn; more are refused.
-* :func:`start_in_state`: a walk that starts "at a state" starts where the robot fits: the
-  state's centre, or (a centre in or against an obstacle, which the two checks above let
-  through) the free position of the state's cell nearest to it.
+* :func:`put_down`: the one rule of every command and env that sets the robot down: where
+  it fits, the pose asked for, else the nearest free place (of the same state, for a walk
+  that starts "at a state": :func:`start_in_state`, :func:`start_positions`; a centre in or
+  against an obstacle, which the check above lets through). :func:`placed_pose` applies
+  it to a pose.
 * :func:`check_states_hash`: datasets (manifest ``discretizer.hash``), MDPs and Q-tables
   (``states_hash`` in their metadata) record the states fingerprint,
   :meth:`discretize.voronoi.Discretizer.content_hash`; wherever two of them meet, the
@@ -21,7 +23,9 @@ by ``collect`` (31 of 41 centres off the table) and ``replay`` (19.8 goals/h ins
 from __future__ import annotations
 
 import json
+import math
 import os
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -29,7 +33,7 @@ import numpy as np
 from simlab.base.errors import ConfigError, warn
 
 __all__ = ["MAX_BAD_FRACTION", "check_centres_in_arena", "check_states_hash",
-           "npz_states_hash", "start_in_state"]
+           "npz_states_hash", "placed_pose", "put_down", "start_in_state", "start_positions"]
 
 #: Largest fraction of centres off the floor or in obstacles that only warns.
 MAX_BAD_FRACTION = 0.10
@@ -59,49 +63,121 @@ def check_centres_in_arena(centres: Any, arena: Any, *, source: str | None = Non
     return int(bad.size)
 
 
-#: Spacing (m) of the positions :func:`start_in_state` tries and of the points of the
-#: robot's footprint it checks.
+#: Spacing (m) of the positions :func:`put_down` tries and of the points of the robot's
+#: footprint it checks.
 START_GRID = 0.01
+#: Radius (m) :func:`put_down` searches first: beyond a cell's size, within a few steps.
+NEAR_SEARCH = 0.5
 
 
-def _fits(xy: np.ndarray, footprint: tuple[float, float, float, float], arena: Any
-          ) -> np.ndarray:
-    """(k,) bool: the robot facing +x at each position ``xy`` (k, 2) has its footprint
-    rectangle ``(x_min, x_max, y_min, y_max)`` (m, robot frame) clear of walls, obstacles
-    and the floor's edge (sampled every :data:`START_GRID`, edges included)."""
+def _fits(xy: np.ndarray, footprint: tuple[float, float, float, float], arena: Any,
+          yaw: float = 0.0) -> np.ndarray:
+    """(k,) bool: the robot facing ``yaw`` (rad) at each position ``xy`` (k, 2) has its
+    footprint rectangle ``(x_min, x_max, y_min, y_max)`` (m, robot frame) clear of walls,
+    obstacles and the floor's edge (sampled every :data:`START_GRID`, edges included)."""
     x0, x1, y0, y1 = footprint
     gx = np.linspace(x0, x1, max(2, int(np.ceil((x1 - x0) / START_GRID)) + 1))
     gy = np.linspace(y0, y1, max(2, int(np.ceil((y1 - y0) / START_GRID)) + 1))
     body = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
+    if yaw:
+        c, s = np.cos(yaw), np.sin(yaw)
+        body = body @ np.array([[c, s], [-s, c]])
     return ~arena.occupied(xy[:, None, :] + body[None, :, :]).any(axis=1)
 
 
-def start_in_state(state: int, disc: Any, arena: Any,
-                   footprint: tuple[float, float, float, float]) -> tuple[float, float] | None:
-    """Where a walk "from state ``state``" starts (x, y in m, the robot facing +x): the
-    state's centre when the robot's ``footprint`` fits there, else the position of the
-    state's Voronoi cell nearest to the centre where it fits (a :data:`START_GRID` lattice),
-    None when it fits nowhere in the cell.
+def put_down(xy: Any, arena: Any, footprint: tuple[float, float, float, float], *,
+             yaw: float = 0.0, region: Callable[[np.ndarray], np.ndarray] | None = None
+             ) -> tuple[float, float] | None:
+    """Where the robot asked to stand at ``xy`` (m) facing ``yaw`` (rad) is put down: at
+    ``xy`` when its ``footprint`` fits there, else at the position nearest to ``xy`` where it
+    fits (a :data:`START_GRID` lattice of the floor), among those ``region`` accepts
+    (``(k, 2) -> (k,) bool``; None: the whole floor); None when it fits nowhere.
 
-    Decision: a centre inside an obstacle (map-made states, or states of the same floor
-    without the obstacles) is not where a robot can stand: placed there, the engine ejects
-    it and the walk's first transition records an impossible jump. The nearest free place
-    of the same state keeps the walk's meaning (one walk from each state)."""
-    centre = np.asarray(disc.centres, dtype=np.float64)[int(state)]
-    if _fits(centre[None, :], footprint, arena)[0]:
-        return float(centre[0]), float(centre[1])
+    Decision, the one rule of every command and env that sets the robot down (collect's
+    walks, online's restarts, replay's start, the envs' resets): a pose inside an obstacle
+    (a state centre of map-made states, or of the same floor without its obstacles, a pose
+    given by hand) is not where a robot can stand. Placed there, the engine ejects it and
+    the first transition records an impossible jump. The nearest free place keeps what was
+    asked (the same state, the same spot of the floor) as closely as the robot allows."""
+    target = np.asarray(xy, dtype=np.float64).reshape(2)
+    if _fits(target[None, :], footprint, arena, yaw)[0]:
+        return float(target[0]), float(target[1])
     x0, y0, x1, y1 = arena.bounds
-    gx = np.arange(x0, x1 + START_GRID / 2, START_GRID)
-    gy = np.arange(y0, y1 + START_GRID / 2, START_GRID)
-    grid = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
-    grid = grid[np.asarray(disc.state_of(grid)) == int(state)]
-    grid = grid[np.argsort(np.linalg.norm(grid - centre, axis=1), kind="stable")]
-    for chunk in range(0, len(grid), 256):  # nearest first; most cells fit within a chunk
-        cand = grid[chunk:chunk + 256]
-        ok = np.flatnonzero(_fits(cand, footprint, arena))
-        if ok.size:
-            return float(cand[ok[0], 0]), float(cand[ok[0], 1])
+    # within NEAR_SEARCH first (a restart's search, not the whole floor of a large map),
+    # then the rest: whatever fits within the disc is nearer than anything outside it
+    for radius in (NEAR_SEARCH, math.inf):
+        lo = np.maximum((x0, y0), target - radius) if radius < math.inf else (x0, y0)
+        hi = np.minimum((x1, y1), target + radius) if radius < math.inf else (x1, y1)
+        gx = x0 + START_GRID * np.arange(np.ceil((lo[0] - x0) / START_GRID - 1e-9),
+                                         np.floor((hi[0] - x0) / START_GRID + 1e-9) + 1)
+        gy = y0 + START_GRID * np.arange(np.ceil((lo[1] - y0) / START_GRID - 1e-9),
+                                         np.floor((hi[1] - y0) / START_GRID + 1e-9) + 1)
+        grid = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
+        dist = np.linalg.norm(grid - target, axis=1)
+        keep = dist <= radius
+        if region is not None:
+            keep &= np.asarray(region(grid), dtype=bool)
+        grid, dist = grid[keep], dist[keep]
+        grid = grid[np.argsort(dist, kind="stable")]
+        for chunk in range(0, len(grid), 256):  # nearest first; most fit within a chunk
+            cand = grid[chunk:chunk + 256]
+            ok = np.flatnonzero(_fits(cand, footprint, arena, yaw))
+            if ok.size:
+                return float(cand[ok[0], 0]), float(cand[ok[0], 1])
     return None
+
+
+def start_in_state(state: int, disc: Any, arena: Any,
+                   footprint: tuple[float, float, float, float], yaw: float = 0.0
+                   ) -> tuple[float, float] | None:
+    """Where a walk "from state ``state``" starts (x, y in m, the robot facing ``yaw``):
+    :func:`put_down` at the state's centre, kept inside the state's Voronoi cell (one walk
+    from each state keeps its meaning); None when the robot fits nowhere in the cell."""
+    centre = np.asarray(disc.centres, dtype=np.float64)[int(state)]
+    return put_down(centre, arena, footprint, yaw=yaw,
+                    region=lambda xy: np.asarray(disc.state_of(xy)) == int(state))
+
+
+def start_positions(states: Sequence[int], disc: Any, arena: Any,
+                    footprint: tuple[float, float, float, float], *,
+                    source: str | os.PathLike[str] | None = None
+                    ) -> list[tuple[float, float]]:
+    """Where each walk from a state of ``states`` starts, facing +x
+    (:func:`start_in_state`): a state whose centre does not fit the robot is warned of once,
+    naming where it starts instead; a state where it fits nowhere is a
+    :class:`ConfigError` naming it and ``--start-states``."""
+    centres = np.asarray(disc.centres, dtype=np.float64)
+    out = []
+    for s in states:
+        xy = start_in_state(int(s), disc, arena, footprint)
+        cx, cy = centres[int(s)]
+        if xy is None:
+            raise ConfigError(f"start state {s}: the robot fits nowhere in its cell (centre "
+                              f"({cx:.2f}, {cy:.2f}) m)", path=source, key="start_states",
+                              fix=f"leave state {s} out of --start-states")
+        if xy != (float(cx), float(cy)):
+            warn(f"start state {s}: the robot does not fit at its centre ({cx:.2f}, "
+                 f"{cy:.2f}) m (an obstacle); its walk starts at ({xy[0]:.2f}, "
+                 f"{xy[1]:.2f}) m, the nearest place of the state where it fits")
+        out.append(xy)
+    return out
+
+
+def placed_pose(pose: Any, arena: Any, footprint: tuple[float, float, float, float], *,
+                what: str = "the start pose") -> np.ndarray:
+    """``pose`` (x, y, yaw) moved by :func:`put_down` to where the robot fits (warned), at
+    its heading; :class:`ConfigError` naming ``what`` when it fits nowhere on the floor."""
+    out = np.asarray(pose, dtype=np.float64).reshape(3).copy()
+    xy = put_down(out[:2], arena, footprint, yaw=float(out[2]))
+    if xy is None:
+        raise ConfigError(f"{what} ({out[0]:.2f}, {out[1]:.2f}) m: the robot fits nowhere "
+                          "on the floor", key="pose", fix="give a pose in free space")
+    if xy != (float(out[0]), float(out[1])):
+        warn(f"{what} ({out[0]:.2f}, {out[1]:.2f}) m: the robot does not fit there (an "
+             f"obstacle, a wall or the floor's edge); it is put down at ({xy[0]:.2f}, "
+             f"{xy[1]:.2f}) m, the nearest place where it fits")
+        out[:2] = xy
+    return out
 
 
 def check_states_hash(found: str | None, expected: str | None, *, what: str,

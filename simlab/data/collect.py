@@ -484,31 +484,18 @@ def _walks(cfg: CollectConfig, n_states: int
 def _start_poses(starts: list[int] | None, disc: Any, arena: Any, states: Any
                  ) -> list[tuple[float, float, float]] | None:
     """Truth start pose of each walk, facing +x (the first primitive turns to its own
-    heading anyway): the state's centre, or where the robot fits nearest to it in the
-    state (:func:`simlab.base.statecheck.start_in_state`; warned); a state where it fits
-    nowhere is refused."""
+    heading anyway): where the robot is put down in its state
+    (:func:`simlab.base.statecheck.start_positions`: the centre, or the nearest place of
+    the state where it fits, warned; a state where it fits nowhere is refused)."""
     if starts is None:
         return None
-    from simlab.base.errors import warn
-    from simlab.base.statecheck import start_in_state
+    from simlab.base.statecheck import start_positions
     from simlab.physics.robot import load_robot_spec
 
-    footprint = load_robot_spec().footprint
-    centres = np.asarray(disc.centres, dtype=np.float64)
-    poses = []
-    for s in starts:
-        xy = start_in_state(s, disc, arena, footprint)
-        if xy is None:
-            raise ConfigError(f"start state {s}: the robot fits nowhere in its cell (centre "
-                              f"({centres[s, 0]:.2f}, {centres[s, 1]:.2f}) m)",
-                              path=states if isinstance(states, str | os.PathLike) else None,
-                              key="start_states", fix=f"leave state {s} out of --start-states")
-        if xy != (float(centres[s, 0]), float(centres[s, 1])):
-            warn(f"start state {s}: the robot does not fit at its centre ({centres[s, 0]:.2f}, "
-                 f"{centres[s, 1]:.2f}) m (an obstacle); its walk starts at ({xy[0]:.2f}, "
-                 f"{xy[1]:.2f}) m, the nearest place of the state where it fits")
-        poses.append((xy[0], xy[1], 0.0))
-    return poses
+    source = states if isinstance(states, str | os.PathLike) else None
+    return [(x, y, 0.0) for x, y in start_positions(starts, disc, arena,
+                                                     load_robot_spec().footprint,
+                                                     source=source)]
 
 
 @dataclass(frozen=True)

@@ -105,7 +105,9 @@ class TableArenaEnv(gym.Env):
       ``module:id`` form), so it also works in a fresh process, e.g. the workers of
       ``AsyncVectorEnv(..., context="spawn")``; ``gym.make("simlab/TableArena-v0")`` needs
       ``import simlab`` in that process first.
-    * **Episode** starts at the arena's start pose (or ``options["pose"]``) with a goal drawn
+    * **Episode** starts at the arena's start pose (or ``options["pose"]``; where the robot
+      does not fit, at the nearest place where it does, with a warning:
+      :func:`simlab.base.statecheck.put_down`, the rule of every command) with a goal drawn
       uniformly from the arena's goal areas (or ``options["goal"]``); never terminates;
       truncated after ``max_steps`` primitives when ``max_steps`` is set (the registered id sets
       ``max_steps=None`` and registers ``max_episode_steps=50``, the thesis's 50-step trials,
@@ -118,8 +120,8 @@ class TableArenaEnv(gym.Env):
     * **Info** ``blocked``, ``duration`` (simulated s stepped), ``time`` (simulated s since
       reset, including the decision latency), ``goal``, ``odometry`` (3,).
     * **Physics** steps at ``physics_hz`` (default :data:`simlab.physics.rate.DEFAULT_HZ`,
-      the rate of ``simlab collect`` and ``replay``; below
-      :data:`~simlab.physics.rate.MIN_HZ` is refused).
+      the rate of ``simlab collect`` and ``replay``; outside
+      :data:`~simlab.physics.rate.MIN_HZ`-:data:`~simlab.physics.rate.MAX_HZ` is refused).
     * **Seeding** the LIDAR noise and the goal draw use ``self.np_random``; the physics is
       deterministic, so the same seed and actions give identical rollouts.
     """
@@ -247,7 +249,13 @@ class TableArenaEnv(gym.Env):
         super().reset(seed=seed)
         world = self._live()
         options = options or {}
-        world.reset(options.get("pose"))
+        from simlab.base.statecheck import placed_pose
+
+        pose = self.arena.start if options.get("pose") is None else options["pose"]
+        if np.shape(pose) == (3,) and np.all(np.isfinite(np.asarray(pose, dtype=float))):
+            pose = placed_pose(pose, self.arena, world.robot_spec.footprint,
+                               what="the reset pose")
+        world.reset(pose)  # a malformed pose is refused there
         name = options.get("goal", self._fixed_goal)
         if name is None:
             self.goal = self.arena.goals[int(self.np_random.integers(len(self.arena.goals)))]

@@ -159,9 +159,25 @@ def physics_task(cfg: Any, lab: Any) -> Any:
     task = PhysicsTask(tuple(cfg.goal), tuple(cfg.start_states), int(cfg.decisions), changes,
                        pose_source=cfg.pose_source, mcl_map=cfg.mcl_map)
     task.check_states(lab.n_states)
+    _check_starts(cfg, lab, task)
     for c in task.changes:
         lab.boxes_of(c)
     return task
+
+
+def _check_starts(cfg: Any, lab: Any, task: Any) -> None:
+    """Where each start state puts the robot down, said once before any run
+    (:func:`simlab.base.statecheck.start_positions`: a centre where it does not fit is
+    warned of, a state where it fits nowhere refused); each restart then puts it down by
+    the same rule at its heading (:mod:`simlab.online.physics`)."""
+    import os
+
+    from simlab.base.statecheck import start_positions
+    from simlab.physics.robot import load_robot_spec
+
+    source = cfg.states if isinstance(cfg.states, str | os.PathLike) else None
+    start_positions(task.start_states, lab.discretizer, lab.arena,
+                    load_robot_spec().footprint, source=source)
 
 
 def run_physics_job(job: PhysicsJob, seed: np.random.SeedSequence, progress: Any = None

@@ -18,7 +18,10 @@ Decisions (the protocol of Dromnelle et al. 2022, sec. 4.1, on simlab's arena):
 * after a reward the robot is put back at the centre of a start state drawn with
   ``env_rng`` (keeping its heading; :meth:`~simlab.data.walkers.PhysicsWalker.place`): the
   published robot restarted from a start state; simlab does not spend simulated time
-  driving it there. Its localization restarts at the pose it is put down at.
+  driving it there. Its localization restarts at the pose it is put down at. A centre
+  where the robot does not fit at that heading (in or against an obstacle, or a box added
+  mid-run) puts it down at the nearest place of the state where it fits
+  (:func:`simlab.base.statecheck.start_in_state`, the rule of ``collect``'s walks).
 * the believed pose is the walker's pose source: ``truth`` (with the primitives' own
   localization error when they have one, as a calibrated twin does) or ``mcl``, a particle
   filter on the arena's map fed by the primitives' LIDAR scans.
@@ -276,12 +279,20 @@ class _Lab:
 
     def restart(self, state: int = -1) -> int:
         """The robot put down at the centre of ``state`` (-1: a start state drawn from the
-        ``env`` stream), keeping its heading; the state of its believed pose there."""
+        ``env`` stream), keeping its heading, or where it fits nearest to the centre in the
+        state (module docstring); the state of its believed pose there."""
+        from simlab.base.statecheck import start_in_state
+
         s0 = int(self.starts[self.streams.env.integers(0, self.starts.size)]) if state < 0 \
             else int(state)
         yaw = float(self.walker.world.pose()[2])
-        self.walker.place(np.array([self.centres[s0, 0], self.centres[s0, 1], yaw]),
-                          self.streams.mcl)
+        footprint = self.walker.world.robot_spec.footprint
+        xy = start_in_state(s0, self.lab.discretizer, self.arena, footprint, yaw)
+        if xy is None:  # not at this heading (the setup checked +x), or a box covers the cell
+            yaw = 0.0
+            xy = start_in_state(s0, self.lab.discretizer, self.arena, footprint) \
+                or (float(self.centres[s0, 0]), float(self.centres[s0, 1]))
+        self.walker.place(np.array([xy[0], xy[1], yaw]), self.streams.mcl)
         return self.state(self.walker.believed_pose())
 
     def add_box(self, box: tuple[float, ...]) -> None:

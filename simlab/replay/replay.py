@@ -168,6 +168,21 @@ class _Inputs:
     physics_source: str
 
 
+def _placed_start(arena: Any) -> Any:
+    """``arena`` with its start where the robot fits (:func:`simlab.base.statecheck.put_down`,
+    warned when moved): the start the replay begins at, drives back to and localizes from.
+    An arena's own check asks a disc of ``[start] clearance`` m free, which a lowered
+    clearance lets the Burger's 0.10 m tail overlap a box."""
+    from simlab.base.statecheck import placed_pose
+    from simlab.physics.robot import load_robot_spec
+
+    start = placed_pose(arena.start, arena, load_robot_spec().footprint,
+                        what=f"the start pose of arena {arena.name!r}")
+    if tuple(start) == tuple(arena.start):
+        return arena
+    return replace(arena, start=tuple(float(v) for v in start))
+
+
 def _load_inputs(cfg: ReplayConfig) -> _Inputs:
     """Arena, states, goals, Q-tables, MDP, map and primitive parameters, all checked
     before anything runs (ConfigError naming the file)."""
@@ -185,7 +200,7 @@ def _load_inputs(cfg: ReplayConfig) -> _Inputs:
         primitive_params_for,
     )
 
-    arena_cfg = load_arena_config(cfg.arena)
+    arena_cfg = _placed_start(load_arena_config(cfg.arena))
     disc = load_discretizer(cfg.states)
     states_src = str(cfg.states) if isinstance(cfg.states, str | os.PathLike) else None
     check_centres_in_arena(disc.centres, arena_cfg, source=states_src)
