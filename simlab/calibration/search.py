@@ -171,10 +171,14 @@ def make_sampler(name: str, seed: int, n_candidates: int, batch: int) -> Any:
                                   fix="pip install cmaes, or use the default tpe") from None
             return optuna.samplers.CmaEsSampler(
                 seed=seed, n_startup_trials=startup,
-                independent_sampler=optuna.samplers.QMCSampler(seed=seed, scramble=True),
+                independent_sampler=optuna.samplers.QMCSampler(
+                    seed=seed, scramble=True, warn_independent_sampling=False),
                 popsize=max(batch, 4 + int(3 * math.log(max(n_candidates, 2)))))
         if name == "qmc":
-            return optuna.samplers.QMCSampler(qmc_type="sobol", scramble=True, seed=seed)
+            # the first batch, asked before any candidate is told, draws at random (a QMC
+            # design needs its search space from a finished candidate): no warning for it
+            return optuna.samplers.QMCSampler(qmc_type="sobol", scramble=True, seed=seed,
+                                              warn_independent_sampling=False)
         return optuna.samplers.RandomSampler(seed=seed)
 
 
