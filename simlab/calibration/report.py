@@ -227,11 +227,19 @@ def _size(size: tuple[float | None, int | None]) -> dict[str, Any]:
     return {"hours": size[0], "transitions": size[1]}
 
 
+#: Share of the first rung's score variance a field must explain to count as told by the
+#: data (:func:`ensemble_spread`): with 11 fields, a field of average weight explains 9 %.
+TOLD_SHARE = 0.05
+
+
 def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
     """Per searched field: the ensemble's values (lowest, highest), that span as a share
     of the searched range (unit-cube width), the share of the search's score the field
-    explains, and ``told``: whether the data pin it down (its members agree within a
-    quarter of the range, or the field explains at least 5 % of the score)."""
+    explains, and ``told``: whether the data pin it down. The field must explain at least
+    :data:`TOLD_SHARE` of the score's variance over the first rung (PED-ANOVA); the
+    members' span alone cannot say it, as the sampler gathers the confirmed candidates
+    near one another whatever the data tell. Without importances (too few candidates),
+    members within a quarter of the range count as told."""
     members = result.ensemble
     imp = result.search.importance if result.search is not None else {}
     rows = []
@@ -240,7 +248,8 @@ def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
         vals = [c.values[spec.name] for c in members]
         width = float(units.max() - units.min()) if units.size else math.nan
         share = imp.get(spec.name)
-        told = bool(units.size and (width <= 0.25 or (share is not None and share >= 0.05)))
+        told = bool(share >= TOLD_SHARE) if share is not None else bool(
+            units.size and width <= 0.25)
         row: dict[str, Any] = {"field": spec.name, "span_of_range": _fin(width),
                                "importance": share, "told": told}
         if spec.categorical:
@@ -530,9 +539,9 @@ def ensemble_section(result: CalibrationResult) -> str:
               "within sampling of the winner: no more than the matched floor's 95 % "
               "half-width above its distance). Their values field by field, the span as a "
               "share of the searched range, and the share of the search's score the field "
-              "explains (PED-ANOVA over the first rung); a field is *not told* by the data "
-              "when the members disagree by more than a quarter of its range and it explains "
-              "under 5 % of the score:\n\n| field | ensemble values | span of range | "
+              "explains (PED-ANOVA over the first rung); a field that explains under 5 % of "
+              "it is *not told* by the data, and its calibrated value is the winner's, not a "
+              "measurement:\n\n| field | ensemble values | span of range | "
               "explains | told by the data |\n|---|---|---|---|---|\n")
     for row in ensemble_spread(result):
         vals = (", ".join(row["values"]) if "values" in row else

@@ -85,6 +85,25 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     md = (out / "report.md").read_text()
     assert "| transitions per hour |" in md and "bootstrap sampling floor" in md
     assert "## Transfer to the real robot" in md and "## Budgets" in md
+    # the signature at the robot's visits, the search's rungs and the twin ensemble
+    gap = report["signature_gap"]
+    assert 0.0 <= gap["self_share"] <= 1.0 and gap["self_share_real"] == pytest.approx(
+        report["real"]["self_transition_share"])       # the walk tried every real pair
+    assert "## Signature at the robot's visits" in md
+    assert f"signature at the robot's visits, twin / robot: stays {gap['self_share']:.3f}" \
+        in printed
+    search = report["search"]
+    assert search["sampler"] == "tpe" and [r["rung"] for r in search["rungs"]] == [1, 2]
+    assert [c["index"] for c in search["rungs"][0]["candidates"]] == [0, 1, 2]
+    assert search["picks"][0] in {c["index"] for c in search["rungs"][1]["candidates"]}
+    members = report["ensemble"]["members"]
+    assert members[0]["index"] == report["best_candidate"]
+    spread = report["ensemble"]["spread"]
+    assert [r["field"] for r in spread] == doc["calibration"]["searched"]
+    for row in spread:   # the winner is a member: its values lie within the ensemble's
+        v = report["params"][row["field"]]
+        assert row["low"] - 1e-9 <= v <= row["high"] + 1e-9
+        assert 0.0 <= row["span_of_range"] <= 1.0 and isinstance(row["told"], bool)
 
 
 def refused(args: list[str], capsys) -> str:
