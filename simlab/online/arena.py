@@ -19,7 +19,6 @@ refused. Progress counts decisions over every run (workers report every
 from __future__ import annotations
 
 import dataclasses
-import io
 import threading
 from pathlib import Path
 from typing import Any
@@ -36,7 +35,6 @@ __all__ = [
     "PHYSICS_FILES",
     "ArenaOptions",
     "PhysicsJob",
-    "physics_figures",
     "physics_lab",
     "physics_summary",
     "physics_task",
@@ -309,83 +307,3 @@ def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
         if not boxes and runs[0]["boxes"].size:
             boxes = np.round(runs[0]["boxes"], 4).tolist()
     return {"arms": arms, "boxes": boxes, "physics_hz": resolve_rate(physics_hz)}
-
-
-def _png(fig: Any) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    return buf.getvalue()
-
-
-def physics_figures(logs: dict[str, list[dict[str, np.ndarray]]], lab: Any, task: Any,
-                    window: int) -> dict[str, bytes]:
-    """``physics.png`` (blocked primitives and simulated seconds per decision, per window)
-    and ``visits.png`` (where each arm's robot was after its decisions, on the arena, with
-    the goal and start states and the boxes)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from matplotlib.figure import Figure
-
-    from simlab.online.report import windows
-
-    at = task.changes[0].at if task.changes else None
-    fig = Figure(figsize=(6.4, 6.0), layout="constrained")
-    axes = fig.subplots(2, 1, sharex=True)
-    for name, runs in logs.items():
-        for ax, col in zip(axes, ("blocked", "duration"), strict=True):
-            y = windows(np.stack([r[col] for r in runs]).astype(float), window).mean(0)
-            ax.plot((np.arange(y.shape[0]) + 0.5) * window, y, marker="o", ms=3, label=name)
-    for ax, label in zip(axes, ("share of blocked primitives", "simulated s per decision"),
-                         strict=True):
-        if at is not None:
-            ax.axvline(at, color="k", ls="--", lw=1)
-        ax.set_ylabel(label)
-    axes[0].legend(fontsize=7)
-    axes[1].set_xlabel("decision")
-    figures = {"physics.png": _png(fig)}
-    figures["visits.png"] = _png(_visits_figure(logs, lab, task))
-    return figures
-
-
-def _visits_figure(logs: dict[str, list[dict[str, np.ndarray]]], lab: Any, task: Any) -> Any:
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
-    from matplotlib.transforms import Affine2D
-
-    x0, y0, x1, y1 = lab.arena.bounds
-    res = 0.02 if max(x1 - x0, y1 - y0) < 4 else 0.05
-    shape = (int(np.ceil((y1 - y0) / res)), int(np.ceil((x1 - x0) / res)))
-    occ = lab.arena.rasterize(res, (x0, y0), shape)
-    n = len(logs)
-    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
-    if aspect > 1:  # a tall lab: panels side by side
-        fig = Figure(figsize=(2.2 + 3.0 * n / aspect ** 0.5, 3.0 * aspect ** 0.5 + 0.6),
-                     layout="constrained")
-        axes = np.atleast_1d(fig.subplots(1, n))
-    else:
-        fig = Figure(figsize=(7.0, (7.0 * aspect + 0.5) * n + 0.3), layout="constrained")
-        axes = np.atleast_1d(fig.subplots(n, 1))
-    centres = np.asarray(lab.discretizer.centres, dtype=float)
-    boxes = next((r["boxes"] for runs in logs.values() for r in runs[:1]), np.zeros((0, 5)))
-    for ax, (name, runs) in zip(axes, logs.items(), strict=True):
-        ax.imshow(occ, cmap="Greys", extent=(x0, x0 + shape[1] * res, y0, y0 + shape[0] * res),
-                  vmin=0, vmax=1.6, interpolation="nearest")
-        xs = np.concatenate([r["x"] for r in runs])
-        ys = np.concatenate([r["y"] for r in runs])
-        ax.hexbin(xs, ys, gridsize=int(max(8, (x1 - x0) / 0.15)), mincnt=1, cmap="viridis",
-                  bins="log", alpha=0.85, extent=(x0, x1, y0, y1))
-        ax.plot(*centres[list(task.start_states)].T, "o", ms=6, mfc="none", mec="tab:blue")
-        ax.plot(*centres[list(task.goal)].T, "*", ms=11, color="tab:red")
-        for c in task.changes:
-            if c.kind == "goal":
-                ax.plot(*centres[list(c.goal)].T, "*", ms=11, color="tab:orange")
-        for bx, by, sx, sy, yaw in boxes:
-            rect = Rectangle((bx - sx / 2, by - sy / 2), sx, sy, color="tab:red", alpha=0.8)
-            rect.set_transform(Affine2D().rotate_around(bx, by, yaw) + ax.transData)
-            ax.add_patch(rect)
-        ax.set_title(f"{name}: positions after each decision (log count)", fontsize=9)
-        ax.set_aspect("equal")
-        ax.set_xlim(x0, x1)
-        ax.set_ylim(y0, y1)
-    return fig
