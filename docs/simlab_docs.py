@@ -13,6 +13,16 @@ Used by ``docs/hooks.py`` during ``mkdocs build`` (and by ``tests/docs``):
   existing subcommand and existing options, so an example cannot outlive a rename;
 * :func:`make_figures` — the guide's figures, made by the commands the guide shows;
 * :func:`api_markdown` — an API page: every public module of a package, for mkdocstrings.
+
+The command reference reads the parsers' ``_actions`` (and a sub-parser action's
+``_choices_actions`` for the one-line helps): argparse has no public way to list a parser's
+arguments, and the parsers are what users run, so reading them keeps the page true to the
+command line even for the arguments a command adds beside its ``CommandConfig``. Those
+attributes have kept their names and types since argparse entered the standard library
+(Python 3.2); ``tests/docs`` builds the page from them, so a change there fails a test, not
+the site. Generators of argparse docs packaged for Sphinx (``sphinx-argparse``) read the same
+attributes; none is packaged for MkDocs with our per-option defaults, so nothing better is on
+offer.
 """
 
 from __future__ import annotations
