@@ -20,9 +20,9 @@ arguments, and the parsers are what users run, so reading them keeps the page tr
 command line even for the arguments a command adds beside its ``CommandConfig``. Those
 attributes have kept their names and types since argparse entered the standard library
 (Python 3.2); ``tests/docs`` builds the page from them, so a change there fails a test, not
-the site. Generators of argparse docs packaged for Sphinx (``sphinx-argparse``) read the same
-attributes; none is packaged for MkDocs with our per-option defaults, so nothing better is on
-offer.
+the site. Packaged generators of argparse docs (``sphinx-argparse`` for Sphinx) read the same
+attributes, so a library would move the reading, not remove it, and would not take each
+option's default and help from its ``CommandConfig`` field as this page does.
 """
 
 from __future__ import annotations
