@@ -66,7 +66,7 @@ def test_matched_entropy_compares_rows_at_the_same_number_of_draws() -> None:
 
 def test_a_twin_that_always_stays_is_charged_for_its_stays_and_its_certainty() -> None:
     real = _random_counts(np.random.default_rng(3))
-    S, A, _ = real.shape
+    S = real.shape[0]
     stays = np.zeros_like(real)
     stays[np.arange(S), :, np.arange(S)] = 50
     gap = signature_gap(stays, Reference.build(real), np.random.default_rng(0))
