@@ -67,7 +67,9 @@ def main() -> None:
     parser.add_argument("--candidates", type=int, default=12)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--objective", default="excess", choices=("excess", "tv", "loglik"))
+    from simlab.calibration.config import OBJECTIVES
+
+    parser.add_argument("--objective", default="signature", choices=OBJECTIVES)
     args = parser.parse_args()
 
     from simlab.base.actions import parse_action_set
