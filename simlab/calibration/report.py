@@ -519,8 +519,8 @@ def signature_section(result: CalibrationResult) -> str:
              ok.get("regions"))]
     out = io.StringIO()
     out.write("\n## Signature at the robot's visits\n\nThe twin's moves on the pairs the "
-              "robot tried, weighted by the robot's visits (the search's objective holds each "
-              "within its tolerance):\n\n| | robot | twin | tolerance | within |\n"
+              "robot tried, weighted by the robot's visits; the search's objective charges "
+              "each gap by its square over its tolerance:\n\n| | robot | twin | tolerance | within |\n"
               "|---|---|---|---|---|\n")
     for name, real, twin, tol, within in rows:
         mark = "n/a" if within is None else ("yes" if within else "**no**")
