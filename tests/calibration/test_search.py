@@ -202,3 +202,22 @@ def test_the_search_on_ray_tasks_is_the_local_search(lattice9) -> None:
     assert [c.score for c in a.candidates] == [c.score for c in b.candidates]
     assert [[c.score for c in r] for r in a.rungs] == [[c.score for c in r] for r in b.rungs]
     assert a.picks == b.picks
+
+
+def test_every_sampler_is_made_and_cmaes_without_its_package_is_one_clear_error(
+        monkeypatch) -> None:
+    import importlib.util
+    import sys
+
+    from simlab.calibration.config import SAMPLERS
+    from simlab.calibration.search import make_sampler
+
+    for name in SAMPLERS:
+        if name == "cmaes" and importlib.util.find_spec("cmaes") is None:
+            continue   # an optional package: its absence is the error checked below
+        sampler = make_sampler(name, seed=3, n_candidates=12, batch=4)
+        assert type(sampler).__name__.lower().startswith(
+            {"tpe": "tpe", "cmaes": "cmaes", "qmc": "qmc", "random": "random"}[name])
+    monkeypatch.setitem(sys.modules, "cmaes", None)   # as if the package were not installed
+    with pytest.raises(ConfigError, match="pip install cmaes"):
+        make_sampler("cmaes", seed=3, n_candidates=12, batch=4)
