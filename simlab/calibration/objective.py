@@ -24,7 +24,7 @@ visits), where a twin's own walk would weigh them differently:
   region's real transitions.
 
 Each gap is read against its tolerance (:data:`TOLERANCES`: the width a twin may differ by
-and still be the robot's, about one sampling standard error of the ISIR table's figures),
+and still be the robot's, four to five sampling standard errors of the ISIR table's figures),
 and the penalty is ``weight * sum (gap / tolerance)^2`` added to the distance: inside its
 tolerance a term costs at most ``weight``; at twice it, four times that. Measured on the ISIR
 lab (five seeds of calibrate's defaults): every winner within the self-share tolerance at the
