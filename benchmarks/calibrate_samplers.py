@@ -20,7 +20,8 @@ Measured (2-core VM, 2026-11-28, ``--seeds 3``; median [min, max] of distance / 
 TPE 1.331 [1.107, 1.379], CMA-ES 1.170 [1.080, 1.312], QMC 1.227 [1.177, 1.330], random 1.218
 [1.217, 1.382], TPE without halving 1.404 [1.251, 1.559]. The halving helps TPE on every seed;
 on this 4-field lab TPE does not beat the others. On the ISIR lab (11 fields) CMA-ES at the same
-budget lost to TPE (1.87x against 1.61x, seed 0): TPE stays calibrate's default.
+budget lost to TPE (1.87x and 1.74x against 1.61x and 1.65x, seeds 0-1): TPE stays calibrate's
+default.
 """
 
 from __future__ import annotations

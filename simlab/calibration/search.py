@@ -154,8 +154,8 @@ def make_sampler(name: str, seed: int, n_candidates: int, batch: int) -> Any:
     exploit); CMA-ES from the same number, with a population of ``batch`` or more.
 
     Measured (``benchmarks/calibrate_samplers.py``, ``benchmarks/calibrate_twin.py``): on the
-    ISIR lab's 11 fields with 36 candidates, CMA-ES landed at 1.87x the matched floor where TPE
-    landed at 1.61x on the same seed (it gets about two generations); on a 4-field kinematic
+    ISIR lab's 11 fields with 36 candidates, CMA-ES landed at 1.87x and 1.74x the matched floor
+    where TPE landed at 1.61x and 1.65x on the same seeds 0 and 1 (it gets about two generations); on a 4-field kinematic
     lab, 3 seeds, CMA-ES 1.17, QMC 1.23, random 1.22 and TPE 1.33 (median distance over the
     matched floor): TPE is the default for the many-field physics twin, not everywhere.
     """
