@@ -210,21 +210,13 @@ def search_json(result: CalibrationResult) -> dict[str, Any] | None:
     found = result.search
     if found is None:
         return None
-    rungs = [{"rung": 1, "walk": _size(found.sizes[0]),
+    rungs = [{"rung": k + 1, "walk": {"hours": size[0], "transitions": size[1]},
               "candidates": [{"index": c.index, "score": _fin(c.score),
-                              "distance": _fin(c.distance), "rows": c.sim.rows}
-                             for c in found.candidates]}]
-    for k, rung in enumerate(found.rungs, start=1):
-        rungs.append({"rung": k + 1, "walk": _size(found.sizes[k]),
-                      "candidates": [{"index": c.index, "score": _fin(c.score),
-                                      "distance": _fin(c.distance), "rows": c.sim.rows}
-                                     for c in rung]})
+                              "distance": _fin(c.distance), "rows": c.sim.rows} for c in rung]}
+             for k, (rung, size) in enumerate(zip([found.candidates, *found.rungs],
+                                                  found.sizes, strict=True))]
     return {"sampler": result.config.sampler, "eta": result.config.eta, "rungs": rungs,
             "picks": found.picks, "importance": found.importance}
-
-
-def _size(size: tuple[float | None, int | None]) -> dict[str, Any]:
-    return {"hours": size[0], "transitions": size[1]}
 
 
 #: Share of the first rung's score variance a field must explain to count as told by the

@@ -304,10 +304,14 @@ def search(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace, b
                         importance=_importance(study, space), sizes=sizes)
 
 
-def _rung_desc(k: int, rungs: int, size: tuple[float | None, int | None]) -> str:
+def walk_size(size: tuple[float | None, int | None]) -> str:
+    """One walk's ``(hours, transitions)`` in words, for the progress bars."""
     hours, transitions = size
-    what = f"{hours:g} h" if hours is not None else f"{transitions:,} transitions"
-    return f"calibrate: rung {k + 1}/{rungs} ({what} a walk)"
+    return f"{hours:g} h" if hours is not None else f"{transitions:,} transitions"
+
+
+def _rung_desc(k: int, rungs: int, size: tuple[float | None, int | None]) -> str:
+    return f"calibrate: rung {k + 1}/{rungs} ({walk_size(size)} a walk)"
 
 
 def _promote(runner: WalkRunner, cands: list[Candidate], ctx: dict[str, Any],

@@ -78,6 +78,7 @@ from simlab.calibration.search import (
     params_at,
     search,
     walk_context,
+    walk_size,
 )
 from simlab.calibration.signature import (
     Signature,
@@ -263,11 +264,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     final = done.final
     matched = bootstrap_floor(real.counts, rng, n_boot=config.n_boot,
                               other_n=final.sim.counts.sum(axis=2))
-    ensemble = _ensemble(done, matched)
-    if twin is not None:
-        twin.ensemble = ensemble_transfer(
-            twin, [c.sim.counts for c in ensemble], [t.sim.counts for t in done.twins],
-            real.action_set, setup.disc.centres)
+    ensemble = _ensemble(done, matched, twin, real.action_set, setup.disc.centres)
     sim_hours = final.sim.hours
     if fitted:
         sim_hours = final.sim.rows * (final.sim.mean_duration + params.decision_latency) / 3600
@@ -322,16 +319,24 @@ def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: _S
     return twin
 
 
-def _ensemble(done: _Confirmed, matched: Floor) -> list[Candidate]:
+def _ensemble(done: _Confirmed, matched: Floor, twin: TwinTransfer | None, action_set: Any,
+              centres: Any) -> list[Candidate]:
     """The confirmed candidates (each pooled over its confirming walks) whose distance lies
     within sampling of the winner's: no more than the matched floor's 95 % half-width
-    (``high - median``) above it; the winner first. Empty without confirmation."""
+    (``high - median``) above it; the winner first. Empty without confirmation. With a
+    transfer stage, its ``ensemble`` figure is set: the members' walks against as many of
+    the winner's (:func:`~simlab.calibration.policies.ensemble_transfer`)."""
     if not done.pooled:
         return []
     width = matched.high - matched.median if math.isfinite(matched.high) else 0.0
     others = sorted((c for c in done.pooled if c.index != done.best),
                     key=lambda c: (c.distance, c.index))
-    return [done.final] + [c for c in others if c.distance <= done.final.distance + width]
+    members = [done.final] + [c for c in others if c.distance <= done.final.distance + width]
+    if twin is not None:
+        twin.ensemble = ensemble_transfer(twin, [c.sim.counts for c in members],
+                                          [t.sim.counts for t in done.twins], action_set,
+                                          centres)
+    return members
 
 
 def _region_rows(setup: _Setup, real: RealTable, final: Candidate) -> list[dict[str, Any]]:
@@ -439,9 +444,8 @@ def _confirm_stage(runner: WalkRunner, found: SearchResult, ctx: dict[str, Any],
     cands = found.candidates
     n_picks = len(_picks(found))
     extra = max(cfg.transfer_seeds - cfg.confirm_seeds, 0)
-    what = (f"{budget[0]:g} h" if budget[0] is not None else f"{budget[1]:,} transitions")
     bar = tqdm(total=n_picks * cfg.confirm_seeds + extra,
-               desc=f"calibrate: confirm ({what} a walk)",
+               desc=f"calibrate: confirm ({walk_size(budget)} a walk)",
                unit="walk", disable=not cfg.progress)
     try:
         best, runs = _confirm(runner, found, ctx, budget, bar)
