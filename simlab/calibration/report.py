@@ -6,7 +6,13 @@ temporary sibling and renamed):
 
 * ``primitives.toml`` — ``[primitives]``: every field of the calibrated record (the format
   ``collect/replay/pipeline --primitives FILE.toml`` read; other tables are ignored by them),
-  then ``[calibration]``: the distance, floor and source, for people;
+  then ``[calibration]``: the distance, floor and source, for people; then, when the twin
+  ensemble has two members or more, ``[[ensemble]]``: one full record per member, the
+  winner first, each after a comment naming its candidate and distance, every member with
+  the winner's decision latency (it does not change T); ``collect`` and ``online --arena``
+  with ``--ensemble`` draw from them
+  (:meth:`simlab.physics.motion.PrimitiveParams.ensemble_from_toml` reads them). Without
+  confirmation, or with the winner alone within sampling, there is no ``[[ensemble]]``;
 * ``report.json`` — everything, machine-readable;
 * ``report.md`` — sim vs real side by side;
 * ``calibration.png`` — distance of every candidate over the search (with the floor band)
@@ -141,6 +147,23 @@ def primitives_toml(result: CalibrationResult) -> str:
               f"matched_floor_median = {_toml_value(_num(result.matched_floor.median))}",
               f"searched = [{', '.join(_toml_value(n) for n in result.space.names)}]",
               f"simulator = {_toml_value(result.config.simulator)}"]
+    # An ensemble of the winner alone adds nothing to [primitives]: written only with two
+    # members or more, so that `--ensemble` on a file without it says so plainly.
+    if len(result.ensemble) >= 2:
+        from simlab.calibration.search import params_at
+
+        lines += ["", "# The twin ensemble (`collect` / `online --arena` with --ensemble): the "
+                  "confirmed candidates", "# within sampling of the winner, the winner first; "
+                  "each with the winner's decision latency"]
+        for k, c in enumerate(result.ensemble):
+            # latency does not change T: every member gets the winner's (fitted) one
+            member = dataclasses.replace(params_at(result.space, result.base, c.unit),
+                                         decision_latency=result.params.decision_latency)
+            lines += ["", f"# member {k}: candidate #{c.index}, distance "
+                      f"{_num(c.distance):.6f}{' (the winner)' if k == 0 else ''}",
+                      "[[ensemble]]"]
+            lines += [f"{name} = {_toml_value(v)}" for name, v in _record(member).items()
+                      if v is not None]
     return "\n".join(lines) + "\n"
 
 

@@ -325,6 +325,33 @@ class PrimitiveParams:
                               fix="put the settings under a [primitives] table")
         return cls.from_json(data["primitives"], path=p)
 
+    @classmethod
+    def ensemble_from_toml(cls, path: str | os.PathLike[str]) -> tuple[PrimitiveParams, ...]:
+        """The twin ensemble of a ``primitives.toml`` of ``simlab calibrate``: its
+        ``[[ensemble]]`` array of tables, one full record per member, the winner first (the
+        ``[primitives]`` table is the winner alone). Each member is checked as
+        :meth:`from_json` checks a table, an error naming ``ensemble[k].field``; a file
+        without ``[[ensemble]]`` is a ConfigError (calibrate writes none when no other
+        confirmed candidate is within sampling of the winner)."""
+        from simlab.base.io import read_toml
+
+        p = Path(path)
+        data = read_toml(p, what="primitives file", key="--primitives")
+        members = data.get("ensemble")
+        if members is None:
+            raise ConfigError(
+                "no twin ensemble in this file (no [[ensemble]] tables)", path=p,
+                key="ensemble", fix="calibrate writes [[ensemble]] when several confirmed "
+                "candidates are within sampling of the winner; use the [primitives] table "
+                "alone without --ensemble")
+        if not isinstance(members, list) or not members:
+            raise ConfigError("expected an array of tables [[ensemble]], got "
+                              f"{repr(members)[:80]}", path=p, key="ensemble",
+                              fix="write each member as an [[ensemble]] table of primitive "
+                              "parameters")
+        return tuple(cls.from_json(m, path=p, where=f"ensemble[{k}]")
+                     for k, m in enumerate(members))
+
     def replace(self, **changes: Any) -> PrimitiveParams:
         """A copy with ``changes`` (validated); ``None`` values are ignored (CLI flags)."""
         return dataclasses.replace(self, **{k: v for k, v in changes.items() if v is not None})
