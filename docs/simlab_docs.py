@@ -255,13 +255,15 @@ def dataset_markdown() -> str:
     """The Parquet columns and manifest fields of a transition dataset (Markdown tables)."""
     from simlab.data import manifest, schema
 
-    table = schema.transition_schema("odometry")
+    table = schema.transition_schema("odometry", twin_member=True)
     lines = ["| column | Arrow type | unit | meaning |", "|---|---|---|---|"]
     for f in table:
         unit, meaning = schema.COLUMN_DOCS.get(f.name, ("", ""))
         lines.append(f"| `{f.name}` | {f.type} | {unit} | {_cell(meaning)} |")
     lines += ["", "The `x_true` ... columns exist only for the simulated pose sources "
-              f"({', '.join(s for s in schema.POSE_SOURCE_NAMES if s not in schema.NO_TRUTH_SOURCES)}).",
+              f"({', '.join(s for s in schema.POSE_SOURCE_NAMES if s not in schema.NO_TRUTH_SOURCES)}); "
+              "`twin_member` only in a dataset of `simlab collect --ensemble` (its manifest's "
+              "`parameters.ensemble` holds the members' records and the member of each walk).",
               "", "Manifest `_manifest.json` fields (checked on read):", "",
               "| field | JSON type | required |", "|---|---|---|"]
     for required, fields in ((True, manifest.MANIFEST_SCHEMA), (False, manifest.OPTIONAL_SCHEMA)):

@@ -5,6 +5,16 @@ actions and logged 8,448 transitions. :func:`collect` does the same headlessly i
 PyBullet, with ``workers`` independent walks in parallel, and writes a dataset
 directory (see :mod:`simlab.data.schema`).
 
+Twin ensemble (``ensemble``, domain randomisation): each walk drives one member of the
+``[[ensemble]]`` of the ``primitives`` file (calibrate's twin ensemble), drawn by
+:func:`simlab.physics.primitive_options.ensemble_members` from the seed and the walk's
+index alone; with ``start_states`` the walks are the start states whatever the number of
+workers, so the same seed gives the same members and the same dataset with any
+``workers``. The unit is the walk, not the part: a member is a robot, and a walk is one
+robot's continuous run. The manifest records the ensemble's size, every member's record
+and the member of each walk (``parameters.ensemble``); the ``twin_member`` column repeats
+the walk's member on each row.
+
 Budget: ``hours`` is total simulated robot time split evenly over the workers
 (10 h with 2 workers = 5 h per worker clock; a primitive starts only while its
 worker's clock is below the budget, so the last one may end a little after it), or
@@ -69,7 +79,7 @@ from simlab.data.walkers import (
 )
 from simlab.localization.sources import POSE_SOURCES
 from simlab.physics.inputs import load_arena_config, load_discretizer
-from simlab.physics.primitive_options import PrimitiveOptions
+from simlab.physics.primitive_options import TwinEnsembleOptions, ensemble_members
 from simlab.physics.rate import rate_option, resolve_rate, settings_for
 
 #: Default transitions per part: small enough that a crash loses little, large enough
@@ -257,7 +267,7 @@ def _worker_states(manifest: dict[str, Any], workers: int, per_worker: list[int]
 
 
 def _part_table(result: PartResult, step0: int, discretizer: Any, pose_source: str,
-                schema: pa.Schema) -> pa.Table:
+                schema: pa.Schema, member: int | None = None) -> pa.Table:
     cols = result.columns
     n = result.rows
     xy = np.stack([cols["x"], cols["y"]], axis=1)
@@ -281,15 +291,17 @@ def _part_table(result: PartResult, step0: int, discretizer: Any, pose_source: s
     if pose_source != "truth":
         for name in TRUTH_COLUMNS:
             data[name] = cols[name]
+    if member is not None:
+        data["twin_member"] = np.full(n, member, dtype=np.int32)
     arrays = [pa.array(data[f.name], type=f.type) if not isinstance(data[f.name], pa.Array)
               else data[f.name] for f in schema]
     return pa.Table.from_arrays(arrays, schema=schema)
 
 
 @dataclass(frozen=True, kw_only=True)
-class CollectConfig(PrimitiveOptions, ActionSetOptions):
+class CollectConfig(TwinEnsembleOptions, ActionSetOptions):
     """Options of ``simlab collect`` / :func:`collect` (one budget: ``hours`` or
-    ``transitions``). The primitive options (:class:`PrimitiveOptions`) and ``params``
+    ``transitions``). The primitive options (:class:`TwinEnsembleOptions`) and ``params``
     are two ways to give the primitive parameters: the flags for the command line,
     ``params`` (a ``PrimitiveParams``, ``KinematicParams`` or a ``[primitives]`` TOML
     path) from Python; giving both is refused.
@@ -324,6 +336,12 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
       (``PrimitiveParams.from_json`` or
       :func:`simlab.physics.motion.primitive_params_from_record` reads it back). With
       ``mode = "until_state_change"`` the walker gets the discretizer of ``states``.
+    * ``ensemble``: each walk drives a member of the ``[[ensemble]]`` of ``primitives``
+      (module docstring; needs ``primitives``, a file of ``simlab calibrate`` with an
+      ensemble). ``manifest["parameters"]["primitive"]`` is then the file's
+      ``[primitives]`` table (the winner, what replay takes), ``["ensemble"]`` holds
+      ``size``, ``members`` (each member's record, overrides applied) and ``walk_members``
+      (the member of each walk); rows carry ``twin_member``.
     * ``pose_source_options``: keyword arguments for the pose source factory.
     * ``start_states``: ``"all"`` or a list of states: one walk from each state's centre
       (its own seed stream, the budget split evenly; ``workers`` processes run them), so
@@ -412,6 +430,7 @@ class CollectConfig(PrimitiveOptions, ActionSetOptions):
             raise ConfigError(f"the {self.pose_source} pose source takes no options",
                               key="pose_source_options",
                               fix='drop pose_source_options, or use pose_source = "mcl"')
+        self.check_ensemble()
         if self.primitive_options_given:
             if self.simulator == "kinematic":
                 raise ConfigError("primitive settings apply to the physics simulator only",
@@ -506,10 +525,16 @@ class _Run:
     out: Path
     disc: Any
     schema: pa.Schema
-    spec: WalkSpec
+    #: the walkers' specs: one, or one per member of the twin ensemble
+    specs: tuple[WalkSpec, ...]
     per_worker: list[int] | None
     t_budget: float | None
     walks: int
+    #: the member (index into ``specs``) of each walk; None without an ensemble
+    walk_members: tuple[int, ...] | None = None
+
+    def member(self, walk: int) -> int | None:
+        return None if self.walk_members is None else self.walk_members[walk]
 
 
 @command(CollectConfig)
@@ -532,11 +557,18 @@ def collect(cfg: CollectConfig) -> CollectResult:
     arena_cfg = load_arena_config(cfg.arena)
     disc = load_discretizer(cfg.states)
     params = cfg.resolved_params()
+    members = cfg.primitive_ensemble()
     starts, walks, per_worker, t_budget = _walks(cfg, int(disc.n_states))
+    walk_members = None if members is None else tuple(
+        ensemble_members(cfg.seed, walks, len(members)))
     start_poses = _start_poses(starts, disc, arena_cfg, cfg.states)
-    schema = transition_schema(cfg.pose_source)
+    schema = transition_schema(cfg.pose_source, twin_member=members is not None)
     manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
                              starts)
+    if members is not None:
+        manifest["parameters"]["ensemble"] = _jsonable({
+            "size": len(members), "members": [m.to_json() for m in members],
+            "walk_members": list(walk_members or ())})
     if cfg.backend == "ray" and cfg.address is not None:  # before --out is touched
         from simlab.base.parallel import check_reachable
 
@@ -544,9 +576,10 @@ def collect(cfg: CollectConfig) -> CollectResult:
     # One run per directory: a second collect on the same --out stops here.
     with exclusive_directory(out, what="dataset directory"):
         manifest = _prepare_directory(out, manifest, cfg.resume)
+        specs = tuple(_walk_spec(cfg, manifest, arena_cfg, disc, p)
+                      for p in (members if members is not None else (params,)))
         run = _Run(cfg=cfg, out=out, disc=disc, schema=schema, per_worker=per_worker,
-                   t_budget=t_budget, spec=_walk_spec(cfg, manifest, arena_cfg, disc, params),
-                   walks=walks)
+                   t_budget=t_budget, specs=specs, walks=walks, walk_members=walk_members)
         wstates = _worker_states(manifest, walks, per_worker, out, start_poses)
         orphans = _orphans(out, manifest)
         written, peak_rss, cpu = _run_parts(run, manifest, wstates, orphans)
@@ -655,7 +688,8 @@ def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, dis
 
 
 def _job_for(run: _Run, st: _WorkerState, w: int) -> PartJob:
-    return PartJob(spec=run.spec, seed=int(run.cfg.seed), worker=w, part=st.next_part,
+    return PartJob(spec=run.specs[run.member(w) or 0], seed=int(run.cfg.seed), worker=w,
+                   part=st.next_part,
                    t0=st.t, pose0=st.pose, part_size=int(run.cfg.part_size),
                    remaining=st.remaining, t_budget=run.t_budget)
 
@@ -703,7 +737,8 @@ def _record_part(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState
     """Write one finished part, then the manifest listing it; advance its worker's state.
     Returns the simulated seconds the part covered."""
     st = wstates[result.worker]
-    table = _part_table(result, st.step, run.disc, run.cfg.pose_source, run.schema)
+    table = _part_table(result, st.step, run.disc, run.cfg.pose_source, run.schema,
+                        run.member(result.worker))
     entry = write_part(run.out, result.worker, result.part, table, run.disc.content_hash())
     orphans.discard(entry["file"])
     entry.update(t_end=result.t_end, pose_end=list(result.pose_end), final=result.final)

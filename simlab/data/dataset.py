@@ -363,7 +363,8 @@ def open_dataset(
     else:
         from simlab.data.schema import transition_schema
 
-        table = transition_schema(str(manifest["pose_source"])).empty_table()
+        table = transition_schema(str(manifest["pose_source"]), twin_member=bool(
+            manifest["parameters"].get("ensemble"))).empty_table()
     return TransitionDataset(directory=directory, manifest=manifest, table=table)
 
 

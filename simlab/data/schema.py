@@ -57,6 +57,9 @@ blocked          bool        the obstacle detector skipped the translation
 pose_source      dictionary  ``truth`` / ``odometry`` / ``mcl`` / ``log``
 x_true, ...      float64     ground-truth poses, only for the simulated pose sources
                              ``odometry`` and ``mcl`` (a real robot's ``log`` has none)
+twin_member      int32       member of the twin ensemble the walk drove, only in a
+                             ``collect --ensemble`` dataset (the manifest's
+                             ``parameters.ensemble`` holds the members' records)
 ===============  ==========  ========================================================
 """
 
@@ -112,6 +115,8 @@ COLUMN_DOCS: dict[str, tuple[str, str]] = {
     "x_next_true": ("m", "ground-truth x after"),
     "y_next_true": ("m", "ground-truth y after"),
     "yaw_next_true": ("rad", "ground-truth heading after"),
+    "twin_member": ("1", "index of the twin ensemble's member whose primitives drove the "
+                    "walk (collect --ensemble; 0 is calibrate's winner)"),
 }
 
 #: Sub-directory of a dataset that holds the parts (see the module docstring).
@@ -139,10 +144,12 @@ def parse_part_name(name: str) -> tuple[int, int] | None:
     return None if m is None else (int(m.group(1)), int(m.group(2)))
 
 
-def transition_schema(pose_source: str) -> pa.Schema:
+def transition_schema(pose_source: str, *, twin_member: bool = False) -> pa.Schema:
     """Arrow schema of a part for the given pose source.
 
-    The ``*_true`` columns are there unless the pose source is ``truth`` or ``log``.
+    The ``*_true`` columns are there unless the pose source is ``truth`` or ``log``; the
+    ``twin_member`` column, last, only with ``twin_member`` (a ``collect --ensemble``), so
+    that every other dataset keeps its columns.
     """
     fields = [
         pa.field("worker", pa.int32(), nullable=False),
@@ -161,6 +168,8 @@ def transition_schema(pose_source: str) -> pa.Schema:
     ]
     if pose_source not in NO_TRUTH_SOURCES:
         fields += [pa.field(name, pa.float64(), nullable=False) for name in TRUTH_COLUMNS]
+    if twin_member:
+        fields.append(pa.field("twin_member", pa.int32(), nullable=False))
     return pa.schema([f.with_metadata(column_metadata(f.name)) for f in fields])
 
 
