@@ -10,6 +10,12 @@ carries the calibrated twin's own localization error when its primitives have on
 ``mcl``). Every run of every arm drives its own world (:mod:`simlab.online.physics`) in a
 worker process; the outputs are those of the MDP runs plus the physics' own figures.
 
+With ``--ensemble`` (domain randomisation over calibrate's twin ensemble) run ``i`` drives
+the member :func:`~simlab.physics.primitive_options.ensemble_members` draws for it from
+``--seed``: the same member in every arm, as run ``i`` of every arm shares its random
+streams (common random numbers), and the same whatever the workers. ``summary.json``
+records the ensemble's size and each run's member (``physics.ensemble``).
+
 Decisions: the passages of ``--change passages`` are closed by boxes on their doorways
 (:mod:`simlab.online.doorway`); ``--after`` (a second model) has no physics meaning and is
 refused. Progress counts decisions over every run (workers report every
@@ -28,7 +34,7 @@ import numpy as np
 from simlab.base.actions import ActionSetOptions
 from simlab.base.errors import ConfigError
 from simlab.base.options import option
-from simlab.physics.primitive_options import PrimitiveOptions
+from simlab.physics.primitive_options import TwinEnsembleOptions
 from simlab.physics.rate import rate_option, resolve_rate
 
 __all__ = [
@@ -51,7 +57,7 @@ PHYSICS_RUN_FIELDS = ("wall_seconds", "boxes")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
-class ArenaOptions(ActionSetOptions, PrimitiveOptions):
+class ArenaOptions(ActionSetOptions, TwinEnsembleOptions):
     """Where ``simlab online`` runs in physics (module docstring): arena, states, pose."""
 
     arena: Any | None = option(
@@ -79,6 +85,8 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
             given = [k for k in ("states", "map", "physics_hz") if getattr(self, k) is not None]
             if self.primitive_options_given:
                 given.append("primitives")
+            if self.ensemble:
+                given.append("ensemble")
             if self.action_set_given:
                 given.append("n_actions")
             if self.pose_source != "truth" or self.mcl_map != "updated":
@@ -91,6 +99,7 @@ class ArenaOptions(ActionSetOptions, PrimitiveOptions):
         from simlab.physics.arena import check_arena_option
 
         check_arena_option(self.arena)
+        self.check_ensemble()
         if self.states is None:
             raise ConfigError("a run in physics needs the arena's states", key="states",
                               fix="--states states.json (written by simlab discretize)")
@@ -285,10 +294,13 @@ def run_physics_jobs(jobs: list[dict[str, Any]], executor: Any, progress: bool,
 
 
 def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None,
-                    physics_hz: float | None = None) -> dict[str, Any]:
+                    physics_hz: float | None = None,
+                    run_members: tuple[int, ...] | None = None,
+                    ensemble_size: int = 0) -> dict[str, Any]:
     """Per arm: the share of blocked primitives (before / after the change), simulated
     hours per run, the decisions per wall second of a run; the boxes added and the physics
-    rate (``physics_hz``, Hz) the world stepped at."""
+    rate (``physics_hz``, Hz) the world stepped at; with a twin ensemble, ``ensemble``:
+    its ``size`` and ``run_members``, the member run ``i`` of every arm drove."""
     arms: dict[str, Any] = {}
     boxes: list[list[float]] = []
     for name, runs in logs.items():
@@ -306,4 +318,8 @@ def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
         arms[name] = rec
         if not boxes and runs[0]["boxes"].size:
             boxes = np.round(runs[0]["boxes"], 4).tolist()
-    return {"arms": arms, "boxes": boxes, "physics_hz": resolve_rate(physics_hz)}
+    out = {"arms": arms, "boxes": boxes, "physics_hz": resolve_rate(physics_hz)}
+    if run_members is not None:
+        out["ensemble"] = {"size": int(ensemble_size),
+                           "run_members": [int(m) for m in run_members]}
+    return out

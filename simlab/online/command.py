@@ -457,6 +457,9 @@ class _World:
     jobs: list[dict[str, Any]]
     run: Any
     lab: Any = None
+    #: with ``--ensemble``: the member each run index drove, and the ensemble's size
+    run_members: tuple[int, ...] | None = None
+    ensemble_size: int = 0
 
 
 def _mdp_world(cfg: OnlineConfig, arms: list[tuple[str, str, float]], seeds: list[Any],
@@ -481,15 +484,24 @@ def _physics_world(cfg: OnlineConfig, arms: list[tuple[str, str, float]], seeds:
     from types import SimpleNamespace
 
     from simlab.online.arena import PhysicsJob, physics_lab, physics_task, run_physics_job
+    from simlab.physics.primitive_options import ensemble_members
 
     lab = physics_lab(cfg)
     task = physics_task(cfg, lab)
     rules = cfg.loop_rules()
-    jobs = [dict(job=PhysicsJob(lab, task, mf_cfg, mb_cfg, cfg.arbitration(crit, kappa), rules),
+    members = cfg.primitive_ensemble()
+    labs, run_members = [lab] * cfg.seeds, None
+    if members is not None:  # run i drives its member in every arm (common random numbers)
+        run_members = tuple(ensemble_members(cfg.seed, cfg.seeds, len(members)))
+        by_member = [dataclasses.replace(lab, params=m) for m in members]
+        labs = [by_member[m] for m in run_members]
+    jobs = [dict(job=PhysicsJob(labs[i], task, mf_cfg, mb_cfg, cfg.arbitration(crit, kappa),
+                                rules),
                  seed=seeds[i]) for _, crit, kappa in arms for i in range(cfg.seeds)]
     source = cfg.arena if isinstance(cfg.arena, str | Path) else lab.arena.name
     info = SimpleNamespace(source=str(source), n_states=lab.n_states, n_actions=lab.n_actions)
-    return _World(info, task, jobs, run_physics_job, lab)
+    return _World(info, task, jobs, run_physics_job, lab, run_members,
+                  0 if members is None else len(members))
 
 
 def _run_jobs(cfg: OnlineConfig, world: _World, ex: Any) -> list[Any]:
@@ -561,7 +573,8 @@ def online(cfg: OnlineConfig, executor: Any = None) -> OnlineResult:
             from simlab.online.arena import physics_summary
 
             at = world.task.changes[0].at if world.task.changes else None
-            summary["physics"] = physics_summary(logs, at, world.lab.physics_hz)
+            summary["physics"] = physics_summary(logs, at, world.lab.physics_hz,
+                                                 world.run_members, world.ensemble_size)
         summary["seconds"] = round(time.perf_counter() - t0, 3)
         if txn is not None:
             extra: dict[str, Any] = {}

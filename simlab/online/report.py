@@ -253,6 +253,11 @@ def _physics_markdown(phys: dict[str, Any], change: bool) -> list[str]:
         x, y, sx, sy, yaw = box
         lines.append(f"\nBox added: centre ({x:.2f}, {y:.2f}) m, {sx:.2f} x {sy:.2f} m, yaw "
                      f"{np.degrees(yaw):.0f} degrees.")
+    ens = phys.get("ensemble")
+    if ens is not None:
+        runs = ", ".join(f"run {i}: {m}" for i, m in enumerate(ens["run_members"]))
+        lines.append(f"\nTwin ensemble of {ens['size']} members (0 is calibrate's winner); "
+                     f"the member each run drove, in every arm: {runs}.")
     return lines
 
 
