@@ -19,7 +19,7 @@ from simlab.base import validation
 from simlab.base.actions import SIMLAB16, ActionSet, ActionSetOptions, parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.base.options import command, option
-from simlab.calibration.config import CalibrationConfig, RealTable
+from simlab.calibration.config import OBJECTIVES, CalibrationConfig, RealTable
 from simlab.calibration.report import check_outputs, write_outputs
 from simlab.calibration.space import ParameterSpace, load_space
 from simlab.calibration.stages import CalibrationResult, calibrate, default_base
@@ -181,7 +181,7 @@ class CalibrateConfig(ActionSetOptions):
         "transitions)")
     screen_share: float = option(0.25, "screening walk size as a share of the real "
                                  "transitions")
-    candidates: int = option(36, "candidates walked at the search's first rung, the "
+    candidates: int = option(48, "candidates walked at the search's first rung, the "
                              "starting point included")
     confirm_top: int = option(4, "best candidates of the search's last rung re-simulated on "
                               "fresh seeds (the starting point too); the winner is picked "
@@ -228,10 +228,11 @@ class CalibrateConfig(ActionSetOptions):
     unvisited: str = option("max", "real pairs the simulation never tried: a full miss "
                             "(max, default) or left out and reported", choices=("report", "max"))
     objective: str = option(
-        "signature", "minimised: the TV distance in excess of its sampling floor plus the "
-        "robot's signature (self-transition share, entropy per action, outcomes per region), "
-        "that excess alone, the plain visit-weighted TV distance, or bits per real "
-        "transition under the simulated T", choices=("signature", "excess", "tv", "loglik"))
+        "signature", "minimised: the visit-weighted TV distance plus the robot's signature "
+        "(self-transition share, entropy per action, outcomes per region), the distance in "
+        "excess of its sampling floor plus the signature, that excess alone, the plain "
+        "distance, or bits per real transition under the simulated T",
+        choices=OBJECTIVES)
     confirm: bool = option(True, "re-simulate the best candidates on fresh seeds and pick "
                            "the winner there (--no-confirm skips it, and the transfer report)")
     reset_states: str = option(

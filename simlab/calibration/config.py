@@ -61,7 +61,7 @@ class CalibrationConfig:
         hours_per_candidate: simulated hours of each screening walk (> 0); None (default)
             sizes it from the real table: ``screen_share`` of its transitions.
         candidates: candidates walked at rung 0 of the search (>= 2), the starting point
-            included. 36 by default: the successive halving promotes a third to rung 1 and
+            included. 48 by default: the successive halving promotes a third to rung 1 and
             the best ``confirm_top`` of those to the confirmation
             (:mod:`~simlab.calibration.search`).
         workers: walks simulated at once, one process each (1 = in this process). The
@@ -88,10 +88,11 @@ class CalibrationConfig:
         unvisited: real pairs the simulation never tried: ``"max"`` (default: a full miss,
             TV = 1, so covering less never pays) or ``"report"`` (left out of the mean and
             counted in the report).
-        objective: what the search minimises: ``"signature"`` (default: ``excess`` plus
-            the penalty of the twin's signature against the robot's, its self-transition
-            share, entropy per action and outcomes per region at the robot's own visits,
-            :mod:`~simlab.calibration.objective`), ``"excess"`` (the visit-weighted TV
+        objective: what the search minimises: ``"signature"`` (default: the plain TV
+            distance plus the penalty of the twin's signature against the robot's, its
+            self-transition share, entropy per action and outcomes per region at the robot's
+            own visits, :mod:`~simlab.calibration.objective`), ``"signature-excess"`` (the
+            same penalty on ``excess``), ``"excess"`` (the visit-weighted TV
             distance minus what sampling alone gives if the candidate were the truth,
             :func:`~simlab.calibration.metrics.excess_distance`; it charges over-dispersed
             twins less), ``"tv"`` (the plain distance; with a few real visits per pair it
@@ -132,7 +133,7 @@ class CalibrationConfig:
     """
 
     hours_per_candidate: float | None = None
-    candidates: int = 36
+    candidates: int = 48
     workers: int = 2
     batch: int = 4
     sampler: str = "tpe"
@@ -202,7 +203,7 @@ class CalibrationConfig:
 
 
 #: What the search may minimise (:class:`CalibrationConfig.objective`).
-OBJECTIVES = ("signature", "excess", "tv", "loglik")
+OBJECTIVES = ("signature", "signature-excess", "excess", "tv", "loglik")
 
 #: Optuna samplers that may propose the candidates (:class:`CalibrationConfig.sampler`).
 SAMPLERS = ("tpe", "cmaes", "qmc", "random")

@@ -190,7 +190,10 @@ def test_config_file_and_the_command_line_wins(inputs, tmp_path, capsys) -> None
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     text = parser.format_help()
-    assert "(default 36)" in text and "(default signature)" in text and "--no-confirm" in text
+    # the command's defaults are the library's, and --help says them
+    assert CalibrateConfig.candidates == CalibrationConfig.candidates
+    assert f"(default {CalibrationConfig.candidates})" in text
+    assert "(default signature)" in text and "--no-confirm" in text
     assert "(default tpe)" in text and "--eta" in text
     cfg = CalibrateConfig.from_args(parser.parse_args(
         ["--config", str(toml), "--out", "o", "--candidates", "3"]))

@@ -100,16 +100,18 @@ def test_region_outcomes_compare_stay_ahead_side_behind_per_region() -> None:
     assert signature_gap(far, ref, rng).regions == pytest.approx(0.0)
 
 
-def test_the_signature_objective_is_the_excess_plus_the_penalty() -> None:
+def test_the_signature_objectives_add_the_penalty_to_their_distance() -> None:
     rng = np.random.default_rng(5)
     real = _random_counts(rng)
     sim = _random_counts(rng, n=60)
     ref = Reference.build(real)
-    plain, gap = score("excess", sim, ref, 0.3, seed=0, unvisited="max")
-    full, same = score("signature", sim, ref, 0.3, seed=0, unvisited="max", weight=0.02)
-    assert same == gap
-    assert full == pytest.approx(plain + gap.penalty(0.02))
-    assert full > plain
+    full, gap = score("signature", sim, ref, 0.3, seed=0, unvisited="max", weight=0.02)
+    assert full == pytest.approx(0.3 + gap.penalty(0.02)) and gap.penalty(0.02) > 0
+    plain, same = score("excess", sim, ref, 0.3, seed=0, unvisited="max")
+    over, again = score("signature-excess", sim, ref, 0.3, seed=0, unvisited="max",
+                        weight=0.02)
+    assert same == gap == again
+    assert over == pytest.approx(plain + gap.penalty(0.02))
 
 
 def test_a_twin_with_no_pair_in_common_has_no_signature() -> None:
