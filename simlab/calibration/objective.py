@@ -26,14 +26,14 @@ visits), where a twin's own walk would weigh them differently:
 **The distance part is the plain TV distance.** The sampling-corrected ``excess`` subtracts
 the twin's own sampling floor, and that floor grows with the twin's dispersion: among the
 twenty confirmed candidates of five calibrations of the ISIR lab (excess plus the penalty,
-the objective before this one) it ranged 0.125-0.156 while the excesses differed by 0.02, so
+``signature-excess``) it ranged 0.125-0.156 while the excesses differed by 0.02, so
 of near-equal candidates the excess picked the more dispersed (winners 0.04-0.06 bits above
 the robot's entropy on three seeds; on one a winner 0.014 farther in TV than another
 confirmed candidate). The plain distance leans the other way, towards twins more certain than
 the robot, and the entropy term is what holds that side. Measured on the same five seeds
 (with 48 candidates): 1.61-1.71x the matched floor against 1.58-1.76x, every twin seed's
-policy reaching every goal on the real model (before: one seed's did not).
-``signature-excess`` keeps the earlier objective.
+policy reaching every goal on the real model (with ``signature-excess`` and 36 candidates,
+one seed's did not).
 
 Each gap is read against its tolerance (:data:`TOLERANCES`: the width a twin may differ by
 and still be the robot's, four to five sampling standard errors of the ISIR table's figures),
@@ -214,12 +214,10 @@ def distance_score(objective: str, sim: NDArray[np.int64], real: NDArray[np.int6
     """The distance part of an objective: ``tv`` (and ``signature``, which adds the penalty
     to it) the plain distance, ``loglik`` bits per real transition under the twin,
     ``excess`` (and ``signature-excess``) the distance beyond the twin's own sampling."""
-    if objective == "tv":
+    if objective in ("tv", "signature"):
         return distance
     if objective == "loglik":
         return cross_entropy(sim, real)
-    if objective == "signature":
-        return distance
     # every candidate's resamples draw from the same seeded stream (common random numbers,
     # as for the walks: differences between candidates are parameters, not noise)
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(7,)))
