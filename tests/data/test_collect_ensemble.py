@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from discretize.voronoi import Discretizer
 from simlab.data.collect import collect
 from simlab.data.dataset import read_dataset
 from simlab.physics.motion import PrimitiveParams
 from simlab.physics.primitive_options import ensemble_members
 from tests.faults.conftest import assert_refused, run_cli
+from tests.physics.conftest import ensemble_lab
 
 #: two clearly different robots: the second turns in place at 0.4 rad/s, not 2.84
 QUICK, SLOW = PrimitiveParams(), PrimitiveParams(turn_rate=0.4)
@@ -23,20 +23,9 @@ STARTS = "0,3,6,9,12,15,18,21"
 WALKS = 8
 
 
-def ensemble_file(path: Path, members: tuple[PrimitiveParams, ...]) -> Path:
-    """A primitives file as calibrate writes it: the winner, then ``[[ensemble]]``."""
-    tables = ["[[ensemble]]\n" + m.toml_text().split("\n", 1)[1] for m in members]
-    path.write_text(members[0].toml_text() + "\n" + "\n".join(tables))
-    return path
-
-
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    d = tmp_path_factory.mktemp("ens")
-    g = np.linspace(-0.6, 0.6, 5)
-    states = Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g])).save(
-        d / "states.json")
-    return states, ensemble_file(d / "primitives.toml", (QUICK, SLOW))
+    return ensemble_lab(tmp_path_factory.mktemp("ens"), (QUICK, SLOW))
 
 
 def _collect(lab: tuple[Path, Path], out: Path, workers: int) -> Path:

@@ -6,14 +6,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from discretize.voronoi import Discretizer
 from simlab.cli import main
 from simlab.physics.motion import PrimitiveParams
 from simlab.physics.primitive_options import ensemble_members
 from tests.faults.conftest import assert_refused, run_cli
+from tests.physics.conftest import ensemble_lab
 
 #: two clearly different robots: the second turns in place at 0.4 rad/s, not 2.84
 QUICK, SLOW = PrimitiveParams(), PrimitiveParams(turn_rate=0.4)
@@ -22,14 +21,7 @@ SEEDS = 4
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    d = tmp_path_factory.mktemp("ens")
-    g = np.linspace(-0.6, 0.6, 5)
-    states = Discretizer(centres=np.array([(x, y) for y in g[::-1] for x in g])).save(
-        d / "states.json")
-    tables = ["[[ensemble]]\n" + m.toml_text().split("\n", 1)[1] for m in (QUICK, SLOW)]
-    prims = d / "primitives.toml"
-    prims.write_text(QUICK.toml_text() + "\n" + "\n".join(tables))
-    return states, prims
+    return ensemble_lab(tmp_path_factory.mktemp("ens"), (QUICK, SLOW))
 
 
 def _argv(lab: tuple[Path, Path], out: Path, *extra: str) -> list[str]:

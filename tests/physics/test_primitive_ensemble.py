@@ -11,14 +11,7 @@ from simlab.base.errors import ConfigError
 from simlab.data.collect import CollectConfig
 from simlab.physics.motion import PrimitiveParams
 from simlab.physics.primitive_options import ensemble_members
-
-
-def ensemble_text(members: list[PrimitiveParams]) -> str:
-    """A primitives file as calibrate writes it: ``[primitives]`` (the winner), then one
-    ``[[ensemble]]`` record per member."""
-    tables = ["[[ensemble]]\n" + m.toml_text().split("\n", 1)[1] for m in members]
-    return members[0].toml_text() + "\n" + "\n".join(tables)
-
+from tests.physics.conftest import ensemble_text
 
 MEMBERS = [PrimitiveParams(mode="until_state_change", wall_slide=0.2),
            PrimitiveParams(mode="until_state_change", wall_slide=0.05, fast_speed=0.18),
