@@ -186,8 +186,8 @@ def _confirm(runner: WalkRunner, found: SearchResult, ctx: dict[str, Any],
     seeds = [cfg.seed + cfg.rungs + k for k in range(cfg.confirm_seeds)]
     jobs = [(i, seed) for seed in seeds for i in picks]
     runs: dict[int, list[Candidate]] = {i: [] for i in picks}
-    for k in range(0, len(jobs), max(cfg.workers, 1)):
-        chunk = jobs[k:k + max(cfg.workers, 1)]
+    for k in range(0, len(jobs), cfg.batch):  # chunks for the progress bar only: the
+        chunk = jobs[k:k + cfg.batch]           # runner keeps every worker busy anyway
         done = evaluate_points(runner, [cands[i].unit for i, _ in chunk], "confirm", 0, ctx,
                          seeds=[seed for _, seed in chunk], budget=budget)
         for (i, _), c in zip(chunk, done, strict=True):

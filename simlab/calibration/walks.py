@@ -1,16 +1,15 @@
 """A candidate's walk: parameters in, a count table in the real action set out.
 
-Each evaluation is a random walk with :func:`simlab.data.collect.collect` into a temporary
-directory, drawing only the primitives of the real actions
-(:meth:`~simlab.base.actions.ActionSet.primitives`, recorded in the real numbering), by
-default from every state's centre in turn (one walk per state, the budget split evenly).
-Walks run on :mod:`simlab.base.parallel` (local processes, or Ray with an address).
+Each evaluation is the random walk :func:`simlab.data.collect.collect` would write, run in
+memory (:func:`simlab.data.collect.walk_results`: the same parts, nothing written), drawing
+only the primitives of the real actions (:meth:`~simlab.base.actions.ActionSet.primitives`,
+recorded in the real numbering), by default from every state's centre in turn (one walk per
+state, the budget split evenly). Walks run on :mod:`simlab.base.parallel` (local processes,
+or Ray with an address), walk by walk (:class:`WalkRunner`).
 """
 
 from __future__ import annotations
 
-import tempfile
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -75,33 +74,55 @@ def action_set_options(aset: ActionSet) -> dict[str, Any]:
 
 
 
-def simulate_table(job: WalkJob) -> SimTable:
-    """Collect one walk into a temporary directory and count it (runs in a worker)."""
-    from simlab.data.collect import collect
-    from simlab.data.count_model import count_transitions
-    from simlab.data.dataset import read_dataset
+def walk_plan(job: WalkJob) -> Any:
+    """The collection ``job`` walks (:func:`simlab.data.collect.plan_walks`), one walk per
+    start state; nothing is written."""
+    import os
 
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="simlab-cal-") as tmp:
-        collect(job.arena, job.states, out=Path(tmp) / "walk", hours=job.hours,
-                transitions=job.transitions, seed=job.seed, workers=1,
-                simulator=job.simulator, pose_source=job.pose_source, params=job.params,
-                start_states=job.start_states, progress=False,
-                **action_set_options(job.action_set))
-        table = read_dataset(Path(tmp) / "walk", validate=False)
-        s = table.column("s").to_numpy()
-        a = table.column("a").to_numpy()
-        s_next = table.column("s_next").to_numpy()
-        blocked = table.column("blocked").to_numpy(zero_copy_only=False)
-        duration = table.column("duration").to_numpy()
+    from simlab.data.collect import CollectConfig, plan_walks
+
+    cfg = CollectConfig(arena=job.arena, states=job.states, out=Path(os.devnull),
+                        hours=job.hours, transitions=job.transitions, seed=job.seed,
+                        simulator=job.simulator, pose_source=job.pose_source,
+                        params=job.params, start_states=job.start_states, progress=False,
+                        **action_set_options(job.action_set))
+    cfg.validate()
+    return plan_walks(cfg)
+
+
+def table_of(job: WalkJob, plan: Any, parts: list[Any]) -> SimTable:
+    """The count table of ``job``'s finished walk ``parts`` (in walk and part order)."""
+    from simlab.data.collect import part_states
+    from simlab.data.count_model import count_transitions
+
+    states = [part_states(r, plan.disc) for r in parts]
+    s = np.concatenate([x[0] for x in states]) if parts else np.zeros(0, np.int32)
+    s_next = np.concatenate([x[1] for x in states]) if parts else np.zeros(0, np.int32)
+    a = np.concatenate([r.columns["a"] for r in parts]) if parts else np.zeros(0, np.int32)
+    blocked = np.concatenate([r.columns["blocked"] for r in parts]) if parts else np.zeros(0)
+    duration = np.concatenate([r.columns["duration"] for r in parts]) if parts else np.zeros(0)
     counts = count_transitions(s, a, s_next, job.n_states, job.action_set.n_actions)
-    latency = float(job.params.decision_latency)
     rows = int(a.size)
+    latency = float(job.params.decision_latency)
     return SimTable(counts=counts, rows=rows, walk_rows=rows, blocked=int(blocked.sum()),
                     mean_duration=float(duration.mean()) if rows else float("nan"),
                     hours=float((duration + latency).sum()) / 3600.0,
-                    wall_seconds=time.perf_counter() - t0)
+                    wall_seconds=float(sum(r.wall_seconds for r in parts)))
 
+
+def simulate_table(job: WalkJob) -> SimTable:
+    """One candidate's walk, in this process (what :class:`WalkRunner` runs on its
+    workers, walk by walk)."""
+    from simlab.base.parallel import make_executor
+    from simlab.data.backends import PartBackend
+    from simlab.data.collect import walk_results
+
+    plan = walk_plan(job)
+    backend = PartBackend(make_executor("local", workers=1, in_process_single=True))
+    try:
+        return table_of(job, plan, walk_results([plan], backend)[0])
+    finally:
+        backend.close()
 
 
 def simulate_counts(arena: Any, states: Any, params: Any, *, hours: float | None = None,
@@ -144,20 +165,33 @@ class WalkRunner:
     this process for one worker, else a pool of ``workers`` processes (one arena per
     process, workers exit with us), or Ray tasks on ``address`` (or, with ``backend =
     "ray"`` and no address, on the Ray runtime this process runs); tables come back in job
-    order."""
+    order.
+
+    The unit of work is a walk, not a candidate: the walks of every job of a :meth:`map`
+    (one per start state) go to the workers as they free up, the first job's first, so
+    the workers stay busy to the last walk whatever the number of candidates or how long
+    each one's walks take (a walk of a slow-turning candidate is longer). A part depends
+    only on its job, so the tables are those of one walk after the other in this process.
+    """
 
     def __init__(self, workers: int, address: str | None = None, *,
                  backend: str = "local") -> None:
         from simlab.base.parallel import make_executor
+        from simlab.data.backends import PartBackend
 
         if address is not None or backend == "ray":
-            self._executor = make_executor("ray", address=address)
+            executor = make_executor("ray", address=address)
         else:
-            self._executor = make_executor("local", workers=workers)
+            executor = make_executor("local", workers=workers, in_process_single=True)
+        self._backend = PartBackend(executor)
 
     def map(self, jobs: list[WalkJob]) -> list[SimTable]:
-        return self._executor.map(simulate_table, [{"job": j} for j in jobs])
+        from simlab.data.collect import walk_results
+
+        plans = [walk_plan(job) for job in jobs]
+        results = walk_results(plans, self._backend)
+        return [table_of(job, plan, parts)
+                for job, plan, parts in zip(jobs, plans, results, strict=True)]
 
     def close(self) -> None:
-        self._executor.close()
-
+        self._backend.close()

@@ -40,12 +40,14 @@ import importlib.util
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pyarrow as pa
+from numpy.typing import NDArray
 
 from simlab.base import validation as v
 from simlab.base.actions import SIMLAB16, ActionSetOptions
@@ -235,14 +237,9 @@ class _WorkerState:
     done: bool = False
 
 
-def _worker_states(manifest: dict[str, Any], workers: int, per_worker: list[int] | None,
-                   out: Path, poses: list[tuple[float, float, float]] | None = None
-                   ) -> list[_WorkerState]:
-    states = [
-        _WorkerState(remaining=None if per_worker is None else per_worker[w],
-                     pose=None if poses is None else poses[w])
-        for w in range(workers)
-    ]
+def _worker_states(manifest: dict[str, Any], plan: WalkPlan, out: Path) -> list[_WorkerState]:
+    """Each walk's state: at its start, or past the parts the manifest lists (a resume)."""
+    states = plan.fresh_states()
     by_worker: dict[int, list[dict[str, Any]]] = {}
     for entry in manifest["parts"]:
         by_worker.setdefault(int(entry["worker"]), []).append(entry)
@@ -270,17 +267,16 @@ def _part_table(result: PartResult, step0: int, discretizer: Any, pose_source: s
                 schema: pa.Schema, member: int | None = None) -> pa.Table:
     cols = result.columns
     n = result.rows
-    xy = np.stack([cols["x"], cols["y"]], axis=1)
-    xy_next = np.stack([cols["x_next"], cols["y_next"]], axis=1)
+    s, s_next = part_states(result, discretizer)
     data: dict[str, Any] = {
         "worker": np.full(n, result.worker, dtype=np.int32),
         "part": np.full(n, result.part, dtype=np.int32),
         "step": np.arange(step0, step0 + n, dtype=np.int64),
         "t": cols["t"],
         "duration": cols["duration"],
-        "s": np.asarray(discretizer.state_of(xy), dtype=np.int32).reshape(n),
+        "s": s,
         "a": cols["a"].astype(np.int32),
-        "s_next": np.asarray(discretizer.state_of(xy_next), dtype=np.int32).reshape(n),
+        "s_next": s_next,
     }
     for name in ("x", "y", "yaw", "x_next", "y_next", "yaw_next"):
         data[name] = cols[name]
@@ -518,23 +514,84 @@ def _start_poses(starts: list[int] | None, disc: Any, arena: Any, states: Any
 
 
 @dataclass(frozen=True)
-class _Run:
-    """What every part of one collection shares (built once by :func:`collect`)."""
+class WalkPlan:
+    """The walks of one collection, planned without its directory (:func:`plan_walks`).
+
+    ``collect`` writes their parts; :func:`walk_results` runs the walks of several plans
+    at once in memory (calibration's candidates), so both run the same parts.
+
+    Attributes:
+        cfg: the collection's options (``out`` unused here).
+        arena: the ``ArenaConfig``; ``disc``: the states' discretizer.
+        params: the primitive parameters (the ``[primitives]`` winner with an ensemble).
+        members: the twin ensemble's members, or None.
+        specs: the walkers' specs: one, or one per member of the twin ensemble.
+        starts: start state of each walk, or None (one walk per worker from the start).
+        walks: the number of walks.
+        per_worker: transitions of each walk (``transitions`` budget), or None.
+        t_budget: simulated seconds of each walk (``hours`` budget), or None.
+        start_poses: truth start pose of each walk, or None (the arena's start).
+        walk_members: the member (index into ``specs``) of each walk; None without an
+            ensemble.
+    """
 
     cfg: CollectConfig
-    out: Path
+    arena: Any
     disc: Any
-    schema: pa.Schema
-    #: the walkers' specs: one, or one per member of the twin ensemble
+    params: Any
+    members: tuple[Any, ...] | None
     specs: tuple[WalkSpec, ...]
+    starts: list[int] | None
+    walks: int
     per_worker: list[int] | None
     t_budget: float | None
-    walks: int
-    #: the member (index into ``specs``) of each walk; None without an ensemble
+    start_poses: list[tuple[float, float, float]] | None
     walk_members: tuple[int, ...] | None = None
 
     def member(self, walk: int) -> int | None:
         return None if self.walk_members is None else self.walk_members[walk]
+
+    def job(self, walk: int, st: _WorkerState) -> PartJob:
+        """The next part of walk ``walk``, which is at ``st``."""
+        return PartJob(spec=self.specs[self.member(walk) or 0], seed=int(self.cfg.seed),
+                       worker=walk, part=st.next_part, t0=st.t, pose0=st.pose,
+                       part_size=int(self.cfg.part_size), remaining=st.remaining,
+                       t_budget=self.t_budget)
+
+    def fresh_states(self) -> list[_WorkerState]:
+        """Every walk at its start."""
+        return [_WorkerState(remaining=None if self.per_worker is None else self.per_worker[w],
+                             pose=None if self.start_poses is None else self.start_poses[w])
+                for w in range(self.walks)]
+
+
+def plan_walks(cfg: CollectConfig) -> WalkPlan:
+    """The walks of ``cfg`` (its directory is not touched): inputs loaded, the budget split
+    over the walks, start poses and the walkers' specs."""
+    arena_cfg = load_arena_config(cfg.arena)
+    disc = load_discretizer(cfg.states)
+    params = cfg.resolved_params()
+    members = cfg.primitive_ensemble()
+    starts, walks, per_worker, t_budget = _walks(cfg, int(disc.n_states))
+    walk_members = None if members is None else tuple(
+        ensemble_members(cfg.seed, walks, len(members)))
+    specs = tuple(_walk_spec(cfg, arena_cfg, disc, p)
+                  for p in (members if members is not None else (params,)))
+    return WalkPlan(cfg=cfg, arena=arena_cfg, disc=disc, params=params, members=members,
+                    specs=specs, starts=starts, walks=walks, per_worker=per_worker,
+                    t_budget=t_budget,
+                    start_poses=_start_poses(starts, disc, arena_cfg, cfg.states),
+                    walk_members=walk_members)
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What every part of one collection shares (built once by :func:`collect`): its
+    plan, directory and schema."""
+
+    plan: WalkPlan
+    out: Path
+    schema: pa.Schema
 
 
 @command(CollectConfig)
@@ -554,21 +611,15 @@ def collect(cfg: CollectConfig) -> CollectResult:
     """
     wall0 = time.perf_counter()
     out = Path(cfg.out)
-    arena_cfg = load_arena_config(cfg.arena)
-    disc = load_discretizer(cfg.states)
-    params = cfg.resolved_params()
-    members = cfg.primitive_ensemble()
-    starts, walks, per_worker, t_budget = _walks(cfg, int(disc.n_states))
-    walk_members = None if members is None else tuple(
-        ensemble_members(cfg.seed, walks, len(members)))
-    start_poses = _start_poses(starts, disc, arena_cfg, cfg.states)
+    plan = plan_walks(cfg)
+    disc, members, per_worker = plan.disc, plan.members, plan.per_worker
     schema = transition_schema(cfg.pose_source, twin_member=members is not None)
-    manifest = _new_manifest(cfg, arena_cfg, disc, params, schema, per_worker, t_budget,
-                             starts)
+    manifest = _new_manifest(cfg, plan.arena, disc, plan.params, schema, per_worker,
+                             plan.t_budget, plan.starts)
     if members is not None:
         manifest["parameters"]["ensemble"] = _jsonable({
             "size": len(members), "members": [m.to_json() for m in members],
-            "walk_members": list(walk_members or ())})
+            "walk_members": list(plan.walk_members or ())})
     if cfg.backend == "ray" and cfg.address is not None:  # before --out is touched
         from simlab.base.parallel import check_reachable
 
@@ -576,11 +627,8 @@ def collect(cfg: CollectConfig) -> CollectResult:
     # One run per directory: a second collect on the same --out stops here.
     with exclusive_directory(out, what="dataset directory"):
         manifest = _prepare_directory(out, manifest, cfg.resume)
-        specs = tuple(_walk_spec(cfg, manifest, arena_cfg, disc, p)
-                      for p in (members if members is not None else (params,)))
-        run = _Run(cfg=cfg, out=out, disc=disc, schema=schema, per_worker=per_worker,
-                   t_budget=t_budget, specs=specs, walks=walks, walk_members=walk_members)
-        wstates = _worker_states(manifest, walks, per_worker, out, start_poses)
+        run = _Run(plan=plan, out=out, schema=schema)
+        wstates = _worker_states(manifest, plan, out)
         orphans = _orphans(out, manifest)
         written, peak_rss, cpu = _run_parts(run, manifest, wstates, orphans)
         for name in orphans:  # left by a run killed at a point this run never reached
@@ -667,11 +715,11 @@ def _new_manifest(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any,
     return _jsonable(manifest)
 
 
-def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, disc: Any,
-               params: Any) -> WalkSpec:
+def _walk_spec(cfg: CollectConfig, arena_cfg: Any, disc: Any, params: Any) -> WalkSpec:
     """What every part's walker is built from; ``key`` names it for the worker caches."""
     physics_hz = resolve_rate(cfg.physics_hz) if cfg.simulator == "physics" else None
-    key_src = json.dumps({k: manifest[k] for k in ("arena", "simulator", "pose_source")},
+    key_src = json.dumps({"arena": _jsonable(_arena_info(arena_cfg)),
+                          "simulator": cfg.simulator, "pose_source": cfg.pose_source},
                          sort_keys=True) + repr(params) + repr(cfg.pose_source_options) \
         + repr(physics_hz)
     return WalkSpec(
@@ -687,11 +735,61 @@ def _walk_spec(cfg: CollectConfig, manifest: dict[str, Any], arena_cfg: Any, dis
     )
 
 
-def _job_for(run: _Run, st: _WorkerState, w: int) -> PartJob:
-    return PartJob(spec=run.specs[run.member(w) or 0], seed=int(run.cfg.seed), worker=w,
-                   part=st.next_part,
-                   t0=st.t, pose0=st.pose, part_size=int(run.cfg.part_size),
-                   remaining=st.remaining, t_budget=run.t_budget)
+def run_walks(backend: Any, walks: list[tuple[WalkPlan, int, _WorkerState]],
+              record: Callable[[WalkPlan, int, PartResult], None]) -> None:
+    """Run every walk ``(plan, walk index, its state)`` of ``walks`` to its end on
+    ``backend`` (a :class:`~simlab.data.backends.PartBackend`), one part of each walk in
+    flight: the first part of every walk, in the order given, then a walk's next part as
+    soon as its last is back. ``record(plan, walk, result)`` runs in this process for each
+    finished part, in the order they finish, and must advance the walk's state (its
+    ``next_part``, ``t``, ``pose``, ``remaining``, ``done``)."""
+    handles = {backend.submit(plan.job(w, st)): (plan, w, st)
+               for plan, w, st in walks if not st.done}
+    while handles:
+        for handle, result in backend.wait(list(handles)):
+            plan, w, st = handles.pop(handle)
+            record(plan, w, result)
+            if not st.done:
+                handles[backend.submit(plan.job(w, st))] = (plan, w, st)
+
+
+def _advance(st: _WorkerState, result: PartResult) -> float:
+    """Move a walk's state past its finished part ``result``; the simulated seconds the
+    part covered."""
+    st.next_part += 1
+    st.step += result.rows
+    sim_delta = result.t_end - st.t
+    st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
+    if st.remaining is not None:
+        st.remaining -= result.rows
+    return sim_delta
+
+
+def walk_results(plans: list[WalkPlan], backend: Any) -> list[list[PartResult]]:
+    """Run the walks of every plan in memory, nothing written: the parts of all the plans'
+    walks share ``backend``'s workers (a :class:`~simlab.data.backends.PartBackend`), so
+    several small collections keep every worker busy. Per plan, its parts in walk and part
+    order: the rows ``collect`` would write for it (a part depends only on its job)."""
+    out: list[dict[tuple[int, int], PartResult]] = [{} for _ in plans]
+    index = {id(plan): k for k, plan in enumerate(plans)}
+    states = {id(plan): plan.fresh_states() for plan in plans}
+
+    def record(plan: WalkPlan, w: int, result: PartResult) -> None:
+        out[index[id(plan)]][(w, result.part)] = result
+        _advance(states[id(plan)][w], result)
+
+    run_walks(backend, [(plan, w, st) for plan in plans
+                        for w, st in enumerate(states[id(plan)])], record)
+    return [[parts[key] for key in sorted(parts)] for parts in out]
+
+
+def part_states(result: PartResult, disc: Any) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+    """``(s, s_next)`` (n,) of a finished part: the states of its recorded poses."""
+    cols, n = result.columns, result.rows
+    xy = np.stack([cols["x"], cols["y"]], axis=1)
+    xy_next = np.stack([cols["x_next"], cols["y_next"]], axis=1)
+    return (np.asarray(disc.state_of(xy), dtype=np.int32).reshape(n),
+            np.asarray(disc.state_of(xy_next), dtype=np.int32).reshape(n))
 
 
 def _run_parts(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState],
@@ -699,37 +797,35 @@ def _run_parts(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState],
     """Compute the missing parts, writing each with the manifest listing it.
 
     Returns (parts written, peak worker RSS in MiB, CPU seconds per worker)."""
-    cfg = run.cfg
+    plan = run.plan
+    cfg = plan.cfg
     done_rows = sum(int(e["rows"]) for e in manifest["parts"])
     bar = _Progress(cfg.progress, transitions=cfg.transitions, hours=cfg.hours,
                     done_rows=done_rows, done_seconds=sum(st.t for st in wstates))
-    written, peak_rss, cpu = 0, 0.0, [0.0] * run.walks
-    pending = [w for w in range(run.walks) if not wstates[w].done]
+    cpu = [0.0] * plan.walks
+    totals = {"written": 0, "rss": 0.0}
+    pending = [w for w in range(plan.walks) if not wstates[w].done]
     if not pending:
         bar.close()
         if not manifest["complete"]:
             manifest["complete"] = True
             write_manifest(run.out, manifest)
-        return written, peak_rss, cpu
+        return 0, 0.0, cpu
+
+    def record(_plan: WalkPlan, w: int, result: PartResult) -> None:
+        sim_delta = _record_part(run, manifest, wstates, result, orphans)
+        totals["written"] += 1
+        totals["rss"] = max(totals["rss"], result.peak_rss_mb)
+        cpu[w] += result.cpu_seconds
+        bar.update(result.rows, sim_delta)
+
     runner = make_backend(cfg.backend, min(cfg.workers, len(pending)), cfg.address)
     try:
-        handles = {runner.submit(_job_for(run, wstates[w], w)): w for w in pending}
-        while handles:
-            for handle, result in runner.wait(list(handles)):
-                del handles[handle]
-                w = result.worker
-                st = wstates[w]
-                sim_delta = _record_part(run, manifest, wstates, result, orphans)
-                written += 1
-                peak_rss = max(peak_rss, result.peak_rss_mb)
-                cpu[w] += result.cpu_seconds
-                bar.update(result.rows, sim_delta)
-                if not st.done:
-                    handles[runner.submit(_job_for(run, st, w))] = w
+        run_walks(runner, [(plan, w, wstates[w]) for w in pending], record)
     finally:
         runner.close()
         bar.close()
-    return written, peak_rss, cpu
+    return int(totals["written"]), float(totals["rss"]), cpu
 
 
 def _record_part(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState],
@@ -737,19 +833,15 @@ def _record_part(run: _Run, manifest: dict[str, Any], wstates: list[_WorkerState
     """Write one finished part, then the manifest listing it; advance its worker's state.
     Returns the simulated seconds the part covered."""
     st = wstates[result.worker]
-    table = _part_table(result, st.step, run.disc, run.cfg.pose_source, run.schema,
-                        run.member(result.worker))
-    entry = write_part(run.out, result.worker, result.part, table, run.disc.content_hash())
+    plan = run.plan
+    table = _part_table(result, st.step, plan.disc, plan.cfg.pose_source, run.schema,
+                        plan.member(result.worker))
+    entry = write_part(run.out, result.worker, result.part, table, plan.disc.content_hash())
     orphans.discard(entry["file"])
     entry.update(t_end=result.t_end, pose_end=list(result.pose_end), final=result.final)
     manifest["parts"].append(entry)
     manifest["parts"].sort(key=lambda e: (e["worker"], e["part"]))
-    st.next_part += 1
-    st.step += result.rows
-    sim_delta = result.t_end - st.t
-    st.t, st.pose, st.done = result.t_end, result.pose_end, result.final
-    if st.remaining is not None:
-        st.remaining -= result.rows
+    sim_delta = _advance(st, result)
     manifest["complete"] = all(s.done for s in wstates)
     write_manifest(run.out, manifest)
     return sim_delta

@@ -463,16 +463,25 @@ def build_walker(spec: WalkSpec) -> Walker:
 
 
 class WalkerCache:
-    """Walkers kept alive between parts in one process (one world per configuration)."""
+    """Walkers kept alive between parts in one process (one world per configuration).
 
-    def __init__(self) -> None:
+    At most ``size`` walkers are kept: the one used longest ago is closed to make room
+    (a calibration's worker process sees a new configuration with every candidate, each
+    world a few tens of MB). A part's rows do not depend on whether its walker was kept
+    or built anew: every part resets the world (:meth:`PhysicsWalker.reset`)."""
+
+    def __init__(self, size: int = 8) -> None:
         self._walkers: dict[str, Walker] = {}
+        self.size = max(1, int(size))
 
     def get(self, spec: WalkSpec) -> Walker:
-        walker = self._walkers.get(spec.key)
+        walker = self._walkers.pop(spec.key, None)
         if walker is None:
+            while len(self._walkers) >= self.size:
+                oldest = next(iter(self._walkers))
+                self._walkers.pop(oldest).close()
             walker = build_walker(spec)
-            self._walkers[spec.key] = walker
+        self._walkers[spec.key] = walker  # the most recently used last
         return walker
 
     def close(self) -> None:
