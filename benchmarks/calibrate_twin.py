@@ -335,8 +335,8 @@ def isir(args: argparse.Namespace) -> None:
         simlab("arena-from-map", lab / "mymap.yaml", "--states", states, "--out", arena,
                "--flip-y", "--overwrite")
         simlab("estimate", "--counts", lab / "realisticNavWorld.json", "--n-actions", 8,
-               "--convention", "ccw-east", "--states", states, "--arena", arena, "--out",
-               model, "--no-plot", "--overwrite")
+               "--convention", "ccw-east", "--speed", "fast", "--states", states, "--arena",
+               arena, "--out", model, "--no-plot", "--overwrite")
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         out = root / ("cal" if args.seeds == 1 else f"cal-seed{seed}")
@@ -381,8 +381,8 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
         simlab("estimate", data, "--out", mdp, "--no-plot", "--overwrite")
     real18 = root / "robot18.npz"
     simlab("estimate", "--counts", spliced_counts(lab, root / "robot18.csv"), "--n-actions",
-           8, "--convention", "ccw-east", "--states", states, "--arena", arena, "--out",
-           real18, "--no-plot", "--overwrite")
+           8, "--convention", "ccw-east", "--speed", "fast", "--states", states, "--arena",
+           arena, "--out", real18, "--no-plot", "--overwrite")
     for real, name in ((real18, "with state 18's real moves"),
                        (root / "robot.npz", "the 13-hour model (state 18 a reset)")):
         out = root / f"transfer_{real.stem}"
