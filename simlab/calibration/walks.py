@@ -95,12 +95,12 @@ def table_of(job: WalkJob, plan: Any, parts: list[Any]) -> SimTable:
     from simlab.data.collect import part_states
     from simlab.data.count_model import count_transitions
 
-    states = [part_states(r, plan.disc) for r in parts]
-    s = np.concatenate([x[0] for x in states]) if parts else np.zeros(0, np.int32)
-    s_next = np.concatenate([x[1] for x in states]) if parts else np.zeros(0, np.int32)
-    a = np.concatenate([r.columns["a"] for r in parts]) if parts else np.zeros(0, np.int32)
-    blocked = np.concatenate([r.columns["blocked"] for r in parts]) if parts else np.zeros(0)
-    duration = np.concatenate([r.columns["duration"] for r in parts]) if parts else np.zeros(0)
+    states = [part_states(r, plan.disc) for r in parts]  # a walk has one part or more
+    s = np.concatenate([x[0] for x in states])
+    s_next = np.concatenate([x[1] for x in states])
+    a = np.concatenate([r.columns["a"] for r in parts])
+    blocked = np.concatenate([r.columns["blocked"] for r in parts])
+    duration = np.concatenate([r.columns["duration"] for r in parts])
     counts = count_transitions(s, a, s_next, job.n_states, job.action_set.n_actions)
     rows = int(a.size)
     latency = float(job.params.decision_latency)
@@ -111,18 +111,12 @@ def table_of(job: WalkJob, plan: Any, parts: list[Any]) -> SimTable:
 
 
 def simulate_table(job: WalkJob) -> SimTable:
-    """One candidate's walk, in this process (what :class:`WalkRunner` runs on its
-    workers, walk by walk)."""
-    from simlab.base.parallel import make_executor
-    from simlab.data.backends import PartBackend
-    from simlab.data.collect import walk_results
-
-    plan = walk_plan(job)
-    backend = PartBackend(make_executor("local", workers=1, in_process_single=True))
+    """One candidate's walk, in this process."""
+    runner = WalkRunner(1)
     try:
-        return table_of(job, plan, walk_results([plan], backend)[0])
+        return runner.map([job])[0]
     finally:
-        backend.close()
+        runner.close()
 
 
 def simulate_counts(arena: Any, states: Any, params: Any, *, hours: float | None = None,
@@ -176,14 +170,10 @@ class WalkRunner:
 
     def __init__(self, workers: int, address: str | None = None, *,
                  backend: str = "local") -> None:
-        from simlab.base.parallel import make_executor
-        from simlab.data.backends import PartBackend
+        from simlab.data.backends import make_backend
 
-        if address is not None or backend == "ray":
-            executor = make_executor("ray", address=address)
-        else:
-            executor = make_executor("local", workers=workers, in_process_single=True)
-        self._backend = PartBackend(executor)
+        ray = address is not None or backend == "ray"
+        self._backend = make_backend("ray" if ray else "local", workers, address)
 
     def map(self, jobs: list[WalkJob]) -> list[SimTable]:
         from simlab.data.collect import walk_results
