@@ -246,6 +246,10 @@ class CalibrateConfig(ActionSetOptions):
         "stay", "transfer: a twin action the real robot never tried in that state: stay = "
         "it stays put there (never arrives); mask = choose the twin's policy among the tried "
         "ones", choices=("stay", "mask"))
+    profile_step: float = option(
+        0.0, "after the twins, move each searched field alone by this share of its range "
+        "from the winner, a confirming walk each, and say which fields the real table tells "
+        "(0: no profile; 0.25 measures it)")
     seed: int = option(0, "seed of walks and search")
     overwrite: bool = option(False, "replace the outputs of an earlier simlab calibrate")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
@@ -277,7 +281,7 @@ class CalibrateConfig(ActionSetOptions):
             else self.start_states,
             goal_states=validation.state_ids(self.goal_states, "goal_states"),
             reset_states=self.reset_states, policy_data=self.policy_data,
-            untried=self.untried)
+            untried=self.untried, profile_step=self.profile_step)
 
     def real_action_set(self) -> ActionSet | None:
         """What the real table's actions mean; None when no field of the group was given

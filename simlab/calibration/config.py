@@ -130,6 +130,10 @@ class CalibrationConfig:
             ``"stay"`` (default: the robot stays put there, as a policy that trusts the twin
             would find) or ``"mask"`` (the twin's policy is chosen among the pairs the real
             robot tried).
+        profile_step: after the twins, move each searched field alone by this share of its
+            range from the winner and walk the confirming size there, to say field by field
+            whether the real table tells it (:mod:`~simlab.calibration.profile`; 0, the
+            default, skips it: ``2 d`` more confirming walks for ``d`` fields).
     """
 
     hours_per_candidate: float | None = None
@@ -159,6 +163,7 @@ class CalibrationConfig:
     reset_states: Any = "auto"
     policy_data: bool = False
     untried: str = "stay"
+    profile_step: float = 0.0
 
     def __post_init__(self) -> None:
         k = "calibration."
@@ -192,6 +197,13 @@ class CalibrationConfig:
                               "leaves out: nothing would be collected", key=k + "policy_data",
                               fix="drop --policy-data, or keep the confirmation and at least "
                               "one transfer seed")
+        validation.number(self.profile_step, k + "profile_step", low=0.0, high=1.0,
+                          fix="a share of each field's searched range, e.g. 0.25 (0: no "
+                          "profile)")
+        if self.profile_step and not self.confirm:
+            raise ConfigError("the profile moves each field from the confirmed winner, "
+                              "which --no-confirm leaves out", key=k + "profile_step",
+                              fix="drop --profile-step, or keep the confirmation")
         if self.start_states is not None:
             from simlab.data.collect import parse_start_states
 

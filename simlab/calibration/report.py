@@ -46,6 +46,7 @@ from simlab.base.io import (
     output_transaction,
 )
 from simlab.calibration.policies import policy_need
+from simlab.calibration.profile import TOLD_BAND
 from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
 
@@ -202,6 +203,7 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "signature_gap": None if result.final.gap is None else result.final.gap.to_json(),
         "search": search_json(result),
         "ensemble": ensemble_json(result),
+        "profile": None if result.profile is None else result.profile.to_json(),
         "wall_seconds": result.wall_seconds,
         "notes": result.notes,
         "warnings": result.warnings,
@@ -250,13 +252,16 @@ TOLD_SHARE = 0.05
 def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
     """Per searched field: the ensemble's values (lowest, highest), that span as a share
     of the searched range (unit-cube width), the share of the search's score the field
-    explains, and ``told``: whether the data pin it down. The field must explain at least
+    explains, and ``told``: whether the data pin it down. With a profile
+    (:mod:`~simlab.calibration.profile`) that is its measured verdict; without, a guess:
+    the field must explain at least
     :data:`TOLD_SHARE` of the score's variance over the first rung (PED-ANOVA); the
     members' span alone cannot say it, as the sampler gathers the confirmed candidates
     near one another whatever the data tell. Without importances (too few candidates),
     members within a quarter of the range count as told."""
     members = result.ensemble
     imp = result.search.importance if result.search is not None else {}
+    measured = {} if result.profile is None else result.profile.verdicts()
     rows = []
     for k, spec in enumerate(result.space.specs):
         units = np.array([c.unit[k] for c in members]) if members else np.zeros(0)
@@ -265,6 +270,8 @@ def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
         share = imp.get(spec.name)
         told = bool(share >= TOLD_SHARE) if share is not None else bool(
             units.size and width <= 0.25)
+        if measured.get(spec.name) is not None:
+            told = bool(measured[spec.name])
         row: dict[str, Any] = {"field": spec.name, "span_of_range": _fin(width),
                                "importance": share, "told": told}
         if spec.categorical:
@@ -554,9 +561,13 @@ def ensemble_section(result: CalibrationResult) -> str:
               "within sampling of the winner: no more than the matched floor's 95 % "
               "half-width above its distance). Their values field by field, the span as a "
               "share of the searched range, and the share of the search's score the field "
-              "explains (PED-ANOVA over the first rung); a field that explains under 5 % of "
-              "it is *not told* by the data, and its calibrated value is the winner's, not a "
-              "measurement:\n\n| field | ensemble values | span of range | "
+              "explains (PED-ANOVA over the first rung). " + (
+                  "Whether the data tell a field is the profile's measurement (below); a "
+                  "field *not told* has the winner's value, not a measured one"
+                  if result.profile is not None else
+                  "A field that explains under 5 % of it is guessed *not told* by the data "
+                  "(a guess from noisy screening walks: `--profile-step 0.25` measures it)")
+              + ":\n\n| field | ensemble values | span of range | "
               "explains | told by the data |\n|---|---|---|---|---|\n")
     for row in ensemble_spread(result):
         vals = (", ".join(row["values"]) if "values" in row else
@@ -575,6 +586,32 @@ def ensemble_section(result: CalibrationResult) -> str:
                   f"many of the winner's own walks ({ens['winner_transitions']:,}), "
                   f"{_steps_ratio(ens['winner_ratio'])}: the ensemble {verdict} the single "
                   "twin here.\n")
+    out.write("\n")
+    out.write(profile_section(result))
+    return out.getvalue()
+
+
+def profile_section(result: CalibrationResult) -> str:
+    """What the table can tell: each field moved alone from the winner (the profile)."""
+    prof = result.profile
+    if prof is None:
+        return ""
+    out = io.StringIO()
+    sigma = "unknown (one walk of the winner)" if not math.isfinite(prof.sigma) else (
+        f"{prof.sigma:.4f}")
+    out.write(f"### What the real table can tell\n\nEach searched field moved alone by "
+              f"{prof.step:g} of its searched range from the winner, each point a walk of "
+              f"{prof.transitions:,} transitions on the winner's seed {prof.seed} (its "
+              f"distance there {prof.distance:.4f}, score {prof.score:.4f}): the change of "
+              f"distance and of score, against the score's spread from walk to walk "
+              f"({sigma}). A field is told when a move changes the score by more than "
+              f"{TOLD_BAND:.2f} times that spread:\n\n| field | winner | moved to: "
+              "distance / score change | told |\n|---|---|---|---|\n")
+    for f in prof.fields:
+        moved = "; ".join(f"{_value(m.value)}: {m.distance_change:+.4f} / "
+                          f"{m.score_change:+.4f}" for m in f.moves) or "n/a"
+        told = "n/a" if f.told is None else ("yes" if f.told else "**not told**")
+        out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} |\n")
     out.write("\n")
     return out.getvalue()
 

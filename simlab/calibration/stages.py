@@ -68,6 +68,7 @@ from simlab.calibration.policies import (
     transfer_stage,
     warn_all,
 )
+from simlab.calibration.profile import profile_stage
 from simlab.calibration.regions import pair_regions, region_signature
 from simlab.calibration.resets import reset_warning, resolve_reset_states, without_rows
 from simlab.calibration.search import (
@@ -150,6 +151,8 @@ class CalibrationResult:
     #: the confirmed candidates within sampling of the winner (the winner first): the twin
     #: ensemble, and how sure the twin is field by field
     ensemble: list[Candidate] = field(default_factory=list)
+    #: each searched field moved alone from the winner (``profile_step``), or None
+    profile: Any = None
 
 
 
@@ -259,6 +262,12 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         params, fitted = _fit_latency(params_at(setup.space, setup.base,
                                                 cands[done.best].unit), real, done.final.sim)
         twin = _twin_stage(runner, real, done, setup, config, params)
+        profile = None
+        if config.profile_step and config.confirm:
+            walks = done.twins or [c for c in done.confirmed if c.index == done.best]
+            profile = profile_stage(runner, cands[done.best], walks, ctx,
+                                    (budgets.confirm_hours, budgets.confirm_transitions),
+                                    config.profile_step)
     finally:
         runner.close()
     final = done.final
@@ -289,7 +298,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         transfer=None if twin is None else twin.report,
         transfer_curve=[] if twin is None else twin.curve, warnings=setup.warnings,
         screen_best=screen_best, twin_transfer=twin, search=found,
-        ensemble=ensemble,
+        ensemble=ensemble, profile=profile,
         regions=_region_rows(setup, real, final),
     )
 

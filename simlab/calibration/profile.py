@@ -1,0 +1,153 @@
+"""What the real table can tell: each searched field moved alone from the winner.
+
+The search's candidates say little of this: the sampler gathers its best candidates near
+one another whatever the data tell, and the share of the first rung's score a field explains
+(Optuna's PED-ANOVA) is read from walks of a quarter of the real transitions, where sampling
+hides most fields. On the ISIR lab the two disagree: ``max_drive_time`` explained 4 % of the
+first rung's score, yet moving it down by a quarter of its range raised the confirming-size
+score by 0.48 (timeouts end the moves before the state changes).
+
+So the profile measures it where the winner was picked: every searched field is moved alone
+by ``step`` of its searched range below and above the winner's value (clipped to the range;
+a named field takes each other choice), and each point walks the confirming size on the
+winner's first confirming seed (common random numbers with the winner's own walk there). A
+move's change of score is read against the score's spread from walk to walk (the winner's
+confirming and twin walks on their seeds, ``sigma``): a field is *told* by the table when a
+move changes the score by more than :data:`TOLD_BAND` ``sigma``, the 95 % half-width of the
+difference of two independent walks (``1.96 * sqrt(2)``; walks on one seed differ less, so
+this errs towards "not told"). Each point costs one confirming walk: ``2 d`` more walks for
+``d`` fields (an option of calibrate, ``--profile-step``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from simlab.calibration.search import Candidate, evaluate_points, walk_size
+from simlab.calibration.space import ParameterSpace
+from simlab.calibration.walks import WalkRunner
+
+#: A move changes the score beyond sampling when by more than this many walk-to-walk
+#: standard deviations: 1.96 * sqrt(2), the 95 % half-width of a difference of two walks.
+TOLD_BAND = 1.96 * math.sqrt(2.0)
+
+
+@dataclass(frozen=True)
+class FieldMove:
+    """One moved point: the field's ``value`` there, and the point's ``distance`` and
+    ``score`` minus the winner's on the same seed."""
+
+    value: Any
+    distance_change: float
+    score_change: float
+
+
+@dataclass(frozen=True)
+class FieldProfile:
+    """A field's moves from the winner's ``value``; ``told``: a move changed the score
+    beyond sampling (None when the spread is unknown)."""
+
+    name: str
+    value: Any
+    moves: tuple[FieldMove, ...]
+    told: bool | None
+
+
+@dataclass(frozen=True)
+class Profile:
+    """The profile of a calibration (module docstring).
+
+    Attributes:
+        step: the move, as a share of each field's searched range.
+        seed, transitions: the seed and size of every walk of the profile.
+        distance, score: the winner's on that seed.
+        sigma: the score's standard deviation from walk to walk (NaN with fewer than two
+            of the winner's walks).
+        fields: per searched field, in the space's order.
+    """
+
+    step: float
+    seed: int
+    transitions: int
+    distance: float
+    score: float
+    sigma: float
+    fields: tuple[FieldProfile, ...]
+
+    def verdicts(self) -> dict[str, bool | None]:
+        """``{field: told}``."""
+        return {f.name: f.told for f in self.fields}
+
+    def to_json(self) -> dict[str, Any]:
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {"step": self.step, "seed": self.seed, "transitions": self.transitions,
+                "distance": num(self.distance), "score": num(self.score),
+                "sigma": num(self.sigma), "band": TOLD_BAND,
+                "fields": [{"field": f.name, "value": f.value, "told": f.told,
+                            "moves": [{"value": m.value, "distance_change": m.distance_change,
+                                       "score_change": m.score_change} for m in f.moves]}
+                           for f in self.fields]}
+
+
+def moves(space: ParameterSpace, unit: NDArray[np.float64], step: float
+          ) -> list[tuple[int, NDArray[np.float64]]]:
+    """``[(field index, moved unit point)]``: each numeric field ``step`` below and above
+    ``unit`` (clipped to [0, 1], a move that stays put left out), each named field at its
+    other choices."""
+    out = []
+    for k, spec in enumerate(space.specs):
+        if spec.categorical:
+            assert spec.choices is not None
+            here = spec.value(unit[k])
+            targets = [spec.unit(c) for c in spec.choices if c != here]
+        else:
+            targets = [float(np.clip(unit[k] + s * step, 0.0, 1.0)) for s in (-1.0, 1.0)]
+            targets = [t for t in targets if abs(t - unit[k]) > 1e-12]
+        for t in targets:
+            u = np.array(unit, dtype=np.float64)
+            u[k] = t
+            out.append((k, u))
+    return out
+
+
+def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
+                  ctx: dict[str, Any], budget: tuple[float | None, int | None],
+                  step: float) -> Profile:
+    """The profile (module docstring) of ``winner`` from its confirming-size ``walks``
+    (its confirming walks then its twin walks, each a :class:`Candidate` with its seed;
+    the first is the base of every move)."""
+    from tqdm.auto import tqdm
+
+    space: ParameterSpace = ctx["space"]
+    base = walks[0]
+    points = moves(space, winner.unit, step)
+    cfg = ctx["config"]
+    done: list[Candidate] = []
+    bar = tqdm(total=len(points), unit="walk", disable=not cfg.progress,
+               desc=f"calibrate: profile ({walk_size(budget)} a walk)")
+    with bar:
+        for i in range(0, len(points), cfg.batch):
+            chunk = [u for _k, u in points[i:i + cfg.batch]]
+            done += evaluate_points(runner, chunk, "profile", i, ctx,
+                                    seeds=[base.seed] * len(chunk), budget=budget)
+            bar.update(len(chunk))
+    scores = [w.score for w in walks]
+    sigma = float(np.std(scores, ddof=1)) if len(scores) >= 2 else math.nan
+    fields = []
+    for k, spec in enumerate(space.specs):
+        mine = [FieldMove(c.values[spec.name], c.distance - base.distance,
+                          c.score - base.score)
+                for (j, _u), c in zip(points, done, strict=True) if j == k]
+        told = None if not math.isfinite(sigma) else any(
+            abs(m.score_change) > TOLD_BAND * sigma for m in mine)
+        fields.append(FieldProfile(spec.name, winner.values[spec.name], tuple(mine), told))
+    return Profile(step=float(step), seed=int(base.seed), transitions=int(base.sim.rows),
+                   distance=base.distance, score=base.score, sigma=sigma,
+                   fields=tuple(fields))

@@ -1,0 +1,78 @@
+"""The profile: each searched field moved alone from the winner, read against the walk-to-walk
+spread (kinematic simulator on the 3 x 3 lattice: seconds)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
+from simlab.calibration.config import CalibrationConfig
+from simlab.calibration.profile import TOLD_BAND, moves
+from simlab.calibration.report import profile_section, report_json
+from simlab.calibration.space import ParameterSpace, ParamSpec
+from simlab.calibration.stages import calibrate
+from simlab.data.walkers import KinematicParams
+from tests.calibration.conftest import hidden_walk, real_table
+
+CCW8 = parse_action_set(8, "ccw-east")
+
+
+def test_moves_go_a_step_each_way_clipped_and_to_every_other_choice() -> None:
+    space = ParameterSpace((ParamSpec("a", 0.0, 1.0), ParamSpec("b", 1.0, 10.0, "log"),
+                            ParamSpec("m", choices=("x", "y", "z"))))
+    u = np.array([0.1, 0.5, space.specs[2].unit("y")])
+    out = moves(space, u, 0.25)
+    a = [p[0] for k, p in out if k == 0]
+    b = [p[1] for k, p in out if k == 1]
+    m = [space.specs[2].value(p[2]) for k, p in out if k == 2]
+    assert a == [0.0, pytest.approx(0.35)]          # 0.1 - 0.25 clipped to the range
+    assert b == [0.25, 0.75]
+    assert sorted(m) == ["x", "z"]
+    # the other coordinates stay where they were
+    assert all(np.allclose(np.delete(p, k), np.delete(u, k)) for k, p in out)
+    # a field at a bound moves only inwards
+    assert len(moves(space, np.array([0.0, 1.0, u[2]]), 0.25)) == 1 + 1 + 2
+
+
+def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9) -> None:
+    hidden = KinematicParams(drive_time=1.0)
+    real = real_table(hidden_walk(lattice9, hidden, CCW8, 3.0, 11, "kinematic"), CCW8)
+    space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),
+                            ParamSpec("heading_noise", 0.0, 0.5)))
+    cfg = CalibrationConfig(hours_per_candidate=3.0, candidates=6, workers=1, seed=2,
+                            simulator="kinematic", n_boot=20, progress=False,
+                            transfer_seeds=3, profile_step=0.25)
+    res = calibrate(real, "table", lattice9, space=space, config=cfg)
+    prof = res.profile
+    assert prof is not None and [f.name for f in prof.fields] == ["drive_time", "heading_noise"]
+    base = res.twins[0]                       # the winner's confirming walk
+    assert (prof.seed, prof.distance, prof.score) == (base.seed, base.distance, base.score)
+    assert prof.sigma == pytest.approx(np.std([t.score for t in res.twins], ddof=1))
+    winner = res.candidates[res.best]
+    for k, f in enumerate(prof.fields):
+        assert f.value == winner.values[f.name]
+        for m in f.moves:  # each a quarter of the range away in the unit cube (or a bound)
+            moved = space.specs[k].unit(m.value)
+            assert abs(moved - winner.unit[k]) == pytest.approx(0.25) or moved in (0.0, 1.0)
+        assert f.told == any(abs(m.score_change) > TOLD_BAND * prof.sigma for m in f.moves)
+    # a quarter of the drive time's (log) range moves every cell-crossing move: told
+    assert prof.verdicts()["drive_time"] is True
+    # the report says it, and records it
+    text = profile_section(res)
+    assert "What the real table can tell" in text and "| drive_time |" in text
+    doc = json.loads(json.dumps(report_json(res)))
+    assert doc["profile"]["fields"][0]["field"] == "drive_time"
+    assert math.isclose(doc["profile"]["sigma"], prof.sigma)
+
+
+def test_a_profile_needs_the_confirmation_and_a_share_of_the_range() -> None:
+    with pytest.raises(ConfigError, match="profile_step"):
+        CalibrationConfig(profile_step=0.25, confirm=False)
+    with pytest.raises(ConfigError, match="profile_step"):
+        CalibrationConfig(profile_step=1.5)
+    assert CalibrationConfig().profile_step == 0.0  # off by default: 2 d more walks
