@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -386,6 +387,7 @@ def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | Non
            config: CalibrationConfig) -> _Setup:
     """Check the inputs (ConfigError before any simulation), read the real signature, and
     pick the start and the space from it; warn where the space cannot reach the table."""
+    from simlab.base.statecheck import check_centres_in_arena
     from simlab.calibration.space import default_space
     from simlab.data.collect import parse_start_states
     from simlab.data.walkers import check_pose_source
@@ -394,6 +396,8 @@ def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | Non
     check_pose_source(config.pose_source, config.simulator)
     arena_cfg = load_arena_config(arena)
     disc = load_discretizer(states)
+    check_centres_in_arena(disc.centres, arena_cfg,
+                           source=str(states) if isinstance(states, str | os.PathLike) else None)
     if int(disc.n_states) != real.counts.shape[0]:
         raise ConfigError(f"the states file has {disc.n_states} states, the real table "
                           f"{real.counts.shape[0]}", key="states",
