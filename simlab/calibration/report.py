@@ -18,7 +18,12 @@ temporary sibling and renamed):
 * ``calibration.png`` — distance of every candidate over the search (with the floor band)
   and the mean next-state entropy per action, sim vs real;
 * ``transfer.png`` — with twin seeds: the transfer of twin policies to the real model
-  (:mod:`simlab.calibration.transfer`) for the goal where the twins do worst.
+  (:mod:`simlab.calibration.transfer`) for the goal where the twins do worst;
+* ``told_space.toml`` — with a profile (``--profile-step``) that finds a field the real
+  table does not tell: the space of the told fields alone (the ``--space`` format of
+  :mod:`simlab.calibration.space`). ``calibrate --primitives primitives.toml --space
+  told_space.toml`` then searches only what the data tell, the others held at this twin's
+  values, instead of leaving them to the search's luck.
 
 All of them are written in one output transaction (:func:`simlab.base.io.output_transaction`):
 a failed or killed run leaves the previous outputs as they were, and ``overwrite``
@@ -50,7 +55,11 @@ from simlab.calibration.profile import TOLD_BAND
 from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
 
-FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png")
+FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png",
+         "told_space.toml")
+
+#: First line of ``told_space.toml``: what ``--overwrite`` recognises as calibrate's own.
+TOLD_TITLE = "# The fields the real table tells"
 
 #: ``kind`` of ``report.json``: what ``--overwrite`` recognises as calibrate's own.
 KIND = "simlab-calibrate"
@@ -88,9 +97,10 @@ def _is_ours(path: Path, report_ours: bool) -> bool:
 
             table = tomllib.loads(path.read_text(encoding="utf-8")).get("calibration")
             return isinstance(table, dict) and {"searched", "simulator"} <= set(table)
-        if name == "report.md":
+        if name in ("report.md", "told_space.toml"):
+            title = "# Calibration against" if name == "report.md" else TOLD_TITLE
             with path.open(encoding="utf-8") as fh:
-                return fh.readline().startswith("# Calibration against")
+                return fh.readline().startswith(title)
         with path.open("rb") as fh:
             return report_ours and fh.read(8) == b"\x89PNG\r\n\x1a\n"
     except (OSError, ValueError, UnicodeDecodeError):
@@ -612,7 +622,41 @@ def profile_section(result: CalibrationResult) -> str:
                           f"{m.score_change:+.4f}" for m in f.moves) or "n/a"
         told = "n/a" if f.told is None else ("yes" if f.told else "**not told**")
         out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} |\n")
+    if told_space_toml(result) is not None:
+        out.write("\nThe fields not told are this twin's values, not the robot's: "
+                  "`told_space.toml` holds the space of the told ones, so `simlab calibrate "
+                  "... --primitives primitives.toml --space told_space.toml` searches only "
+                  "those, the others held here.\n")
     out.write("\n")
+    return out.getvalue()
+
+
+def told_space_toml(result: CalibrationResult) -> str | None:
+    """The ``--space`` file of the fields the profile finds told, or None without a profile,
+    when every field is told, or when none is (nothing left to search)."""
+    prof = result.profile
+    if prof is None:
+        return None
+    verdicts = prof.verdicts()
+    told = [p for p in result.space.specs if verdicts.get(p.name) is True]
+    untold = [p.name for p in result.space.specs if verdicts.get(p.name) is not True]
+    if not told or not untold:
+        return None
+    out = io.StringIO()
+    out.write(f"{TOLD_TITLE} (simlab calibrate --profile-step {prof.step:g}): a move of\n"
+              f"# {prof.step:g} of its range from the winner changed the score by more than "
+              f"{TOLD_BAND:.2f} times its\n# walk-to-walk spread ({prof.sigma:.4f}). Not told, "
+              f"and held by a calibration that reads\n# this file: {', '.join(untold)}.\n"
+              "#   simlab calibrate ... --primitives primitives.toml --space told_space.toml\n"
+              "# starts from this twin and searches only the fields below.\n")
+    for p in told:
+        out.write(f"\n[parameters.{p.name}]\n")
+        if p.categorical:
+            assert p.choices is not None
+            out.write(f"choices = [{', '.join(_toml_value(c) for c in p.choices)}]\n")
+        else:
+            out.write(f"low = {_toml_value(float(p.low))}\nhigh = {_toml_value(float(p.high))}"
+                      f"\nscale = {_toml_value(p.scale)}\n")
     return out.getvalue()
 
 
@@ -841,11 +885,16 @@ def write_outputs(result: CalibrationResult, out: str | os.PathLike[str], *,
         del paths["calibration.png"]
     if result.transfer is None or not plot:
         del paths["transfer.png"]
+    told = told_space_toml(result)
+    if told is None:
+        del paths["told_space.toml"]
     with output_transaction(out, paths.values(), overwrite=overwrite,
                             what="calibration output") as txn:
         atomic_write_text(txn.path(paths["primitives.toml"]), primitives_toml(result))
         atomic_write_json(txn.path(paths["report.json"]), report_json(result))
         atomic_write_text(txn.path(paths["report.md"]), report_markdown(result))
+        if told is not None:
+            atomic_write_text(txn.path(paths["told_space.toml"]), told)
         if "calibration.png" in paths:
             plot_calibration(result, txn.path(paths["calibration.png"]))
         if "transfer.png" in paths:

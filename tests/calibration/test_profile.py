@@ -12,8 +12,8 @@ import pytest
 from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.calibration.config import CalibrationConfig
-from simlab.calibration.profile import TOLD_BAND, moves
-from simlab.calibration.report import profile_section, report_json
+from simlab.calibration.profile import TOLD_BAND, FieldProfile, Profile, moves
+from simlab.calibration.report import profile_section, report_json, write_outputs
 from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.calibration.stages import calibrate
 from simlab.data.walkers import KinematicParams
@@ -39,7 +39,8 @@ def test_moves_go_a_step_each_way_clipped_and_to_every_other_choice() -> None:
     assert len(moves(space, np.array([0.0, 1.0, u[2]]), 0.25)) == 1 + 1 + 2
 
 
-def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9) -> None:
+def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9,
+                                                                      tmp_path) -> None:
     hidden = KinematicParams(drive_time=1.0)
     real = real_table(hidden_walk(lattice9, hidden, CCW8, 3.0, 11, "kinematic"), CCW8)
     space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),
@@ -68,6 +69,11 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
     doc = json.loads(json.dumps(report_json(res)))
     assert doc["profile"]["fields"][0]["field"] == "drive_time"
     assert math.isclose(doc["profile"]["sigma"], prof.sigma)
+    # the space of the told fields is written when some field is not told
+    files = write_outputs(res, tmp_path / "cal", plot=False)
+    untold = [n for n, v in prof.verdicts().items() if v is not True]
+    assert ("told_space.toml" in files) == bool(untold)
+    assert (tmp_path / "cal" / "told_space.toml").exists() == bool(untold)
 
 
 def test_a_profile_needs_the_confirmation_and_a_share_of_the_range() -> None:
@@ -76,3 +82,53 @@ def test_a_profile_needs_the_confirmation_and_a_share_of_the_range() -> None:
     with pytest.raises(ConfigError, match="profile_step"):
         CalibrationConfig(profile_step=1.5)
     assert CalibrationConfig().profile_step == 0.0  # off by default: 2 d more walks
+
+
+def _profile(verdicts: dict[str, bool | None]) -> Profile:
+    return Profile(step=0.25, seed=7, transitions=100, distance=0.2, score=0.25, sigma=0.004,
+                   fields=tuple(FieldProfile(n, 0.5, (), t) for n, t in verdicts.items()))
+
+
+def test_the_told_fields_make_a_space_file_the_next_calibration_reads(tmp_path) -> None:
+    from types import SimpleNamespace
+
+    from simlab.calibration.report import told_space_toml
+    from simlab.calibration.space import load_space
+
+    space = ParameterSpace((ParamSpec("drive_time", 0.2, 2.0, "log"),
+                            ParamSpec("heading_noise", 0.0, 0.5),
+                            ParamSpec("distance_noise", 0.0, 0.5)))
+    res = SimpleNamespace(space=space, profile=_profile(
+        {"drive_time": True, "heading_noise": False, "distance_noise": None}))
+    text = told_space_toml(res)
+    assert text is not None and "heading_noise, distance_noise" in text
+    path = tmp_path / "told_space.toml"
+    path.write_text(text)
+    told = load_space(path)
+    assert told.specs == (space.specs[0],)      # the told field, its range and scale
+    told.check_fields(KinematicParams())
+    # nothing to write: no profile, every field told, or none
+    assert told_space_toml(SimpleNamespace(space=space, profile=None)) is None
+    for v in (True, False):
+        assert told_space_toml(SimpleNamespace(space=space, profile=_profile(
+            dict.fromkeys(space.names, v)))) is None
+    # a named field keeps its choices
+    mixed = ParameterSpace((ParamSpec("mode", choices=("fixed", "until_state_change")),
+                            ParamSpec("wheel_noise", 0.0, 0.1)))
+    text = told_space_toml(SimpleNamespace(space=mixed, profile=_profile(
+        {"mode": True, "wheel_noise": False})))
+    path.write_text(text)
+    assert load_space(path).specs == (mixed.specs[0],)
+
+
+def test_overwrite_replaces_a_told_space_file_only_when_calibrate_wrote_it(tmp_path) -> None:
+    from simlab.calibration.report import TOLD_TITLE, check_outputs
+
+    path = tmp_path / "told_space.toml"
+    path.write_text("[parameters.x]\nlow = 0.0\nhigh = 1.0\n")  # a user's own space
+    with pytest.raises(ConfigError, match="not written by simlab calibrate"):
+        check_outputs(tmp_path, overwrite=True)
+    with pytest.raises(ConfigError):
+        check_outputs(tmp_path)  # and never without --overwrite
+    path.write_text(TOLD_TITLE + " (simlab calibrate --profile-step 0.25)\n")
+    assert check_outputs(tmp_path, overwrite=True)["told_space.toml"] == path
