@@ -45,6 +45,8 @@ def main() -> None:
     if not (args.real_lab / "mymap.yaml").is_file():
         raise SystemExit(f"calibrate_profiles.py: error: no ISIR lab data in {args.real_lab}")
 
+    from walk_scheduling import isir_lab
+
     from simlab.base.actions import parse_action_set
     from simlab.calibration.config import CalibrationConfig, RealTable
     from simlab.calibration.objective import Reference
@@ -52,7 +54,6 @@ def main() -> None:
     from simlab.calibration.search import evaluate_points, walk_context
     from simlab.calibration.stages import _setup
     from simlab.calibration.walks import WalkRunner
-    from simlab.commands import arena_from_map, discretize
     from simlab.data.counts import load_counts
     from simlab.physics.motion import PrimitiveParams
 
@@ -61,11 +62,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="simlab-profiles-") as tmp, \
             warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        states = Path(tmp) / "states.json"
-        discretize(map=args.real_lab / "mymap.yaml",
-                   centres=args.real_lab / "voronoiCenters_exp.dat", out=states, flip_y=True)
-        arena = arena_from_map(args.real_lab / "mymap.yaml", Path(tmp) / "lab.toml",
-                               states=states, flip_y=True)
+        arena, states, _name = isir_lab(Path(tmp), args.real_lab)
         counts = load_counts(args.real_lab / "realisticNavWorld.json", n_actions=8).counts
         config = CalibrationConfig(progress=False, workers=args.workers)
         setup = _setup(RealTable(counts, aset, hours=13.0), arena, states, None, None, config)

@@ -39,21 +39,28 @@ import numpy as np
 REAL_LAB = Path(__file__).resolve().parents[2] / "shared" / "real-lab"
 
 
+def isir_lab(tmp: Path, folder: Path = REAL_LAB) -> tuple[Any, Any, str]:
+    """(arena, discretizer, name) of the ISIR lab built in ``tmp`` from its data in
+    ``folder`` (the README's ``discretize`` and ``arena-from-map`` steps)."""
+    from simlab.commands import discretize
+    from simlab.physics.inputs import load_arena_config, load_discretizer
+    from simlab.physics.map_arena import arena_from_map
+
+    states = tmp / "states.json"
+    discretize(map=folder / "mymap.yaml", centres=folder / "voronoiCenters_exp.dat",
+               out=states, flip_y=True, png=None)
+    arena = arena_from_map(folder / "mymap.yaml", tmp / "lab.toml", states=states,
+                           flip_y=True)
+    return load_arena_config(arena), load_discretizer(states), "ISIR lab (38 states)"
+
+
 def lab(tmp: Path) -> tuple[Any, Any, str]:
     """(arena, discretizer, name): the ISIR lab when its data are beside the repository."""
-    from simlab.physics.inputs import load_arena_config, load_discretizer
-
     if (REAL_LAB / "mymap.yaml").is_file():
-        from simlab.commands import discretize
-        from simlab.physics.map_arena import arena_from_map
-
-        states = tmp / "states.json"
-        discretize(map=REAL_LAB / "mymap.yaml", centres=REAL_LAB / "voronoiCenters_exp.dat",
-                   out=states, flip_y=True, png=None)
-        arena = arena_from_map(REAL_LAB / "mymap.yaml", tmp / "lab.toml", states=states,
-                               flip_y=True)
-        return load_arena_config(arena), load_discretizer(states), "ISIR lab (38 states)"
+        return isir_lab(tmp)
     from calibrate_speed import map_lab
+
+    from simlab.physics.inputs import load_arena_config, load_discretizer
 
     arena, states = map_lab(tmp, 40)
     return load_arena_config(arena), load_discretizer(states), "synthetic map lab (40 states)"

@@ -264,7 +264,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
                                                 cands[done.best].unit), real, done.final.sim)
         twin = _twin_stage(runner, real, done, setup, config, params)
         profile = None
-        if config.profile_step and config.confirm:
+        if config.profile_step:  # the config refuses it without the confirmation
             walks = done.twins or [c for c in done.confirmed if c.index == done.best]
             profile = profile_stage(runner, cands[done.best], walks, ctx,
                                     (budgets.confirm_hours, budgets.confirm_transitions),
