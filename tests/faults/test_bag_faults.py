@@ -338,23 +338,12 @@ def test_export_bag_killed_or_interrupted_keeps_the_previous_bag(how: str, wb: P
     no traceback, and no staging folder at all. A signal that lands after the new bag is
     renamed into place (a busy machine can delay it that long) must find the whole new bag."""
     import signal
-    import subprocess
-    import sys
 
-    from .test_races_kills import _default_sigint, _simlab, _wait_for
+    from .test_races_kills import _simlab, _simlab_to_interrupt, _wait_for
 
     before = tree_hashes(wb)
     args = ("export-bag", str(wb / "data"), "--out", str(wb / "bag"), "--overwrite")
-    # the installed `simlab` program: under `python -m simlab`, CPython itself turns an
-    # interrupt that landed in exec()'d code (rosbags' generated serializers) into a death
-    # by SIGINT at exit, after simlab handled it (reported to the CLI's owners)
-    program = Path(sys.executable).with_name("simlab")
-    if how == "SIGINT" and program.is_file():
-        proc = subprocess.Popen([str(program), *args], cwd=wb, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True,
-                                preexec_fn=_default_sigint)
-    else:
-        proc = _simlab(*args, cwd=wb)
+    proc = (_simlab_to_interrupt if how == "SIGINT" else _simlab)(*args, cwd=wb)
     _wait_for(lambda: _staging(wb) or proc.poll() is not None, "the staging folder")
     assert proc.poll() is None, "the export ended before it could be interrupted"
     proc.send_signal(getattr(signal, how))
