@@ -220,7 +220,28 @@ def console_main() -> int:
         print("simlab: interrupted", file=sys.stderr)
         code = 130
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _forget_unhandled_interrupt()
     return code
+
+
+def _forget_unhandled_interrupt() -> None:
+    """Clear CPython's note that a KeyboardInterrupt went unhandled, so the exit code
+    :func:`console_main` returns is the one the process exits with.
+
+    CPython notes an interrupt that escapes code run through its string-eval API (the
+    flag ``_Py_UnhandledKeyboardInterrupt``, pythonrun.c), even when Python code further
+    up then handles it, and after ``python -m`` returns it exits by SIGINT (-2) whenever
+    the note is set: a Ctrl-C that ``simlab train`` reported did exit -2 in about 1 run in
+    10. (The installed program exits through ``Py_Exit`` on ``SystemExit``, before the
+    note is read, so it never did.) Running an empty string through that API clears the
+    note (``run_eval_code_obj`` resets it first): public C API, where ctypes can reach it.
+    """
+    try:
+        import ctypes
+
+        ctypes.pythonapi.PyRun_SimpleString(b"")
+    except (ImportError, AttributeError, OSError):  # no ctypes, or a Python without it
+        pass
 
 
 def _caused_by_interrupt(exc: BaseException) -> bool:

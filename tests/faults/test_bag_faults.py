@@ -339,11 +339,11 @@ def test_export_bag_killed_or_interrupted_keeps_the_previous_bag(how: str, wb: P
     renamed into place (a busy machine can delay it that long) must find the whole new bag."""
     import signal
 
-    from .test_races_kills import _simlab, _simlab_to_interrupt, _wait_for
+    from .test_races_kills import _simlab, _wait_for
 
     before = tree_hashes(wb)
     args = ("export-bag", str(wb / "data"), "--out", str(wb / "bag"), "--overwrite")
-    proc = (_simlab_to_interrupt if how == "SIGINT" else _simlab)(*args, cwd=wb)
+    proc = _simlab(*args, cwd=wb)
     _wait_for(lambda: _staging(wb) or proc.poll() is not None, "the staging folder")
     assert proc.poll() is None, "the export ended before it could be interrupted"
     proc.send_signal(getattr(signal, how))
