@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from simlab.base.actions import ActionSet
-from simlab.calibration.space import ParameterSpace
+from simlab.calibration.space import HELD_UNTIL_STATE_CHANGE, ParameterSpace
 
 
 @dataclass(frozen=True)
@@ -116,13 +116,15 @@ def signature_base(params: Any, sig: Signature, action_set: ActionSet) -> Any:
     """The starting point of a calibration: ``params`` switched to the
     drive-until-state-change mode when :func:`drives_until_state_change`, with a
     ``max_drive_time`` of two cells at the slowest used speed (long enough to leave any
-    cell; the state change ends the move first)."""
+    cell; the state change ends the move first) and the fields that space holds
+    (:data:`~simlab.calibration.space.HELD_UNTIL_STATE_CHANGE`)."""
     if getattr(params, "mode", None) is None or not drives_until_state_change(
             sig, params, action_set):
         return params
     v = min(getattr(params, f) for f in used_speed_field(action_set))
     return replace(params, mode="until_state_change",
-                   max_drive_time=float(min(max(2.0 * sig.cell_size / v, 1.0), 20.0)))
+                   max_drive_time=float(min(max(2.0 * sig.cell_size / v, 1.0), 20.0)),
+                   **HELD_UNTIL_STATE_CHANGE)
 
 
 def _longest_fixed_move(space: ParameterSpace, base: Any, action_set: ActionSet) -> float:

@@ -54,6 +54,15 @@ def test_the_start_drives_until_the_state_changes_on_large_cells_left_on_most_mo
     assert start.mode == "until_state_change"
     # two cells at the robot's one speed
     assert start.max_drive_time == pytest.approx(2 * 0.7 / base.fast_speed)
+    # what that mode's space does not search is held, neither left at the fixed-mode
+    # record's values nor searched: 6 degrees of heading tolerance, wheel noise 0.03
+    assert start.heading_tolerance == pytest.approx(math.radians(6.0))
+    assert start.wheel_noise == pytest.approx(0.03)
+    assert (base.heading_tolerance, base.wheel_noise) != (start.heading_tolerance,
+                                                          start.wheel_noise)
+    space = default_space(np.arange(8, 16), "physics", cell_size=0.7,
+                          speed_fields=("fast_speed",), mode=start.mode)
+    assert not {"heading_tolerance", "wheel_noise"} & set(space.names)
     # cells the fixed moves can leave, or a robot that mostly stays: the thesis primitive
     small = real_signature(_table(0.28), _lattice(0.15))
     assert signature_base(base, small, FAST8) == base

@@ -116,8 +116,7 @@ def test_the_space_of_a_robot_that_drives_until_its_state_changes() -> None:
                           speed_fields=("fast_speed",), mode="until_state_change")
     assert space.names == ("max_drive_time", "detector_margin", "pose_noise_xy",
                            "pose_noise_persistence", "localization_hz", "wall_slide",
-                           "wall_back", "min_drive", "heading_tolerance", "wheel_noise",
-                           "fast_speed")
+                           "wall_back", "min_drive", "fast_speed")
     specs = {p.name: p for p in space.specs}
     assert specs["min_drive"].high == pytest.approx(0.35)
     assert specs["wall_slide"].high + specs["wall_back"].high <= 1.0
