@@ -255,7 +255,8 @@ def search_json(result: CalibrationResult) -> dict[str, Any] | None:
 
 
 #: Share of the first rung's score variance a field must explain to count as told by the
-#: data (:func:`ensemble_spread`): with the 9 fields of the ISIR lab's search, a field of average weight explains 11 %.
+#: data (:func:`ensemble_spread`): with the 9 fields of the ISIR lab's search, a field of
+#: average weight explains 11 %.
 TOLD_SHARE = 0.05
 
 
