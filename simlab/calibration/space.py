@@ -242,8 +242,8 @@ def _ranges(prims: np.ndarray, cell_size: float | None
 #: spends its candidates on what the table cannot tell and leaves their values to its luck;
 #: held, they sit inside those flat ranges (the wheel noise at a winner's 0.03). The
 #: calibrations got faster too (five seeds 528-606 s; seed 1 568 s against 751 s with both
-#: searched, the same morning on a 2-core VM), by where the search's candidates went: the
-#: searched candidates' walks were not slower at a small tolerance.
+#: searched, the same morning on a 2-core VM), for a cause not measured: not the rotation,
+#: as the searched candidates' walks were not slower at a small tolerance.
 HELD_UNTIL_STATE_CHANGE: Mapping[str, float] = {"heading_tolerance": math.radians(6.0),
                                                 "wheel_noise": 0.03}
 
