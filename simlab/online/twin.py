@@ -24,9 +24,13 @@ Runner ``online.twin`` (``experiments/online_isir_twin.toml``):
 
 Metrics per task ``T`` and arm ``A``: ``T_A_real`` / ``T_A_twin`` total reward (mean over
 runs) and ``T_A_twin_vs_real`` their ratio; with a change ``T_A_real_after`` /
-``T_A_twin_after``; ``T_rank_agrees`` 1 when the twin orders the arms' post-change (or
-total, for ``stable``) rewards as the real model does, else 0; ``T_twin_blocked`` the share of
-blocked primitives in the twin.
+``T_A_twin_after``; ``T_rank_agrees`` 1 when the twin orders every pair of arms that the real
+model's runs separate (Welch's test at 5 %, on the post-change totals, or the totals for
+``stable``) as the real model does, else 0 (:func:`order_disagreements`), with
+``T_rank_pairs_judged`` the pairs so separated and ``T_rank_pairs_wrong`` how many of them
+the twin orders the other way (named in the notes); ``T_rank_same`` 1 when the twin's mean rewards give exactly the real
+model's order, pairs within noise included; ``T_twin_blocked`` the share of blocked
+primitives in the twin.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 
-__all__ = ["TASKS", "LabFiles", "real_lab", "stand_in_lab", "twin"]
+__all__ = ["TASKS", "LabFiles", "order_disagreements", "real_lab", "stand_in_lab", "twin"]
 
 TASKS = ("stable", "goal", "passages")
 #: The ISIR arena's public files (module docstring).
@@ -215,10 +219,45 @@ def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any]
     return opts
 
 
-def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any], change: bool
-                 ) -> dict[str, Any]:
+def order_disagreements(real: dict[str, np.ndarray], twin: dict[str, np.ndarray], *,
+                        alpha: float = 0.05) -> tuple[int, list[tuple[str, str]]]:
+    """The pairs of arms the twin orders against the real model, judged where the runs can
+    tell: a pair is judged when the real model's per-run totals separate its two arms
+    (Welch's t-test, two-sided, ``p < alpha``; ``scipy.stats.ttest_ind``), and it disagrees
+    when the twin's mean totals order the two the other way. Pairs the real model's runs
+    cannot order are not judged, since with a handful of runs their exact order is a coin
+    flip on the real model itself. Returns (pairs judged, pairs that disagree)."""
+    from scipy.stats import ttest_ind
+
+    arms = list(real)
+    judged, wrong = 0, []
+    for i, a in enumerate(arms):
+        for b in arms[i + 1:]:
+            ra, rb = np.asarray(real[a], float), np.asarray(real[b], float)
+            if min(ra.size, rb.size) < 2 or np.ptp(np.r_[ra, rb]) == 0:
+                continue
+            if not ttest_ind(ra, rb, equal_var=False).pvalue < alpha:
+                continue
+            judged += 1
+            d_twin = float(np.mean(twin[a]) - np.mean(twin[b]))
+            if np.sign(d_twin) != np.sign(ra.mean() - rb.mean()):
+                wrong.append((a, b))
+    return judged, wrong
+
+
+def _totals(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
+            ) -> dict[str, np.ndarray]:
+    """Per arm, each run's total reward (after the change, when there is one)."""
+    return {arm: np.array([float(np.sum(r["reward"][at or 0:])) for r in runs])
+            for arm, runs in logs.items()}
+
+
+def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any],
+                 real_logs: dict[str, Any], sim_logs: dict[str, Any], change_at: int | None
+                 ) -> tuple[dict[str, Any], str]:
+    """The task's metrics (module docstring) and a note naming the pairs judged wrong."""
     m: dict[str, Any] = {}
-    key = "reward_after" if change else "reward"
+    key = "reward_after" if change_at is not None else "reward"
     order_real, order_twin = [], []
     for arm, r in real["arms"].items():
         t = sim["arms"][arm]
@@ -226,16 +265,24 @@ def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any], change: b
         m[f"{task}_{arm}_twin"] = t["reward"]["mean"]
         m[f"{task}_{arm}_twin_vs_real"] = (t["reward"]["mean"] / r["reward"]["mean"]
                                            if r["reward"]["mean"] > 0 else None)
-        if change:
+        if change_at is not None:
             m[f"{task}_{arm}_real_after"] = r["reward_after"]["mean"]
             m[f"{task}_{arm}_twin_after"] = t["reward_after"]["mean"]
         order_real.append(r[key]["mean"])
         order_twin.append(t[key]["mean"])
-    m[f"{task}_rank_agrees"] = float(np.array_equal(np.argsort(order_real, kind="stable"),
-                                                    np.argsort(order_twin, kind="stable")))
+    judged, wrong = order_disagreements(_totals(real_logs, change_at),
+                                        _totals(sim_logs, change_at))
+    m[f"{task}_rank_agrees"] = float(not wrong)
+    m[f"{task}_rank_pairs_judged"] = judged
+    m[f"{task}_rank_pairs_wrong"] = len(wrong)
+    m[f"{task}_rank_same"] = float(np.array_equal(np.argsort(order_real, kind="stable"),
+                                                  np.argsort(order_twin, kind="stable")))
     m[f"{task}_twin_blocked"] = float(np.mean([a["blocked"] for a in
                                                sim["physics"]["arms"].values()]))
-    return m
+    note = (f"{task}: the real model's runs separate {judged} pair(s) of arms; the twin "
+            + (f"orders {', '.join(f'{a} / {b}' for a, b in wrong)} the other way."
+               if wrong else "orders them all as the real model does."))
+    return m, note
 
 
 def _comparison_figure(rows: list[dict[str, Any]], path: Path) -> Path:
@@ -318,7 +365,7 @@ def twin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
                   seed=int(ctx.root_seed), progress=ctx.progress,
                   plots=bool(budget.get("plots", True)))
     metrics: dict[str, Any] = {}
-    rows = []
+    rows, order_notes = [], []
     for task in p.get("tasks", TASKS):
         if task not in TASKS:
             raise ConfigError(f"unknown task {task!r}", key="params.tasks",
@@ -333,12 +380,15 @@ def twin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
             executor=ctx.executor)
         rows.append({"task": task, "real": real.summary, "twin": sim.summary,
                      "real_logs": real.logs, "twin_logs": sim.logs})
-        metrics.update(_arm_metrics(task, real.summary, sim.summary, task != "stable"))
+        task_metrics, note = _arm_metrics(task, real.summary, sim.summary, real.logs, sim.logs,
+                                          lab.change_at if task != "stable" else None)
+        metrics.update(task_metrics)
+        order_notes.append(note)
     figures = [_comparison_figure(rows, ctx.out / "twin_vs_real.png"),
                _curves_figure(rows, ctx.out / "twin_vs_real_curves.png")]
     notes = [f"Lab: {lab.name}; twin: {primitives}; {common['seeds']} runs x "
              f"{common['decisions']} decisions per arm and task; change at decision "
-             f"{lab.change_at + 1}."]
+             f"{lab.change_at + 1}.", *order_notes]
     return RunResult(metrics=metrics, figures=figures, notes=notes,
                      details={r["task"]: {"real": r["real"]["arms"], "twin": r["twin"]["arms"]}
                               for r in rows})
