@@ -28,9 +28,9 @@ runs) and ``T_A_twin_vs_real`` their ratio; with a change ``T_A_real_after`` /
 model's runs separate (Welch's test at 5 %, on the post-change totals, or the totals for
 ``stable``) as the real model does, else 0 (:func:`order_disagreements`), with
 ``T_rank_pairs_judged`` the pairs so separated and ``T_rank_pairs_wrong`` how many of them
-the twin orders the other way (named in the notes); ``T_rank_same`` 1 when the twin's mean rewards give exactly the real
-model's order, pairs within noise included; ``T_twin_blocked`` the share of blocked
-primitives in the twin.
+the twin orders the other way (named in the notes); ``T_rank_same`` 1 when the twin's mean
+rewards give exactly the real model's order, pairs within noise included; ``T_twin_blocked``
+the share of blocked primitives in the twin.
 """
 
 from __future__ import annotations
@@ -247,8 +247,9 @@ def order_disagreements(real: dict[str, np.ndarray], twin: dict[str, np.ndarray]
 
 def _totals(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
             ) -> dict[str, np.ndarray]:
-    """Per arm, each run's total reward (after the change, when there is one)."""
-    return {arm: np.array([float(np.sum(r["reward"][at or 0:])) for r in runs])
+    """Per arm, each run's total reward (after the change, when there is one): the same
+    sums as the summary's ``reward`` / ``reward_after`` means are taken over."""
+    return {arm: np.stack([r["reward"] for r in runs]).astype(np.float64)[:, at or 0:].sum(1)
             for arm, runs in logs.items()}
 
 
@@ -257,8 +258,6 @@ def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any],
                  ) -> tuple[dict[str, Any], str]:
     """The task's metrics (module docstring) and a note naming the pairs judged wrong."""
     m: dict[str, Any] = {}
-    key = "reward_after" if change_at is not None else "reward"
-    order_real, order_twin = [], []
     for arm, r in real["arms"].items():
         t = sim["arms"][arm]
         m[f"{task}_{arm}_real"] = r["reward"]["mean"]
@@ -268,13 +267,13 @@ def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any],
         if change_at is not None:
             m[f"{task}_{arm}_real_after"] = r["reward_after"]["mean"]
             m[f"{task}_{arm}_twin_after"] = t["reward_after"]["mean"]
-        order_real.append(r[key]["mean"])
-        order_twin.append(t[key]["mean"])
-    judged, wrong = order_disagreements(_totals(real_logs, change_at),
-                                        _totals(sim_logs, change_at))
+    totals_real, totals_twin = _totals(real_logs, change_at), _totals(sim_logs, change_at)
+    judged, wrong = order_disagreements(totals_real, totals_twin)
     m[f"{task}_rank_agrees"] = float(not wrong)
     m[f"{task}_rank_pairs_judged"] = judged
     m[f"{task}_rank_pairs_wrong"] = len(wrong)
+    order_real = [totals_real[arm].mean() for arm in real["arms"]]
+    order_twin = [totals_twin[arm].mean() for arm in real["arms"]]
     m[f"{task}_rank_same"] = float(np.array_equal(np.argsort(order_real, kind="stable"),
                                                   np.argsort(order_twin, kind="stable")))
     m[f"{task}_twin_blocked"] = float(np.mean([a["blocked"] for a in
