@@ -197,6 +197,21 @@ class PhysicsWalker:
         self._noise_rng = source_rng
         self._last_pose = None
 
+    def hold(self) -> tuple[Any, ...]:
+        """What a move changes of the robot, for :meth:`undo`: its true pose, the reading
+        the next move starts from and its localization error (the truth pose source's whole
+        state: odometry and a particle filter's particles are not held)."""
+        last = None if self._last_pose is None else self._last_pose.copy()
+        return np.asarray(self.world.pose(), dtype=np.float64).copy(), last, self._error.copy()
+
+    def undo(self, held: tuple[Any, ...]) -> None:
+        """Take a move back: the robot set down at rest where :meth:`hold` found it, its
+        reading and localization error as they were (the noise streams go on)."""
+        pose, last, error = held
+        self.world.set_pose(pose)
+        self._last_pose = None if last is None else last.copy()
+        self._error = error.copy()
+
     def believed_pose(self) -> NDArray[np.float64]:
         """The pose (3,) the robot believes it is at now, between two primitives: the
         reading the next transition starts from (drawn now if none is held, from the

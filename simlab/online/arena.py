@@ -17,7 +17,8 @@ streams (common random numbers), and the same whatever the workers. ``summary.js
 records the ensemble's size and each run's member (``physics.ensemble``).
 
 Decisions: the passages of ``--change passages`` are closed by boxes on their doorways
-(:mod:`simlab.online.doorway`); ``--after`` (a second model) has no physics meaning and is
+(:mod:`simlab.online.doorway`), or with ``--closing remove`` as the published experiment's
+edited models close them, their transitions removed (:mod:`simlab.online.physics`); ``--after`` (a second model) has no physics meaning and is
 refused. Progress counts decisions over every run (workers report every
 :data:`REPORT_EVERY` decisions).
 """
@@ -68,6 +69,10 @@ class ArenaOptions(ActionSetOptions, TwinEnsembleOptions):
     pose_source: str = option("truth", "pose the states are read from in physics: truth "
                               "(with the primitives' localization error, if any) or mcl "
                               "(a particle filter on the arena's map)", choices=("truth", "mcl"))
+    closing: str = option("box", "in physics, how --change passages closes a passage: box "
+                          "(a box on its doorway) or remove (as an edited model: its "
+                          "transitions removed, a move across it taken back and drawn "
+                          "again; truth pose only)", choices=("box", "remove"))
     mcl_map: str = option("updated", "in physics with --pose-source mcl, the filter's map "
                           "after a box is added: updated (it knows the box) or stale",
                           choices=("updated", "stale"))
@@ -91,6 +96,8 @@ class ArenaOptions(ActionSetOptions, TwinEnsembleOptions):
                 given.append("n_actions")
             if self.pose_source != "truth" or self.mcl_map != "updated":
                 given.append("pose_source")
+            if self.closing != "box":
+                given.append("closing")
             if given:
                 raise ConfigError(f"--{given[0].replace('_', '-')} applies to a run in "
                                   "physics only", key=given[0],
@@ -158,11 +165,14 @@ def physics_task(cfg: Any, lab: Any) -> Any:
     """The :class:`~simlab.online.physics.PhysicsTask` of ``cfg`` on ``lab``: the task of
     the same options on an MDP (:meth:`~simlab.online.command.OnlineConfig.task`, so the
     same checks and the same passage choice by use), its passages closed by boxes on their
-    doorways (found now: a passage that does not exist is refused before any run)."""
+    doorways (found now: a passage that does not exist is refused before any run) or by
+    removing their transitions (``--closing remove``)."""
     from simlab.online.physics import PhysicsChange, PhysicsTask
 
     changes = tuple(PhysicsChange(c.at, c.kind, goal=tuple(c.goal), passages=c.passages,
-                                  use_states=c.use_states) for c in cfg.task().changes)
+                                  use_states=c.use_states,
+                                  closing=cfg.closing if c.kind == "passages" else "box")
+                    for c in cfg.task().changes)
     task = PhysicsTask(tuple(cfg.goal), tuple(cfg.start_states), int(cfg.decisions), changes,
                        pose_source=cfg.pose_source, mcl_map=cfg.mcl_map)
     task.check_states(lab.n_states)
@@ -297,7 +307,8 @@ def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
                     physics_hz: float | None = None,
                     run_members: tuple[int, ...] | None = None,
                     ensemble_size: int = 0) -> dict[str, Any]:
-    """Per arm: the share of blocked primitives (before / after the change), simulated
+    """Per arm: the share of blocked primitives (before / after the change; after it also
+    ``undone_after``, the moves taken back per decision across removed passages), simulated
     hours per run, the decisions per wall second of a run; the boxes added and the physics
     rate (``physics_hz``, Hz) the world stepped at; with a twin ensemble, ``ensemble``:
     its ``size`` and ``run_members``, the member run ``i`` of every arm drove."""
@@ -315,6 +326,8 @@ def physics_summary(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
         if at is not None:
             rec["blocked_before"] = float(blocked[:, :at].mean())
             rec["blocked_after"] = float(blocked[:, at:].mean())
+            undone = np.stack([r["undone"] for r in runs]).astype(float)
+            rec["undone_after"] = float(undone[:, at:].mean())
         arms[name] = rec
         if not boxes and runs[0]["boxes"].size:
             boxes = np.round(runs[0]["boxes"], 4).tolist()

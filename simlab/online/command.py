@@ -271,6 +271,10 @@ class OnlineConfig(ArenaOptions):
                               "boxes on closed passages), not by a model", key="after",
                               fix="use --change goal or --change passages, or learn on an "
                               "MDP")
+        if self.closing != "box" and self.change != "passages":
+            raise ConfigError(f"--closing {self.closing} is how --change passages closes a "
+                              f"passage; this run's change is {self.change}", key="closing",
+                              fix="add --change passages or drop --closing")
         v.whole(self.decisions, "decisions", minimum=1)
         v.whole(self.seeds, "seeds", minimum=1)
         v.whole(self.seed, "seed")

@@ -33,6 +33,16 @@ Decisions (the protocol of Dromnelle et al. 2022, sec. 4.1, on simlab's arena):
   against is then either ``updated`` with the box (someone edited the lab's map) or left
   ``stale`` (the map of the empty lab: the box's returns do not match it, as for a real
   robot whose map predates the obstacle).
+* a passage is closed by a box (``closing = "box"``, the lab closed physically) or, with
+  ``closing = "remove"``, as the published experiment closed it: its transitions removed
+  from the model and the rows renormalised over what is left (Dromnelle et al. 2022,
+  sec. 4.1; :func:`simlab.online.task.close_passages`). In physics a move that ends across
+  a removed passage (``u -> v`` or ``v -> u`` between believed states) is taken back (the
+  robot set down where it started, its localization as it was) and drawn again with fresh
+  noise, so the move's outcomes are the twin's own, renormalised; after
+  :data:`REDRAWS` redraws that all cross, the robot stays (the self-loop
+  ``close_passages`` makes of a row with nothing left). The world is not otherwise
+  changed (no box for the LIDAR or the detector), as in the edited model. Truth pose only.
 """
 
 from __future__ import annotations
@@ -55,6 +65,10 @@ __all__ = ["MCL_MAPS", "POSE_SOURCES", "PhysicsChange", "PhysicsLab", "PhysicsRu
 POSE_SOURCES = ("truth", "mcl")
 MCL_MAPS = ("updated", "stale")
 CHANGE_KINDS = ("goal", "box", "passages")
+#: How a passage closes (module docstring).
+CLOSINGS = ("box", "remove")
+#: Redraws of a move across a removed passage before the robot stays (module docstring).
+REDRAWS = 10
 #: Height (m) of a box added mid-run: above the LIDAR plane, as the arena's walls.
 BOX_HEIGHT = 0.25
 
@@ -63,8 +77,9 @@ BOX_HEIGHT = 0.25
 class PhysicsChange:
     """A change at decision ``at`` (0-based): ``kind`` ``goal`` (new ``goal`` states),
     ``box`` (``box`` = ``(x, y, size_x, size_y)`` m, or with a fifth value its yaw in rad,
-    added as a 0.25 m tall box) or ``passages`` (a box on the doorway of each passage
-    ``(u, v)`` of ``passages``)."""
+    added as a 0.25 m tall box) or ``passages`` (each passage ``(u, v)`` of ``passages``
+    closed by ``closing``: a box on its doorway, or its transitions removed; module
+    docstring)."""
 
     at: int
     kind: str
@@ -72,8 +87,12 @@ class PhysicsChange:
     box: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
     passages: tuple[tuple[int, int], ...] = ()
     use_states: tuple[int, ...] = ()
+    closing: str = "box"
 
     def __post_init__(self) -> None:
+        if self.closing not in CLOSINGS:
+            raise ConfigError(f"unknown passage closing {self.closing!r}", key="closing",
+                              fix=f"choose one of {', '.join(CLOSINGS)}")
         if self.kind not in CHANGE_KINDS:
             raise ConfigError(f"unknown change {self.kind!r}", key="change",
                               fix=f"choose one of {', '.join(CHANGE_KINDS)}")
@@ -104,7 +123,8 @@ class PhysicsChange:
                                                                 for u, v in self.passages)
             by_use = (f" (the more used: decisions in {'/'.join(map(str, self.use_states))})"
                       if self.use_states else "")
-            return f"passages {closed} closed by boxes{by_use} at decision {self.at}"
+            how = "by boxes" if self.closing == "box" else "(transitions removed)"
+            return f"passages {closed} closed {how}{by_use} at decision {self.at}"
         return f"box at ({self.box[0]:g}, {self.box[1]:g}) m added at decision {self.at}"
 
 
@@ -130,6 +150,10 @@ class PhysicsTask:
             raise ConfigError(f"unknown MCL map setting {self.mcl_map!r}", key="mcl_map",
                               fix=f"choose one of {', '.join(MCL_MAPS)}")
         object.__setattr__(self, "changes", tuple(sorted(self.changes, key=lambda c: c.at)))
+        if self.pose_source != "truth" and any(c.closing == "remove" for c in self.changes):
+            raise ConfigError("a passage closed by removing its transitions takes moves back, "
+                              f"which the {self.pose_source} pose source cannot follow",
+                              key="closing", fix="use --pose-source truth or --closing box")
 
     def as_dict(self) -> dict[str, Any]:
         return {"goal": list(self.goal), "start_states": list(self.start_states),
@@ -137,7 +161,8 @@ class PhysicsTask:
                 "changes": [{"at": c.at, "kind": c.kind, "goal": list(c.goal),
                              "box": list(c.box) if c.kind == "box" else [],
                              "passages": [list(p) for p in c.passages],
-                             "use_states": list(c.use_states)} for c in self.changes]}
+                             "use_states": list(c.use_states), "closing": c.closing}
+                            for c in self.changes]}
 
     def check_states(self, n_states: int) -> None:
         """:class:`ConfigError` naming the field when a state is not in ``0..n_states-1``."""
@@ -194,8 +219,8 @@ class PhysicsLab:
 
         if change.kind == "box":
             return [[tuple(change.box) + (0.0,) * (5 - len(change.box))]]
-        if change.kind != "passages":
-            return [[]]
+        if change.kind != "passages" or change.closing == "remove":
+            return [[]] * change.alternatives()
         d = self.discretizer
         boxes = []
         for u, v in change.passages:
@@ -235,8 +260,9 @@ class PhysicsRun:
     """What :func:`run_physics_online` did: the decision ``log`` (the columns of
     :class:`~simlab.online.loop.OnlineLog`, with its ``restarts`` and ``use_counts``), per
     decision ``blocked`` (n,) bool, the simulated ``duration`` (n,) s (primitive and
-    decision latency; 0 for the published goal decision, whose move is the restart) and the
-    true position after it ``xy`` (n, 2) m; ``robot_seconds`` simulated,
+    decision latency; 0 for the published goal decision, whose move is the restart), the
+    true position after it ``xy`` (n, 2) m and ``undone`` (n,) the moves taken back across
+    a removed passage (the last attempt's duration is the decision's); ``robot_seconds`` simulated,
     ``wall_seconds``, ``boxes`` the boxes added ``(x, y, size_x, size_y, yaw)``,
     ``mcl_field`` the :class:`~simlab.localization.likelihood.LikelihoodField` the filter
     used last (None for ``truth``)."""
@@ -245,6 +271,7 @@ class PhysicsRun:
     blocked: np.ndarray
     duration: np.ndarray
     xy: np.ndarray
+    undone: np.ndarray
     robot_seconds: float
     wall_seconds: float
     boxes: list[tuple[float, ...]] = field(default_factory=list)
@@ -254,7 +281,7 @@ class PhysicsRun:
         """The log's columns and the physics' own (``blocked``, ``duration``, ``x``, ``y``),
         and the run's ``restarts`` and ``use_counts``."""
         return {**self.log.columns(), "blocked": self.blocked, "duration": self.duration,
-                "x": self.xy[:, 0], "y": self.xy[:, 1],
+                "x": self.xy[:, 0], "y": self.xy[:, 1], "undone": self.undone,
                 "restarts": np.asarray(self.log.restarts, dtype=np.int64),
                 "use_counts": self.log.use_counts}
 
@@ -294,6 +321,24 @@ class _Lab:
                 or (float(self.centres[s0, 0]), float(self.centres[s0, 1]))
         self.walker.place(np.array([xy[0], xy[1], yaw]), self.streams.mcl)
         return self.state(self.walker.believed_pose())
+
+    def move(self, s: int, primitive: int, rng: np.random.Generator, cut: np.ndarray
+             ) -> tuple[Any, int, int]:
+        """One primitive from believed state ``s``: its outcome, the believed state after it
+        and how many moves were taken back because they crossed a removed passage
+        (``cut[s, s']``; module docstring)."""
+        if not cut[s].any():
+            out = self.walker.step(primitive, rng)
+            return out, self.state(out.pose_after), 0
+        held = self.walker.hold()
+        for undone in range(REDRAWS + 1):
+            out = self.walker.step(primitive, rng)
+            s_next = self.state(out.pose_after)
+            if not cut[s, s_next]:
+                return out, s_next, undone
+            self.walker.undo(held)
+        return (dataclasses.replace(out, blocked=True, truth_after=out.truth_before,
+                                    pose_after=out.pose_before), s, REDRAWS + 1)
 
     def add_box(self, box: tuple[float, ...]) -> None:
         """A box joins the running world; the filter's map follows it when ``updated``."""
@@ -362,7 +407,8 @@ def _check(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask) -> None:
 class _Changes:
     """The task's changes as they happen: the phase index (an alternative chosen by use
     counts as its own phase, as in the MDP loop), the goal, the boxes each adds, and the
-    decisions of the counting states (``use_counts``, one per phase, -1 where none)."""
+    decisions of the counting states (``use_counts``, one per phase, -1 where none);
+    ``cut[s, s']`` the moves a removed passage takes back."""
 
     def __init__(self, lab: PhysicsLab, task: PhysicsTask) -> None:
         self.task = task
@@ -377,6 +423,7 @@ class _Changes:
         self.todo = list(self.pending)
         self.phase, self.first = 0, 1
         self.goal = np.isin(np.arange(self.n_states), self.task.goal)
+        self.cut = np.zeros((self.n_states, self.n_states), dtype=bool)
 
     def due(self, t: int, visits: np.ndarray, world: _Lab) -> None:
         """Apply every change due at decision ``t``."""
@@ -391,6 +438,9 @@ class _Changes:
             self.first += c.alternatives()
             if c.kind == "goal":
                 self.goal = np.isin(np.arange(self.n_states), c.goal)
+            if c.kind == "passages" and c.closing == "remove":
+                for u, v in (c.passages[k:k + 1] if c.use_states else c.passages):
+                    self.cut[u, v] = self.cut[v, u] = True
             for box in outcomes[k]:
                 world.add_box(box)
 
@@ -411,6 +461,7 @@ def run_physics_online(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask
     n = int(task.decisions)
     log = OnlineLog.empty(n)
     blocked, duration, xy = np.zeros(n, dtype=bool), np.zeros(n), np.zeros((n, 2))
+    undone = np.zeros(n, dtype=np.int64)
     visits = np.zeros(lab.n_states, dtype=np.int64)
     primitives = np.asarray(lab.primitives, dtype=np.int64)
     world = _Lab(lab, task, streams)
@@ -428,8 +479,8 @@ def run_physics_online(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask
                 s_next = world.restart()
                 blocked[t], duration[t] = False, 0.0
             else:
-                out = world.walker.step(int(primitives[int(a)]), streams.noise)
-                s_next = world.state(out.pose_after)
+                out, s_next, undone[t] = world.move(s, int(primitives[int(a)]), streams.noise,
+                                                    changes.cut)
                 blocked[t] = out.blocked
                 duration[t] = out.duration + world.walker.decision_latency
             xy[t] = world.walker.world.pose()[:2]
@@ -457,7 +508,7 @@ def run_physics_online(agent: meta.MetaAgent, lab: PhysicsLab, task: PhysicsTask
         source = world.walker.source
         return PhysicsRun(log=dataclasses.replace(log, restarts=restarts,
                                                   use_counts=changes.use_counts),
-                          blocked=blocked, duration=duration, xy=xy,
+                          blocked=blocked, duration=duration, xy=xy, undone=undone,
                           robot_seconds=float(duration.sum()),
                           wall_seconds=time.perf_counter() - t_wall0,
                           boxes=list(world.boxes), mcl_field=getattr(source, "field", None)

@@ -68,6 +68,8 @@ DECISION_DOCS: dict[str, tuple[str, str]] = {
     "duration": ("s", "simulated time of the decision: the primitive and the decision latency"),
     "x": ("m", "true x of the robot after the decision (map frame)"),
     "y": ("m", "true y of the robot after the decision (map frame)"),
+    "undone": ("1", "moves taken back before this decision's because they crossed a passage "
+                    "closed by removing its transitions"),
 }
 
 

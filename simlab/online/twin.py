@@ -19,8 +19,13 @@ Runner ``online.twin`` (``experiments/online_isir_twin.toml``):
    transfer); a path takes a ``primitives.toml`` an earlier calibration wrote.
 3. **The tasks**, each on the real model and in physics in the twin, with the same arms,
    seeds and protocol: ``stable`` (goal 18 throughout), ``goal`` (18 -> 34 at the change)
-   and ``passages`` (the published after-change models on the real model; boxes on the
-   doorways in the twin).
+   and ``passages`` (the published after-change models on the real model). In the twin a
+   passage closes as the published files close it (``closing = "remove"``, the default):
+   its transitions are removed, a move across it taken back and drawn again
+   (:mod:`simlab.online.physics`), since the real model's after-change world is the same
+   model with those transitions removed and its rows renormalised, not a lab with a box
+   in it; ``closing = "box"`` puts a box on the doorway instead (the physical closing,
+   whose blocked and deflected moves the real files do not have).
 
 Metrics per task ``T`` and arm ``A``: ``T_A_real`` / ``T_A_twin`` total reward (mean over
 runs) and ``T_A_twin_vs_real`` their ratio; with a change ``T_A_real_after`` /
@@ -198,8 +203,8 @@ def _twin_primitives(p: dict[str, Any], budget: dict[str, Any], lab: LabFiles,
     return out / "primitives.toml"
 
 
-def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any]
-                  ) -> dict[str, Any]:
+def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any],
+                  closing: str = "remove") -> dict[str, Any]:
     """The ``simlab online`` options of one task on the real model (``real``) or in the
     twin. On the real model a change swaps in the lab's after-change models when it has
     them (the published protocol: the goal's model, or one model per passage of which the
@@ -216,6 +221,8 @@ def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any]
             opts.update(change="model", after=[str(p) for p in mdps["passages"]])
         else:
             opts.update(change="passages", passages=list(lab.passages))
+            if not real:
+                opts["closing"] = closing
     return opts
 
 
@@ -373,7 +380,8 @@ def twin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
             **common, **_task_options(task, lab, real=True, mdps=mdps),
             "mdp": mdps["model"], "out": ctx.out / task / "real"}), executor=ctx.executor)
         sim = online(OnlineConfig.from_mapping({
-            **common, **_task_options(task, lab, real=False, mdps=mdps),
+            **common, **_task_options(task, lab, real=False, mdps=mdps,
+                                      closing=str(p.get("closing", "remove"))),
             "arena": lab.arena, "states": lab.states, "primitives": primitives, "n_actions": 8,
             "convention": "ccw-east", "speed": "fast", "out": ctx.out / task / "twin"}),
             executor=ctx.executor)

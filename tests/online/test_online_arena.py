@@ -156,6 +156,12 @@ def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys
       "passages", "--passages", "0-24"], "passages"),
     (["--arena", "table", "--states", "S"], "start_states"),  # the default 0, 32 of 38
     (["MDP", "--physics-hz", "100"], "physics_hz"),  # a rate without a world
+    (["MDP", "--closing", "remove"], "closing"),  # a closing without a world
+    (["--arena", "table", "--states", "S", "--goal", "12", "--start-states", "0",
+      "--closing", "remove"], "closing"),  # a closing without passages to close
+    (["--arena", "table", "--states", "S", "--goal", "12", "--start-states", "0", "--change",
+      "passages", "--passages", "11-12", "--closing", "remove", "--pose-source", "mcl"],
+     "takes moves back"),
     (["--arena", "table", "--states", "S", "--goal", "12", "--start-states", "0",
       "--physics-hz", "20"], "minimum is 40 Hz"),
 ])

@@ -101,3 +101,64 @@ def test_the_mcl_map_follows_the_box_or_stays_stale(experts, mcl_map, inside) ->
     else:
         assert d > 0.3
     assert np.all(np.isfinite(run.log.s)) and run.boxes
+
+
+def test_a_removed_passage_is_never_crossed_and_its_moves_are_taken_back(experts) -> None:
+    """``closing = "remove"`` on the passage 12 <-> 13 (the lattice's centre and its East
+    neighbour) from decision 0, the robot starting in 12 and the goal 13: no logged
+    transition crosses the passage either way; moves are taken back only from 12 or 13,
+    each decision's count at most REDRAWS + 1, the robot staying put (blocked, the same
+    state) exactly when every draw crossed; no box enters the world."""
+    from simlab.online.physics import REDRAWS
+
+    task = PhysicsTask((13,), (12,), 60, (PhysicsChange(0, "passages", passages=((12, 13),),
+                                                        closing="remove"),))
+    mf, mb = experts
+    ag = meta.make_meta_agent(mf, mb, 25, 16, meta.Arbitration(criterion="mf"))
+    run = run_physics_online(ag, _lab(), task, RunStreams.from_seed(np.random.SeedSequence(1)))
+    s, s2 = run.log.s, run.log.s_next
+    crossed = ((s == 12) & (s2 == 13)) | ((s == 13) & (s2 == 12))
+    assert not crossed.any()
+    assert run.undone.sum() > 0  # the agent did try the passage
+    assert np.all(np.isin(s[run.undone > 0], (12, 13)))
+    assert run.undone.max() <= REDRAWS + 1
+    stuck = run.undone == REDRAWS + 1
+    assert np.all(s2[stuck] == s[stuck]) and np.all(run.blocked[stuck])
+    assert run.boxes == []
+
+
+@pytest.mark.parametrize("params", [
+    PrimitiveParams(),
+    PrimitiveParams(mode="until_state_change", pose_noise_xy=0.03, pose_noise_yaw=0.02,
+                    pose_noise_persistence=0.8),
+], ids=["exact pose", "localization error that persists"])
+def test_an_undone_move_puts_the_robot_back(params) -> None:
+    """hold / undo: after a primitive is taken back the true pose and the believed pose
+    are those held before it (the set-down is upright at rest), and so is a persistent
+    localization error."""
+    lab = PhysicsLab(load_arena("table"), _lattice(), params)
+    walker = lab.walker("truth")
+    try:
+        walker.reset(None, np.random.default_rng(0))
+        rng = np.random.default_rng(1)
+        walker.step(0, rng)
+        held = walker.hold()
+        believed = walker.believed_pose().copy()
+        out = walker.step(0, rng)
+        assert np.linalg.norm(out.truth_after[:2] - held[0][:2]) > 0.05  # it moved
+        walker.undo(held)
+        np.testing.assert_allclose(walker.world.pose(), held[0], atol=1e-6)
+        np.testing.assert_allclose(walker.believed_pose(), believed, atol=1e-9)
+        np.testing.assert_array_equal(walker.hold()[2], held[2])
+        assert np.any(held[2] != 0) == bool(params.pose_noise_persistence)
+    finally:
+        walker.close()
+
+
+def test_removing_a_passage_needs_the_truth_pose() -> None:
+    change = PhysicsChange(0, "passages", passages=((12, 13),), closing="remove")
+    with pytest.raises(ConfigError, match="takes moves back") as err:
+        PhysicsTask((1,), (0,), 1, (change,), pose_source="mcl")
+    assert err.value.key == "closing"
+    with pytest.raises(ConfigError, match="unknown passage closing"):
+        PhysicsChange(0, "passages", passages=((12, 13),), closing="wall")
