@@ -31,11 +31,15 @@ Metrics per task ``T`` and arm ``A``: ``T_A_real`` / ``T_A_twin`` total reward (
 runs) and ``T_A_twin_vs_real`` their ratio; with a change ``T_A_real_after`` /
 ``T_A_twin_after``; ``T_rank_agrees`` 1 when the twin orders every pair of arms that the real
 model's runs separate (Welch's test at 5 %, on the post-change totals, or the totals for
-``stable``) as the real model does, else 0 (:func:`order_disagreements`), with
-``T_rank_pairs_judged`` the pairs so separated and ``T_rank_pairs_wrong`` how many of them
-the twin orders the other way (named in the notes); ``T_rank_same`` 1 when the twin's mean
-rewards give exactly the real model's order, pairs within noise included; ``T_twin_blocked``
-the share of blocked primitives in the twin.
+``stable``) as the real model does, else 0, judged within each outcome of the change (the
+passage that closed; :func:`outcome_order`), with ``T_rank_pairs_judged`` the pairs so
+separated and ``T_rank_pairs_wrong`` how many of them the twin orders the other way (named
+in the notes); ``T_rank_pooled_agrees`` / ``T_rank_pooled_pairs_judged`` the same check on
+the totals pooled over the outcomes (:func:`order_disagreements`);
+``T_outcome_split_differs`` the arms whose runs fall in the outcomes in other proportions in
+the twin (:func:`outcome_split_differs`); ``T_rank_same`` 1 when the twin's mean rewards
+give exactly the real model's order, pairs within noise included; ``T_twin_blocked`` the
+share of blocked primitives in the twin.
 """
 
 from __future__ import annotations
@@ -50,7 +54,8 @@ from simlab.base.errors import ConfigError
 from simlab.experiments.context import RunContext, RunResult
 from simlab.experiments.registry import runner
 
-__all__ = ["TASKS", "LabFiles", "order_disagreements", "real_lab", "stand_in_lab", "twin"]
+__all__ = ["TASKS", "LabFiles", "order_disagreements", "outcome_order", "outcome_split_differs",
+           "real_lab", "stand_in_lab", "twin"]
 
 TASKS = ("stable", "goal", "passages")
 #: The ISIR arena's public files (module docstring).
@@ -260,6 +265,65 @@ def _totals(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
             for arm, runs in logs.items()}
 
 
+def _outcomes(logs: dict[str, list[dict[str, np.ndarray]]], at: int | None
+              ) -> dict[str, np.ndarray]:
+    """Per arm, each run's outcome of the change: its phase at the change's decision (the
+    alternative chosen by use, e.g. which passage closed; 0 for every run without one)."""
+    return {arm: np.array([int(r["phase"][at]) if at is not None else 0 for r in runs])
+            for arm, runs in logs.items()}
+
+
+def outcome_order(real: dict[str, np.ndarray], twin: dict[str, np.ndarray],
+                  real_outcome: dict[str, np.ndarray], twin_outcome: dict[str, np.ndarray],
+                  *, alpha: float = 0.05) -> tuple[int, list[tuple[int, str, str]]]:
+    """:func:`order_disagreements` within each outcome of the change: the runs of each arm
+    that ended in outcome ``k`` (``*_outcome``, e.g. the passage that closed) on the real
+    model against those that ended in it in the twin. A pair is judged in ``k`` when the
+    real model's runs there separate it and the twin has runs of both arms there.
+
+    Decision: where a change has alternatives chosen by use (the published closed
+    passage: the more used of two), a run's reward after the change depends first on which
+    one happened (the ISIR lab's real model, published protocol, root seed 0, MF: 24-56
+    after the 20-21 passage closes against 92-126 after 6-7 closes), and which one happens
+    is a draw of the runs before it (there 4 of 10 MF runs closed 6-7, 6 of 10 in the twin:
+    Fisher's test cannot tell the two apart). Pooled, the arms' mean totals then order by how many runs
+    each drew of the easy alternative, which says little of the twin; within an outcome the
+    arms meet the same changed world. Returns (pairs judged, (outcome, arm, arm) the twin
+    orders the other way)."""
+    judged, wrong = 0, []
+    for k in sorted({int(x) for v in real_outcome.values() for x in v}):
+        r = {a: real[a][real_outcome[a] == k] for a in real}
+        t = {a: twin[a][twin_outcome[a] == k] for a in real}
+        present = [a for a in real if t[a].size]
+        n, bad = order_disagreements({a: r[a] for a in present}, {a: t[a] for a in present},
+                                     alpha=alpha)
+        judged += n
+        wrong += [(k, a, b) for a, b in bad]
+    return judged, wrong
+
+
+def outcome_split_differs(real_outcome: dict[str, np.ndarray],
+                          twin_outcome: dict[str, np.ndarray], *, alpha: float = 0.05
+                          ) -> list[str]:
+    """The arms whose runs end in the change's outcomes in other proportions in the twin
+    than on the real model (Fisher's exact test with two outcomes, the chi-squared test of
+    the 2 x K table with more; ``scipy.stats``), at ``alpha``."""
+    from scipy.stats import chi2_contingency, fisher_exact
+
+    out = []
+    for arm in real_outcome:
+        ks = sorted({int(x) for x in np.r_[real_outcome[arm], twin_outcome[arm]]})
+        if len(ks) < 2:
+            continue
+        table = np.array([[int(np.sum(o[arm] == k)) for k in ks]
+                          for o in (real_outcome, twin_outcome)])
+        p = (fisher_exact(table).pvalue if len(ks) == 2
+             else chi2_contingency(table).pvalue)
+        if p < alpha:
+            out.append(arm)
+    return out
+
+
 def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any],
                  real_logs: dict[str, Any], sim_logs: dict[str, Any], change_at: int | None
                  ) -> tuple[dict[str, Any], str]:
@@ -275,20 +339,43 @@ def _arm_metrics(task: str, real: dict[str, Any], sim: dict[str, Any],
             m[f"{task}_{arm}_real_after"] = r["reward_after"]["mean"]
             m[f"{task}_{arm}_twin_after"] = t["reward_after"]["mean"]
     totals_real, totals_twin = _totals(real_logs, change_at), _totals(sim_logs, change_at)
-    judged, wrong = order_disagreements(totals_real, totals_twin)
+    out_real, out_twin = _outcomes(real_logs, change_at), _outcomes(sim_logs, change_at)
+    judged, wrong = outcome_order(totals_real, totals_twin, out_real, out_twin)
     m[f"{task}_rank_agrees"] = float(not wrong)
     m[f"{task}_rank_pairs_judged"] = judged
     m[f"{task}_rank_pairs_wrong"] = len(wrong)
+    pooled_judged, pooled_wrong = order_disagreements(totals_real, totals_twin)
+    m[f"{task}_rank_pooled_agrees"] = float(not pooled_wrong)
+    m[f"{task}_rank_pooled_pairs_judged"] = pooled_judged
+    split = outcome_split_differs(out_real, out_twin)
+    m[f"{task}_outcome_split_differs"] = len(split)
     order_real = [totals_real[arm].mean() for arm in real["arms"]]
     order_twin = [totals_twin[arm].mean() for arm in real["arms"]]
     m[f"{task}_rank_same"] = float(np.array_equal(np.argsort(order_real, kind="stable"),
                                                   np.argsort(order_twin, kind="stable")))
     m[f"{task}_twin_blocked"] = float(np.mean([a["blocked"] for a in
                                                sim["physics"]["arms"].values()]))
-    note = (f"{task}: the real model's runs separate {judged} pair(s) of arms; the twin "
-            + (f"orders {', '.join(f'{a} / {b}' for a, b in wrong)} the other way."
-               if wrong else "orders them all as the real model does."))
+    outcomes = sorted({int(x) for v in out_real.values() for x in v})
+    by = " within the change's outcomes" if len(outcomes) > 1 else ""
+    note = (f"{task}: the real model's runs separate {judged} pair(s) of arms{by}; the twin "
+            + (f"orders {', '.join(f'{a} / {b} (outcome {k})' for k, a, b in wrong)} the "
+               "other way." if wrong else "orders them all as the real model does."))
+    if len(outcomes) > 1 or any(x not in outcomes for v in out_twin.values() for x in v):
+        shares = "; ".join(
+            f"{arm} {_split(out_real[arm])} real, {_split(out_twin[arm])} twin"
+            for arm in out_real)
+        note += (f" Runs per outcome (phase: runs): {shares}"
+                 + (f"; the split differs (5 %) for {', '.join(split)}." if split else
+                    "; no arm's split differs at 5 %.")
+                 + f" Pooled over the outcomes, {pooled_judged} pair(s) are separated and "
+                 + (f"{len(pooled_wrong)} ordered the other way." if pooled_wrong
+                    else "all ordered as the real model does."))
     return m, note
+
+
+def _split(outcome: np.ndarray) -> str:
+    ks, n = np.unique(outcome, return_counts=True)
+    return "/".join(f"{k}: {c}" for k, c in zip(ks, n, strict=True))
 
 
 def _comparison_figure(rows: list[dict[str, Any]], path: Path) -> Path:

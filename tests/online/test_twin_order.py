@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from simlab.online.twin import _totals, order_disagreements
+from simlab.online.twin import (
+    _outcomes,
+    _totals,
+    order_disagreements,
+    outcome_order,
+    outcome_split_differs,
+)
 
 
 def _runs(totals: list[float], at: int = 0) -> list[dict[str, np.ndarray]]:
@@ -42,3 +48,41 @@ def test_totals_count_the_rewards_after_the_change() -> None:
     logs = {"mb": _runs([40.0, 44.0], at=3)}
     np.testing.assert_allclose(_totals(logs, 3)["mb"], [40.0, 44.0])
     np.testing.assert_allclose(_totals(logs, None)["mb"], [55.0, 59.0])
+
+
+def test_the_order_is_judged_within_each_outcome_of_the_change() -> None:
+    """Two outcomes (1: a hard change, 2: an easy one). On the real model MB beats MF in
+    outcome 1; in the twin too, but the twin drew outcome 2 for most MF runs, so MF's pooled
+    mean passes MB's: pooled the pair is judged wrong, within the outcomes it is right."""
+    real = {"mb": np.array([100.0, 102, 98, 101, 99, 100, 97, 103]),
+            "mf": np.array([40.0, 42, 38, 41, 39, 40, 120, 118])}
+    real_k = {"mb": np.ones(8, int), "mf": np.r_[np.ones(6, int), 2, 2]}
+    twin = {"mb": np.array([90.0, 92, 88, 91, 89, 90, 87, 93]),
+            "mf": np.array([30.0, 130, 128, 131, 129, 130, 127, 133])}
+    twin_k = {"mb": np.ones(8, int), "mf": np.r_[1, np.full(7, 2)]}
+    assert order_disagreements(real, twin)[1] == [("mb", "mf")]
+    assert outcome_order(real, twin, real_k, twin_k) == (1, [])
+    # Within outcome 1 a twin that inverts the pair is caught.
+    twin_bad = {"mb": twin["mb"] - 70.0, "mf": twin["mf"]}
+    assert outcome_order(real, twin_bad, real_k, twin_k) == (1, [(1, "mb", "mf")])
+    # An outcome the twin has no MB run in judges nothing there (outcome 2: MB absent on
+    # the real model too).
+    assert outcome_order(real, twin, real_k, {"mb": np.full(8, 2), "mf": twin_k["mf"]}) == (
+        0, [])
+
+
+def test_a_split_of_the_outcomes_is_told_apart_only_beyond_chance() -> None:
+    """Fisher's exact test: 4 of 10 against 6 of 10 is chance (p = 0.66); 0 of 10 against
+    10 of 10 is not (p = 1.1e-5)."""
+    def k(n2: int) -> np.ndarray:
+        return np.r_[np.ones(10 - n2, int), np.full(n2, 2)]
+
+    assert outcome_split_differs({"mf": k(4)}, {"mf": k(6)}) == []
+    assert outcome_split_differs({"mf": k(0), "mb": k(0)}, {"mf": k(10), "mb": k(0)}) == ["mf"]
+
+
+def test_a_runs_outcome_is_its_phase_at_the_change() -> None:
+    logs = {"mf": [{"phase": np.r_[np.zeros(3, int), np.full(4, 2)]},
+                   {"phase": np.r_[np.zeros(3, int), np.full(4, 1)]}]}
+    np.testing.assert_array_equal(_outcomes(logs, 3)["mf"], [2, 1])
+    np.testing.assert_array_equal(_outcomes(logs, None)["mf"], [0, 0])
