@@ -251,6 +251,12 @@ def _physics_markdown(phys: dict[str, Any], change: bool) -> list[str]:
         split = (f"{a['blocked_before']:.3f} / {a['blocked_after']:.3f}" if change else "-")
         lines.append(f"| {name} | {a['blocked']:.3f} | {split} | "
                      f"{a['robot_hours']['mean']:.2f} | {a['decisions_per_wall_second']:.0f} |")
+    undone = {name: a["undone_after"] for name, a in phys["arms"].items()
+              if a.get("undone_after")}
+    if undone:
+        lines.append("\nMoves taken back across a passage closed by removing its transitions, "
+                     "per decision after the change: "
+                     + ", ".join(f"{name} {u:.3f}" for name, u in undone.items()) + ".")
     for box in phys["boxes"]:
         x, y, sx, sy, yaw = box
         lines.append(f"\nBox added: centre ({x:.2f}, {y:.2f}) m, {sx:.2f} x {sy:.2f} m, yaw "

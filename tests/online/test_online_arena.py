@@ -147,6 +147,30 @@ def test_online_in_physics_end_to_end(table_states: Path, tmp_path: Path, capsys
     assert "## In physics" in (out / "summary.md").read_text()
 
 
+def test_a_passage_removed_from_the_command_line(table_states: Path, tmp_path: Path) -> None:
+    """``--closing remove``: no box, the passage 11 <-> 12 is never crossed after the
+    change, the summary's moves taken back are those of the ``undone`` column."""
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "run"
+    argv = ["online", "--arena", "table", "--states", str(table_states), "--out", str(out),
+            "--decisions", "40", "--seeds", "1", "--criteria", "mb", "--goal", "12",
+            "--start-states", "11", "--change", "passages", "--passages", "11-12",
+            "--closing", "remove", "--change-at", "4", "--workers", "1", "--no-progress"]
+    assert main(argv) == 0
+    rows = pq.read_table(out / "decisions.parquet").to_pandas()
+    after = rows[rows.t >= 4]
+    crossed = after[((after.s == 11) & (after.s_next == 12))
+                    | ((after.s == 12) & (after.s_next == 11))]
+    assert crossed.empty and after.undone.sum() > 0
+    summary = json.loads((out / "summary.json").read_text())
+    rec = summary["physics"]["arms"]["mb"]
+    assert rec["undone_after"] == pytest.approx(after.undone.mean())
+    assert summary["physics"]["boxes"] == []
+    assert summary["change"] == "passages 11<->12 closed (transitions removed) at decision 4"
+    assert "Moves taken back" in (out / "summary.md").read_text()
+
+
 @pytest.mark.parametrize(("argv", "key"), [
     (["--arena", "table"], "states"),
     (["MDP", "--arena", "table", "--states", "S"], "mdp"),
