@@ -18,8 +18,8 @@ records the ensemble's size and each run's member (``physics.ensemble``).
 
 Decisions: the passages of ``--change passages`` are closed by boxes on their doorways
 (:mod:`simlab.online.doorway`), or with ``--closing remove`` as the published experiment's
-edited models close them, their transitions removed (:mod:`simlab.online.physics`); ``--after`` (a second model) has no physics meaning and is
-refused. Progress counts decisions over every run (workers report every
+edited models close them, their transitions removed (:mod:`simlab.online.physics`);
+``--after`` (a second model) has no physics meaning and is refused. Progress counts decisions over every run (workers report every
 :data:`REPORT_EVERY` decisions).
 """
 

@@ -262,8 +262,8 @@ class PhysicsRun:
     decision ``blocked`` (n,) bool, the simulated ``duration`` (n,) s (primitive and
     decision latency; 0 for the published goal decision, whose move is the restart), the
     true position after it ``xy`` (n, 2) m and ``undone`` (n,) the moves taken back across
-    a removed passage (the last attempt's duration is the decision's); ``robot_seconds`` simulated,
-    ``wall_seconds``, ``boxes`` the boxes added ``(x, y, size_x, size_y, yaw)``,
+    a removed passage (the last attempt's duration is the decision's); ``robot_seconds``
+    simulated, ``wall_seconds``, ``boxes`` the boxes added ``(x, y, size_x, size_y, yaw)``,
     ``mcl_field`` the :class:`~simlab.localization.likelihood.LikelihoodField` the filter
     used last (None for ``truth``)."""
 
@@ -278,7 +278,8 @@ class PhysicsRun:
     mcl_field: Any = None
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The log's columns and the physics' own (``blocked``, ``duration``, ``x``, ``y``),
+        """The log's columns and the physics' own (``blocked``, ``duration``, ``x``, ``y``,
+        ``undone``),
         and the run's ``restarts`` and ``use_counts``."""
         return {**self.log.columns(), "blocked": self.blocked, "duration": self.duration,
                 "x": self.xy[:, 0], "y": self.xy[:, 1], "undone": self.undone,

@@ -25,7 +25,8 @@ Runner ``online.twin`` (``experiments/online_isir_twin.toml``):
    (:mod:`simlab.online.physics`), since the real model's after-change world is the same
    model with those transitions removed and its rows renormalised, not a lab with a box
    in it; ``closing = "box"`` puts a box on the doorway instead (the physical closing,
-   whose blocked and deflected moves the real files do not have).
+   whose blocked and deflected moves the real files do not have; on the ISIR lab, root seed
+   0, the two give the same order of the arms and rewards within a run's spread).
 
 Metrics per task ``T`` and arm ``A``: ``T_A_real`` / ``T_A_twin`` total reward (mean over
 runs) and ``T_A_twin_vs_real`` their ratio; with a change ``T_A_real_after`` /
@@ -214,7 +215,7 @@ def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any],
     twin. On the real model a change swaps in the lab's after-change models when it has
     them (the published protocol: the goal's model, or one model per passage of which the
     more used passage's happens, counted by decisions in ``use_states``); in the twin the
-    goal moves, or a box closes the more used passage's doorway."""
+    goal moves, or the more used passage closes by ``closing`` (module docstring)."""
     opts: dict[str, Any] = {"change_at": lab.change_at}
     if task == "goal":
         opts.update(change="goal", new_goal=list(lab.new_goal))
