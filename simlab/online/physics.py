@@ -115,6 +115,11 @@ class PhysicsChange:
         closed (``use_states``), else 1."""
         return len(self.passages) if self.use_states else 1
 
+    def closed(self, k: int) -> tuple[tuple[int, int], ...]:
+        """The passages outcome ``k`` closes: the ``k``-th when the more used one is closed
+        (``use_states``), else all of them."""
+        return self.passages[k:k + 1] if self.use_states else self.passages
+
     def describe(self) -> str:
         if self.kind == "goal":
             return f"goal -> {'+'.join(map(str, self.goal))} at decision {self.at}"
@@ -222,11 +227,10 @@ class PhysicsLab:
         if change.kind != "passages" or change.closing == "remove":
             return [[]] * change.alternatives()
         d = self.discretizer
-        boxes = []
-        for u, v in change.passages:
-            door = doorway(self.arena.occupied, d.state_of, np.asarray(d.centres), u, v)
-            boxes.append((door.x, door.y, door.length, door.thickness, door.yaw))
-        return [[b] for b in boxes] if change.use_states else [boxes]
+        doors = {p: doorway(self.arena.occupied, d.state_of, np.asarray(d.centres), *p)
+                 for p in change.passages}
+        return [[(doors[p].x, doors[p].y, doors[p].length, doors[p].thickness, doors[p].yaw)
+                 for p in change.closed(k)] for k in range(change.alternatives())]
 
 
 @dataclass(frozen=True)
@@ -440,7 +444,7 @@ class _Changes:
             if c.kind == "goal":
                 self.goal = np.isin(np.arange(self.n_states), c.goal)
             if c.kind == "passages" and c.closing == "remove":
-                for u, v in (c.passages[k:k + 1] if c.use_states else c.passages):
+                for u, v in c.closed(k):
                     self.cut[u, v] = self.cut[v, u] = True
             for box in outcomes[k]:
                 world.add_box(box)

@@ -210,7 +210,7 @@ def _twin_primitives(p: dict[str, Any], budget: dict[str, Any], lab: LabFiles,
 
 
 def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any],
-                  closing: str = "remove") -> dict[str, Any]:
+                  closing: str | None = None) -> dict[str, Any]:
     """The ``simlab online`` options of one task on the real model (``real``) or in the
     twin. On the real model a change swaps in the lab's after-change models when it has
     them (the published protocol: the goal's model, or one model per passage of which the
@@ -227,7 +227,7 @@ def _task_options(task: str, lab: LabFiles, *, real: bool, mdps: dict[str, Any],
             opts.update(change="model", after=[str(p) for p in mdps["passages"]])
         else:
             opts.update(change="passages", passages=list(lab.passages))
-            if not real:
+            if closing is not None:
                 opts["closing"] = closing
     return opts
 
@@ -287,16 +287,15 @@ def outcome_order(real: dict[str, np.ndarray], twin: dict[str, np.ndarray],
     one happened (the ISIR lab's real model, published protocol, root seed 0, MF: 24-56
     after the 20-21 passage closes against 92-126 after 6-7 closes), and which one happens
     is a draw of the runs before it (there 4 of 10 MF runs closed 6-7, 6 of 10 in the twin:
-    Fisher's test cannot tell the two apart). Pooled, the arms' mean totals then order by how many runs
-    each drew of the easy alternative, which says little of the twin; within an outcome the
-    arms meet the same changed world. Returns (pairs judged, (outcome, arm, arm) the twin
+    Fisher's test cannot tell the two apart). Pooled, the arms' mean totals then order by
+    how many runs each drew of the easy alternative, which says little of the twin; within
+    an outcome the arms meet the same changed world. Returns (pairs judged, (outcome, arm, arm) the twin
     orders the other way)."""
     judged, wrong = 0, []
     for k in sorted({int(x) for v in real_outcome.values() for x in v}):
-        r = {a: real[a][real_outcome[a] == k] for a in real}
-        t = {a: twin[a][twin_outcome[a] == k] for a in real}
-        present = [a for a in real if t[a].size]
-        n, bad = order_disagreements({a: r[a] for a in present}, {a: t[a] for a in present},
+        present = [a for a in real if np.any(twin_outcome[a] == k)]
+        n, bad = order_disagreements({a: real[a][real_outcome[a] == k] for a in present},
+                                     {a: twin[a][twin_outcome[a] == k] for a in present},
                                      alpha=alpha)
         judged += n
         wrong += [(k, a, b) for a, b in bad]
