@@ -17,7 +17,10 @@ Two labs (``--lab``):
   physics walk with hidden settings: the check that a known robot is recovered. The
   hidden robot holds what the real lab taught (a drifting localization error, a stop at
   the localization's rate, slides and back-offs at walls) and effects the twin cannot
-  represent (per-tick wheel noise, a random slip).
+  represent (per-tick wheel noise, a random slip). Calibrate runs with its profile
+  (``--profile-step 0.25`` unless ``--calibrate-args`` gives one), and every searched field's
+  hidden value (its setting here, else the default it walked with) is checked against the
+  spread the report states for it: the values the profile's moves do not exclude.
 
 ``--compare-hz HZ`` runs the same calibration a second time with ``HZ`` as the default
 physics rate (every walk of it, in every worker: ``benchmarks/rate_arm.py``), right after
@@ -400,6 +403,56 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
               f"<= +5 %); goals with a start that never arrives: {never}")
 
 
+#: The profile's move on the synthetic lab, as a share of each field's range: the spread the
+#: report states is what the moves of this size leave (simlab.calibration.profile).
+PROFILE_STEP = 0.25
+
+
+def recovery(rep: dict) -> list[dict[str, Any]]:
+    """Per searched field: the hidden robot's value (its :data:`HIDDEN` setting, else the
+    primitives' default it walked with), the twin's, and whether the hidden value lies in
+    the spread calibrate's report states for it (the profile's allowed values)."""
+    from simlab.physics.motion import PrimitiveParams
+
+    robot = PrimitiveParams(**HIDDEN)
+    prof = {f["field"]: f for f in (rep.get("profile") or {}).get("fields", [])}
+    out = []
+    for spec in rep["space"]:
+        name = spec["name"]
+        truth, allowed = getattr(robot, name), (prof.get(name) or {}).get("allowed")
+        if allowed is None:
+            inside = None
+        elif isinstance(truth, str):
+            inside = truth in allowed
+        else:
+            inside = allowed[0] - 1e-9 <= truth <= allowed[1] + 1e-9
+        out.append({"field": name, "hidden": truth, "twin": rep["params"][name],
+                    "allowed": allowed, "told": (prof.get(name) or {}).get("told"),
+                    "inside": inside})
+    return out
+
+
+def print_recovery(found: list[list[dict[str, Any]]]) -> None:
+    """The last seed's hidden fields against the stated spread, then the count over seeds."""
+    def v(x: Any) -> str:
+        return x if isinstance(x, str) else f"{x:.4g}"
+
+    print("\nhidden robot against the spread the report states (the profile's allowed "
+          "values; target: every field inside):")
+    print("field | hidden | twin | told | allowed | inside")
+    for r in found[-1]:
+        a = r["allowed"]
+        shown = "n/a" if a is None else (", ".join(a) if isinstance(r["hidden"], str) else
+                                         f"{v(a[0])} - {v(a[1])}")
+        print(f"{r['field']} | {v(r['hidden'])} | {v(r['twin'])} | {r['told']} | {shown} | "
+              f"{r['inside']}")
+    fields = [r["field"] for r in found[0]]
+    tally = ", ".join(f"{n} {sum(bool(f[k]['inside']) for f in found)}/{len(found)}"
+                      for k, n in enumerate(fields))
+    every = sum(all(r["inside"] for r in f) for f in found)
+    print(f"inside, seeds: {tally}; every field inside on {every} of {len(found)} seeds")
+
+
 def synthetic(args: argparse.Namespace) -> None:
     """The synthetic lab (module docstring)."""
     from simlab.calibration.signature import real_signature
@@ -428,7 +481,9 @@ def synthetic(args: argparse.Namespace) -> None:
     print(f"real signature: self-transition share {sig.self_share:.2f}, mean entropy "
           f"{sig.mean_entropy:.2f} bits, {sig.pairs_visited}/{sig.pairs} pairs, "
           f"{sig.states_visited}/{sig.states} states")
-    rows = []
+    if "--profile-step" not in args.calibrate_args:   # the spread the report states
+        args.calibrate_args += f" --profile-step {PROFILE_STEP}"
+    rows, found = [], []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         out = root / ("cal" if args.seeds == 1 else f"cal-seed{seed}")
         rep, wall, load = run_calibrate(real_csv, states, arena, f"{info['hours']:.4f}", out,
@@ -436,17 +491,15 @@ def synthetic(args: argparse.Namespace) -> None:
         print_calibration(rep, wall, load)
         rows.append(seed_row(seed, rep, wall, load))
         print_seeds(rows)
-        hidden = {k: v for k, v in HIDDEN.items() if k in rep["params"]}
-        print(f"hidden {hidden}\nfound  { {k: rep['params'][k] for k in hidden} }")
+        found.append(recovery(rep))
+        print_recovery(found)
     if args.seeds > 1:
         print(f"files in {root}")
         return
     compare_rate(args, lambda out, env: run_calibrate(
         real_csv, states, arena, f"{info['hours']:.4f}", out, args, reuse=args.reuse,
         env=env), root, rep, wall)
-    hidden = {k: v for k, v in HIDDEN.items() if k in rep["params"]}
-    found = {k: rep["params"][k] for k in hidden}
-    print(f"hidden {hidden}\nfound  {found}\nfiles in {root}")
+    print(f"files in {root}")
 
 
 def main() -> None:

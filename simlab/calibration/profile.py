@@ -17,6 +17,14 @@ move changes the score by more than :data:`TOLD_BAND` ``sigma``, the 95 % half-w
 difference of two independent walks (``1.96 * sqrt(2)``; walks on one seed differ less, so
 this errs towards "not told"). Each point costs one confirming walk: ``2 d`` more walks for
 ``d`` fields (an option of calibrate, ``--profile-step``).
+
+The profile also says where the robot's value can be (:attr:`FieldProfile.allowed`): a move
+that raised the score beyond the band excludes the values past it (the score worsens
+further out as it worsened there, which holds for a score with one basin along the field);
+any other move excludes nothing on its side, as far as the searched range (nothing was
+measured further out). So a field told on both sides is bounded by its two moves, a field
+not told keeps its whole range: that interval is what the report states as the spread the
+data allow, and what the synthetic lab's benchmark checks its hidden robot against.
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simlab.calibration.search import Candidate, evaluate_points, walk_size
-from simlab.calibration.space import ParameterSpace
+from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.calibration.walks import WalkRunner
 
 #: A move changes the score beyond sampling when by more than this many walk-to-walk
@@ -50,12 +58,45 @@ class FieldMove:
 @dataclass(frozen=True)
 class FieldProfile:
     """A field's moves from the winner's ``value``; ``told``: a move changed the score
-    beyond sampling (None when the spread is unknown)."""
+    beyond sampling (None when the spread is unknown); ``allowed``: the values the moves
+    do not exclude (module docstring): ``(low, high)`` of a numeric field, the choices
+    left of a named one; None when not measured."""
 
     name: str
     value: Any
     moves: tuple[FieldMove, ...]
     told: bool | None
+    allowed: tuple[Any, ...] | None = None
+
+    def admits(self, value: Any) -> bool | None:
+        """Whether ``value`` is among the values the profile allows (None: not measured)."""
+        if self.allowed is None:
+            return None
+        if isinstance(self.value, str):
+            return value in self.allowed
+        low, high = self.allowed
+        return bool(low - 1e-12 <= float(value) <= high + 1e-12)
+
+
+def allowed_values(spec: ParamSpec, value: Any, mine: list[FieldMove],
+                   limit: float) -> tuple[Any, ...] | None:
+    """What a field's moves ``mine`` from the winner's ``value`` do not exclude, a move
+    excluding when it raised the score by more than ``limit`` (module docstring); None
+    when ``limit`` is not finite (the spread unknown)."""
+    if not math.isfinite(limit):
+        return None
+    worse = [m for m in mine if m.score_change > limit]
+    if spec.categorical:
+        assert spec.choices is not None
+        out = {m.value for m in worse}
+        return tuple(c for c in spec.choices if c not in out)
+    low, high = float(spec.low), float(spec.high)
+    for m in worse:
+        if m.value < value:
+            low = max(low, float(m.value))
+        elif m.value > value:
+            high = min(high, float(m.value))
+    return (low, high)
 
 
 @dataclass(frozen=True)
@@ -91,6 +132,7 @@ class Profile:
                 "distance": num(self.distance), "score": num(self.score),
                 "sigma": num(self.sigma), "band": TOLD_BAND,
                 "fields": [{"field": f.name, "value": f.value, "told": f.told,
+                            "allowed": None if f.allowed is None else list(f.allowed),
                             "moves": [{"value": m.value, "distance_change": m.distance_change,
                                        "score_change": m.score_change} for m in f.moves]}
                            for f in self.fields]}
@@ -147,7 +189,9 @@ def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
                 for (j, _u), c in zip(points, done, strict=True) if j == k]
         told = None if not math.isfinite(sigma) else any(
             abs(m.score_change) > TOLD_BAND * sigma for m in mine)
-        fields.append(FieldProfile(spec.name, winner.values[spec.name], tuple(mine), told))
+        value = winner.values[spec.name]
+        fields.append(FieldProfile(spec.name, value, tuple(mine), told,
+                                   allowed_values(spec, value, mine, TOLD_BAND * sigma)))
     return Profile(step=float(step), seed=int(base.seed), transitions=int(base.sim.rows),
                    distance=base.distance, score=base.score, sigma=sigma,
                    fields=tuple(fields))

@@ -273,6 +273,8 @@ def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
     members = result.ensemble
     imp = result.search.importance if result.search is not None else {}
     measured = {} if result.profile is None else result.profile.verdicts()
+    allowed = {} if result.profile is None else {f.name: f.allowed
+                                                 for f in result.profile.fields}
     rows = []
     for k, spec in enumerate(result.space.specs):
         units = np.array([c.unit[k] for c in members]) if members else np.zeros(0)
@@ -285,6 +287,8 @@ def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
             told = bool(measured[spec.name])
         row: dict[str, Any] = {"field": spec.name, "span_of_range": _fin(width),
                                "importance": share, "told": told}
+        if allowed.get(spec.name) is not None:
+            row["allowed"] = list(allowed[spec.name])
         if spec.categorical:
             row["values"] = sorted(set(vals))
         else:
@@ -616,13 +620,17 @@ def profile_section(result: CalibrationResult) -> str:
               f"distance there {prof.distance:.4f}, score {prof.score:.4f}): the change of "
               f"distance and of score, against the score's spread from walk to walk "
               f"({sigma}). A field is told when a move changes the score by more than "
-              f"{TOLD_BAND:.2f} times that spread:\n\n| field | winner | moved to: "
-              "distance / score change | told |\n|---|---|---|---|\n")
+              f"{TOLD_BAND:.2f} times that spread. A move that raised the score by more "
+              "excludes the values past it; the last column is what is left, the spread the "
+              "data allow (a field not told keeps its searched range: nothing was measured "
+              "further out):\n\n| field | winner | moved to: distance / score change | told "
+              "| the robot's value can be |\n|---|---|---|---|---|\n")
     for f in prof.fields:
         moved = "; ".join(f"{_value(m.value)}: {m.distance_change:+.4f} / "
                           f"{m.score_change:+.4f}" for m in f.moves) or "n/a"
         told = "n/a" if f.told is None else ("yes" if f.told else "**not told**")
-        out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} |\n")
+        out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} | "
+                  f"{_allowed(f.allowed)} |\n")
     if told_space_toml(result) is not None:
         out.write("\nThe fields not told are this twin's values, not the robot's: "
                   "`told_space.toml` holds the space of the told ones, so `simlab calibrate "
@@ -630,6 +638,15 @@ def profile_section(result: CalibrationResult) -> str:
                   "those, the others held here.\n")
     out.write("\n")
     return out.getvalue()
+
+
+def _allowed(allowed: tuple[Any, ...] | None) -> str:
+    """A profile's allowed values as the report writes them."""
+    if allowed is None:
+        return "n/a"
+    if allowed and isinstance(allowed[0], str):
+        return ", ".join(allowed)
+    return f"{_value(allowed[0])} - {_value(allowed[1])}"
 
 
 def told_space_toml(result: CalibrationResult) -> str | None:

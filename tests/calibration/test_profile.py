@@ -12,7 +12,14 @@ import pytest
 from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.calibration.config import CalibrationConfig
-from simlab.calibration.profile import TOLD_BAND, FieldProfile, Profile, moves
+from simlab.calibration.profile import (
+    TOLD_BAND,
+    FieldMove,
+    FieldProfile,
+    Profile,
+    allowed_values,
+    moves,
+)
 from simlab.calibration.report import profile_section, report_json, write_outputs
 from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.calibration.stages import calibrate
@@ -61,6 +68,10 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
             moved = space.specs[k].unit(m.value)
             assert abs(moved - winner.unit[k]) == pytest.approx(0.25) or moved in (0.0, 1.0)
         assert f.told == any(abs(m.score_change) > TOLD_BAND * prof.sigma for m in f.moves)
+        # the winner is among the values the profile allows; a field not told keeps its range
+        assert f.admits(f.value) is True
+        if f.told is False:
+            assert f.allowed == (space.specs[k].low, space.specs[k].high)
     # a quarter of the drive time's (log) range moves every cell-crossing move: told
     assert prof.verdicts()["drive_time"] is True
     # the report says it, and records it
@@ -68,12 +79,40 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
     assert "What the real table can tell" in text and "| drive_time |" in text
     doc = json.loads(json.dumps(report_json(res)))
     assert doc["profile"]["fields"][0]["field"] == "drive_time"
+    assert doc["profile"]["fields"][0]["allowed"] == list(prof.fields[0].allowed)
+    assert "the robot's value can be" in text
     assert math.isclose(doc["profile"]["sigma"], prof.sigma)
     # the space of the told fields is written when some field is not told
     files = write_outputs(res, tmp_path / "cal", plot=False)
     untold = [n for n, v in prof.verdicts().items() if v is not True]
     assert ("told_space.toml" in files) == bool(untold)
     assert (tmp_path / "cal" / "told_space.toml").exists() == bool(untold)
+
+
+def test_a_move_that_worsens_the_score_beyond_the_band_excludes_the_values_past_it() -> None:
+    spec = ParamSpec("x", 0.0, 1.0)
+
+    def m(value: float, change: float) -> FieldMove:
+        return FieldMove(value, 0.0, change)
+
+    # both moves worse beyond the limit: the robot's value lies between them
+    assert allowed_values(spec, 0.5, [m(0.25, 0.02), m(0.75, 0.03)], 0.01) == (0.25, 0.75)
+    # one side within the limit: that side is open to the searched range's end
+    assert allowed_values(spec, 0.5, [m(0.25, 0.005), m(0.75, 0.03)], 0.01) == (0.0, 0.75)
+    # a move that lowers the score (the winner is not the bottom there) excludes nothing
+    assert allowed_values(spec, 0.5, [m(0.25, -0.05), m(0.75, 0.03)], 0.01) == (0.0, 0.75)
+    # at a bound the one move bounds its side, the other side is the bound itself
+    assert allowed_values(spec, 1.0, [m(0.75, 0.02)], 0.01) == (0.75, 1.0)
+    # no spread, no statement
+    assert allowed_values(spec, 0.5, [m(0.25, 0.02)], math.nan) is None
+    # a named field loses the choices whose move was worse
+    mode = ParamSpec("mode", choices=("a", "b", "c"))
+    assert allowed_values(mode, "b", [FieldMove("a", 0.0, 0.02), FieldMove("c", 0.0, 0.0)],
+                          0.01) == ("b", "c")
+    f = FieldProfile("x", 0.5, (), True, (0.25, 0.75))
+    assert (f.admits(0.3), f.admits(0.75), f.admits(0.8)) == (True, True, False)
+    assert FieldProfile("mode", "b", (), True, ("b", "c")).admits("a") is False
+    assert FieldProfile("x", 0.5, (), None).admits(0.5) is None
 
 
 def test_a_profile_needs_the_confirmation_and_a_share_of_the_range() -> None:
