@@ -18,13 +18,15 @@ difference of two independent walks (``1.96 * sqrt(2)``; walks on one seed diffe
 this errs towards "not told"). Each point costs one confirming walk: ``2 d`` more walks for
 ``d`` fields (an option of calibrate, ``--profile-step``).
 
-The profile also says where the robot's value can be (:attr:`FieldProfile.allowed`): a move
+The profile also says which values the data allow (:attr:`FieldProfile.allowed`): a move
 that raised the score beyond the band excludes the values past it (the score worsens
 further out as it worsened there, which holds for a score with one basin along the field);
 any other move excludes nothing on its side, as far as the searched range (nothing was
 measured further out). So a field told on both sides is bounded by its two moves, a field
 not told keeps its whole range: that interval is what the report states as the spread the
-data allow, and what the synthetic lab's benchmark checks its hidden robot against.
+data allow, and what the synthetic lab's benchmark checks its hidden robot against. It is
+the robot's value only as far as the twin can move as the robot does: a field can make up
+for an effect the simulator lacks, and then the data allow the value that does.
 """
 
 from __future__ import annotations

@@ -624,7 +624,7 @@ def profile_section(result: CalibrationResult) -> str:
               "excludes the values past it; the last column is what is left, the spread the "
               "data allow (a field not told keeps its searched range: nothing was measured "
               "further out):\n\n| field | winner | moved to: distance / score change | told "
-              "| the robot's value can be |\n|---|---|---|---|---|\n")
+              "| values the data allow |\n|---|---|---|---|---|\n")
     for f in prof.fields:
         moved = "; ".join(f"{_value(m.value)}: {m.distance_change:+.4f} / "
                           f"{m.score_change:+.4f}" for m in f.moves) or "n/a"
