@@ -412,6 +412,7 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
     """Per searched field: the hidden robot's value (its :data:`HIDDEN` setting, else the
     primitives' default it walked with), the twin's, and whether the hidden value lies in
     the spread calibrate's report states for it (the profile's allowed values)."""
+    from simlab.calibration.profile import FieldProfile
     from simlab.physics.motion import PrimitiveParams
 
     robot = PrimitiveParams(**HIDDEN)
@@ -419,16 +420,12 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
     out = []
     for spec in rep["space"]:
         name = spec["name"]
-        truth, allowed = getattr(robot, name), (prof.get(name) or {}).get("allowed")
-        if allowed is None:
-            inside = None
-        elif isinstance(truth, str):
-            inside = truth in allowed
-        else:
-            inside = allowed[0] - 1e-9 <= truth <= allowed[1] + 1e-9
-        out.append({"field": name, "hidden": truth, "twin": rep["params"][name],
-                    "allowed": allowed, "told": (prof.get(name) or {}).get("told"),
-                    "inside": inside})
+        truth, row = getattr(robot, name), prof.get(name) or {}
+        allowed = row.get("allowed")
+        field = FieldProfile(name, rep["params"][name], (), row.get("told"),
+                             None if allowed is None else tuple(allowed))
+        out.append({"field": name, "hidden": truth, "twin": field.value,
+                    "allowed": allowed, "told": field.told, "inside": field.admits(truth)})
     return out
 
 
@@ -451,6 +448,20 @@ def print_recovery(found: list[list[dict[str, Any]]]) -> None:
                       for k, n in enumerate(fields))
     every = sum(all(r["inside"] for r in f) for f in found)
     print(f"inside, seeds: {tally}; every field inside on {every} of {len(found)} seeds")
+
+
+def print_held(rep: dict) -> None:
+    """The fields calibrate did not search whose value differs from the hidden robot's: what
+    the twin holds (its defaults) and what it cannot represent."""
+    from simlab.physics.motion import PrimitiveParams
+
+    robot = PrimitiveParams(**HIDDEN)
+    searched = {x["name"] for x in rep["space"]} | {"decision_latency"}
+    held = {k: (getattr(robot, k), v) for k, v in rep["params"].items()
+            if k not in searched and hasattr(robot, k) and getattr(robot, k) != v}
+    print("not searched, hidden robot / twin: " + ", ".join(
+        f"{k} {h:.4g} / {t:.4g}" if not isinstance(h, str) else f"{k} {h} / {t}"
+        for k, (h, t) in held.items()))
 
 
 def synthetic(args: argparse.Namespace) -> None:
@@ -493,6 +504,7 @@ def synthetic(args: argparse.Namespace) -> None:
         print_seeds(rows)
         found.append(recovery(rep))
         print_recovery(found)
+        print_held(rep)
     if args.seeds > 1:
         print(f"files in {root}")
         return
