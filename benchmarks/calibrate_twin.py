@@ -423,9 +423,11 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
         truth, row = getattr(robot, name), prof.get(name) or {}
         allowed = row.get("allowed")
         field = FieldProfile(name, rep["params"][name], (), row.get("told"),
-                             None if allowed is None else tuple(allowed))
+                             None if allowed is None else tuple(allowed),
+                             tuple(row.get("open", (False, False))))
         out.append({"field": name, "hidden": truth, "twin": field.value,
-                    "allowed": allowed, "told": field.told, "inside": field.admits(truth)})
+                    "allowed": allowed, "open": field.open, "told": field.told,
+                    "inside": field.admits(truth), "past_range": field.past_range(truth)})
     return out
 
 
@@ -438,11 +440,14 @@ def print_recovery(found: list[list[dict[str, Any]]]) -> None:
           "values; target: every field inside):")
     print("field | hidden | twin | told | allowed | inside")
     for r in found[-1]:
-        a = r["allowed"]
+        a, (lo, hi) = r["allowed"], r["open"]
         shown = "n/a" if a is None else (", ".join(a) if isinstance(r["hidden"], str) else
-                                         f"{v(a[0])} - {v(a[1])}")
+                                         f"{'(open) ' * lo}{v(a[0])} - {v(a[1])}"
+                                         f"{' (open)' * hi}")
+        where = " (past the searched range, on a side the data leave open)" * bool(
+            r["past_range"])
         print(f"{r['field']} | {v(r['hidden'])} | {v(r['twin'])} | {r['told']} | {shown} | "
-              f"{r['inside']}")
+              f"{r['inside']}{where}")
     fields = [r["field"] for r in found[0]]
     tally = ", ".join(f"{n} {sum(bool(f[k]['inside']) for f in found)}/{len(found)}"
                       for k, n in enumerate(fields))
@@ -462,6 +467,65 @@ def print_held(rep: dict) -> None:
     print("not searched, hidden robot / twin: " + ", ".join(
         f"{k} {h:.4g} / {t:.4g}" if not isinstance(h, str) else f"{k} {h} / {t}"
         for k, (h, t) in held.items()))
+
+
+#: The walk seeds of the truth check (common random numbers for every robot it walks).
+TRUTH_SEEDS = (101, 102)
+
+
+def _truth_walk(job: tuple[str, Path, Path, Any, int, int]) -> tuple[str, int, Any]:
+    """One walk of the truth check: ``(name, seed, counts)``."""
+    from simlab.base.actions import parse_action_set
+    from simlab.calibration.walks import simulate_counts
+
+    name, arena, states, params, rows, seed = job
+    t = simulate_counts(arena, states, params, transitions=rows, seed=seed,
+                        action_set=parse_action_set(8, "ccw-east", "fast"), start_states="all")
+    return name, seed, t.counts
+
+
+def truth_check(reps: list[dict], seeds: list[int], arena: Path, states: Path,
+                counts: np.ndarray, workers: int) -> None:
+    """Where the search stopped against the truth, on common walk seeds: each seed's winner,
+    the hidden robot's searched values in that twin (its held fields kept: the best the
+    search space holds, as far as the hidden values are best there), and the hidden robot
+    itself, each walked at the confirming size on :data:`TRUTH_SEEDS`; their TV distance to
+    the real table (the mean over the seeds) against the matched floor."""
+    from concurrent.futures import ProcessPoolExecutor
+    from dataclasses import fields, replace
+
+    from simlab.calibration.metrics import tv_distance
+    from simlab.physics.motion import PrimitiveParams
+
+    known = {f.name for f in fields(PrimitiveParams)}
+    jobs = []
+    for k, rep in enumerate(reps):
+        twin = PrimitiveParams(**{n: v for n, v in rep["params"].items() if n in known})
+        default = PrimitiveParams()
+        truth = replace(twin, **{x["name"]: HIDDEN.get(x["name"], getattr(default, x["name"]))
+                                 for x in rep["space"]})
+        rows = int(rep["confirmed"][0]["rows"]) if rep.get("confirmed") else 8037
+        jobs += [(f"winner {k}", arena, states, twin, rows, s) for s in TRUTH_SEEDS]
+        jobs += [(f"in space {k}", arena, states, truth, rows, s) for s in TRUTH_SEEDS]
+    hidden = PrimitiveParams(**HIDDEN, decision_latency=float(reps[0]["params"]
+                                                              ["decision_latency"]))
+    jobs += [("hidden robot", arena, states, hidden, jobs[0][4], s) for s in TRUTH_SEEDS]
+    tv: dict[str, list[float]] = {}
+    with ProcessPoolExecutor(max(1, workers)) as pool:
+        for name, _seed, c in pool.map(_truth_walk, jobs):
+            tv.setdefault(name, []).append(tv_distance(c, counts, unvisited="max").distance)
+    matched = float(reps[0]["matched_floor"]["median"])
+
+    def cell(name: str) -> str:
+        d = float(np.mean(tv[name]))
+        return f"{d:.4f} ({d / matched:.2f}x)"
+
+    print(f"\nthe search against the truth (TV, mean of walk seeds {TRUTH_SEEDS}, / matched "
+          f"floor {matched:.4f}; the same seeds for every robot): the hidden robot itself "
+          f"{cell('hidden robot')}")
+    print("calibrate seed | winner | the hidden values in the twin's space")
+    for k, seed in enumerate(seeds):
+        print(f"{seed} | {cell(f'winner {k}')} | {cell(f'in space {k}')}")
 
 
 def synthetic(args: argparse.Namespace) -> None:
@@ -494,7 +558,7 @@ def synthetic(args: argparse.Namespace) -> None:
           f"{sig.states_visited}/{sig.states} states")
     if "--profile-step" not in args.calibrate_args:   # the spread the report states
         args.calibrate_args += f" --profile-step {PROFILE_STEP}"
-    rows, found = [], []
+    rows, found, reps = [], [], []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         out = root / ("cal" if args.seeds == 1 else f"cal-seed{seed}")
         rep, wall, load = run_calibrate(real_csv, states, arena, f"{info['hours']:.4f}", out,
@@ -505,6 +569,9 @@ def synthetic(args: argparse.Namespace) -> None:
         found.append(recovery(rep))
         print_recovery(found)
         print_held(rep)
+        reps.append(rep)
+    truth_check(reps, list(range(args.first_seed, args.first_seed + args.seeds)), arena,
+                states, counts, args.workers)
     if args.seeds > 1:
         print(f"files in {root}")
         return

@@ -273,7 +273,7 @@ def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
     members = result.ensemble
     imp = result.search.importance if result.search is not None else {}
     measured = {} if result.profile is None else result.profile.verdicts()
-    allowed = {} if result.profile is None else {f.name: f.allowed
+    allowed = {} if result.profile is None else {f.name: (f.allowed, f.open)
                                                  for f in result.profile.fields}
     rows = []
     for k, spec in enumerate(result.space.specs):
@@ -287,8 +287,9 @@ def ensemble_spread(result: CalibrationResult) -> list[dict[str, Any]]:
             told = bool(measured[spec.name])
         row: dict[str, Any] = {"field": spec.name, "span_of_range": _fin(width),
                                "importance": share, "told": told}
-        if allowed.get(spec.name) is not None:
-            row["allowed"] = list(allowed[spec.name])
+        if allowed.get(spec.name, (None,))[0] is not None:
+            row["allowed"] = list(allowed[spec.name][0])
+            row["allowed_open"] = list(allowed[spec.name][1])
         if spec.categorical:
             row["values"] = sorted(set(vals))
         else:
@@ -622,15 +623,17 @@ def profile_section(result: CalibrationResult) -> str:
               f"({sigma}). A field is told when a move changes the score by more than "
               f"{TOLD_BAND:.2f} times that spread. A move that raised the score by more "
               "excludes the values past it; the last column is what is left, the spread the "
-              "data allow (a field not told keeps its searched range: nothing was measured "
-              "further out):\n\n| field | winner | moved to: distance / score change | told "
+              "data allow (a side no move bounds is open: nothing was measured past the "
+              "searched range). Each field moves with the others at the winner's values, so "
+              "where two fields trade off the data allow more than its column says (the "
+              "other could make up for it):\n\n| field | winner | moved to: distance / score change | told "
               "| values the data allow |\n|---|---|---|---|---|\n")
     for f in prof.fields:
         moved = "; ".join(f"{_value(m.value)}: {m.distance_change:+.4f} / "
                           f"{m.score_change:+.4f}" for m in f.moves) or "n/a"
         told = "n/a" if f.told is None else ("yes" if f.told else "**not told**")
         out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} | "
-                  f"{_allowed(f.allowed)} |\n")
+                  f"{_allowed(f.allowed, f.open)} |\n")
     if told_space_toml(result) is not None:
         out.write("\nThe fields not told are this twin's values, not the robot's: "
                   "`told_space.toml` holds the space of the told ones, so `simlab calibrate "
@@ -640,13 +643,22 @@ def profile_section(result: CalibrationResult) -> str:
     return out.getvalue()
 
 
-def _allowed(allowed: tuple[Any, ...] | None) -> str:
-    """A profile's allowed values as the report writes them."""
+def _allowed(allowed: tuple[Any, ...] | None,
+             open_: tuple[bool, bool] = (False, False)) -> str:
+    """A profile's allowed values as the report writes them, a side the data leave open
+    (the searched range's end) said so."""
     if allowed is None:
         return "n/a"
     if allowed and isinstance(allowed[0], str):
         return ", ".join(allowed)
-    return f"{_value(allowed[0])} - {_value(allowed[1])}"
+    low, high = _value(allowed[0]), _value(allowed[1])
+    if open_[0] and open_[1]:
+        return f"{low} - {high} (no bound from the data: the searched range)"
+    if open_[0]:
+        return f"at most {high} (open below the searched {low})"
+    if open_[1]:
+        return f"at least {low} (open above the searched {high})"
+    return f"{low} - {high}"
 
 
 def told_space_toml(result: CalibrationResult) -> str | None:

@@ -19,8 +19,9 @@ from simlab.calibration.profile import (
     Profile,
     allowed_values,
     moves,
+    open_sides,
 )
-from simlab.calibration.report import profile_section, report_json, write_outputs
+from simlab.calibration.report import _allowed, profile_section, report_json, write_outputs
 from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.calibration.stages import calibrate
 from simlab.data.walkers import KinematicParams
@@ -72,6 +73,7 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
         assert f.admits(f.value) is True
         if f.told is False:
             assert f.allowed == (space.specs[k].low, space.specs[k].high)
+            assert f.open == (True, True)
     # a quarter of the drive time's (log) range moves every cell-crossing move: told
     assert prof.verdicts()["drive_time"] is True
     # the report says it, and records it
@@ -80,6 +82,7 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
     doc = json.loads(json.dumps(report_json(res)))
     assert doc["profile"]["fields"][0]["field"] == "drive_time"
     assert doc["profile"]["fields"][0]["allowed"] == list(prof.fields[0].allowed)
+    assert doc["profile"]["fields"][0]["open"] == list(prof.fields[0].open)
     assert "values the data allow" in text
     assert math.isclose(doc["profile"]["sigma"], prof.sigma)
     # the space of the told fields is written when some field is not told
@@ -111,6 +114,17 @@ def test_a_move_that_worsens_the_score_beyond_the_band_excludes_the_values_past_
                           0.01) == ("b", "c")
     f = FieldProfile("x", 0.5, (), True, (0.25, 0.75))
     assert (f.admits(0.3), f.admits(0.75), f.admits(0.8)) == (True, True, False)
+    # a side no move bounds is open: the data set no bound past the searched range's end
+    assert open_sides(spec, 0.5, [m(0.25, 0.005), m(0.75, 0.03)], 0.01) == (True, False)
+    assert open_sides(spec, 0.5, [m(0.25, 0.02), m(0.75, 0.03)], 0.01) == (False, False)
+    assert open_sides(spec, 1.0, [m(0.75, 0.0)], 0.01) == (True, True)
+    assert open_sides(spec, 0.5, [m(0.25, 0.02)], math.nan) == (False, False)
+    g = FieldProfile("x", 0.5, (), True, (0.0, 0.75), (True, False))
+    assert (g.admits(-0.5), g.admits(0.8)) == (True, False)
+    assert (g.past_range(-0.5), g.past_range(0.3), f.past_range(-0.5)) == (True, False, False)
+    # the report writes an open side as open, a bounded interval as its two ends
+    assert _allowed(g.allowed, g.open) == "at most 0.75 (open below the searched 0)"
+    assert _allowed(f.allowed, f.open) == "0.25 - 0.75"
     assert FieldProfile("mode", "b", (), True, ("b", "c")).admits("a") is False
     assert FieldProfile("x", 0.5, (), None).admits(0.5) is None
 
