@@ -33,9 +33,11 @@ for an effect the simulator lacks, and then the data allow the value that does. 
 slice, not a profile likelihood: the other fields stay at the winner's values, so where two
 fields trade off (one raised, the other lowered, the same score) a value the slice excludes
 may be allowed with the other field moved too. Measured on the synthetic lab (a hidden robot,
-three seeds): one winner sat at 10 Hz of localization with little persistence of its error
-against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz; the two other seeds' slices
-held the hidden values.
+three calibration seeds, nine searched fields): six fields held the hidden value on every
+seed. One winner sat at 10 Hz of localization with little persistence of its error (0.16)
+against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz and the hidden wall back-off;
+another winner's slice excluded the hidden persistence (allowed up to 0.76). Every field
+held the hidden value on one seed of three.
 """
 
 from __future__ import annotations
