@@ -104,11 +104,39 @@ def test_a_slower_rotation_takes_its_time() -> None:
     assert abs(slow.heading_error) < math.radians(2)
 
 
+def _directions(params: PrimitiveParams, n: int, seed: int = 3) -> np.ndarray:
+    """Direction (rad) of the drive of ``n`` fast RIGHT primitives from the table's centre."""
+    rng = np.random.default_rng(seed)
+    out = []
+    with World("table") as world:
+        for _ in range(n):
+            world.reset((0.0, 0.0, 0.0))
+            r = execute_primitive(world, FAST_RIGHT, rng, params)
+            d = r.pose_after[:2] - r.pose_turned[:2]
+            out.append(math.atan2(d[1], d[0]))
+    return np.array(out)
+
+
+def test_a_heading_error_spreads_the_drives_by_its_deviation() -> None:
+    sd, n = 0.15, 40
+    exact = _directions(PrimitiveParams(), 5)
+    noisy = _directions(PrimitiveParams(heading_noise=sd), n)
+    # without it the robot drives along its action (within the rotation's tolerance)
+    assert np.abs(exact).max() < PrimitiveParams().heading_tolerance + 0.01
+    # with it the drives spread about the action's heading as N(0, sd): the sample's
+    # deviation within 35 % (three standard errors of n = 40), its mean within 3 sd/sqrt(n)
+    assert abs(noisy.std(ddof=1) / sd - 1.0) < 0.35
+    assert abs(noisy.mean()) < 3 * sd / math.sqrt(n)
+    # drawn from the primitive's rng: the same seed, the same drives
+    np.testing.assert_array_equal(noisy[:5], _directions(PrimitiveParams(heading_noise=sd), 5))
+
+
 @pytest.mark.parametrize(("changes", "field"), [
     ({"pose_noise_persistence": 1.0}, "pose_noise_persistence"),
     ({"wall_slide": 1.2}, "wall_slide"),
     ({"wall_slide": 0.7, "wall_back": 0.4}, "wall_back"),
     ({"localization_hz": -1.0}, "localization_hz"),
+    ({"heading_noise": 1.0}, "heading_noise"),
 ])
 def test_the_new_fields_are_checked(changes: dict, field: str) -> None:
     with pytest.raises(ConfigError, match=field):
