@@ -201,7 +201,8 @@ class PrimitiveParams:
       localized heading drives off its action's direction by that heading's error. On the
       ISIR lab, calibrate's seed-0 twin walked on four seeds (8,012 transitions each) at
       0.15 rad lowered the TV distance to the real table on every seed, from a mean 0.2165
-      to 0.2089 (0.1: no gain; 0.2-0.3: less);
+      to 0.2089 (0.1: no gain; 0.2-0.3: less), but held at 0.15 through calibration it
+      did not (see :func:`simlab.calibration.space.default_space`), so it is 0 unless set;
     * ``wall_slide`` and ``wall_back``: what a move the detector refuses does instead
       (before it starts or while it drives): with probability ``wall_slide`` the robot
       turns to the first free heading among the commanded one +-45 and +-90 degrees
