@@ -303,7 +303,8 @@ def default_space(primitives: Sequence[int], simulator: str = "physics", *,
     1.67x the matched floor against 1.60, 1.57 and 1.57 without it, with the entropy per
     action further above the robot's (1.08-1.15 bits against 1.05, the robot 1.04), though
     on one winner's walks a 0.05 m margin had brought the corridor pairs' distance from
-    0.195 to 0.150: the tenth field cost the search more than the field gained. Nor is
+    0.195 to 0.150: the tenth field cost the search more than the field gained; held at
+    0.05 m instead, seeds 0-2 landed at 1.69, 1.57 and 1.59x. Nor is
     ``heading_noise`` (an error of the heading each move drives along): walked on one
     winner it lowered the distance (0.15 rad: 0.2089 against 0.2165, four walk seeds), but
     held at 0.15 rad through calibration, seeds 0-2 landed at 1.68, 1.55 and 1.63x the
