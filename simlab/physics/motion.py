@@ -788,8 +788,9 @@ def _brake(run: _Run) -> None:
 
 def _start(world: World, action: int, rng: np.random.Generator, p: PrimitiveParams,
            stepper: ScanStepper) -> _Run:
-    """The shared state of a primitive: its target heading, the heading it steers by and
-    its actuation noise (drawn here, so before the rotation)."""
+    """The shared state of a primitive: its target heading (the action's, plus the draw of
+    ``heading_noise``), the heading it steers by and its actuation noise (all drawn here, so
+    before the rotation)."""
     _speed, direction = decode_action(action)
     noise = _ActuationNoise(p, rng, world.drive)
     heading: Callable[[], float] = world.yaw
