@@ -30,6 +30,8 @@ def run(args: argparse.Namespace) -> int:
     if res.before_state:
         print(f"{res.before_state} decision(s) left out: they start or end before their "
               "state existed (cell >= n_cells)")
+    if res.cell_check is not None:
+        print("\n".join(res.cell_check.lines()))
     if cfg.map is not None:
         print(f"{res.off_map} pose samples off the map's free pixels")
     print(f"wrote {res.out}")

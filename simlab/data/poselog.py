@@ -46,7 +46,9 @@ ISIR logs). With 16 actions the speed is ``fast`` when the mean translation spee
 ``speed_split`` (m/s); blocked decisions are taken as slow (the log cannot tell).
 
 **States**: from the log's ``cell`` column (option) or the nearest centre of the states
-file. :func:`import_log` writes the dataset with :func:`simlab.data.writer.write_dataset`
+file. With a cell column numbered as the file's states, the two are compared sample by
+sample either way (:mod:`simlab.data.cellcheck`): a robot whose cells are not the file's
+Voronoi cells is named, state by state, with where its labels put the centres. :func:`import_log` writes the dataset with :func:`simlab.data.writer.write_dataset`
 (pose source ``log``); ``simlab import-log`` is its command line, its options the fields of
 :class:`ImportLogConfig`. The option groups :class:`SegmentOptions` (the thresholds) and
 :class:`RobotActionOptions` (the log's action numbering) are shared with ``import-bag``.
@@ -67,6 +69,7 @@ from simlab.base import validation
 from simlab.base.actions import ActionSet, parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.base.options import CommandConfig, command, option
+from simlab.data.cellcheck import CellColumnCheck, check_cell_column
 
 _MOVE, _TURN, _IDLE = 2, 1, 0
 
@@ -394,6 +397,10 @@ class ImportLogResult:
     action_set: ActionSet
     state_source: str
     off_map: int = 0
+    cell_check: CellColumnCheck | None = None
+    """The log's cell column against the nearest centre of the states file
+    (:func:`simlab.data.cellcheck.check_cell_column`), when the log has one numbered as the
+    states file's states; None otherwise."""
     before_state: int = 0
     """Decisions left out: they start or end at a sample logged before its state existed
     (``--use-cell-column`` with a growing ``n_cells``)."""
@@ -415,6 +422,20 @@ def _log_states(log: PoseLog, dec: Decisions, disc: Any, use_cell_column: bool
                           f"file (0..{int(disc.n_states) - 1})", path=log.path, key="cell",
                           fix="use the states file the robot numbered its cells with")
     return log.cell[dec.start], log.cell[dec.end], "cell column of the log"
+
+
+def _cell_check(log: PoseLog, disc: Any) -> CellColumnCheck | None:
+    """The cell column against the states file, on the samples logged after their state
+    existed; None without a cell column or when it numbers other states than the file's."""
+    n = int(disc.n_states)
+    if log.cell is None or (log.n_cells is not None and log.n_cells != n) or \
+            int(log.cell.max()) >= n:
+        return None
+    keep = ~log.before_state()
+    if not keep.any() or n < 2:
+        return None
+    return check_cell_column(log.xy[keep], log.cell[keep],
+                             np.asarray(disc.centres, dtype=np.float64))
 
 
 #: Largest share of pose samples allowed off the map's free pixels (see :func:`import_log`).
@@ -545,6 +566,7 @@ def import_log(cfg: ImportLogConfig) -> ImportLogResult:
                               "from the nearest centre)")
         dec = Decisions(**{f.name: getattr(dec, f.name)[keep] for f in fields(Decisions)})
     s, s2, source = _log_states(plog, dec, disc, cfg.use_cell_column)
+    cell_check = _cell_check(plog, disc)
     actions = decision_actions(dec, aset, segment)
     pose = np.column_stack([plog.xy, stored_yaw(plog.yaw)])
     walk = TransitionArrays(t=plog.t[dec.start], a=actions, pose=pose[dec.start],
@@ -558,10 +580,12 @@ def import_log(cfg: ImportLogConfig) -> ImportLogResult:
                     "map": None if cfg.map is None else str(cfg.map), "flip_y": cfg.flip_y,
                     "samples_off_free_map": off_map,
                     "decisions_before_their_state": before,
+                    "cell_column_check": None if cell_check is None else cell_check.to_dict(),
                     "segmentation": asdict(segment)},
         arena={"name": Path(log).stem, "file": None, "bounds": None, "goals": []},
         parameters={"importer": "pose-log"})
     res = write_dataset(cfg.out, walk, info, overwrite=cfg.overwrite)
     return ImportLogResult(out=res.out, samples=len(plog.t), decisions=len(dec),
                            blocked=int(dec.blocked.sum()), actions=actions, action_set=aset,
-                           state_source=source, off_map=off_map, before_state=before)
+                           state_source=source, off_map=off_map, before_state=before,
+                           cell_check=cell_check)

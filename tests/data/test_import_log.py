@@ -182,6 +182,42 @@ def test_import_log_can_take_states_from_the_cell_column(tmp_path: Path) -> None
     assert not (tmp_path / "ds2").exists() and not (tmp_path / "ds3").exists()
 
 
+def test_the_cell_column_is_checked_against_the_states_file(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    samples, _ = _simulate(PLAN, np.random.default_rng(8))
+    robot = CENTRES.copy()
+    robot[5] += (0.2, 0.0)  # the robot's state 5 reaches 0.1 m further east than the file's
+    cells = Discretizer(centres=robot).state_of(samples[:, 1:3])
+    near = Discretizer(centres=CENTRES).state_of(samples[:, 1:3])
+    assert 0 < np.sum(cells != near)  # the walk crosses the moved boundary
+    log = _write_log(tmp_path / "run.log", samples, cells, len(CENTRES))
+    states = _centres_file(tmp_path / "centres.txt")
+    # states from the nearest centre: the dataset keeps them, the check still reports
+    res = import_log(log, states=states, out=tmp_path / "ds")
+    assert res.cell_check is not None
+    assert res.cell_check.agreement == pytest.approx(np.mean(cells == near), abs=1e-12)
+    assert res.cell_check.samples == len(samples)
+    ds = open_dataset(tmp_path / "ds")
+    assert ds.manifest["provenance"]["cell_column_check"]["agreement"] == \
+        pytest.approx(res.cell_check.agreement)
+    dec = segment_decisions(samples[:, 0], samples[:, 1:3], samples[:, 3])
+    assert ds.column("s").tolist() == near[dec.start].tolist()
+    # the command line prints it
+    assert main(["import-log", str(log), "--states", str(states), "--out",
+                 str(tmp_path / "ds2"), "--n-actions", "8", "--convention", "ccw-east"]) == 0
+    assert (f"agrees with the nearest centre of the states file in "
+            f"{100 * res.cell_check.agreement:.1f} % of {len(samples)} samples"
+            in capsys.readouterr().out)
+    # no cell column, or one numbering other states: nothing to compare
+    plain = import_log(_write_log(tmp_path / "plain.log", samples), states=states,
+                       out=tmp_path / "ds3")
+    assert plain.cell_check is None
+    other = import_log(_write_log(tmp_path / "other.log", samples, cells, 40), states=states,
+                       out=tmp_path / "ds4")
+    assert other.cell_check is None
+    assert open_dataset(tmp_path / "ds4").manifest["provenance"]["cell_column_check"] is None
+
+
 def test_a_growing_n_cells_leaves_out_the_decisions_before_their_state(tmp_path: Path
                                                                         ) -> None:
     samples, _ = _simulate(PLAN, np.random.default_rng(6))
