@@ -435,7 +435,9 @@ def _cell_check(log: PoseLog, disc: Any) -> CellColumnCheck | None:
     if not keep.any() or n < 2:
         return None
     return check_cell_column(log.xy[keep], log.cell[keep],
-                             np.asarray(disc.centres, dtype=np.float64))
+                             np.asarray(disc.centres, dtype=np.float64),
+                             n_existing=None if log.n_cells_at is None else
+                             np.minimum(log.n_cells_at[keep], n))
 
 
 #: Largest share of pose samples allowed off the map's free pixels (see :func:`import_log`).

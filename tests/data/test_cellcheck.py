@@ -61,6 +61,29 @@ def test_a_state_no_centre_explains_is_named_and_not_moved() -> None:
     assert "fit no centre within 0.30 m" in "\n".join(chk.lines())
 
 
+def test_a_state_built_late_is_compared_only_once_it_exists() -> None:
+    xy = _poses()
+    n = len(CENTRES)
+    # state 11 (the last) is built after the first 4,000 samples: before that its area
+    # carries its neighbours' labels
+    n_at = np.where(np.arange(len(xy)) < 4000, n - 1, n)
+    cell = np.where(n_at == n, _nearest(xy, CENTRES), _nearest(xy, CENTRES[:-1]))
+    chk = check_cell_column(xy, cell, CENTRES, n_existing=n_at)
+    assert chk.agreement == 1.0 and chk.states == ()
+    # taken as built from the start, its area before it existed looks mislabelled
+    blind = check_cell_column(xy, cell, CENTRES)
+    assert blind.agreement < 1.0 and blind.states[0].state == n - 1
+    # and a moved centre is still found among states built late
+    robot = CENTRES.copy()
+    robot[n - 1] += (-0.08, 0.12)
+    cell = np.where(n_at == n, _nearest(xy, robot), _nearest(xy, CENTRES[:-1]))
+    chk = check_cell_column(xy, cell, CENTRES, n_existing=n_at)
+    assert [f.state for f in chk.states] == [n - 1] and chk.agreement_fitted == 1.0
+    np.testing.assert_allclose(chk.states[0].fitted, robot[n - 1], atol=1e-9)
+    with pytest.raises(ConfigError, match="only 11 states existed"):
+        check_cell_column(xy, np.full(len(xy), n - 1), CENTRES, n_existing=n_at)
+
+
 def test_a_few_stray_labels_are_below_the_thresholds() -> None:
     xy = _poses()
     cell = _nearest(xy, CENTRES)
