@@ -12,7 +12,7 @@ disagree most, where a centre would have to sit for its labels to agree: each is
 over a grid around its place (the others held where they are, those already moved included)
 to the position where most samples agree. A state whose best position lies on the edge of
 the searched square has labels that no centre near its own explains (cells split in time,
-a state built late, a hand-edited map): it is named, not moved.
+a state built late in a log without ``n_cells``, a hand-edited map): it is named, not moved.
 
 A robot that builds its states as it moves (its log's ``n_cells`` grows) numbers them in
 that order, and before a state is built its area carries its neighbours' labels: each sample

@@ -48,7 +48,8 @@ ISIR logs). With 16 actions the speed is ``fast`` when the mean translation spee
 **States**: from the log's ``cell`` column (option) or the nearest centre of the states
 file. With a cell column numbered as the file's states, the two are compared sample by
 sample either way (:mod:`simlab.data.cellcheck`): a robot whose cells are not the file's
-Voronoi cells is named, state by state, with where its labels put the centres. :func:`import_log` writes the dataset with :func:`simlab.data.writer.write_dataset`
+Voronoi cells is named, state by state, with where its labels put the centres.
+:func:`import_log` writes the dataset with :func:`simlab.data.writer.write_dataset`
 (pose source ``log``); ``simlab import-log`` is its command line, its options the fields of
 :class:`ImportLogConfig`. The option groups :class:`SegmentOptions` (the thresholds) and
 :class:`RobotActionOptions` (the log's action numbering) are shared with ``import-bag``.
