@@ -26,6 +26,7 @@ centres: 98.5 % agree (95.8 % if every state is taken as built from the start); 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -118,6 +119,55 @@ def _labels(d: NDArray[np.float64]) -> NDArray[np.int64]:
     return np.argmin(d, axis=1).astype(np.int64)
 
 
+def _worst_state(near: NDArray[np.int64], lab: NDArray[np.int64], S: int,
+                 skip: NDArray[np.bool_], done: set[int], min_share: float, min_samples: int
+                 ) -> tuple[int, int, int] | None:
+    """The state that disagrees most (lowest index on ties) among those not ``done``, with
+    at least ``min_samples`` and ``min_share`` of its samples disagreeing, the samples
+    ``skip`` left out: ``(state, its samples, its disagreeing samples)``, or None."""
+    bad = (near != lab) & ~skip
+    # a state's samples: those labelled with it, and those nearest it labelled otherwise
+    nearest_bad = np.bincount(near[bad], minlength=S)
+    involved = np.bincount(lab, minlength=S) + nearest_bad
+    wrong = np.bincount(lab[bad], minlength=S) + nearest_bad
+    for s in np.lexsort((np.arange(S), -wrong)):
+        s = int(s)
+        if s not in done and wrong[s] >= min_samples and wrong[s] >= min_share * involved[s]:
+            return s, int(involved[s]), int(wrong[s])
+    return None
+
+
+def _best_place(d: NDArray[np.float64], lab: NDArray[np.int64], pick: int,
+                dist: Callable[[int, NDArray[np.float64], NDArray[np.intp]],
+                               NDArray[np.float64]],
+                centre: NDArray[np.float64], offsets: NDArray[np.floating[Any]], reach: float
+                ) -> tuple[int, int, int]:
+    """Centre ``pick`` moved alone over the grid ``centre + offsets x offsets``: the most
+    samples that agree and the grid indices ``(i, j)`` of the first place reaching it (the
+    middle when no move beats the place it is at). ``d`` the samples' distances to every
+    centre, ``dist(pick, at, rows)`` the distances of the samples ``rows`` to ``pick`` at
+    ``at``."""
+    others = d.copy()
+    others[:, pick] = np.inf
+    o_arg, o_min = _labels(others), others.min(axis=1)
+    # only samples the moved centre can reach change label: search on those alone
+    reachable = d[:, pick] - reach * np.sqrt(2.0) <= o_min
+    fixed = int(np.sum(o_arg[~reachable] == lab[~reachable]))
+    rows = np.flatnonzero(reachable)
+    q_arg, q_min, q_lab = o_arg[rows], o_min[rows], lab[rows]
+    mid = len(offsets) // 2
+    best = (int(np.sum(_labels(d) == lab)), mid, mid)
+    for i, dx in enumerate(offsets):
+        for j, dy in enumerate(offsets):
+            dk = dist(pick, centre + np.array([dx, dy]), rows)
+            # ties go to the lower index, as the nearest-centre rule breaks them
+            mine = (dk < q_min) | ((dk == q_min) & (pick < q_arg))
+            score = fixed + int(np.sum(np.where(mine, pick, q_arg) == q_lab))
+            if score > best[0]:
+                best = (score, i, j)
+    return best
+
+
 def check_cell_column(xy: ArrayLike, cell: ArrayLike, centres: ArrayLike, *,
                       n_existing: ArrayLike | None = None, max_states: int = 5,
                       reach: float = REACH, step: float = STEP,
@@ -166,8 +216,7 @@ def check_cell_column(xy: ArrayLike, cell: ArrayLike, centres: ArrayLike, *,
         return np.where(exists[rows, k], np.hypot(q[:, 0] - at[0], q[:, 1] - at[1]), np.inf)
 
     d = np.column_stack([dist(k, c[k]) for k in range(len(c))])
-    near = _labels(d)
-    agreement = float(np.mean(near == lab))
+    agreement = float(np.mean(_labels(d) == lab))
     k = round(reach / step)
     offsets = step * np.arange(-k, k + 1)
     fits: list[CentreFit] = []
@@ -177,47 +226,23 @@ def check_cell_column(xy: ArrayLike, cell: ArrayLike, centres: ArrayLike, *,
     unexplained = np.zeros(len(p), dtype=bool)
     for _ in range(max_states):
         near = _labels(d)
-        bad = (near != lab) & ~unexplained
-        # a state's samples: those labelled with it, and those nearest it labelled otherwise
-        involved = np.bincount(lab, minlength=len(c)) + np.bincount(near[bad], minlength=len(c))
-        wrong = np.bincount(lab[bad], minlength=len(c)) + np.bincount(near[bad],
-                                                                      minlength=len(c))
-        order = [s for s in np.lexsort((np.arange(len(c)), -wrong)) if int(s) not in done]
-        pick = next((int(s) for s in order if wrong[s] >= min_samples
-                     and wrong[s] >= min_share * involved[s]), None)
-        if pick is None:
+        worst = _worst_state(near, lab, len(c), unexplained, done, min_share, min_samples)
+        if worst is None:
             break
+        pick, samples, disagree = worst
         done.add(pick)
-        others = d.copy()
-        others[:, pick] = np.inf
-        o_arg, o_min = _labels(others), others.min(axis=1)
-        # only samples the moved centre can reach change label: search on those alone
-        near_pick = d[:, pick] - reach * np.sqrt(2.0) <= o_min
-        fixed = int(np.sum(o_arg[~near_pick] == lab[~near_pick]))
-        rows = np.flatnonzero(near_pick)
-        q_arg, q_min, q_lab = o_arg[rows], o_min[rows], lab[rows]
-        now = int(np.sum(near == lab))
-        best = (now, k, k)
-        for i, dx in enumerate(offsets):
-            for j, dy in enumerate(offsets):
-                dk = dist(pick, c[pick] + (dx, dy), rows)
-                # ties go to the lower index, as the nearest-centre rule breaks them
-                mine = (dk < q_min) | ((dk == q_min) & (pick < q_arg))
-                score = fixed + int(np.sum(np.where(mine, pick, q_arg) == q_lab))
-                if score > best[0]:
-                    best = (score, i, j)
+        score, i, j = _best_place(d, lab, pick, dist, c[pick].copy(), offsets, reach)
         centre = (float(c[pick, 0]), float(c[pick, 1]))
-        on_edge = best[1] in (0, 2 * k) or best[2] in (0, 2 * k)
-        gained = best[0] > now
+        on_edge = i in (0, 2 * k) or j in (0, 2 * k)
         fitted = None
-        if gained and not on_edge:
-            c[pick] += (offsets[best[1]], offsets[best[2]])
+        if score > int(np.sum(near == lab)) and not on_edge:
+            c[pick] += (offsets[i], offsets[j])
             d[:, pick] = dist(pick, c[pick])
             fitted = (float(c[pick, 0]), float(c[pick, 1]))
         else:
             unexplained |= (lab == pick) | (near == pick)
-        fits.append(CentreFit(state=pick, centre=centre, samples=int(involved[pick]),
-                              disagree=int(wrong[pick]), fitted=fitted))
+        fits.append(CentreFit(state=pick, centre=centre, samples=samples, disagree=disagree,
+                              fitted=fitted))
     return CellColumnCheck(samples=len(p), agreement=agreement,
                            agreement_fitted=float(np.mean(_labels(d) == lab)),
                            states=tuple(fits), reach=float(reach))

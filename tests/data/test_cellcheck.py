@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from discretize.voronoi import Discretizer
 from simlab.base.errors import ConfigError
 from simlab.data.cellcheck import check_cell_column
 
@@ -17,7 +18,7 @@ def _poses(n: int = 6000, seed: int = 0) -> np.ndarray:
 
 
 def _nearest(xy: np.ndarray, centres: np.ndarray) -> np.ndarray:
-    return np.argmin(np.hypot(*(xy[:, None, :] - centres[None]).transpose(2, 0, 1)), axis=1)
+    return Discretizer(centres=centres).state_of(xy)
 
 
 def test_labels_that_agree_list_nothing() -> None:
