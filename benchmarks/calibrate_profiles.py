@@ -12,10 +12,13 @@ walk to walk). A field whose moves change the score by less than 2.77 times that
 half-width of a difference of two walks) is one the table cannot tell at this size of walk:
 calibrate's value for it is the search's luck, not a measurement. The moves and the verdict
 are :mod:`simlab.calibration.profile`'s (``simlab calibrate --profile-step`` runs the same
-from its winner).
+from its winner). With ``--pairs`` the told fields are then moved two at a time too
+(``--profile-pairs``: both diagonals, the same step and seed), and the benchmark prints, per
+field, the values the data allow from the slice alone and with the pairs, and the pairs of
+fields the table ties (each told alone, not together).
 
 Run: ``python benchmarks/calibrate_profiles.py --primitives CAL/primitives.toml
-[--transitions 8012] [--step 0.25] [--seeds 2] [--workers 2]``.
+[--transitions 8012] [--step 0.25] [--seeds 2] [--workers 2] [--pairs]``.
 """
 
 from __future__ import annotations
@@ -41,6 +44,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=2, help="other seeds of the twin")
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--pairs", action="store_true",
+                        help="also move the told fields in pairs (calibrate's --profile-pairs)")
     args = parser.parse_args()
     if not (args.real_lab / "mymap.yaml").is_file():
         raise SystemExit(f"calibrate_profiles.py: error: no ISIR lab data in {args.real_lab}")
@@ -50,7 +55,15 @@ def main() -> None:
     from simlab.base.actions import parse_action_set
     from simlab.calibration.config import CalibrationConfig, RealTable
     from simlab.calibration.objective import Reference
-    from simlab.calibration.profile import TOLD_BAND, moves, profile_stage
+    from simlab.calibration.profile import (
+        TOLD_BAND,
+        FieldProfile,
+        allowed_values,
+        moves,
+        open_sides,
+        profile_stage,
+    )
+    from simlab.calibration.report import _allowed
     from simlab.calibration.search import evaluate_points, walk_context
     from simlab.calibration.stages import _setup
     from simlab.calibration.walks import WalkRunner
@@ -82,7 +95,7 @@ def main() -> None:
             walks = evaluate_points(runner, [u0] * (args.seeds + 1), "twin", 0, ctx,
                                     seeds=[args.seed + k for k in range(args.seeds + 1)],
                                     budget=budget)
-            prof = profile_stage(runner, walks[0], walks, ctx, budget, args.step)
+            prof = profile_stage(runner, walks[0], walks, ctx, budget, args.step, args.pairs)
         finally:
             runner.close()
         wall = time.perf_counter() - t0
@@ -94,9 +107,26 @@ def main() -> None:
           f"{args.transitions:,}?")
     for f in prof.fields:
         text = "; ".join(f"{m.value:.4g}: {m.distance_change:+.4f} / {m.score_change:+.4f}"
-                         for m in f.moves)
+                         for m in f.moves if m.partner is None)
         print(f"{f.name} | {f.value:.4g} | {text} | "
               f"{'yes' if f.told else 'no: within sampling'}")
+    if args.pairs:
+        limit = TOLD_BAND * prof.sigma
+        print("\nfield | values the data allow: the slice alone | with the pairs | pair "
+              "points within the band")
+        for spec, f in zip(space.specs, prof.fields, strict=True):
+            alone = [m for m in f.moves if m.partner is None]
+            s = FieldProfile(f.name, f.value, (), f.told,
+                             allowed_values(spec, f.value, alone, limit),
+                             open_sides(spec, f.value, alone, limit))
+            within = "; ".join(f"{m.value:.4g} with {m.partner} {m.partner_value:.4g}: "
+                               f"{m.score_change:+.4f}" for m in f.moves
+                               if m.partner is not None and m.score_change <= limit)
+            print(f"{f.name} | {_allowed(s.allowed, s.open)} | {_allowed(f.allowed, f.open)} "
+                  f"| {within or 'none'}")
+        n_pairs = sum(m.partner is not None for f in prof.fields for m in f.moves) // 2
+        print(f"{n_pairs} pair walks; tied by the data: "
+              + ("; ".join(f"{a} with {b}" for a, b in prof.ties()) or "none"))
     print(f"{wall:.0f} s of walks")
 
 

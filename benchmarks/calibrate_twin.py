@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -422,11 +423,20 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
     """Per searched field: the hidden robot's value (its :data:`HIDDEN` setting, else the
     primitives' default it walked with), the twin's, and whether the hidden value lies in
     the spread calibrate's report states for it (the profile's allowed values)."""
-    from simlab.calibration.profile import FieldProfile
+    from simlab.calibration.profile import (
+        TOLD_BAND,
+        FieldMove,
+        FieldProfile,
+        allowed_values,
+        open_sides,
+    )
+    from simlab.calibration.space import ParamSpec
     from simlab.physics.motion import PrimitiveParams
 
     robot = PrimitiveParams(**HIDDEN)
-    prof = {f["field"]: f for f in (rep.get("profile") or {}).get("fields", [])}
+    doc = rep.get("profile") or {}
+    prof = {f["field"]: f for f in doc.get("fields", [])}
+    limit = TOLD_BAND * (doc.get("sigma") or math.nan)
     out = []
     for spec in rep["space"]:
         name = spec["name"]
@@ -435,10 +445,31 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
         field = FieldProfile(name, rep["params"][name], (), row.get("told"),
                              None if allowed is None else tuple(allowed),
                              tuple(row.get("open", (False, False))))
+        # the slice alone (each field moved with the others at the winner's values): what
+        # the report states without --profile-pairs, from the same walks
+        ps = (ParamSpec(name, choices=tuple(spec["choices"])) if "choices" in spec else
+              ParamSpec(name, spec["low"], spec["high"], spec["scale"]))
+        alone = [FieldMove(m["value"], m["distance_change"], m["score_change"])
+                 for m in row.get("moves", []) if not m.get("with")]
+        slice_ = FieldProfile(name, field.value, (), field.told,
+                              allowed_values(ps, field.value, alone, limit),
+                              open_sides(ps, field.value, alone, limit))
         out.append({"field": name, "hidden": truth, "twin": field.value,
                     "allowed": allowed, "open": field.open, "told": field.told,
-                    "inside": field.admits(truth), "past_range": field.past_range(truth)})
+                    "inside": field.admits(truth), "past_range": field.past_range(truth),
+                    "inside_slice": slice_.admits(truth),
+                    "width": _width(ps, field), "width_slice": _width(ps, slice_)})
     return out
+
+
+def _width(spec: Any, field: Any) -> float:
+    """The share of the searched range (in the unit cube) a numeric field's allowed values
+    span, an open side counted to the range's end; a named field: the share of choices left."""
+    if field.allowed is None:
+        return math.nan
+    if spec.categorical:
+        return len(field.allowed) / len(spec.choices)
+    return float(spec.unit(field.allowed[1]) - spec.unit(field.allowed[0]))
 
 
 def print_recovery(found: list[list[dict[str, Any]]]) -> None:
@@ -463,6 +494,32 @@ def print_recovery(found: list[list[dict[str, Any]]]) -> None:
                       for k, n in enumerate(fields))
     every = sum(all(r["inside"] for r in f) for f in found)
     print(f"inside, seeds: {tally}; every field inside on {every} of {len(found)} seeds")
+    alone = ", ".join(f"{n} {sum(bool(f[k]['inside_slice']) for f in found)}/{len(found)}"
+                      for k, n in enumerate(fields))
+    every_alone = sum(all(r["inside_slice"] for r in f) for f in found)
+
+    def mean_width(key: str) -> str:
+        return f"{np.nanmean([r[key] for f in found for r in f]):.2f}"
+
+    print(f"the slice alone (each field moved with the others at the winner's): {alone}; "
+          f"every field inside on {every_alone} of {len(found)} seeds; mean width of the "
+          f"allowed values as a share of the range: {mean_width('width_slice')} alone, "
+          f"{mean_width('width')} as stated")
+
+
+def print_ties(rep: dict) -> None:
+    """The pairs of fields the profile's pairs find tied (``--profile-pairs``), and the walks
+    the profile took."""
+    from simlab.calibration.profile import Profile
+
+    if not rep.get("profile"):
+        return
+    prof = Profile.from_json(rep["profile"])
+    walks = sum(len(f.moves) for f in prof.fields) - sum(
+        m.partner is not None for f in prof.fields for m in f.moves) // 2
+    ties = "; ".join(f"{a} with {b}" for a, b in prof.ties()) or "none"
+    print(f"profile: {walks} walks of {prof.transitions:,} transitions (pairs: {prof.pairs}); "
+          f"tied by the data: {ties}")
 
 
 def print_held(rep: dict) -> None:
@@ -578,6 +635,7 @@ def synthetic(args: argparse.Namespace) -> None:
         print_seeds(rows)
         found.append(recovery(rep))
         print_recovery(found)
+        print_ties(rep)
         print_held(rep)
         reps.append(rep)
     truth_check(reps, list(range(args.first_seed, args.first_seed + args.seeds)), arena,

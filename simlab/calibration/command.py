@@ -250,6 +250,10 @@ class CalibrateConfig(ActionSetOptions):
         0.0, "after the twins, move each searched field alone by this share of its range "
         "from the winner, a confirming walk each, and say which fields the real table tells "
         "(0: no profile; 0.25 measures it)")
+    profile_pairs: bool = option(
+        False, "with --profile-step, also move every two told fields together (both "
+        "diagonals, up to 2 t (t - 1) more walks for t told fields), so fields that trade off "
+        "are not excluded by a move of one alone")
     seed: int = option(0, "seed of walks and search")
     overwrite: bool = option(False, "replace the outputs of an earlier simlab calibrate")
     progress: bool = option(True, "progress bar (--no-progress hides it)")
@@ -281,7 +285,8 @@ class CalibrateConfig(ActionSetOptions):
             else self.start_states,
             goal_states=validation.state_ids(self.goal_states, "goal_states"),
             reset_states=self.reset_states, policy_data=self.policy_data,
-            untried=self.untried, profile_step=self.profile_step)
+            untried=self.untried, profile_step=self.profile_step,
+            profile_pairs=self.profile_pairs)
 
     def real_action_set(self) -> ActionSet | None:
         """What the real table's actions mean; None when no field of the group was given

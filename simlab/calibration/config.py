@@ -134,6 +134,10 @@ class CalibrationConfig:
             range from the winner and walk the confirming size there, to say field by field
             whether the real table tells it (:mod:`~simlab.calibration.profile`; 0, the
             default, skips it: ``2 d`` more confirming walks for ``d`` fields).
+        profile_pairs: with the profile, also move every two told numeric fields together
+            (both diagonals, both ways: up to ``2 t (t - 1)`` more confirming walks for
+            ``t`` told fields), so that a value one field's move excludes is allowed when a
+            second field's move makes up for it (fields that trade off).
     """
 
     hours_per_candidate: float | None = None
@@ -164,6 +168,7 @@ class CalibrationConfig:
     policy_data: bool = False
     untried: str = "stay"
     profile_step: float = 0.0
+    profile_pairs: bool = False
 
     def __post_init__(self) -> None:
         k = "calibration."
@@ -204,6 +209,10 @@ class CalibrationConfig:
             raise ConfigError("the profile moves each field from the confirmed winner, "
                               "which --no-confirm leaves out", key=k + "profile_step",
                               fix="drop --profile-step, or keep the confirmation")
+        if self.profile_pairs and not self.profile_step:
+            raise ConfigError("the pairs move the told fields of the profile, which "
+                              "--profile-step 0 leaves out", key=k + "profile_pairs",
+                              fix="add --profile-step 0.25, or drop --profile-pairs")
         if self.start_states is not None:
             from simlab.data.collect import parse_start_states
 

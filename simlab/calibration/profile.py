@@ -32,7 +32,13 @@ the robot's value only as far as the twin can move as the robot does: a field ca
 for an effect the simulator lacks, and then the data allow the value that does. And it is a
 slice, not a profile likelihood: the other fields stay at the winner's values, so where two
 fields trade off (one raised, the other lowered, the same score) a value the slice excludes
-may be allowed with the other field moved too. Measured on the synthetic lab (a hidden robot,
+may be allowed with the other field moved too. With ``pairs`` (``--profile-pairs``) the
+told numeric fields are then moved two at a time, both diagonals both ways, by the same step
+on the same seed (:func:`pair_moves`: up to ``2 t (t - 1)`` more walks for ``t`` told fields),
+and a value is excluded only when every point that put the field there raised the score
+beyond the band (:func:`excluding`); two fields each told alone whose joint move stays within
+the band are *tied* (:meth:`Profile.ties`): the table tells a combination of the two, not
+each. Measured on the synthetic lab (a hidden robot,
 three calibration seeds, nine searched fields): six fields held the hidden value on every
 seed. One winner sat at 10 Hz of localization with little persistence of its error (0.16)
 against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz and the hidden wall back-off;
@@ -61,11 +67,14 @@ TOLD_BAND = 1.96 * math.sqrt(2.0)
 @dataclass(frozen=True)
 class FieldMove:
     """One moved point: the field's ``value`` there, and the point's ``distance`` and
-    ``score`` minus the winner's on the same seed."""
+    ``score`` minus the winner's on the same seed; ``partner``, ``partner_value``: the
+    second field a pair move moved with it, and its value there (None on the slice)."""
 
     value: Any
     distance_change: float
     score_change: float
+    partner: str | None = None
+    partner_value: Any = None
 
 
 @dataclass(frozen=True)
@@ -105,14 +114,27 @@ class FieldProfile:
         return bool((self.open[0] and x < low - 1e-12) or (self.open[1] and x > high + 1e-12))
 
 
+def excluding(mine: list[FieldMove], limit: float) -> list[FieldMove]:
+    """The moves of ``mine`` that exclude their value: it raised the score by more than
+    ``limit`` at every point that put the field there (the slice's move, and each pair
+    move that moved a second field with it: with a pair, the value is excluded only when
+    no partner's move made up for it)."""
+    best: dict[Any, FieldMove] = {}
+    for m in mine:
+        if m.value not in best or m.score_change < best[m.value].score_change:
+            best[m.value] = m
+    return [m for m in best.values() if m.score_change > limit]
+
+
 def allowed_values(spec: ParamSpec, value: Any, mine: list[FieldMove],
                    limit: float) -> tuple[Any, ...] | None:
-    """What a field's moves ``mine`` from the winner's ``value`` do not exclude, a move
-    excluding when it raised the score by more than ``limit`` (module docstring); None
-    when ``limit`` is not finite (the spread unknown)."""
+    """What a field's moves ``mine`` from the winner's ``value`` do not exclude, a value
+    excluded when every move there raised the score by more than ``limit`` (module
+    docstring, :func:`excluding`); None when ``limit`` is not finite (the spread
+    unknown)."""
     if not math.isfinite(limit):
         return None
-    worse = [m for m in mine if m.score_change > limit]
+    worse = excluding(mine, limit)
     if spec.categorical:
         assert spec.choices is not None
         out = {m.value for m in worse}
@@ -133,7 +155,7 @@ def open_sides(spec: ParamSpec, value: Any, mine: list[FieldMove],
     end (a named field, or an unknown spread: neither)."""
     if spec.categorical or not math.isfinite(limit):
         return (False, False)
-    worse = [m for m in mine if m.score_change > limit]
+    worse = excluding(mine, limit)
     return (not any(m.value < value for m in worse), not any(m.value > value for m in worse))
 
 
@@ -148,6 +170,7 @@ class Profile:
         sigma: the score's standard deviation from walk to walk (NaN with fewer than two
             of the winner's walks).
         fields: per searched field, in the space's order.
+        pairs: whether the told fields were also moved in pairs (:func:`pair_moves`).
     """
 
     step: float
@@ -157,10 +180,53 @@ class Profile:
     score: float
     sigma: float
     fields: tuple[FieldProfile, ...]
+    pairs: bool = False
 
     def verdicts(self) -> dict[str, bool | None]:
         """``{field: told}``."""
         return {f.name: f.told for f in self.fields}
+
+    def ties(self) -> list[tuple[str, str]]:
+        """The pairs of fields the data tie (with :attr:`pairs`): a move of each alone
+        raised the score beyond the band, yet moving both together (one point of the pairs)
+        did not, so the table tells a combination of the two, not each one."""
+        limit = TOLD_BAND * self.sigma
+        if not math.isfinite(limit):
+            return []
+        out_alone = {f.name: {m.value for m in f.moves
+                              if m.partner is None and m.score_change > limit}
+                     for f in self.fields}
+        found: list[tuple[str, str]] = []
+        for f in self.fields:
+            for m in f.moves:
+                pair = tuple(sorted((f.name, m.partner or "")))
+                if (m.partner is not None and m.score_change <= limit
+                        and m.value in out_alone[f.name]
+                        and m.partner_value in out_alone[m.partner] and pair not in found):
+                    found.append(pair)  # type: ignore[arg-type]
+        return found
+
+    @classmethod
+    def from_json(cls, doc: dict[str, Any]) -> Profile:
+        """The profile :meth:`to_json` wrote (``report.json``'s ``profile``)."""
+        def num(x: float | None) -> float:
+            return math.nan if x is None else float(x)
+
+        def field(f: dict[str, Any]) -> FieldProfile:
+            moves = tuple(FieldMove(m["value"], float(m["distance_change"]),
+                                    float(m["score_change"]),
+                                    *((m["with"]["field"], m["with"]["value"])
+                                      if m.get("with") else ()))
+                          for m in f["moves"])
+            allowed = None if f["allowed"] is None else tuple(f["allowed"])
+            return FieldProfile(f["field"], f["value"], moves, f["told"], allowed,
+                                tuple(f.get("open", (False, False))))  # type: ignore[arg-type]
+
+        return cls(step=float(doc["step"]), seed=int(doc["seed"]),
+                   transitions=int(doc["transitions"]), distance=num(doc["distance"]),
+                   score=num(doc["score"]), sigma=num(doc["sigma"]),
+                   fields=tuple(field(f) for f in doc["fields"]),
+                   pairs=bool(doc.get("pairs", False)))
 
     def to_json(self) -> dict[str, Any]:
         def num(x: float) -> float | None:
@@ -168,12 +234,16 @@ class Profile:
 
         return {"step": self.step, "seed": self.seed, "transitions": self.transitions,
                 "distance": num(self.distance), "score": num(self.score),
-                "sigma": num(self.sigma), "band": TOLD_BAND,
+                "sigma": num(self.sigma), "band": TOLD_BAND, "pairs": self.pairs,
+                "ties": [list(t) for t in self.ties()],
                 "fields": [{"field": f.name, "value": f.value, "told": f.told,
                             "allowed": None if f.allowed is None else list(f.allowed),
                             "open": list(f.open),
                             "moves": [{"value": m.value, "distance_change": m.distance_change,
-                                       "score_change": m.score_change} for m in f.moves]}
+                                       "score_change": m.score_change,
+                                       "with": None if m.partner is None else
+                                       {"field": m.partner, "value": m.partner_value}}
+                                      for m in f.moves]}
                            for f in self.fields]}
 
 
@@ -198,41 +268,84 @@ def moves(space: ParameterSpace, unit: NDArray[np.float64], step: float
     return out
 
 
-def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
-                  ctx: dict[str, Any], budget: tuple[float | None, int | None],
-                  step: float) -> Profile:
-    """The profile (module docstring) of ``winner`` from its confirming-size ``walks``
-    (its confirming walks then its twin walks, each a :class:`Candidate` with its seed;
-    the first is the base of every move)."""
+def pair_moves(space: ParameterSpace, unit: NDArray[np.float64], step: float,
+               fields: list[int]) -> list[tuple[int, int, NDArray[np.float64]]]:
+    """``[(first field, second field, moved unit point)]``: each pair of the numeric
+    ``fields`` moved together by ``step`` on both diagonals, both ways (up to four points a
+    pair; clipped to [0, 1] as :func:`moves` clips, a point where either field stays put
+    left out: the slice has it)."""
+    numeric = [k for k in fields if not space.specs[k].categorical]
+    out = []
+    for a, i in enumerate(numeric):
+        for j in numeric[a + 1:]:
+            for si in (-1.0, 1.0):
+                for sj in (-1.0, 1.0):
+                    ti = float(np.clip(unit[i] + si * step, 0.0, 1.0))
+                    tj = float(np.clip(unit[j] + sj * step, 0.0, 1.0))
+                    if abs(ti - unit[i]) <= 1e-12 or abs(tj - unit[j]) <= 1e-12:
+                        continue
+                    u = np.array(unit, dtype=np.float64)
+                    u[i], u[j] = ti, tj
+                    out.append((i, j, u))
+    return out
+
+
+def _walk_points(runner: WalkRunner, points: list[NDArray[np.float64]], stage: str,
+                 seed: int, ctx: dict[str, Any], budget: tuple[float | None, int | None]
+                 ) -> list[Candidate]:
+    """Each unit point walked at ``budget`` on ``seed``, in the config's batches, with a
+    progress bar naming ``stage``."""
     from tqdm.auto import tqdm
 
-    space: ParameterSpace = ctx["space"]
-    base = walks[0]
-    points = moves(space, winner.unit, step)
     cfg = ctx["config"]
     done: list[Candidate] = []
     bar = tqdm(total=len(points), unit="walk", disable=not cfg.progress,
-               desc=f"calibrate: profile ({walk_size(budget)} a walk)")
+               desc=f"calibrate: {stage} ({walk_size(budget)} a walk)")
     with bar:
         for i in range(0, len(points), cfg.batch):
-            chunk = [u for _k, u in points[i:i + cfg.batch]]
-            done += evaluate_points(runner, chunk, "profile", i, ctx,
-                                    seeds=[base.seed] * len(chunk), budget=budget)
+            chunk = points[i:i + cfg.batch]
+            done += evaluate_points(runner, chunk, stage, i, ctx, seeds=[seed] * len(chunk),
+                                    budget=budget)
             bar.update(len(chunk))
+    return done
+
+
+def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
+                  ctx: dict[str, Any], budget: tuple[float | None, int | None],
+                  step: float, pairs: bool = False) -> Profile:
+    """The profile (module docstring) of ``winner`` from its confirming-size ``walks``
+    (its confirming walks then its twin walks, each a :class:`Candidate` with its seed;
+    the first is the base of every move); with ``pairs``, the told numeric fields are
+    then moved in pairs too (:func:`pair_moves`), and a value is excluded only when no
+    point that put the field there stayed within the band (:func:`excluding`)."""
+    space: ParameterSpace = ctx["space"]
+    base = walks[0]
+    points = moves(space, winner.unit, step)
+    done = _walk_points(runner, [u for _k, u in points], "profile", base.seed, ctx, budget)
     scores = [w.score for w in walks]
     sigma = float(np.std(scores, ddof=1)) if len(scores) >= 2 else math.nan
+    limit = TOLD_BAND * sigma
+    mine: list[list[FieldMove]] = [[] for _ in space.specs]
+    for (k, _u), c in zip(points, done, strict=True):
+        mine[k].append(FieldMove(c.values[space.specs[k].name], c.distance - base.distance,
+                                 c.score - base.score))
+    told = [None if not math.isfinite(sigma) else
+            any(abs(m.score_change) > limit for m in mine[k]) for k in range(space.dim)]
+    if pairs:
+        both = pair_moves(space, winner.unit, step, [k for k, t in enumerate(told) if t])
+        found = _walk_points(runner, [u for _i, _j, u in both], "profile pairs", base.seed,
+                             ctx, budget)
+        for (i, j, _u), c in zip(both, found, strict=True):
+            a, b = space.specs[i].name, space.specs[j].name
+            dd, ds = c.distance - base.distance, c.score - base.score
+            mine[i].append(FieldMove(c.values[a], dd, ds, b, c.values[b]))
+            mine[j].append(FieldMove(c.values[b], dd, ds, a, c.values[a]))
     fields = []
     for k, spec in enumerate(space.specs):
-        mine = [FieldMove(c.values[spec.name], c.distance - base.distance,
-                          c.score - base.score)
-                for (j, _u), c in zip(points, done, strict=True) if j == k]
-        told = None if not math.isfinite(sigma) else any(
-            abs(m.score_change) > TOLD_BAND * sigma for m in mine)
         value = winner.values[spec.name]
-        limit = TOLD_BAND * sigma
-        fields.append(FieldProfile(spec.name, value, tuple(mine), told,
-                                   allowed_values(spec, value, mine, limit),
-                                   open_sides(spec, value, mine, limit)))
+        fields.append(FieldProfile(spec.name, value, tuple(mine[k]), told[k],
+                                   allowed_values(spec, value, mine[k], limit),
+                                   open_sides(spec, value, mine[k], limit)))
     return Profile(step=float(step), seed=int(base.seed), transitions=int(base.sim.rows),
                    distance=base.distance, score=base.score, sigma=sigma,
-                   fields=tuple(fields))
+                   fields=tuple(fields), pairs=bool(pairs))

@@ -624,16 +624,43 @@ def profile_section(result: CalibrationResult) -> str:
               f"{TOLD_BAND:.2f} times that spread. A move that raised the score by more "
               "excludes the values past it; the last column is what is left, the spread the "
               "data allow (a side no move bounds is open: nothing was measured past the "
-              "searched range). Each field moves with the others at the winner's values, so "
-              "where two fields trade off the data allow more than its column says (the "
-              "other could make up for it):\n\n| field | winner | moved to: distance / score change | told "
-              "| values the data allow |\n|---|---|---|---|---|\n")
+              "searched range). " + (
+                  "The told fields were then moved in pairs too (both diagonals, the same "
+                  "step, the same seed): a value is excluded only when every point that put "
+                  "the field there raised the score beyond the band, so where a second "
+                  "field makes up for a move the value is allowed (the column of pairs "
+                  "names the points that freed one)" if prof.pairs else
+                  "Each field moves with the others at the winner's values, so where two "
+                  "fields trade off the data allow more than its column says (the other "
+                  "could make up for it; `--profile-pairs` measures it)")
+              + ":\n\n| field | winner | moved to: distance / score change | told "
+              + ("| freed by a pair " if prof.pairs else "")
+              + "| values the data allow |\n|---|---|---|---|" + "---|" * (1 + prof.pairs)
+              + "\n")
+    limit = TOLD_BAND * prof.sigma
     for f in prof.fields:
+        alone = [m for m in f.moves if m.partner is None]
         moved = "; ".join(f"{_value(m.value)}: {m.distance_change:+.4f} / "
-                          f"{m.score_change:+.4f}" for m in f.moves) or "n/a"
+                          f"{m.score_change:+.4f}" for m in alone) or "n/a"
         told = "n/a" if f.told is None else ("yes" if f.told else "**not told**")
-        out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} | "
+        freed = ""
+        if prof.pairs:
+            out_alone = {m.value for m in alone if m.score_change > limit}
+            freed = "| " + ("; ".join(
+                f"{_value(m.value)} with {m.partner} {_value(m.partner_value)}: "
+                f"{m.score_change:+.4f}" for m in f.moves
+                if m.partner is not None and m.value in out_alone and m.score_change <= limit)
+                or "none") + " "
+        out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} {freed}| "
                   f"{_allowed(f.allowed, f.open)} |\n")
+    ties = prof.ties()
+    if ties:
+        out.write("\nTied by the data: " + "; ".join(f"{a} with {b}" for a, b in ties)
+                  + ". A move of either alone is beyond sampling, one of both together is "
+                  "not: the table tells a combination of the two, not each, and the winner's "
+                  "values are one point of that combination. Fix one of a tied pair "
+                  "(`--space` without it, from what you know of the robot) to read the other "
+                  "from the data.\n")
     if told_space_toml(result) is not None:
         out.write("\nThe fields not told are this twin's values, not the robot's: "
                   "`told_space.toml` holds the space of the told ones, so `simlab calibrate "

@@ -185,3 +185,96 @@ def test_overwrite_replaces_a_told_space_file_only_when_calibrate_wrote_it(tmp_p
         check_outputs(tmp_path)  # and never without --overwrite
     path.write_text(TOLD_TITLE + " (simlab calibrate --profile-step 0.25)\n")
     assert check_outputs(tmp_path, overwrite=True)["told_space.toml"] == path
+
+
+def test_pair_moves_go_both_diagonals_both_ways_and_leave_out_a_field_that_stays() -> None:
+    from simlab.calibration.profile import pair_moves
+
+    space = ParameterSpace((ParamSpec("a", 0.0, 1.0), ParamSpec("b", 0.0, 1.0),
+                            ParamSpec("c", 0.0, 1.0), ParamSpec("m", choices=("x", "y"))))
+    u = np.array([0.5, 0.5, 0.0, space.specs[3].unit("x")])
+    out = pair_moves(space, u, 0.25, [0, 1, 2, 3])
+    ab = sorted((float(p[0]), float(p[1])) for i, j, p in out if (i, j) == (0, 1))
+    assert ab == [(0.25, 0.25), (0.25, 0.75), (0.75, 0.25), (0.75, 0.75)]
+    # c sits at its bound: only its inward move pairs; the named field never pairs
+    assert sorted((i, j) for i, j, _p in out) == [(0, 1)] * 4 + [(0, 2)] * 2 + [(1, 2)] * 2
+    assert all(p[2] == pytest.approx(0.25) for i, j, p in out if j == 2)
+    # the fields not in the pair stay at the winner's values
+    assert all(np.allclose(np.delete(p, [i, j]), np.delete(u, [i, j])) for i, j, p in out)
+    assert pair_moves(space, u, 0.25, [0]) == []
+
+
+def test_a_value_is_excluded_only_when_every_point_that_put_the_field_there_was_worse() -> None:
+    spec = ParamSpec("x", 0.0, 1.0)
+    slice_ = [FieldMove(0.25, 0.0, 0.02), FieldMove(0.75, 0.0, 0.03)]
+    assert allowed_values(spec, 0.5, slice_, 0.01) == (0.25, 0.75)
+    # a second field's move makes up for the move up: that side is no longer bounded
+    made_up = [*slice_, FieldMove(0.75, 0.0, 0.004, "y", 0.2),
+               FieldMove(0.75, 0.0, 0.05, "y", 0.8)]
+    assert allowed_values(spec, 0.5, made_up, 0.01) == (0.25, 1.0)
+    assert open_sides(spec, 0.5, made_up, 0.01) == (False, True)
+    # pairs that are worse too change nothing
+    worse = [*slice_, FieldMove(0.25, 0.0, 0.5, "y", 0.2), FieldMove(0.75, 0.0, 0.02, "y", 0.8)]
+    assert allowed_values(spec, 0.5, worse, 0.01) == (0.25, 0.75)
+
+
+def test_pairs_free_two_fields_that_trade_off_exactly(lattice9) -> None:
+    """The kinematic walker drives ``slow_speed * drive_time`` metres a move: with both on
+    log ranges of the same ratio, a step up of one and down of the other is the same walk, so
+    the table cannot tell them apart, only their product. The slice, moving one at a time,
+    excludes both sides of both; the pairs find the diagonal that keeps the product."""
+    hidden = KinematicParams(drive_time=1.0, slow_speed=0.1)
+    real = real_table(hidden_walk(lattice9, hidden, CCW8, 3.0, 11, "kinematic"), CCW8)
+    space = ParameterSpace((ParamSpec("drive_time", 0.25, 4.0, "log"),
+                            ParamSpec("slow_speed", 0.025, 0.4, "log")))
+    runs = {}
+    for pairs in (False, True):
+        cfg = CalibrationConfig(hours_per_candidate=3.0, candidates=6, workers=1, seed=2,
+                                simulator="kinematic", n_boot=20, progress=False,
+                                transfer_seeds=3, profile_step=0.25, profile_pairs=pairs)
+        runs[pairs] = calibrate(real, "table", lattice9, space=space, config=cfg).profile
+    alone, both = runs[False], runs[True]
+    assert both.pairs and not alone.pairs
+    limit = TOLD_BAND * both.sigma
+    for f, g in zip(alone.fields, both.fields, strict=True):
+        # the slice's walks are the same walks with or without the pairs
+        assert [m for m in g.moves if m.partner is None] == list(f.moves)
+        assert f.told is True and f.open == (False, False)   # bounded on both sides alone
+        pairs = [m for m in g.moves if m.partner is not None]
+        assert {m.partner for m in pairs} == {h.name for h in both.fields} - {f.name}
+        # one point per move of the field times move of its partner (both ways, both)
+        assert len(pairs) == len(alone.fields[0].moves) * len(alone.fields[1].moves)
+    dt, sp = both.fields
+    # the point with the drive time down and the speed up keeps the product: the same walk
+    down = next(m for m in dt.moves if m.partner is not None and m.value < dt.value
+                and m.partner_value > sp.value)
+    assert down.value * down.partner_value == pytest.approx(dt.value * sp.value)
+    assert abs(down.score_change) <= limit
+    # so neither field is bounded on that side any more: the data tell only the product
+    assert dt.open[0] and sp.open[1]
+    assert dt.admits(space.specs[0].low) and sp.admits(space.specs[1].high)
+    assert not alone.fields[0].admits(space.specs[0].low)
+    # the report names the point that freed it
+    from types import SimpleNamespace
+    text = profile_section(SimpleNamespace(profile=both, space=space))
+    # the table ties the two: each alone is told, together they trade off
+    assert both.ties() == [("drive_time", "slow_speed")] and alone.ties() == []
+    assert "Tied by the data: drive_time with slow_speed" in text
+    assert "freed by a pair" in text and f"with slow_speed {_value_text(down.partner_value)}" in text
+    doc = json.loads(json.dumps(both.to_json()))
+    assert doc["pairs"] is True and doc["ties"] == [["drive_time", "slow_speed"]]
+    assert Profile.from_json(doc) == both        # report.json gives the profile back
+    assert {"field": "slow_speed", "value": down.partner_value} in [
+        m["with"] for m in doc["fields"][0]["moves"]]
+
+
+def _value_text(x: float) -> str:
+    from simlab.calibration.report import _value
+
+    return _value(x)
+
+
+def test_pairs_need_the_profile() -> None:
+    with pytest.raises(ConfigError, match="profile_pairs"):
+        CalibrationConfig(profile_pairs=True)
+    assert CalibrationConfig(profile_step=0.25, profile_pairs=True).profile_pairs
