@@ -31,6 +31,9 @@ Two labs (``--lab``):
   hidden value on every seed (pose persistence, localization rate, wall back-off on two of
   three: the profile is a slice at the winner, and those fields trade off); on fresh seeds the
   hidden robot 1.16x, its values in the twin's space 1.16x, the winners 1.22/1.24/1.17x.
+  With ``--calibrate-args=--profile-pairs`` the recovery lines also give the slice alone from
+  the same walks, and the pairs of fields the data tie (seeds 0 and 1: every field inside on
+  one of two seeds either way, 60-112 pair walks, 2,005-3,074 s a seed).
 
 ``--compare-hz HZ`` runs the same calibration a second time with ``HZ`` as the default
 physics rate (every walk of it, in every worker: ``benchmarks/rate_arm.py``), right after
