@@ -55,14 +55,7 @@ def main() -> None:
     from simlab.base.actions import parse_action_set
     from simlab.calibration.config import CalibrationConfig, RealTable
     from simlab.calibration.objective import Reference
-    from simlab.calibration.profile import (
-        TOLD_BAND,
-        FieldProfile,
-        allowed_values,
-        moves,
-        open_sides,
-        profile_stage,
-    )
+    from simlab.calibration.profile import TOLD_BAND, moves, profile_stage
     from simlab.calibration.report import _allowed
     from simlab.calibration.search import evaluate_points, walk_context
     from simlab.calibration.stages import _setup
@@ -107,25 +100,21 @@ def main() -> None:
           f"{args.transitions:,}?")
     for f in prof.fields:
         text = "; ".join(f"{m.value:.4g}: {m.distance_change:+.4f} / {m.score_change:+.4f}"
-                         for m in f.moves if m.partner is None)
+                         for m in f.alone)
         print(f"{f.name} | {f.value:.4g} | {text} | "
               f"{'yes' if f.told else 'no: within sampling'}")
     if args.pairs:
-        limit = TOLD_BAND * prof.sigma
+        limit = prof.limit
         print("\nfield | values the data allow: the slice alone | with the pairs | pair "
               "points within the band")
         for spec, f in zip(space.specs, prof.fields, strict=True):
-            alone = [m for m in f.moves if m.partner is None]
-            s = FieldProfile(f.name, f.value, (), f.told,
-                             allowed_values(spec, f.value, alone, limit),
-                             open_sides(spec, f.value, alone, limit))
+            s = f.sliced(spec, limit)
             within = "; ".join(f"{m.value:.4g} with {m.partner} {m.partner_value:.4g}: "
                                f"{m.score_change:+.4f}" for m in f.moves
                                if m.partner is not None and m.score_change <= limit)
             print(f"{f.name} | {_allowed(s.allowed, s.open)} | {_allowed(f.allowed, f.open)} "
                   f"| {within or 'none'}")
-        n_pairs = sum(m.partner is not None for f in prof.fields for m in f.moves) // 2
-        print(f"{n_pairs} pair walks; tied by the data: "
+        print(f"{prof.pair_walks} pair walks; tied by the data: "
               + ("; ".join(f"{a} with {b}" for a, b in prof.ties()) or "none"))
     print(f"{wall:.0f} s of walks")
 

@@ -426,42 +426,29 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
     """Per searched field: the hidden robot's value (its :data:`HIDDEN` setting, else the
     primitives' default it walked with), the twin's, and whether the hidden value lies in
     the spread calibrate's report states for it (the profile's allowed values)."""
-    from simlab.calibration.profile import (
-        TOLD_BAND,
-        FieldMove,
-        FieldProfile,
-        allowed_values,
-        open_sides,
-    )
-    from simlab.calibration.space import ParamSpec
+    from simlab.calibration.profile import FieldProfile, Profile
+    from simlab.calibration.space import space_from_mapping
     from simlab.physics.motion import PrimitiveParams
 
     robot = PrimitiveParams(**HIDDEN)
-    doc = rep.get("profile") or {}
-    prof = {f["field"]: f for f in doc.get("fields", [])}
-    limit = TOLD_BAND * (doc.get("sigma") or math.nan)
+    space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
+                                for x in rep["space"]})
+    prof = Profile.from_json(rep["profile"]) if rep.get("profile") else None
+    found = {} if prof is None else {f.name: f for f in prof.fields}
     out = []
-    for spec in rep["space"]:
-        name = spec["name"]
-        truth, row = getattr(robot, name), prof.get(name) or {}
-        allowed = row.get("allowed")
-        field = FieldProfile(name, rep["params"][name], (), row.get("told"),
-                             None if allowed is None else tuple(allowed),
-                             tuple(row.get("open", (False, False))))
+    for spec in space.specs:
+        name = spec.name
+        truth = getattr(robot, name)
+        field = found.get(name) or FieldProfile(name, rep["params"][name], (), None)
         # the slice alone (each field moved with the others at the winner's values): what
         # the report states without --profile-pairs, from the same walks
-        ps = (ParamSpec(name, choices=tuple(spec["choices"])) if "choices" in spec else
-              ParamSpec(name, spec["low"], spec["high"], spec["scale"]))
-        alone = [FieldMove(m["value"], m["distance_change"], m["score_change"])
-                 for m in row.get("moves", []) if not m.get("with")]
-        slice_ = FieldProfile(name, field.value, (), field.told,
-                              allowed_values(ps, field.value, alone, limit),
-                              open_sides(ps, field.value, alone, limit))
+        slice_ = field.sliced(spec, math.nan if prof is None else prof.limit)
         out.append({"field": name, "hidden": truth, "twin": field.value,
-                    "allowed": allowed, "open": field.open, "told": field.told,
+                    "allowed": None if field.allowed is None else list(field.allowed),
+                    "open": field.open, "told": field.told,
                     "inside": field.admits(truth), "past_range": field.past_range(truth),
                     "inside_slice": slice_.admits(truth),
-                    "width": _width(ps, field), "width_slice": _width(ps, slice_)})
+                    "width": _width(spec, field), "width_slice": _width(spec, slice_)})
     return out
 
 
@@ -518,8 +505,7 @@ def print_ties(rep: dict) -> None:
     if not rep.get("profile"):
         return
     prof = Profile.from_json(rep["profile"])
-    walks = sum(len(f.moves) for f in prof.fields) - sum(
-        m.partner is not None for f in prof.fields for m in f.moves) // 2
+    walks = sum(len(f.alone) for f in prof.fields) + prof.pair_walks
     ties = "; ".join(f"{a} with {b}" for a, b in prof.ties()) or "none"
     print(f"profile: {walks} walks of {prof.transitions:,} transitions (pairs: {prof.pairs}); "
           f"tied by the data: {ties}")

@@ -104,6 +104,24 @@ class FieldProfile:
         x = float(value)
         return bool((self.open[0] or low - 1e-12 <= x) and (self.open[1] or x <= high + 1e-12))
 
+    @property
+    def alone(self) -> tuple[FieldMove, ...]:
+        """The slice's moves: the field moved with the others at the winner's values."""
+        return tuple(m for m in self.moves if m.partner is None)
+
+    def excluded_alone(self, limit: float) -> set[Any]:
+        """The values a move of the field alone excludes (it raised the score beyond
+        ``limit``)."""
+        return {m.value for m in self.alone if m.score_change > limit}
+
+    def sliced(self, spec: ParamSpec, limit: float) -> FieldProfile:
+        """This field as the slice alone states it (its pair moves left out): what the
+        profile says without pairs, from the same walks."""
+        alone = list(self.alone)
+        return FieldProfile(self.name, self.value, tuple(alone), self.told,
+                            allowed_values(spec, self.value, alone, limit),
+                            open_sides(spec, self.value, alone, limit))
+
     def past_range(self, value: Any) -> bool:
         """Whether a numeric ``value`` lies past an open side of ``allowed``: admitted, though
         outside the searched range (the search could not have found it)."""
@@ -186,16 +204,25 @@ class Profile:
         """``{field: told}``."""
         return {f.name: f.told for f in self.fields}
 
+    @property
+    def limit(self) -> float:
+        """The band a score change must pass to tell a field (NaN when the spread is
+        unknown)."""
+        return TOLD_BAND * self.sigma
+
+    @property
+    def pair_walks(self) -> int:
+        """The walks of the pairs (each pair point is a move of both its fields)."""
+        return sum(m.partner is not None for f in self.fields for m in f.moves) // 2
+
     def ties(self) -> list[tuple[str, str]]:
         """The pairs of fields the data tie (with :attr:`pairs`): a move of each alone
         raised the score beyond the band, yet moving both together (one point of the pairs)
         did not, so the table tells a combination of the two, not each one."""
-        limit = TOLD_BAND * self.sigma
+        limit = self.limit
         if not math.isfinite(limit):
             return []
-        out_alone = {f.name: {m.value for m in f.moves
-                              if m.partner is None and m.score_change > limit}
-                     for f in self.fields}
+        out_alone = {f.name: f.excluded_alone(limit) for f in self.fields}
         found: list[tuple[str, str]] = []
         for f in self.fields:
             for m in f.moves:

@@ -637,15 +637,14 @@ def profile_section(result: CalibrationResult) -> str:
               + ("| freed by a pair " if prof.pairs else "")
               + "| values the data allow |\n|---|---|---|---|" + "---|" * (1 + prof.pairs)
               + "\n")
-    limit = TOLD_BAND * prof.sigma
+    limit = prof.limit
     for f in prof.fields:
-        alone = [m for m in f.moves if m.partner is None]
         moved = "; ".join(f"{_value(m.value)}: {m.distance_change:+.4f} / "
-                          f"{m.score_change:+.4f}" for m in alone) or "n/a"
+                          f"{m.score_change:+.4f}" for m in f.alone) or "n/a"
         told = "n/a" if f.told is None else ("yes" if f.told else "**not told**")
         freed = ""
         if prof.pairs:
-            out_alone = {m.value for m in alone if m.score_change > limit}
+            out_alone = f.excluded_alone(limit)
             freed = "| " + ("; ".join(
                 f"{_value(m.value)} with {m.partner} {_value(m.partner_value)}: "
                 f"{m.score_change:+.4f}" for m in f.moves
