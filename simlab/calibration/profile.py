@@ -38,7 +38,11 @@ on the same seed (:func:`pair_moves`: up to ``2 t (t - 1)`` more walks for ``t``
 and a value is excluded only when every point that put the field there raised the score
 beyond the band (:func:`excluding`); two fields each told alone whose joint move stays within
 the band are *tied* (:meth:`Profile.ties`): the table tells a combination of the two, not
-each. Measured on the synthetic lab (a hidden robot,
+each. The exclusion tests "this value is as good as the winner's": when the best point at a
+value is truly no worse, the value is excluded only if that point's own noise passes the band
+(at most 2.5 % of walks, less on one seed), however many other points sit there; more points
+only free a truly worse value more often (one of them dips below the band), so the pairs widen
+the allowed values and never lose the robot's value more often than the slice. Measured on the synthetic lab (a hidden robot,
 three calibration seeds, nine searched fields): six fields held the hidden value on every
 seed. One winner sat at 10 Hz of localization with little persistence of its error (0.16)
 against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz and the hidden wall back-off;

@@ -278,3 +278,37 @@ def test_pairs_need_the_profile() -> None:
     with pytest.raises(ConfigError, match="profile_pairs"):
         CalibrationConfig(profile_pairs=True)
     assert CalibrationConfig(profile_step=0.25, profile_pairs=True).profile_pairs
+
+
+def test_more_points_at_a_value_never_exclude_the_robots_value_more_often() -> None:
+    """The exclusion is a test of "this value is as good as the winner's": with the best point
+    at a value truly no worse than the winner (the others worse by any amount), the value is
+    excluded only when that point's own noise passes the band, at most 2.5 % (one side of
+    1.96 sd of a difference of two walks), however many points sit there. More points only
+    make a truly worse value likelier to be freed by a dip of one of them: the allowed
+    values widen (the test loses power), they never lose the robot's value more often."""
+    rng = np.random.default_rng(7)
+    n = 20_000
+    limit = TOLD_BAND * 1.0  # sigma 1: a difference of two walks has sd sqrt(2)
+    spec = ParamSpec("x", 0.0, 1.0)
+
+    def excluded(truth: list[float]) -> float:
+        """How often 0.75 is excluded, its points' true changes ``truth``."""
+        changes = np.asarray(truth) + rng.normal(0.0, math.sqrt(2.0), (n, len(truth)))
+        out = 0
+        for row in changes:
+            mine = [FieldMove(0.75, 0.0, float(c), None if i == 0 else "y", 0.1 * i)
+                    for i, c in enumerate(row)]
+            out += allowed_values(spec, 0.5, mine, limit) == (0.0, 0.75)
+        return out / n
+
+    slack = 4.0 * math.sqrt(0.025 * 0.975 / n)
+    one = excluded([0.0])
+    assert one == pytest.approx(0.025, abs=slack)
+    # the robot's value at the first point, its partners' points worse by three bands
+    assert excluded([0.0] + [3.0 * limit] * 8) <= one + slack
+    # partners as good: excluded only when every one of them passes the band
+    assert excluded([0.0] * 3) < 0.001
+    # a value worse by two bands: freed more often as more points sit there
+    assert 1.0 - excluded([2.0 * limit]) == pytest.approx(0.025, abs=slack)
+    assert 1.0 - excluded([2.0 * limit] * 9) > 0.1
