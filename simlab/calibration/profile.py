@@ -42,12 +42,12 @@ each. The exclusion tests "this value is as good as the winner's": when the best
 value is truly no worse, the value is excluded only if that point's own noise passes the band
 (at most 2.5 % of walks, less on one seed), however many other points sit there; more points
 only free a truly worse value more often (one of them dips below the band), so the pairs widen
-the allowed values and never lose the robot's value more often than the slice. Measured on the synthetic lab (a hidden robot,
-three calibration seeds, nine searched fields): six fields held the hidden value on every
-seed. One winner sat at 10 Hz of localization with little persistence of its error (0.16)
-against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz and the hidden wall back-off;
-another winner's slice excluded the hidden persistence (allowed up to 0.76). Every field
-held the hidden value on one seed of three.
+the allowed values and never lose the robot's value more often than the slice. Measured on
+the synthetic lab (a hidden robot, three calibration seeds, nine searched fields): six fields
+held the hidden value on every seed. One winner sat at 10 Hz of localization with little
+persistence of its error (0.16) against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz
+and the hidden wall back-off; another winner's slice excluded the hidden persistence (allowed
+up to 0.76). Every field held the hidden value on one seed of three.
 """
 
 from __future__ import annotations
