@@ -377,6 +377,8 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
     """README step 5: the recommended policy data, and step 5b: its policy on the real
     model with state 18's real moves, against the perfect twin at the same data."""
     need = (rep.get("transfer") or {}).get("data_need")
+    # score the policy data under calibrate's own rule for pairs the robot never left
+    untried = (rep.get("config") or {}).get("untried", "stay")
     if not need:
         print("no policy-data figure in the report: step 5 skipped")
         return
@@ -404,7 +406,8 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
                        (root / "robot.npz", "the 13-hour model (state 18 a reset)")):
         out = root / f"transfer_{real.stem}"
         simlab("transfer", "--real", real, "--sim", mdp, "--states", states,
-               "--out", out, "--n-boot", 30, "--no-plot", "--overwrite")
+               "--out", out, "--n-boot", 30, "--no-plot", "--overwrite",
+               "--untried", untried)
         res = json.loads((out / "transfer.json").read_text())
         ov = res["over_goals"]["twins"][0]
         never = sum(t["never_share"] > 0 for g in res["goals"] for t in g["twins"])
