@@ -377,8 +377,6 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
     """README step 5: the recommended policy data, and step 5b: its policy on the real
     model with state 18's real moves, against the perfect twin at the same data."""
     need = (rep.get("transfer") or {}).get("data_need")
-    # score the policy data under calibrate's own rule for pairs the robot never left
-    untried = (rep.get("config") or {}).get("untried", "stay")
     if not need:
         print("no policy-data figure in the report: step 5 skipped")
         return
@@ -402,6 +400,9 @@ def policy_transfer(args: argparse.Namespace, lab: Path, root: Path, rep: dict,
     simlab("estimate", "--counts", spliced_counts(lab, root / "robot18.csv"), "--n-actions",
            8, "--convention", "ccw-east", "--speed", "fast", "--states", states, "--arena",
            arena, "--out", real18, "--no-plot", "--overwrite")
+    # the policy data are scored under calibrate's own rule for pairs the real robot never
+    # tried or never left (its report's config; "stay" is calibrate's default)
+    untried = (rep.get("config") or {}).get("untried", "stay")
     for real, name in ((real18, "with state 18's real moves"),
                        (root / "robot.npz", "the 13-hour model (state 18 a reset)")):
         out = root / f"transfer_{real.stem}"
