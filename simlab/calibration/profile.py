@@ -47,7 +47,12 @@ the synthetic lab (a hidden robot, three calibration seeds, nine searched fields
 held the hidden value on every seed. One winner sat at 10 Hz of localization with little
 persistence of its error (0.16) against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz
 and the hidden wall back-off; another winner's slice excluded the hidden persistence (allowed
-up to 0.76). Every field held the hidden value on one seed of three.
+up to 0.76). Every field held the hidden value on one seed of three. Moving the other
+fields further from that first winner at each value still excluded frees no more: an Optuna
+CMA-ES search of the other eight (eight walks a value) freed neither hidden value, and a
+quadratic surface fitted to the slice's and the pairs' walks not the back-off the pairs leave
+excluded (they free the 2 Hz there). The hidden robot's values lie in another basin, several
+fields away at once, so a value the profile excludes is worse near its winner, not everywhere.
 """
 
 from __future__ import annotations
