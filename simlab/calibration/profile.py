@@ -22,7 +22,12 @@ The profile also says which values the data allow (:attr:`FieldProfile.allowed`)
 that raised the score beyond the band excludes the values past it (the score worsens
 further out as it worsened there, which holds for a score with one basin along the field);
 any other move excludes nothing on its side, as far as the searched range (nothing was
-measured further out). So a field told on both sides is bounded by its two moves, a field
+measured further out). The confirmation has walked other candidates on the same seed, every
+field at its own value: one within the band whose value of a field lies past an excluding
+move refutes that assumption there, and nothing measured bounds that side any more
+(:func:`bounding`). On the synthetic lab's first winner (below) a confirmed candidate at
+3.3 Hz, +0.013 against a band of 0.018, so frees the hidden 2 Hz the slice excluded, at no
+walk of its own. So a field told on both sides is bounded by its two moves, a field
 not told keeps its whole range: that interval is what the report states as the spread the
 data allow, and what the synthetic lab's benchmark checks its hidden robot against. A side
 left at the searched range's end is *open* (:attr:`FieldProfile.open`): the data set no bound
@@ -77,13 +82,16 @@ TOLD_BAND = 1.96 * math.sqrt(2.0)
 class FieldMove:
     """One moved point: the field's ``value`` there, and the point's ``distance`` and
     ``score`` minus the winner's on the same seed; ``partner``, ``partner_value``: the
-    second field a pair move moved with it, and its value there (None on the slice)."""
+    second field a pair move moved with it, and its value there (None on the slice);
+    ``confirmed``: not a move but another confirmed candidate walked on the same seed, every
+    field at its own value (:func:`allowed_values` reads it)."""
 
     value: Any
     distance_change: float
     score_change: float
     partner: str | None = None
     partner_value: Any = None
+    confirmed: bool = False
 
 
 @dataclass(frozen=True)
@@ -116,7 +124,7 @@ class FieldProfile:
     @property
     def alone(self) -> tuple[FieldMove, ...]:
         """The slice's moves: the field moved with the others at the winner's values."""
-        return tuple(m for m in self.moves if m.partner is None)
+        return tuple(m for m in self.moves if m.partner is None and not m.confirmed)
 
     def excluded_alone(self, limit: float) -> set[Any]:
         """The values a move of the field alone excludes (it raised the score beyond
@@ -153,15 +161,32 @@ def excluding(mine: list[FieldMove], limit: float) -> list[FieldMove]:
     return [m for m in best.values() if m.score_change > limit]
 
 
+def bounding(spec: ParamSpec, value: Any, mine: list[FieldMove],
+             limit: float) -> list[FieldMove]:
+    """The moves of ``mine`` that bound the field's values: those that exclude their value
+    (:func:`excluding`, read over the moves alone), less any a confirmed candidate refutes:
+    one within ``limit`` of the winner on the same seed whose value of the field lies past
+    the move's, on the same side of the winner's ``value`` (the values past an excluded
+    move are excluded on the assumption that the score keeps worsening beyond it; a point
+    as good as the winner out there shows it does not, so nothing measured excludes that
+    side). A named field's choice is freed by a confirmed candidate with that choice."""
+    worse = excluding([m for m in mine if not m.confirmed], limit)
+    good = [m.value for m in mine if m.confirmed and m.score_change <= limit]
+    if spec.categorical:
+        return [m for m in worse if m.value not in good]
+    return [m for m in worse
+            if not any((x < m.value < value) or (value < m.value < x) for x in good)]
+
+
 def allowed_values(spec: ParamSpec, value: Any, mine: list[FieldMove],
                    limit: float) -> tuple[Any, ...] | None:
     """What a field's moves ``mine`` from the winner's ``value`` do not exclude, a value
     excluded when every move there raised the score by more than ``limit`` (module
-    docstring, :func:`excluding`); None when ``limit`` is not finite (the spread
-    unknown)."""
+    docstring, :func:`excluding`) and no confirmed candidate as good as the winner lies
+    past it (:func:`bounding`); None when ``limit`` is not finite (the spread unknown)."""
     if not math.isfinite(limit):
         return None
-    worse = excluding(mine, limit)
+    worse = bounding(spec, value, mine, limit)
     if spec.categorical:
         assert spec.choices is not None
         out = {m.value for m in worse}
@@ -182,7 +207,7 @@ def open_sides(spec: ParamSpec, value: Any, mine: list[FieldMove],
     end (a named field, or an unknown spread: neither)."""
     if spec.categorical or not math.isfinite(limit):
         return (False, False)
-    worse = excluding(mine, limit)
+    worse = bounding(spec, value, mine, limit)
     return (not any(m.value < value for m in worse), not any(m.value > value for m in worse))
 
 
@@ -252,7 +277,8 @@ class Profile:
             moves = tuple(FieldMove(m["value"], float(m["distance_change"]),
                                     float(m["score_change"]),
                                     *((m["with"]["field"], m["with"]["value"])
-                                      if m.get("with") else ()))
+                                      if m.get("with") else ()),
+                                    confirmed=bool(m.get("confirmed", False)))
                           for m in f["moves"])
             allowed = None if f["allowed"] is None else tuple(f["allowed"])
             return FieldProfile(f["field"], f["value"], moves, f["told"], allowed,
@@ -278,7 +304,8 @@ class Profile:
                             "moves": [{"value": m.value, "distance_change": m.distance_change,
                                        "score_change": m.score_change,
                                        "with": None if m.partner is None else
-                                       {"field": m.partner, "value": m.partner_value}}
+                                       {"field": m.partner, "value": m.partner_value},
+                                       "confirmed": m.confirmed}
                                       for m in f.moves]}
                            for f in self.fields]}
 
@@ -348,12 +375,16 @@ def _walk_points(runner: WalkRunner, points: list[NDArray[np.float64]], stage: s
 
 def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
                   ctx: dict[str, Any], budget: tuple[float | None, int | None],
-                  step: float, pairs: bool = False) -> Profile:
+                  step: float, pairs: bool = False,
+                  confirmed: list[Candidate] | tuple[Candidate, ...] = ()) -> Profile:
     """The profile (module docstring) of ``winner`` from its confirming-size ``walks``
     (its confirming walks then its twin walks, each a :class:`Candidate` with its seed;
     the first is the base of every move); with ``pairs``, the told numeric fields are
     then moved in pairs too (:func:`pair_moves`), and a value is excluded only when no
-    point that put the field there stayed within the band (:func:`excluding`)."""
+    point that put the field there stayed within the band (:func:`excluding`).
+    ``confirmed``: the confirmation's walks; those of other candidates on the profile's seed
+    (common random numbers with every move) join every field's moves as ``confirmed``
+    points, so a side whose bound one of them refutes is open (:func:`bounding`)."""
     space: ParameterSpace = ctx["space"]
     base = walks[0]
     points = moves(space, winner.unit, step)
@@ -376,6 +407,11 @@ def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
             dd, ds = c.distance - base.distance, c.score - base.score
             mine[i].append(FieldMove(c.values[a], dd, ds, b, c.values[b]))
             mine[j].append(FieldMove(c.values[b], dd, ds, a, c.values[a]))
+    for c in confirmed:
+        if c.seed == base.seed and c.index != winner.index:
+            for k, spec in enumerate(space.specs):
+                mine[k].append(FieldMove(c.values[spec.name], c.distance - base.distance,
+                                         c.score - base.score, confirmed=True))
     fields = []
     for k, spec in enumerate(space.specs):
         value = winner.values[spec.name]

@@ -622,7 +622,8 @@ def profile_section(result: CalibrationResult) -> str:
               f"distance and of score, against the score's spread from walk to walk "
               f"({sigma}). A field is told when a move changes the score by more than "
               f"{TOLD_BAND:.2f} times that spread. A move that raised the score by more "
-              "excludes the values past it; the last column is what is left, the spread the "
+              "excludes the values past it, unless another confirmed candidate within the "
+              "band on this seed lies past it; the last column is what is left, the spread the "
               "data allow (a side no move bounds is open: nothing was measured past the "
               "searched range). " + (
                   "The told fields were then moved in pairs too (both diagonals, the same "
@@ -652,6 +653,11 @@ def profile_section(result: CalibrationResult) -> str:
                 or "none") + " "
         out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} {freed}| "
                   f"{_allowed(f.allowed, f.open)} |\n")
+    refuted = _refuted(prof, getattr(result, "space", None))
+    if refuted:
+        out.write("\nFreed by a confirmed candidate within the band on this seed (every field "
+                  "at its own value): " + "; ".join(refuted) + ". The score does not keep "
+                  "worsening past that move, so nothing measured bounds that side.\n")
     ties = prof.ties()
     if ties:
         out.write("\nTied by the data: " + "; ".join(f"{a} with {b}" for a, b in ties)
@@ -667,6 +673,28 @@ def profile_section(result: CalibrationResult) -> str:
                   "those, the others held here.\n")
     out.write("\n")
     return out.getvalue()
+
+
+def _refuted(prof: Any, space: Any) -> list[str]:
+    """``field below/above V (a confirmed candidate at X: +score)`` for each move whose bound
+    a confirmed candidate refutes (:func:`~simlab.calibration.profile.bounding`)."""
+    from simlab.calibration.profile import bounding, excluding
+
+    if space is None or not math.isfinite(prof.limit):
+        return []
+    limit, out = prof.limit, []
+    for spec, f in zip(space.specs, prof.fields, strict=True):
+        kept = bounding(spec, f.value, list(f.moves), limit)
+        for m in excluding([x for x in f.moves if not x.confirmed], limit):
+            if m in kept:
+                continue
+            good = [c for c in f.moves if c.confirmed and c.score_change <= limit
+                    and (c.value == m.value if spec.categorical else
+                         (c.value < m.value < f.value) or (f.value < m.value < c.value))]
+            side = "" if spec.categorical else (" below" if m.value < f.value else " above")
+            out.append(f"{f.name}{side} {_value(m.value)} (a confirmed candidate at "
+                       f"{_value(good[0].value)}: {good[0].score_change:+.4f})")
+    return out
 
 
 def _allowed(allowed: tuple[Any, ...] | None,

@@ -268,7 +268,8 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
             walks = done.twins or [c for c in done.confirmed if c.index == done.best]
             profile = profile_stage(runner, cands[done.best], walks, ctx,
                                     (budgets.confirm_hours, budgets.confirm_transitions),
-                                    config.profile_step, config.profile_pairs)
+                                    config.profile_step, config.profile_pairs,
+                                    done.confirmed)
     finally:
         runner.close()
     final = done.final

@@ -65,10 +65,14 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
     winner = res.candidates[res.best]
     for k, f in enumerate(prof.fields):
         assert f.value == winner.values[f.name]
-        for m in f.moves:  # each a quarter of the range away in the unit cube (or a bound)
+        for m in f.alone:  # each a quarter of the range away in the unit cube (or a bound)
             moved = space.specs[k].unit(m.value)
             assert abs(moved - winner.unit[k]) == pytest.approx(0.25) or moved in (0.0, 1.0)
-        assert f.told == any(abs(m.score_change) > TOLD_BAND * prof.sigma for m in f.moves)
+        assert f.told == any(abs(m.score_change) > TOLD_BAND * prof.sigma for m in f.alone)
+        # the other confirmed candidates' walks on the same seed join as confirmed points
+        others = [c for c in res.confirmed if c.seed == prof.seed and c.index != res.best]
+        assert others and sorted((m.value, m.score_change) for m in f.moves if m.confirmed) \
+            == sorted((c.values[f.name], c.score - base.score) for c in others)
         # the winner is among the values the profile allows; a field not told keeps its range
         assert f.admits(f.value) is True
         if f.told is False:
@@ -218,6 +222,44 @@ def test_a_value_is_excluded_only_when_every_point_that_put_the_field_there_was_
     assert allowed_values(spec, 0.5, worse, 0.01) == (0.25, 0.75)
 
 
+def test_a_confirmed_candidate_as_good_as_the_winner_past_a_move_frees_that_side() -> None:
+    """A move worse beyond the band excludes the values past it on the assumption that the
+    score keeps worsening out there; another confirmed candidate on the same seed within the
+    band past it shows it does not, and the side is left open. One between the winner and
+    the move, or one beyond the band, changes nothing."""
+    spec = ParamSpec("x", 0.0, 1.0)
+    slice_ = [FieldMove(0.25, 0.0, 0.02), FieldMove(0.75, 0.0, 0.03)]
+
+    def seen(x: float, change: float) -> FieldMove:
+        return FieldMove(x, 0.0, change, confirmed=True)
+
+    assert allowed_values(spec, 0.5, slice_, 0.01) == (0.25, 0.75)
+    out_there = [*slice_, seen(0.1, 0.004)]
+    assert allowed_values(spec, 0.5, out_there, 0.01) == (0.0, 0.75)
+    assert open_sides(spec, 0.5, out_there, 0.01) == (True, False)
+    for other in (seen(0.4, 0.0), seen(0.1, 0.02), seen(0.9, 0.05)):
+        assert allowed_values(spec, 0.5, [*slice_, other], 0.01) == (0.25, 0.75)
+        assert open_sides(spec, 0.5, [*slice_, other], 0.01) == (False, False)
+    # a confirmed point is not a move: it neither tells the field nor joins the slice
+    f = FieldProfile("x", 0.5, tuple(out_there), True)
+    assert f.alone == tuple(slice_) and f.excluded_alone(0.01) == {0.25, 0.75}
+    # a named field: an excluded choice a confirmed candidate as good takes is allowed
+    named = ParamSpec("m", choices=("a", "b", "c"))
+    moves_ = [FieldMove("b", 0.0, 0.05), FieldMove("c", 0.0, 0.05)]
+    assert allowed_values(named, "a", moves_, 0.01) == ("a",)
+    assert allowed_values(named, "a", [*moves_, FieldMove("c", 0.0, 0.0, confirmed=True)],
+                          0.01) == ("a", "c")
+    # report.json keeps the flag
+    prof = Profile(step=0.25, seed=1, transitions=10, distance=0.1, score=0.1, sigma=0.01 / TOLD_BAND,
+                   fields=(FieldProfile("x", 0.5, tuple(out_there), True, (0.0, 0.75),
+                                        (True, False)),))
+    assert Profile.from_json(json.loads(json.dumps(prof.to_json()))) == prof
+    from types import SimpleNamespace
+    text = profile_section(SimpleNamespace(profile=prof, space=ParameterSpace((spec,))))
+    assert "Freed by a confirmed candidate" in text
+    assert "x below 0.25 (a confirmed candidate at 0.1: +0.0040)" in text
+
+
 def test_pairs_free_two_fields_that_trade_off_exactly(lattice9) -> None:
     """The kinematic walker drives ``slow_speed * drive_time`` metres a move: with both on
     log ranges of the same ratio, a step up of one and down of the other is the same walk, so
@@ -243,7 +285,7 @@ def test_pairs_free_two_fields_that_trade_off_exactly(lattice9) -> None:
         pairs = [m for m in g.moves if m.partner is not None]
         assert {m.partner for m in pairs} == {h.name for h in both.fields} - {f.name}
         # one point per move of the field times move of its partner (both ways, both)
-        assert len(pairs) == len(alone.fields[0].moves) * len(alone.fields[1].moves)
+        assert len(pairs) == len(alone.fields[0].alone) * len(alone.fields[1].alone)
     dt, sp = both.fields
     # the point with the drive time down and the speed up keeps the product: the same walk
     down = next(m for m in dt.moves if m.partner is not None and m.value < dt.value
