@@ -170,12 +170,22 @@ def bounding(spec: ParamSpec, value: Any, mine: list[FieldMove],
     move are excluded on the assumption that the score keeps worsening beyond it; a point
     as good as the winner out there shows it does not, so nothing measured excludes that
     side). A named field's choice is freed by a confirmed candidate with that choice."""
-    worse = excluding([m for m in mine if not m.confirmed], limit)
-    good = [m.value for m in mine if m.confirmed and m.score_change <= limit]
-    if spec.categorical:
-        return [m for m in worse if m.value not in good]
-    return [m for m in worse
-            if not any((x < m.value < value) or (value < m.value < x) for x in good)]
+    return [m for m in excluding([m for m in mine if not m.confirmed], limit)
+            if refuting(spec, value, m, mine, limit) is None]
+
+
+def refuting(spec: ParamSpec, value: Any, move: FieldMove, mine: list[FieldMove],
+             limit: float) -> FieldMove | None:
+    """The first confirmed point of ``mine`` within ``limit`` that lies past ``move``, on its
+    side of the winner's ``value`` (a named field: one with the move's choice), or None
+    (:func:`bounding`)."""
+    for m in mine:
+        if not m.confirmed or m.score_change > limit:
+            continue
+        if (m.value == move.value if spec.categorical else
+                (m.value < move.value < value) or (value < move.value < m.value)):
+            return m
+    return None
 
 
 def allowed_values(spec: ParamSpec, value: Any, mine: list[FieldMove],

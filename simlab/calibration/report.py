@@ -678,22 +678,19 @@ def profile_section(result: CalibrationResult) -> str:
 def _refuted(prof: Any, space: Any) -> list[str]:
     """``field below/above V (a confirmed candidate at X: +score)`` for each move whose bound
     a confirmed candidate refutes (:func:`~simlab.calibration.profile.bounding`)."""
-    from simlab.calibration.profile import bounding, excluding
+    from simlab.calibration.profile import excluding, refuting
 
     if space is None or not math.isfinite(prof.limit):
         return []
     limit, out = prof.limit, []
     for spec, f in zip(space.specs, prof.fields, strict=True):
-        kept = bounding(spec, f.value, list(f.moves), limit)
         for m in excluding([x for x in f.moves if not x.confirmed], limit):
-            if m in kept:
+            good = refuting(spec, f.value, m, list(f.moves), limit)
+            if good is None:
                 continue
-            good = [c for c in f.moves if c.confirmed and c.score_change <= limit
-                    and (c.value == m.value if spec.categorical else
-                         (c.value < m.value < f.value) or (f.value < m.value < c.value))]
             side = "" if spec.categorical else (" below" if m.value < f.value else " above")
             out.append(f"{f.name}{side} {_value(m.value)} (a confirmed candidate at "
-                       f"{_value(good[0].value)}: {good[0].score_change:+.4f})")
+                       f"{_value(good.value)}: {good.score_change:+.4f})")
     return out
 
 
