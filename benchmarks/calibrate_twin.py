@@ -29,7 +29,8 @@ Two labs (``--lab``):
   Measured (three seeds, 2-core VM, load 1.8-1.9, 66 minutes): 1.14/1.19/1.18x the matched
   floor, at the recommended data 1.019/1.026/1.024x a perfect twin; six of nine fields held the
   hidden value on every seed (pose persistence, localization rate, wall back-off on two of
-  three: the profile is a slice at the winner, and those fields trade off); on fresh seeds the
+  three: the profile is a slice at the winner, and those fields trade off; seven on every seed
+  once the confirmation's other candidates are read, which free seed 0's 2 Hz); on fresh seeds the
   hidden robot 1.16x, its values in the twin's space 1.16x, the winners 1.22/1.24/1.17x.
   With ``--calibrate-args=--profile-pairs`` the recovery lines also give the slice alone from
   the same walks, and the pairs of fields the data tie (seeds 0 and 1: every field inside on
