@@ -153,9 +153,12 @@ def excluding(mine: list[FieldMove], limit: float) -> list[FieldMove]:
     """The moves of ``mine`` that exclude their value: it raised the score by more than
     ``limit`` at every point that put the field there (the slice's move, and each pair
     move that moved a second field with it: with a pair, the value is excluded only when
-    no partner's move made up for it)."""
+    no partner's move made up for it). A confirmed point is not a move and is left out here
+    (:func:`bounding` reads it)."""
     best: dict[Any, FieldMove] = {}
     for m in mine:
+        if m.confirmed:
+            continue
         if m.value not in best or m.score_change < best[m.value].score_change:
             best[m.value] = m
     return [m for m in best.values() if m.score_change > limit]
@@ -164,14 +167,13 @@ def excluding(mine: list[FieldMove], limit: float) -> list[FieldMove]:
 def bounding(spec: ParamSpec, value: Any, mine: list[FieldMove],
              limit: float) -> list[FieldMove]:
     """The moves of ``mine`` that bound the field's values: those that exclude their value
-    (:func:`excluding`, read over the moves alone), less any a confirmed candidate refutes:
+    (:func:`excluding`), less any a confirmed candidate refutes:
     one within ``limit`` of the winner on the same seed whose value of the field lies past
     the move's, on the same side of the winner's ``value`` (the values past an excluded
     move are excluded on the assumption that the score keeps worsening beyond it; a point
     as good as the winner out there shows it does not, so nothing measured excludes that
     side). A named field's choice is freed by a confirmed candidate with that choice."""
-    return [m for m in excluding([m for m in mine if not m.confirmed], limit)
-            if refuting(spec, value, m, mine, limit) is None]
+    return [m for m in excluding(mine, limit) if refuting(spec, value, m, mine, limit) is None]
 
 
 def refuting(spec: ParamSpec, value: Any, move: FieldMove, mine: list[FieldMove],

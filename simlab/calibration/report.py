@@ -653,7 +653,7 @@ def profile_section(result: CalibrationResult) -> str:
                 or "none") + " "
         out.write(f"| {f.name} | {_value(f.value)} | {moved} | {told} {freed}| "
                   f"{_allowed(f.allowed, f.open)} |\n")
-    refuted = _refuted(prof, getattr(result, "space", None))
+    refuted = _refuted(prof, result.space)
     if refuted:
         out.write("\nFreed by a confirmed candidate within the band on this seed (every field "
                   "at its own value): " + "; ".join(refuted) + ". The score does not keep "
@@ -680,11 +680,11 @@ def _refuted(prof: Any, space: Any) -> list[str]:
     a confirmed candidate refutes (:func:`~simlab.calibration.profile.bounding`)."""
     from simlab.calibration.profile import excluding, refuting
 
-    if space is None or not math.isfinite(prof.limit):
+    if not math.isfinite(prof.limit):
         return []
     limit, out = prof.limit, []
     for spec, f in zip(space.specs, prof.fields, strict=True):
-        for m in excluding([x for x in f.moves if not x.confirmed], limit):
+        for m in excluding(list(f.moves), limit):
             good = refuting(spec, f.value, m, list(f.moves), limit)
             if good is None:
                 continue
