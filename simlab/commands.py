@@ -25,6 +25,7 @@ _FUNCTIONS: dict[str, str] = {
     "train": "simlab.training.train:train",
     "replay": "simlab.replay.replay:replay",
     "calibrate": "simlab.calibration.command:calibrate_command",
+    "calibrate_pool": "simlab.calibration.pool:pool_command",
     "transfer": "simlab.calibration.transfer:transfer_command",
     "pipeline": "simlab.orchestration.pipeline:pipeline",
     "social_pipeline": "simlab.social.pipeline:social_pipeline",

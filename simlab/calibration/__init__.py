@@ -25,5 +25,8 @@ made to move like the real robot whose transitions thesis 3.2.5 counted.
 * :mod:`simlab.calibration.report` — the calibrated ``[primitives]`` TOML, JSON/markdown
   reports and the figure;
 * :mod:`simlab.calibration.command` — ``simlab calibrate`` as a function of files
-  (:func:`~simlab.calibration.command.calibrate_files`).
+  (:func:`~simlab.calibration.command.calibrate_files`);
+* :mod:`simlab.calibration.pool` — several calibrations of one lab read together
+  (``simlab calibrate-pool``): their winners on common fresh walks, the basins within
+  sampling of the best, what the data allow across them, an ensemble across basins.
 """

@@ -54,6 +54,7 @@ SUBCOMMANDS: dict[str, str] = {
     "train": "train",
     "replay": "replay",
     "calibrate": "calibrate",
+    "calibrate-pool": "calibrate_pool",
     "transfer": "transfer",
     "pipeline": "pipeline",
     "social-pipeline": "social_pipeline",

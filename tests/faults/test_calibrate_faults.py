@@ -163,3 +163,14 @@ def test_walk_sizes_are_bounded(work: Path, capsys, extra: str, field: str) -> N
     before = tree_hashes(work)
     assert_refused(run_cli(argv + extra.split(), capsys), field)
     assert tree_hashes(work) == before and not (work / "cal").exists()
+
+
+def test_calibrate_pool_refuses_folders_that_are_not_calibrations(work: Path, capsys) -> None:
+    before = tree_hashes(work)
+    common = (f"--real {work}/counts.csv --states {work}/states.json --out {work}/pool "
+              "--no-progress")
+    assert_refused(run_cli(f"calibrate-pool --runs {work} {work}/nothing {common}".split(),
+                           capsys), "report.json", str(work))
+    assert_refused(run_cli(f"calibrate-pool --runs {work}/nothing {work} {common}".split(),
+                           capsys), "not a calibration folder", "nothing")
+    assert tree_hashes(work) == before and not (work / "pool").exists()

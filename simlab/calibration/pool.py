@@ -1,0 +1,552 @@
+"""Several calibrations of one lab pooled: which basins the data allow, and what they allow.
+
+A calibration's profile (:mod:`~simlab.calibration.profile`) reads the basin its winner sits
+in: a value it excludes is worse *near that winner*, not everywhere. On the synthetic lab
+of ``benchmarks/calibrate_twin.py`` three calibrate seeds landed in different basins, each
+within sampling of the others on fresh walks, and each one's profile excluded one hidden
+value the others allowed (the localization's rate and wall back-off on one, the error's
+persistence on another). Restarting the search from other seeds is the well-tried answer
+to a search with several basins (a multi-start); this module reads the restarts together.
+
+Every run's winner (its ``primitives.toml``, fitted decision latency included) walks the
+same fresh seeds at the confirming size (common random numbers across the winners), and
+each walk is scored as the runs scored theirs, one objective for all. The best mean score
+is the pool's winner. A run *joins* the pool when its mean score is within sampling of the
+best's: by at most :data:`~simlab.calibration.profile.TOLD_BAND` ``sigma / sqrt(n)``, the
+95 % half-width of a difference of two means of ``n`` independent walks, ``sigma`` the
+walk-to-walk standard deviation of the score pooled over the runs' own walks here (walks
+on common seeds differ less, so this errs towards joining, as the profile errs towards
+"not told").
+
+What the data allow, field by field, is then the union of the joined runs' allowed values:
+a value is allowed when it is within the profile's band of a winner that is itself within
+sampling of the best. That chains two tests, so it states somewhat more than one profile
+would; it is the statement that does not depend on which basin one search happened to
+reach. The joined winners form a twin ensemble across basins (``[[ensemble]]`` of the
+pool's ``primitives.toml``, each member with its own fitted latency), which ``collect`` and
+``online --arena`` draw from with ``--ensemble``.
+
+Outputs in ``--out``: ``primitives.toml`` (the pool's winner, and the ensemble), ``pool.json``
+and ``pool.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simlab.base.actions import ActionSet, ActionSetOptions, parse_action_set
+from simlab.base.errors import ConfigError
+from simlab.base.io import atomic_write_json, atomic_write_text, ensure_new, output_transaction
+from simlab.base.options import command, option
+from simlab.calibration.config import CalibrationConfig
+from simlab.calibration.profile import TOLD_BAND, FieldProfile, Profile
+from simlab.calibration.space import ParameterSpace, space_from_mapping
+
+#: ``kind`` of ``pool.json``: what ``--overwrite`` recognises as the pool's own.
+KIND = "simlab-calibrate-pool"
+FILES = ("primitives.toml", "pool.json", "pool.md")
+#: First seed of the pool's walks: far from any seed a calibration walks (its seed and the
+#: few after it), so the walks are fresh for every run; a clash is refused.
+FIRST_SEED = 100_000
+#: Options every pooled run must share: they decide what a score is and how a walk is made.
+SHARED = ("objective", "unvisited", "signature_weight", "simulator", "pose_source",
+          "start_states", "reset_states")
+
+
+@dataclass(frozen=True)
+class Run:
+    """One calibration read back: its folder, ``report.json``, winner and profile."""
+
+    path: Path
+    report: dict[str, Any]
+    params: Any
+    profile: Profile | None
+
+    @property
+    def seed(self) -> int:
+        return int(self.report["config"]["seed"])
+
+    def seeds_walked(self) -> range:
+        """The walk seeds the calibration used (search, rungs, confirmation, twins)."""
+        c = self.report["config"]
+        return range(self.seed, self.seed + int(c["rungs"]) + int(c["confirm_seeds"])
+                     + int(c["transfer_seeds"]) + 1)
+
+
+@dataclass(frozen=True)
+class PooledField:
+    """A searched field across the joined runs: each run's winner ``values``, its allowed
+    ``spans`` (``(low, high, open low, open high)``, a named field's choices as a tuple of
+    them), and their union ``allowed`` (merged intervals with open ends; the choices)."""
+
+    name: str
+    categorical: bool
+    values: tuple[Any, ...]
+    spans: tuple[Any, ...]
+    allowed: tuple[Any, ...] | None
+
+    def admits(self, value: Any) -> bool | None:
+        """Whether ``value`` lies in the union (None: no joined run measured it)."""
+        if self.allowed is None:
+            return None
+        if self.categorical:
+            return value in self.allowed
+        x = float(value)
+        return any((lo_open or lo - 1e-12 <= x) and (hi_open or x <= hi + 1e-12)
+                   for lo, hi, lo_open, hi_open in self.allowed)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"field": self.name, "values": list(self.values),
+                "spans": [None if s is None else list(s) for s in self.spans],
+                "allowed": None if self.allowed is None else [
+                    s if self.categorical else list(s) for s in self.allowed]}
+
+
+@dataclass(frozen=True)
+class PoolResult:
+    """The pool (module docstring). ``scores``/``distances``: ``(runs, seeds)``; ``best``:
+    the index of the pool's winner; ``joined``: the runs within sampling of it."""
+
+    runs: tuple[Run, ...]
+    seeds: tuple[int, ...]
+    transitions: int
+    scores: np.ndarray
+    distances: np.ndarray
+    sigma: float
+    best: int
+    joined: tuple[int, ...]
+    fields: tuple[PooledField, ...]
+    space: ParameterSpace
+    matched_floor: float
+    objective: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def limit(self) -> float:
+        """How far above the best mean score a run joins."""
+        return TOLD_BAND * self.sigma / math.sqrt(len(self.seeds))
+
+    @property
+    def gaps(self) -> np.ndarray:
+        mean = self.scores.mean(axis=1)
+        return mean - mean[self.best]
+
+
+def read_run(path: str | os.PathLike[str]) -> Run:
+    """A calibration's folder: its ``report.json`` (``kind`` checked) and the winner of
+    its ``primitives.toml``; ConfigError naming the file otherwise."""
+    from simlab.calibration.command import load_base
+
+    folder = Path(path)
+    rep_path = folder / "report.json"
+    if not folder.is_dir():
+        raise ConfigError("not a calibration folder", path=folder, key="runs",
+                          fix="give the --out folders of earlier simlab calibrate runs")
+    try:
+        rep = json.loads(rep_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError("no report.json here", path=folder, key="runs",
+                          fix="give the --out folder of a finished simlab calibrate") from None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"not JSON: {exc}", path=rep_path, key="runs") from None
+    if not isinstance(rep, dict) or rep.get("kind") != "simlab-calibrate":
+        raise ConfigError("not a report of simlab calibrate", path=rep_path, key="runs",
+                          fix="give the --out folders of simlab calibrate runs")
+    for key in ("config", "space", "real", "budgets", "confirmed"):
+        if key not in rep:
+            raise ConfigError(f"the report has no {key!r}", path=rep_path, key=key,
+                              fix="re-run simlab calibrate with this version")
+    if not rep["confirmed"]:
+        raise ConfigError("this calibration was not confirmed (--no-confirm)", path=rep_path,
+                          key="confirmed", fix="pool confirmed calibrations only")
+    params = load_base(folder / "primitives.toml", str(rep["config"]["simulator"]))
+    prof = Profile.from_json(rep["profile"]) if rep.get("profile") else None
+    return Run(folder, rep, params, prof)
+
+
+def check_runs(runs: list[Run]) -> ParameterSpace:
+    """Runs that can be pooled: the same searched space, real table size and the options
+    of :data:`SHARED`; ConfigError naming the run and the field otherwise."""
+    if len(runs) < 2:
+        raise ConfigError(f"{len(runs)} calibration given; a pool needs two or more",
+                          key="runs", fix="give several --out folders of simlab calibrate "
+                          "(different --seed, same lab)")
+    first = runs[0].report
+    seen: dict[Path, int] = {}
+    for k, run in enumerate(runs):
+        resolved = run.path.resolve()
+        if resolved in seen:
+            raise ConfigError(f"given twice (also run {seen[resolved]})", path=run.path,
+                              key="runs", fix="give each calibration once")
+        seen[resolved] = k
+        rep = run.report
+        where = run.path / "report.json"
+        if rep["space"] != first["space"]:
+            raise ConfigError("another searched space than the first run's", path=where,
+                              key="space", fix="pool calibrations of the same space")
+        for key in ("transitions", "states", "action_set"):
+            if rep["real"].get(key) != first["real"].get(key):
+                raise ConfigError(f"real {key} {rep['real'].get(key)!r}, the first run's "
+                                  f"{first['real'].get(key)!r}", path=where, key=f"real.{key}",
+                                  fix="pool calibrations against the same real table")
+        for key in SHARED:
+            if rep["config"].get(key) != first["config"].get(key):
+                raise ConfigError(f"{key} {rep['config'].get(key)!r}, the first run's "
+                                  f"{first['config'].get(key)!r}", path=where,
+                                  key=f"config.{key}",
+                                  fix="pool calibrations made with the same options")
+    return space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
+                               for x in first["space"]})
+
+
+def pool_seeds(runs: list[Run], n: int, first: int) -> tuple[int, ...]:
+    """``n`` walk seeds from ``first``; refused when a run walked one of them."""
+    seeds = tuple(range(first, first + n))
+    for run in runs:
+        clash = sorted(set(seeds) & set(run.seeds_walked()))
+        if clash:
+            raise ConfigError(f"seed {clash[0]} was walked by this calibration (seed "
+                              f"{run.seed})", path=run.path, key="first_seed",
+                              fix="choose a --first-seed away from the runs' seeds")
+    return seeds
+
+
+def pooled_fields(space: ParameterSpace, runs: list[Run], joined: list[int]
+                  ) -> tuple[PooledField, ...]:
+    """Per searched field, the union of the joined runs' allowed values (module docstring).
+    A run without a profile contributes nothing; no joined profile: ``allowed`` None."""
+    out = []
+    for k, spec in enumerate(space.specs):
+        values, spans = [], []
+        for i in joined:
+            run = runs[i]
+            values.append(run.report["params"][spec.name])
+            f: FieldProfile | None = None if run.profile is None else run.profile.fields[k]
+            if f is None or f.allowed is None:
+                spans.append(None)
+            elif spec.categorical:
+                spans.append(tuple(f.allowed))
+            else:
+                spans.append((float(f.allowed[0]), float(f.allowed[1]), *f.open))
+        known = [s for s in spans if s is not None]
+        if not known:
+            allowed = None
+        elif spec.categorical:
+            assert spec.choices is not None
+            allowed = tuple(c for c in spec.choices if any(c in s for s in known))
+        else:
+            allowed = _merge(known)
+        out.append(PooledField(spec.name, bool(spec.categorical), tuple(values), tuple(spans),
+                               allowed))
+    return tuple(out)
+
+
+def _merge(spans: list[tuple[float, float, bool, bool]]) -> tuple[Any, ...]:
+    """Overlapping intervals merged, an open end kept where the interval holding it is
+    open there."""
+    merged: list[list[Any]] = []
+    for lo, hi, lo_open, hi_open in sorted(spans):
+        if merged and lo <= merged[-1][1] + 1e-12:
+            last = merged[-1]
+            if hi > last[1] + 1e-12:
+                last[1], last[3] = hi, hi_open
+            elif abs(hi - last[1]) <= 1e-12:
+                last[3] = last[3] or hi_open
+            last[2] = last[2] or (lo_open and abs(lo - last[0]) <= 1e-12)
+        else:
+            merged.append([lo, hi, lo_open, hi_open])
+    return tuple(tuple(m) for m in merged)
+
+
+def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
+         first_seed: int = FIRST_SEED, workers: int = 2, address: str | None = None,
+         progress: bool = True) -> PoolResult:
+    """Walk every run's winner on common fresh seeds and pool the runs (module docstring).
+
+    Args:
+        runs: the calibrations (:func:`read_run`), checked by :func:`check_runs`.
+        real: the real table they were calibrated against (reset rows as they chose).
+        arena, states: the lab's arena and states.
+        seeds: walk seeds per winner (>= 2: the walk-to-walk spread is measured here).
+    """
+    from tqdm.auto import tqdm
+
+    from simlab.calibration.objective import Reference
+    from simlab.calibration.search import make_candidate
+    from simlab.calibration.stages import _setup
+    from simlab.calibration.walks import WalkJob, WalkRunner
+
+    space = check_runs(runs)
+    if int(seeds) < 2:
+        raise ConfigError(f"expected 2 or more, got {seeds}", key="seeds",
+                          fix="the spread of a walk is measured from these seeds")
+    walk_seeds = pool_seeds(runs, int(seeds), int(first_seed))
+    known = {f.name for f in fields(CalibrationConfig)}
+    cfg = CalibrationConfig(**{k: v for k, v in runs[0].report["config"].items()
+                               if k in known and k not in ("goal_states", "address")})
+    cfg = replace(cfg, seed=int(first_seed), workers=int(workers), progress=progress)
+    setup = _setup(real, arena, states, space, runs[0].params, cfg)
+    recorded = int(runs[0].report["real"]["transitions"])
+    if int(setup.real.counts.sum()) != recorded:  # both without the reset rows
+        raise ConfigError(f"{int(setup.real.counts.sum())} transitions (reset rows left out), "
+                          f"the runs were calibrated against {recorded}",
+                          path=real.source or None, key="real",
+                          fix="give the real table the runs were calibrated against")
+    sizes = sorted({int(r.report["budgets"]["confirm_transitions"]) for r in runs})
+    rows = sizes[-1]
+    reference = Reference.build(setup.real.counts, setup.regions, setup.disc.centres,
+                                setup.real.action_set.headings())
+    ctx = {"space": space, "config": cfg, "arena": setup.arena, "states": setup.disc,
+           "base": runs[0].params, "walk_seed": walk_seeds[0], "real": setup.real,
+           "n_states": int(setup.disc.n_states), "screen": (None, rows),
+           "reference": reference}
+    jobs = [WalkJob(index=i, arena=setup.arena, states=setup.disc, params=run.params,
+                    hours=None, transitions=rows, seed=s, simulator=cfg.simulator,
+                    pose_source=cfg.pose_source, action_set=setup.real.action_set,
+                    start_states=cfg.start_states, n_states=int(setup.disc.n_states))
+            for i, run in enumerate(runs) for s in walk_seeds]
+    runner = WalkRunner(int(workers), address)
+    scores = np.zeros((len(runs), len(walk_seeds)))
+    dists = np.zeros_like(scores)
+    bar = tqdm(total=len(jobs), desc=f"calibrate-pool: {len(runs)} winners on "
+               f"{len(walk_seeds)} fresh seeds ({rows:,} transitions a walk)", unit="walk",
+               disable=not progress)
+    try:
+        for k in range(0, len(jobs), max(1, int(workers))):
+            chunk = jobs[k:k + max(1, int(workers))]
+            for job, sim in zip(chunk, runner.map(chunk), strict=True):
+                c = make_candidate(job.index, "pool", np.zeros(len(space.names)), sim,
+                                   job.seed, ctx)
+                j = walk_seeds.index(job.seed)
+                scores[job.index, j], dists[job.index, j] = c.score, c.distance
+            bar.update(len(chunk))
+    finally:
+        bar.close()
+        runner.close()
+    sigma = float(np.sqrt(np.mean(np.var(scores, axis=1, ddof=1))))
+    mean = scores.mean(axis=1)
+    best = int(np.argmin(mean))
+    limit = TOLD_BAND * sigma / math.sqrt(len(walk_seeds))
+    joined = [i for i in range(len(runs)) if mean[i] - mean[best] <= limit]
+    joined.sort(key=lambda i: (mean[i], i))
+    notes = []
+    if len(sizes) > 1:
+        notes.append(f"the runs confirmed at {', '.join(f'{s:,}' for s in sizes)} transitions; "
+                     f"the pool walks {rows:,}")
+    missing = [str(runs[i].path) for i in joined if runs[i].profile is None]
+    if missing:
+        notes.append("no profile in " + ", ".join(missing) + " (calibrate --profile-step "
+                     "0.25 measures one): its allowed values are not in the union")
+    matched = float(runs[best].report["matched_floor"]["median"])
+    return PoolResult(tuple(runs), walk_seeds, rows, scores, dists, sigma, best, tuple(joined),
+                      pooled_fields(space, runs, joined), space, matched, cfg.objective, notes)
+
+
+# -- outputs ----------------------------------------------------------------------------
+
+
+def _value(v: Any) -> str:
+    return v if isinstance(v, str) else f"{float(v):.4g}"
+
+
+def _span(s: Any, categorical: bool) -> str:
+    if s is None:
+        return "n/a"
+    if categorical:
+        return ", ".join(s)
+    lo, hi, lo_open, hi_open = s
+    return f"{'(open) ' * lo_open}{_value(lo)} - {_value(hi)}{' (open)' * hi_open}"
+
+
+def pool_json(res: PoolResult) -> dict[str, Any]:
+    mean_s, mean_d = res.scores.mean(axis=1), res.distances.mean(axis=1)
+    return {"kind": KIND, "seeds": list(res.seeds), "transitions": res.transitions,
+            "objective": res.objective, "sigma": res.sigma, "limit": res.limit,
+            "band": TOLD_BAND, "matched_floor": res.matched_floor,
+            "best": res.best, "joined": list(res.joined),
+            "runs": [{"path": str(r.path), "seed": r.seed,
+                      "own_distance": r.report["distance"]["distance"],
+                      "scores": res.scores[i].tolist(), "distances": res.distances[i].tolist(),
+                      "score": float(mean_s[i]), "distance": float(mean_d[i]),
+                      "gap": float(res.gaps[i]), "joined": i in res.joined,
+                      "profile": r.profile is not None,
+                      "params": {n: r.report["params"][n] for n in res.space.names}}
+                     for i, r in enumerate(res.runs)],
+            "fields": [f.to_json() for f in res.fields], "notes": res.notes}
+
+
+def pool_markdown(res: PoolResult) -> str:
+    mean_s, mean_d = res.scores.mean(axis=1), res.distances.mean(axis=1)
+    mf = res.matched_floor
+    lines = [f"# Pool of {len(res.runs)} calibrations against "
+             f"{res.runs[0].report['real'].get('source') or 'a real table'}", "",
+             f"Every run's winner walked the same {len(res.seeds)} fresh seeds "
+             f"({', '.join(map(str, res.seeds))}) at {res.transitions:,} transitions, scored "
+             f"by the `{res.objective}` objective. Walk-to-walk spread of the score "
+             f"{res.sigma:.4f}; a run joins within {res.limit:.4f} of the best mean score "
+             f"({TOLD_BAND:.2f} sigma / sqrt({len(res.seeds)})). Matched floor {mf:.4f}.", "",
+             "| run | calibrate seed | own distance | pool distance (x matched floor) | "
+             "score | above the best | joined |", "|---|---|---|---|---|---|---|"]
+    for i, r in enumerate(res.runs):
+        own = float(r.report["distance"]["distance"])
+        mark = " (the pool's winner)" if i == res.best else ""
+        lines.append(f"| {r.path} | {r.seed} | {own:.4f} | {mean_d[i]:.4f} "
+                     f"({mean_d[i] / mf:.2f}x) | {mean_s[i]:.4f} | {res.gaps[i]:+.4f} | "
+                     f"{'yes' if i in res.joined else 'no'}{mark} |")
+    lines += ["", "## What the data allow, field by field", "",
+              "Each joined run's winner and the values its profile allows; the union is the "
+              "values within the band of a winner that is itself within sampling of the best "
+              "(several basins, each allowing what it measured).", "",
+              "| field | winners | allowed per run | union |", "|---|---|---|---|"]
+    for f in res.fields:
+        union = "n/a" if f.allowed is None else (", ".join(f.allowed) if f.categorical else
+                                                 "; ".join(_span(s, False) for s in f.allowed))
+        lines.append(f"| {f.name} | {', '.join(_value(v) for v in f.values)} | "
+                     f"{'; '.join(_span(s, f.categorical) for s in f.spans)} | {union} |")
+    if res.notes:
+        lines += [""] + [f"- {n}" for n in res.notes]
+    return "\n".join(lines) + "\n"
+
+
+def pool_primitives_toml(res: PoolResult) -> str:
+    """The pool's winner as ``[primitives]``; with two joined runs or more, each joined
+    winner as an ``[[ensemble]]`` member, the pool's winner first."""
+    from simlab.calibration.report import _record, _toml_value
+
+    best = res.runs[res.best]
+    d = float(res.distances[res.best].mean())
+    lines = [f"# Pooled by `simlab calibrate-pool` from {len(res.runs)} calibrations; the "
+             f"winner is {best.path}", "[primitives]"]
+    lines += [f"{k} = {_toml_value(v)}" for k, v in _record(best.params).items()
+              if v is not None]
+    lines += ["", "[calibration]", f"distance = {_toml_value(d)}",
+              f"matched_floor_median = {_toml_value(res.matched_floor)}",
+              f"searched = [{', '.join(_toml_value(n) for n in res.space.names)}]",
+              f"simulator = {_toml_value(best.report['config']['simulator'])}"]
+    if len(res.joined) >= 2:
+        lines += ["", "# The twin ensemble across basins (`collect` / `online --arena` with "
+                  "--ensemble): the joined", "# runs' winners, the pool's winner first, each "
+                  "with its own fitted decision latency"]
+        for k, i in enumerate(res.joined):
+            lines += ["", f"# member {k}: {res.runs[i].path}, pool distance "
+                      f"{float(res.distances[i].mean()):.6f}", "[[ensemble]]"]
+            lines += [f"{n} = {_toml_value(v)}" for n, v in _record(res.runs[i].params).items()
+                      if v is not None]
+    return "\n".join(lines) + "\n"
+
+
+def _is_ours(path: Path) -> bool:
+    try:
+        if path.name == "pool.json":
+            return json.loads(path.read_text(encoding="utf-8")).get("kind") == KIND
+        with path.open(encoding="utf-8") as fh:
+            first = fh.readline()
+        return first.startswith("# Pool of " if path.name == "pool.md" else
+                                "# Pooled by `simlab calibrate-pool`")
+    except (OSError, ValueError, UnicodeDecodeError, AttributeError):
+        return False
+
+
+def check_pool_outputs(out: str | os.PathLike[str], *, overwrite: bool) -> dict[str, Path]:
+    """Refuse before any walk: an ``out`` that is a file, an existing output without
+    ``overwrite``, and with it any output the pool did not write."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("the output directory is a file", path=out, key="out",
+                          fix="choose another --out")
+    paths = {name: out / name for name in FILES}
+    for path in paths.values():
+        ensure_new(path, overwrite=overwrite, what="pool output")
+        if overwrite and path.exists() and not _is_ours(path):
+            raise ConfigError("not written by simlab calibrate-pool; --overwrite replaces "
+                              "only its own outputs", path=path, key="overwrite",
+                              fix="choose another --out, or move the file away")
+    return paths
+
+
+def write_pool(res: PoolResult, out: str | os.PathLike[str], *, overwrite: bool = False
+               ) -> dict[str, Path]:
+    paths = check_pool_outputs(out, overwrite=overwrite)
+    with output_transaction(out, paths.values(), overwrite=overwrite,
+                            what="pool output") as txn:
+        atomic_write_text(txn.path(paths["primitives.toml"]), pool_primitives_toml(res))
+        atomic_write_json(txn.path(paths["pool.json"]), pool_json(res))
+        atomic_write_text(txn.path(paths["pool.md"]), pool_markdown(res))
+    return paths
+
+
+# -- the command ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PoolFiles:
+    result: PoolResult
+    files: dict[str, Path]
+
+
+@dataclass(frozen=True, kw_only=True)
+class PoolConfig(ActionSetOptions):
+    """Options of ``simlab calibrate-pool`` / :func:`pool_command`: the calibrations, the
+    lab they calibrated (the files given to calibrate) and the pool's walks."""
+
+    COMMAND = "calibrate-pool"
+    ARGUMENTS = ("runs", "real", "states", "arena", "out")
+
+    runs: tuple[Path, ...] = option(help="--out folders of simlab calibrate runs of one lab "
+                                    "(different --seed)")
+    real: Any = option(help="the real counts the runs were calibrated against")
+    states: Any = option(help="the states file the runs used")
+    arena: Any = option("table", "the arena the runs used (name or TOML)")
+    out: Path = option(help="output directory: primitives.toml, pool.json, pool.md")
+    seeds: int = option(3, "fresh walk seeds per winner (>= 2)")
+    first_seed: int = option(FIRST_SEED, "first of those seeds")
+    workers: int = option(2, "walks simulated in parallel processes")
+    address: str | None = option(None, "Ray cluster address (default: local processes)")
+    overwrite: bool = option(False, "replace the outputs of an earlier calibrate-pool")
+    progress: bool = option(True, "progress bar (--no-progress hides it)")
+
+    def validate(self) -> None:
+        from simlab.physics.arena import check_arena_option
+
+        check_arena_option(self.arena)
+        if int(self.seeds) < 2:
+            raise ConfigError(f"expected 2 or more, got {self.seeds}", key="seeds",
+                              fix="the spread of a walk is measured from these seeds")
+        if int(self.workers) < 1:
+            raise ConfigError(f"expected 1 or more, got {self.workers}", key="workers")
+
+    def real_action_set(self) -> ActionSet | None:
+        if not self.action_set_given:
+            return None
+        n = 16 if self.n_actions is None else self.n_actions
+        return parse_action_set(n, self.convention or "simlab", self.speed)
+
+
+@command(PoolConfig)
+def pool_command(cfg: PoolConfig) -> PoolFiles:
+    """``simlab calibrate-pool``: read the runs, check them and the outputs (before any
+    walk), pool them (:func:`pool`) and write the outputs."""
+    from simlab.calibration.command import _real_table
+    from simlab.physics.inputs import load_arena_config, load_discretizer
+
+    check_pool_outputs(cfg.out, overwrite=cfg.overwrite)
+    runs = [read_run(p) for p in cfg.runs]
+    check_runs(runs)
+    disc = load_discretizer(cfg.states)
+    aset = cfg.real_action_set()
+    if aset is None:  # the runs record the action set they read the table in
+        aset = ActionSet.from_json(runs[0].report["real"]["action_set"],
+                                   where=f"{runs[0].path / 'report.json'}: real.action_set")
+    real = _real_table(cfg.real, int(disc.n_states), aset,
+                       runs[0].report["real"].get("hours"))
+    res = pool(runs, real, load_arena_config(cfg.arena), disc, seeds=cfg.seeds,
+               first_seed=cfg.first_seed, workers=cfg.workers, address=cfg.address,
+               progress=cfg.progress)
+    return PoolFiles(res, write_pool(res, cfg.out, overwrite=cfg.overwrite))

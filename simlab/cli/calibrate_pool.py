@@ -1,0 +1,34 @@
+"""``simlab calibrate-pool``: read several calibrations of one lab together.
+
+The options are the fields of :class:`simlab.calibration.pool.PoolConfig`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = ("pool calibrations of one lab made with different seeds: their winners on common "
+        "fresh walks, the basins within sampling of the best, what the data allow across them")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from simlab.calibration.pool import PoolConfig
+
+    PoolConfig.add_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    from simlab.calibration.pool import PoolConfig, pool_command
+
+    done = pool_command(PoolConfig.from_args(args))
+    res = done.result
+    mean = res.distances.mean(axis=1)
+    for i, r in enumerate(res.runs):
+        mark = "winner" if i == res.best else ("joined" if i in res.joined else "left out")
+        print(f"{r.path} (seed {r.seed}): distance {mean[i]:.4f} "
+              f"({mean[i] / res.matched_floor:.2f}x the matched floor), score "
+              f"{res.gaps[i]:+.4f} against the best: {mark}")
+    print(f"{len(res.joined)} of {len(res.runs)} runs within sampling of the best (band "
+          f"{res.limit:.4f}); pool.md: what the data allow across them, field by field")
+    print("wrote " + ", ".join(str(p) for p in done.files.values()))
+    return 0

@@ -1,0 +1,154 @@
+"""``simlab calibrate-pool``: several calibrations of one lab read together (kinematic)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simlab.base.actions import parse_action_set
+from simlab.base.errors import ConfigError
+from simlab.calibration.pool import PooledField, _merge, pool_command
+from simlab.calibration.profile import TOLD_BAND
+from simlab.cli import main
+from simlab.data.walkers import KinematicParams
+from tests.calibration.conftest import hidden_walk, write_counts_csv
+
+CCW8 = parse_action_set(8, "ccw-east")
+
+
+def test_merge_keeps_disjoint_spans_and_the_open_ends_of_the_spans_that_hold_them() -> None:
+    spans = [(0.5, 0.9, False, True), (0.0, 0.2, True, False), (0.1, 0.4, False, False)]
+    assert _merge(spans) == ((0.0, 0.4, True, False), (0.5, 0.9, False, True))
+    # a span inside another adds nothing; a shared end stays open if either is open there
+    assert _merge([(0.0, 1.0, False, False), (0.2, 0.3, True, True)]) == (
+        (0.0, 1.0, False, False),)
+    assert _merge([(0.0, 1.0, False, False), (0.5, 1.0, False, True)]) == (
+        (0.0, 1.0, False, True),)
+    f = PooledField("x", False, (0.1, 0.6), (), _merge(spans))
+    assert [f.admits(v) for v in (-5.0, 0.3, 0.45, 0.7, 7.0)] == [True, True, False, True, True]
+    g = PooledField("m", True, ("a",), (("a",), ("b",)), ("a", "b"))
+    assert g.admits("b") and not g.admits("c")
+    assert PooledField("y", False, (), (None,), None).admits(0.0) is None
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory: pytest.TempPathFactory, lattice9) -> dict[str, Path]:
+    """A hidden kinematic walk and two profiled calibrations of it (seeds 0 and 7)."""
+    d = tmp_path_factory.mktemp("pool")
+    states = d / "states.json"
+    lattice9.save(states)
+    sim = hidden_walk(lattice9, KinematicParams(drive_time=0.9), CCW8, 1.0, 4, "kinematic")
+    real = write_counts_csv(d / "real.csv", sim.counts)
+    runs = []
+    for seed in (0, 7):
+        out = d / f"cal{seed}"
+        assert main(["calibrate", "--real", str(real), "--states", str(states), "--out",
+                     str(out), "--simulator", "kinematic", "--n-actions", "8", "--convention",
+                     "ccw-east", "--hours-per-candidate", "0.5", "--candidates", "3",
+                     "--workers", "1", "--n-boot", "20", "--no-progress", "--real-hours",
+                     f"{sim.hours}", "--transfer-seeds", "2", "--profile-step", "0.25",
+                     "--seed", str(seed)]) == 0
+        runs.append(out)
+    return {"real": real, "states": states, "run0": runs[0], "run7": runs[1], "dir": d}
+
+
+def _pool(lab: dict[str, Path], runs: list[Path], out: Path, **kw):
+    kw = {"real": lab["real"], "seeds": 2, **kw}
+    return pool_command(runs=tuple(runs), states=lab["states"], out=out, workers=1,
+                        progress=False, **kw)
+
+
+def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_allow(
+        lab, tmp_path, capsys) -> None:
+    runs = [lab["run0"], lab["run7"]]
+    # a copy of a run walks exactly as the run (common random numbers): the copy of the
+    # best joins it with no gap
+    copies = [tmp_path / "copy0", tmp_path / "copy7"]
+    for run, copy in zip(runs, copies, strict=True):
+        shutil.copytree(run, copy)
+    # a run whose winner is moved far from the data: worse than sampling, left out
+    bad = tmp_path / "bad"
+    shutil.copytree(lab["run7"], bad)
+    doc = (bad / "primitives.toml").read_text()
+    moved = re.sub(r"(?m)^drive_time = .*$", "drive_time = 0.05", doc, count=1)
+    assert moved != doc
+    (bad / "primitives.toml").write_text(moved)
+    out = tmp_path / "pool"
+    assert main(["calibrate-pool", "--runs", *map(str, [*runs, *copies, bad]), "--real",
+                 str(lab["real"]), "--states", str(lab["states"]), "--out", str(out),
+                 "--seeds", "2", "--workers", "1", "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    assert "runs within sampling of the best" in printed
+    assert sorted(p.name for p in out.iterdir()) == ["pool.json", "pool.md", "primitives.toml"]
+    rep = json.loads((out / "pool.json").read_text())
+    scores = np.array([r["scores"] for r in rep["runs"]])
+    assert rep["seeds"] == [100_000, 100_001]
+    assert np.array_equal(scores[:2], scores[2:4])            # the copies: the same walks
+    mean = scores.mean(axis=1)
+    assert rep["best"] == int(np.argmin(mean))
+    assert rep["limit"] == pytest.approx(TOLD_BAND * rep["sigma"] / np.sqrt(2))
+    joined = [i for i in range(5) if mean[i] - mean[rep["best"]] <= rep["limit"]]
+    assert rep["joined"] == sorted(joined, key=lambda i: (mean[i], i))
+    assert {rep["best"], rep["best"] + 2} <= set(rep["joined"]) and 4 not in rep["joined"]
+    assert (0 in rep["joined"]) == (2 in rep["joined"])      # a copy as its original
+    assert mean[4] > mean[rep["best"]] + rep["limit"]
+    # every joined run's allowed values lie in the union, field by field
+    for f in rep["fields"]:
+        assert len(f["spans"]) == len(rep["joined"]) and f["allowed"]
+        for lo, hi, _, _ in f["spans"]:
+            assert any(a <= lo + 1e-12 and hi <= b + 1e-12 for a, b, _, _ in f["allowed"])
+    # the pool's winner is [primitives]; each joined winner an [[ensemble]] member
+    toml = tomllib.loads((out / "primitives.toml").read_text())
+    best = rep["runs"][rep["best"]]["path"]
+    winner = tomllib.loads((Path(best) / "primitives.toml").read_text())["primitives"]
+    assert toml["primitives"] == winner
+    members = toml["ensemble"]
+    assert len(members) == len(rep["joined"]) and members[0] == winner
+    assert (out / "pool.md").read_text().startswith("# Pool of 5 calibrations")
+    # the same pool again: the same walks, bit for bit
+    again = _pool(lab, [*runs, *copies, bad], tmp_path / "again").result
+    assert np.array_equal(again.scores, scores)
+
+
+def test_pool_refuses_before_any_walk(lab, tmp_path) -> None:
+    run0, run7 = lab["run0"], lab["run7"]
+    with pytest.raises(ConfigError, match="needs two or more"):
+        _pool(lab, [run0], tmp_path / "a")
+    with pytest.raises(ConfigError, match="given twice"):
+        _pool(lab, [run0, run0], tmp_path / "a")
+    with pytest.raises(ConfigError, match=r"no report\.json"):
+        _pool(lab, [run0, tmp_path], tmp_path / "a")
+    with pytest.raises(ConfigError, match="walked by this calibration"):
+        _pool(lab, [run0, run7], tmp_path / "a", first_seed=6)
+    with pytest.raises(ConfigError, match="seeds"):
+        _pool(lab, [run0, run7], tmp_path / "a", seeds=1)
+    other = tmp_path / "other"
+    shutil.copytree(run7, other)
+    rep = json.loads((other / "report.json").read_text())
+    rep["config"]["objective"] = "tv"
+    (other / "report.json").write_text(json.dumps(rep))
+    with pytest.raises(ConfigError, match="objective"):
+        _pool(lab, [run0, other], tmp_path / "a")
+    # another real table than the runs'
+    short = lab["dir"] / "short.csv"
+    lines = lab["real"].read_text().splitlines()
+    short.write_text("\n".join(lines[:-3]) + "\n")
+    with pytest.raises(ConfigError, match="the runs were calibrated against"):
+        _pool(lab, [run0, run7], tmp_path / "a", real=short)
+    assert not (tmp_path / "a").exists()
+    # an output of someone else is never replaced, even with --overwrite
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "pool.md").write_text("my notes\n")
+    with pytest.raises(ConfigError, match="already exists"):
+        _pool(lab, [run0, run7], tmp_path / "b")
+    with pytest.raises(ConfigError, match="not written by simlab calibrate-pool"):
+        _pool(lab, [run0, run7], tmp_path / "b", overwrite=True)
+    assert (tmp_path / "b" / "pool.md").read_text() == "my notes\n"
+    assert main(["calibrate-pool", "--runs", str(run0), "--real", str(lab["real"]),
+                 "--states", str(lab["states"]), "--out", str(tmp_path / "c")]) == 2
