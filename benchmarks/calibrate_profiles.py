@@ -58,7 +58,7 @@ def main() -> None:
     from simlab.calibration.profile import TOLD_BAND, moves, profile_stage
     from simlab.calibration.report import _allowed
     from simlab.calibration.search import evaluate_points, walk_context
-    from simlab.calibration.stages import _setup
+    from simlab.calibration.stages import prepare_calibration
     from simlab.calibration.walks import WalkRunner
     from simlab.data.counts import load_counts
     from simlab.physics.motion import PrimitiveParams
@@ -71,7 +71,7 @@ def main() -> None:
         arena, states, _name = isir_lab(Path(tmp), args.real_lab)
         counts = load_counts(args.real_lab / "realisticNavWorld.json", n_actions=8).counts
         config = CalibrationConfig(progress=False, workers=args.workers)
-        setup = _setup(RealTable(counts, aset, hours=13.0), arena, states, None, None, config)
+        setup = prepare_calibration(RealTable(counts, aset, hours=13.0), arena, states, None, None, config)
         real = setup.real
         ref = Reference.build(real.counts, setup.regions, setup.disc.centres, aset.headings())
         space = setup.space

@@ -63,8 +63,8 @@ class CalibrateFiles:
     files: dict[str, Path]
 
 
-def _real_table(real: str | os.PathLike[str], n_states: int, aset: ActionSet | None,
-                real_hours: float | None) -> RealTable:
+def read_real_table(real: str | os.PathLike[str], n_states: int, aset: ActionSet | None,
+                    real_hours: float | None) -> RealTable:
     """The real counts: a count file read in ``aset`` (default simlab's 16), or an
     ``mdp.npz`` of ``simlab estimate --counts``, which records its action set once: a
     different ``aset`` given beside it is refused, naming both."""
@@ -132,7 +132,7 @@ def calibrate_files(
     config = CalibrationConfig() if config is None else config
     check_outputs(out, overwrite=overwrite)
     disc = load_discretizer(states)
-    rt = _real_table(real, int(disc.n_states), action_set, real_hours)
+    rt = read_real_table(real, int(disc.n_states), action_set, real_hours)
     base = None if primitives is None else load_base(primitives, config.simulator)
     sp = None
     if space is not None:

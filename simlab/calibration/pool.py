@@ -284,7 +284,7 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
 
     from simlab.calibration.objective import Reference
     from simlab.calibration.search import make_candidate
-    from simlab.calibration.stages import _setup
+    from simlab.calibration.stages import prepare_calibration
     from simlab.calibration.walks import WalkJob, WalkRunner
 
     space = check_runs(runs)
@@ -296,7 +296,7 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
     cfg = CalibrationConfig(**{k: v for k, v in runs[0].report["config"].items()
                                if k in known and k not in ("goal_states", "address")})
     cfg = replace(cfg, seed=int(first_seed), workers=int(workers), progress=progress)
-    setup = _setup(real, arena, states, space, runs[0].params, cfg)
+    setup = prepare_calibration(real, arena, states, space, runs[0].params, cfg)
     recorded = int(runs[0].report["real"]["transitions"])
     if int(setup.real.counts.sum()) != recorded:  # both without the reset rows
         raise ConfigError(f"{int(setup.real.counts.sum())} transitions (reset rows left out), "
@@ -427,18 +427,18 @@ def pool_markdown(res: PoolResult) -> str:
 def pool_primitives_toml(res: PoolResult) -> str:
     """The pool's winner as ``[primitives]``; with two joined runs or more, each joined
     winner as an ``[[ensemble]]`` member, the pool's winner first."""
-    from simlab.calibration.report import _record, _toml_value
+    from simlab.calibration.report import param_record, toml_value
 
     best = res.runs[res.best]
     d = float(res.distances[res.best].mean())
     lines = [f"# Pooled by `simlab calibrate-pool` from {len(res.runs)} calibrations; the "
              f"winner is {best.path}", "[primitives]"]
-    lines += [f"{k} = {_toml_value(v)}" for k, v in _record(best.params).items()
+    lines += [f"{k} = {toml_value(v)}" for k, v in param_record(best.params).items()
               if v is not None]
-    lines += ["", "[calibration]", f"distance = {_toml_value(d)}",
-              f"matched_floor_median = {_toml_value(res.matched_floor)}",
-              f"searched = [{', '.join(_toml_value(n) for n in res.space.names)}]",
-              f"simulator = {_toml_value(best.report['config']['simulator'])}"]
+    lines += ["", "[calibration]", f"distance = {toml_value(d)}",
+              f"matched_floor_median = {toml_value(res.matched_floor)}",
+              f"searched = [{', '.join(toml_value(n) for n in res.space.names)}]",
+              f"simulator = {toml_value(best.report['config']['simulator'])}"]
     if len(res.joined) >= 2:
         lines += ["", "# The twin ensemble across basins (`collect` / `online --arena` with "
                   "--ensemble): the joined", "# runs' winners, the pool's winner first, each "
@@ -446,7 +446,7 @@ def pool_primitives_toml(res: PoolResult) -> str:
         for k, i in enumerate(res.joined):
             lines += ["", f"# member {k}: {res.runs[i].path}, pool distance "
                       f"{float(res.distances[i].mean()):.6f}", "[[ensemble]]"]
-            lines += [f"{n} = {_toml_value(v)}" for n, v in _record(res.runs[i].params).items()
+            lines += [f"{n} = {toml_value(v)}" for n, v in param_record(res.runs[i].params).items()
                       if v is not None]
     return "\n".join(lines) + "\n"
 
@@ -542,7 +542,7 @@ class PoolConfig(ActionSetOptions):
 def pool_command(cfg: PoolConfig) -> PoolFiles:
     """``simlab calibrate-pool``: read the runs, check them and the outputs (before any
     walk), pool them (:func:`pool`) and write the outputs."""
-    from simlab.calibration.command import _real_table
+    from simlab.calibration.command import read_real_table
     from simlab.physics.inputs import load_arena_config, load_discretizer
 
     check_pool_outputs(cfg.out, overwrite=cfg.overwrite)
@@ -553,7 +553,7 @@ def pool_command(cfg: PoolConfig) -> PoolFiles:
     if aset is None:  # the runs record the action set they read the table in
         aset = ActionSet.from_json(runs[0].report["real"]["action_set"],
                                    where=f"{runs[0].path / 'report.json'}: real.action_set")
-    real = _real_table(cfg.real, int(disc.n_states), aset,
+    real = read_real_table(cfg.real, int(disc.n_states), aset,
                        runs[0].report["real"].get("hours"))
     res = pool(runs, real, load_arena_config(cfg.arena), disc, seeds=cfg.seeds,
                first_seed=cfg.first_seed, workers=cfg.workers, address=cfg.address,

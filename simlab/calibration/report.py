@@ -131,12 +131,14 @@ def check_outputs(out: str | os.PathLike[str], *, overwrite: bool = False) -> di
     return paths
 
 
-def _record(params: Any) -> dict[str, Any]:
+def param_record(params: Any) -> dict[str, Any]:
+    """A parameter record's fields as plain values (its ``to_json`` when it has one)."""
     to_json = getattr(params, "to_json", None)
     return dict(to_json()) if callable(to_json) else dataclasses.asdict(params)
 
 
-def _toml_value(v: Any) -> str:
+def toml_value(v: Any) -> str:
+    """``v`` written as a TOML value."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int | float):
@@ -150,14 +152,14 @@ def primitives_toml(result: CalibrationResult) -> str:
     """Text of ``primitives.toml`` (module docstring)."""
     lines = ["# Calibrated by `simlab calibrate` against " + (result.real.source or "a real table"),
              "[primitives]"]
-    lines += [f"{k} = {_toml_value(v)}" for k, v in _record(result.params).items()
+    lines += [f"{k} = {toml_value(v)}" for k, v in param_record(result.params).items()
               if v is not None]
     lines += ["", "[calibration]",
-              f"distance = {_toml_value(_num(result.final.distance))}",
-              f"floor_median = {_toml_value(_num(result.floor.median))}",
-              f"matched_floor_median = {_toml_value(_num(result.matched_floor.median))}",
-              f"searched = [{', '.join(_toml_value(n) for n in result.space.names)}]",
-              f"simulator = {_toml_value(result.config.simulator)}"]
+              f"distance = {toml_value(_num(result.final.distance))}",
+              f"floor_median = {toml_value(_num(result.floor.median))}",
+              f"matched_floor_median = {toml_value(_num(result.matched_floor.median))}",
+              f"searched = [{', '.join(toml_value(n) for n in result.space.names)}]",
+              f"simulator = {toml_value(result.config.simulator)}"]
     # An ensemble of the winner alone adds nothing to [primitives]: written only with two
     # members or more, so that `--ensemble` on a file without it says so plainly.
     if len(result.ensemble) >= 2:
@@ -173,7 +175,7 @@ def primitives_toml(result: CalibrationResult) -> str:
             lines += ["", f"# member {k}: candidate #{c.index}, distance "
                       f"{_num(c.distance):.6f}{' (the winner)' if k == 0 else ''}",
                       "[[ensemble]]"]
-            lines += [f"{name} = {_toml_value(v)}" for name, v in _record(member).items()
+            lines += [f"{name} = {toml_value(v)}" for name, v in param_record(member).items()
                       if v is not None]
     return "\n".join(lines) + "\n"
 
@@ -200,8 +202,8 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "floor": result.floor.to_json(),
         "matched_floor": result.matched_floor.to_json(),
         "argmax_agreement": _fin(result.agreement),
-        "params": _record(result.params),
-        "base_params": _record(result.base),
+        "params": param_record(result.params),
+        "base_params": param_record(result.base),
         "decision_latency_fitted": result.latency_fitted,
         "space": result.space.to_json(),
         "config": cfg,
@@ -531,7 +533,7 @@ def region_table(regions: list[dict[str, Any]]) -> str:
 def _parameters(out: io.StringIO, result: CalibrationResult) -> None:
     """The searched fields, start against calibrated."""
     out.write("## Calibrated parameters\n\n| field | start | calibrated |\n|---|---|---|\n")
-    base, new = _record(result.base), _record(result.params)
+    base, new = param_record(result.base), param_record(result.params)
     changed = [*result.space.names, "decision_latency"] if result.latency_fitted \
         else list(result.space.names)
     for name in changed:
@@ -734,10 +736,10 @@ def told_space_toml(result: CalibrationResult) -> str | None:
         out.write(f"\n[parameters.{p.name}]\n")
         if p.categorical:
             assert p.choices is not None
-            out.write(f"choices = [{', '.join(_toml_value(c) for c in p.choices)}]\n")
+            out.write(f"choices = [{', '.join(toml_value(c) for c in p.choices)}]\n")
         else:
-            out.write(f"low = {_toml_value(float(p.low))}\nhigh = {_toml_value(float(p.high))}"
-                      f"\nscale = {_toml_value(p.scale)}\n")
+            out.write(f"low = {toml_value(float(p.low))}\nhigh = {toml_value(float(p.high))}"
+                      f"\nscale = {toml_value(p.scale)}\n")
     return out.getvalue()
 
 

@@ -240,7 +240,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     """
     config = CalibrationConfig() if config is None else config
     t0 = time.perf_counter()
-    setup = _setup(real, arena, states, space, base, config)
+    setup = prepare_calibration(real, arena, states, space, base, config)
     real = setup.real
     rng = np.random.default_rng(np.random.SeedSequence(config.seed).spawn(2)[1])
     floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
@@ -305,7 +305,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     )
 
 
-def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: _Setup,
+def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: CalibrationSetup,
                 config: CalibrationConfig, params: Any) -> TwinTransfer | None:
     """The transfer stage of the twin walks
     (:func:`~simlab.calibration.policies.transfer_stage`), then with ``policy_data`` the
@@ -350,7 +350,7 @@ def _ensemble(done: _Confirmed, matched: Floor, twin: TwinTransfer | None, actio
     return members
 
 
-def _region_rows(setup: _Setup, real: RealTable, final: Candidate) -> list[dict[str, Any]]:
+def _region_rows(setup: CalibrationSetup, real: RealTable, final: Candidate) -> list[dict[str, Any]]:
     """Real and twin signatures per region (:mod:`~simlab.calibration.regions`) side by
     side: ``region``, then ``real`` and ``sim`` dicts and the region's ``tv``."""
     if setup.regions is None:
@@ -367,7 +367,7 @@ def _region_rows(setup: _Setup, real: RealTable, final: Candidate) -> list[dict[
 
 
 @dataclass
-class _Setup:
+class CalibrationSetup:
     """What :func:`calibrate` checked and derived before any simulation: ``real`` is the
     real table without its reset rows; ``regions`` (S, A) the region of each real pair
     (:mod:`~simlab.calibration.regions`; None without physics)."""
@@ -384,8 +384,9 @@ class _Setup:
 
 
 
-def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | None, base: Any,
-           config: CalibrationConfig) -> _Setup:
+def prepare_calibration(real: RealTable, arena: Any, states: Any,
+                        space: ParameterSpace | None, base: Any,
+                        config: CalibrationConfig) -> CalibrationSetup:
     """Check the inputs (ConfigError before any simulation), read the real signature, and
     pick the start and the space from it; warn where the space cannot reach the table."""
     from simlab.base.statecheck import check_centres_in_arena
@@ -428,7 +429,7 @@ def _setup(real: RealTable, arena: Any, states: Any, space: ParameterSpace | Non
     regions = None
     if config.simulator == "physics" and math.isfinite(sig.cell_size):
         regions = pair_regions(arena_cfg, disc.centres, aset.headings(), sig.cell_size)
-    return _Setup(arena_cfg, disc, goals, sig, base, space, warned, real, regions)
+    return CalibrationSetup(arena_cfg, disc, goals, sig, base, space, warned, real, regions)
 
 
 
