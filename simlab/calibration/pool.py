@@ -549,10 +549,15 @@ def pool_command(cfg: PoolConfig) -> PoolFiles:
     runs = [read_run(p) for p in cfg.runs]
     check_runs(runs)
     disc = load_discretizer(cfg.states)
-    aset = cfg.real_action_set()
-    if aset is None:  # the runs record the action set they read the table in
-        aset = ActionSet.from_json(runs[0].report["real"]["action_set"],
-                                   where=f"{runs[0].path / 'report.json'}: real.action_set")
+    # the runs record the action set they read the table in; options that say another are
+    # refused rather than read the table otherwise
+    aset = ActionSet.from_json(runs[0].report["real"]["action_set"],
+                               where=f"{runs[0].path / 'report.json'}: real.action_set")
+    given = cfg.real_action_set()
+    if given is not None and given != aset:
+        raise ConfigError(f"the runs read the real table as {aset.describe()}, the options "
+                          f"say {given.describe()}", key="action_set",
+                          fix="drop --n-actions/--convention/--speed: the runs' record is used")
     real = read_real_table(cfg.real, int(disc.n_states), aset,
                        runs[0].report["real"].get("hours"))
     res = pool(runs, real, load_arena_config(cfg.arena), disc, seeds=cfg.seeds,

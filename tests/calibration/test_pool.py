@@ -141,6 +141,8 @@ def test_pool_refuses_before_any_walk(lab, tmp_path) -> None:
     short.write_text("\n".join(lines[:-3]) + "\n")
     with pytest.raises(ConfigError, match="the runs were calibrated against"):
         _pool(lab, [run0, run7], tmp_path / "a", real=short)
+    with pytest.raises(ConfigError, match="the options say"):
+        _pool(lab, [run0, run7], tmp_path / "a", n_actions=16)
     assert not (tmp_path / "a").exists()
     # an output of someone else is never replaced, even with --overwrite
     (tmp_path / "b").mkdir()
