@@ -71,7 +71,8 @@ def main() -> None:
         arena, states, _name = isir_lab(Path(tmp), args.real_lab)
         counts = load_counts(args.real_lab / "realisticNavWorld.json", n_actions=8).counts
         config = CalibrationConfig(progress=False, workers=args.workers)
-        setup = prepare_calibration(RealTable(counts, aset, hours=13.0), arena, states, None, None, config)
+        setup = prepare_calibration(RealTable(counts, aset, hours=13.0), arena, states, None,
+                                    None, config)
         real = setup.real
         ref = Reference.build(real.counts, setup.regions, setup.disc.centres, aset.headings())
         space = setup.space

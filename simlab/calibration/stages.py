@@ -350,7 +350,8 @@ def _ensemble(done: _Confirmed, matched: Floor, twin: TwinTransfer | None, actio
     return members
 
 
-def _region_rows(setup: CalibrationSetup, real: RealTable, final: Candidate) -> list[dict[str, Any]]:
+def _region_rows(setup: CalibrationSetup, real: RealTable, final: Candidate
+                 ) -> list[dict[str, Any]]:
     """Real and twin signatures per region (:mod:`~simlab.calibration.regions`) side by
     side: ``region``, then ``real`` and ``sim`` dicts and the region's ``tv``."""
     if setup.regions is None:
