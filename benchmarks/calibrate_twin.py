@@ -44,7 +44,8 @@ together (each winner on the same fresh seeds, those within sampling of the best
 union of what they allow; on the synthetic lab the hidden robot against that union).
 Measured on the synthetic lab's seeds 0 to 2 (170 s, load 2): seeds 0 and 2 joined, seed 1
 left out (+0.017 against a band of 0.008), and the union held every hidden value, which no
-single seed's statement did on seeds 0 and 2.
+single seed's statement did on seeds 0 and 2; on seeds 3 to 5 (none holding every field alone)
+only seed 3 joined and the union excluded the hidden 2 Hz: once in two triples.
 
 ``--compare-hz HZ`` runs the same calibration a second time with ``HZ`` as the default
 physics rate (every walk of it, in every worker: ``benchmarks/rate_arm.py``), right after

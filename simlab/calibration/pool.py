@@ -28,7 +28,8 @@ pool's ``primitives.toml``, each member with its own fitted latency), which ``co
 
 Measured on that synthetic lab (seeds 0 to 2, three pool seeds): seeds 0 and 2 joined
 (+0.003 against a band of 0.008), seed 1 did not (+0.017), and the union of seeds 0 and 2
-held the hidden value of every field, which neither run's profile did alone.
+held the hidden value of every field, which neither run's profile did alone; on seeds 3 to 5
+only seed 3 joined, and its statement excluded the hidden 2 Hz (once in two triples).
 
 Outputs in ``--out``: ``primitives.toml`` (the pool's winner, and the ensemble), ``pool.json``
 and ``pool.md``.
