@@ -46,10 +46,11 @@ from typing import Any
 
 import numpy as np
 
-from simlab.base.actions import ActionSet, ActionSetOptions, parse_action_set
+from simlab.base.actions import ActionSet, ActionSetOptions
 from simlab.base.errors import ConfigError
 from simlab.base.io import atomic_write_json, atomic_write_text, ensure_new, output_transaction
 from simlab.base.options import command, option
+from simlab.calibration.command import CalibrateConfig
 from simlab.calibration.config import CalibrationConfig
 from simlab.calibration.profile import TOLD_BAND, FieldProfile, Profile
 from simlab.calibration.space import ParameterSpace, space_from_mapping
@@ -428,14 +429,12 @@ def pool_markdown(res: PoolResult) -> str:
 def pool_primitives_toml(res: PoolResult) -> str:
     """The pool's winner as ``[primitives]``; with two joined runs or more, each joined
     winner as an ``[[ensemble]]`` member, the pool's winner first."""
-    from simlab.calibration.report import param_record, toml_value
+    from simlab.calibration.report import ensemble_tables, record_lines, toml_value
 
     best = res.runs[res.best]
     d = float(res.distances[res.best].mean())
     lines = [f"# Pooled by `simlab calibrate-pool` from {len(res.runs)} calibrations; the "
-             f"winner is {best.path}", "[primitives]"]
-    lines += [f"{k} = {toml_value(v)}" for k, v in param_record(best.params).items()
-              if v is not None]
+             f"winner is {best.path}", "[primitives]", *record_lines(best.params)]
     lines += ["", "[calibration]", f"distance = {toml_value(d)}",
               f"matched_floor_median = {toml_value(res.matched_floor)}",
               f"searched = [{', '.join(toml_value(n) for n in res.space.names)}]",
@@ -444,11 +443,9 @@ def pool_primitives_toml(res: PoolResult) -> str:
         lines += ["", "# The twin ensemble across basins (`collect` / `online --arena` with "
                   "--ensemble): the joined", "# runs' winners, the pool's winner first, each "
                   "with its own fitted decision latency"]
-        for k, i in enumerate(res.joined):
-            lines += ["", f"# member {k}: {res.runs[i].path}, pool distance "
-                      f"{float(res.distances[i].mean()):.6f}", "[[ensemble]]"]
-            lines += [f"{n} = {toml_value(v)}" for n, v in param_record(res.runs[i].params).items()
-                      if v is not None]
+        lines += ensemble_tables([(f"member {k}: {res.runs[i].path}, pool distance "
+                                   f"{float(res.distances[i].mean()):.6f}", res.runs[i].params)
+                                  for k, i in enumerate(res.joined)])
     return "\n".join(lines) + "\n"
 
 
@@ -532,11 +529,8 @@ class PoolConfig(ActionSetOptions):
         if int(self.workers) < 1:
             raise ConfigError(f"expected 1 or more, got {self.workers}", key="workers")
 
-    def real_action_set(self) -> ActionSet | None:
-        if not self.action_set_given:
-            return None
-        n = 16 if self.n_actions is None else self.n_actions
-        return parse_action_set(n, self.convention or "simlab", self.speed)
+    #: what the options say the real actions mean (None: none given), as calibrate reads them
+    real_action_set = CalibrateConfig.real_action_set
 
 
 @command(PoolConfig)

@@ -148,12 +148,25 @@ def toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {v!r} to TOML")
 
 
+def record_lines(params: Any) -> list[str]:
+    """``name = value`` lines of a parameter record's set fields (a TOML table's body)."""
+    return [f"{k} = {toml_value(v)}" for k, v in param_record(params).items() if v is not None]
+
+
+def ensemble_tables(members: list[tuple[str, Any]]) -> list[str]:
+    """``[[ensemble]]`` tables, one per ``(comment, params)``, each after a blank line and
+    its ``# comment``."""
+    lines: list[str] = []
+    for comment, params in members:
+        lines += ["", f"# {comment}", "[[ensemble]]", *record_lines(params)]
+    return lines
+
+
 def primitives_toml(result: CalibrationResult) -> str:
     """Text of ``primitives.toml`` (module docstring)."""
     lines = ["# Calibrated by `simlab calibrate` against " + (result.real.source or "a real table"),
              "[primitives]"]
-    lines += [f"{k} = {toml_value(v)}" for k, v in param_record(result.params).items()
-              if v is not None]
+    lines += record_lines(result.params)
     lines += ["", "[calibration]",
               f"distance = {toml_value(_num(result.final.distance))}",
               f"floor_median = {toml_value(_num(result.floor.median))}",
@@ -168,15 +181,13 @@ def primitives_toml(result: CalibrationResult) -> str:
         lines += ["", "# The twin ensemble (`collect` / `online --arena` with --ensemble): the "
                   "confirmed candidates", "# within sampling of the winner, the winner first; "
                   "each with the winner's decision latency"]
-        for k, c in enumerate(result.ensemble):
-            # latency does not change T: every member gets the winner's (fitted) one
-            member = dataclasses.replace(params_at(result.space, result.base, c.unit),
-                                         decision_latency=result.params.decision_latency)
-            lines += ["", f"# member {k}: candidate #{c.index}, distance "
-                      f"{_num(c.distance):.6f}{' (the winner)' if k == 0 else ''}",
-                      "[[ensemble]]"]
-            lines += [f"{name} = {toml_value(v)}" for name, v in param_record(member).items()
-                      if v is not None]
+        # latency does not change T: every member gets the winner's (fitted) one
+        lines += ensemble_tables([
+            (f"member {k}: candidate #{c.index}, distance {_num(c.distance):.6f}"
+             f"{' (the winner)' if k == 0 else ''}",
+             dataclasses.replace(params_at(result.space, result.base, c.unit),
+                                 decision_latency=result.params.decision_latency))
+            for k, c in enumerate(result.ensemble)])
     return "\n".join(lines) + "\n"
 
 
