@@ -561,6 +561,19 @@ def run_pool(root: Path, runs: list[Path], real: Path, states: Path, arena: Path
           f"the pool's seeds: " + ", ".join(
               f"seed {r['seed']} {r['distance'] / mf:.2f}x{' (joined)' * r['joined']}"
               for r in rep["runs"]))
+    t = rep.get("transfer")
+    if t is not None:
+        def ratio(x: float | None) -> str:
+            return "never" if x is None else f"{x:.3f}"
+        line = t["perfect_twin"]
+        print(f"pool: policies on the real model at {t['transitions']:,} transitions, steps over "
+              "the real optimum's: " + ", ".join(
+                  f"seed {r['seed']} {ratio(x)}" for r, x in zip(rep["runs"], t["ratios"],
+                                                                 strict=True))
+              + (f"; the ensemble across the joined seeds {ratio(t['ensemble_ratio'])}"
+                 if t["ensemble_runs"] else "")
+              + f"; a perfect twin {ratio(line['ratio_median'])} (95 % "
+              f"{ratio(line['ratio_low_2.5'])}-{ratio(line['ratio_high_97.5'])})")
     return rep
 
 

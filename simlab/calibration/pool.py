@@ -116,6 +116,37 @@ class PooledField:
 
 
 @dataclass(frozen=True)
+class PoolTransfer:
+    """Each winner's pool walks pooled into one twin, its shortest-path policy per goal
+    scored on the real model (steps summed over the goals, over the real optimum's:
+    ``ratios``, one per run, inf where a policy never arrives), beside ``perfect``: a perfect
+    twin with the same data (:func:`~simlab.calibration.transfer.score.perfect_twin_line`).
+    With two joined runs or more, ``ensemble``: the same number of walks drawn across the
+    joined winners (walk ``j`` from joined run ``j mod m``, on seed ``j``: common random
+    numbers with the winner's) and its ``ensemble_ratio``."""
+
+    goals: tuple[int, ...]
+    left_out: tuple[int, ...]
+    transitions: int
+    ratios: tuple[float, ...]
+    perfect: Any
+    ensemble: tuple[int, ...] = ()
+    ensemble_ratio: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"goals": list(self.goals), "left_out": list(self.left_out),
+                "transitions": self.transitions, "ratios": [_finite(r) for r in self.ratios],
+                "perfect_twin": self.perfect.to_json(),
+                "ensemble_runs": list(self.ensemble),
+                "ensemble_ratio": None if self.ensemble_ratio is None
+                else _finite(self.ensemble_ratio)}
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
 class PoolResult:
     """The pool (module docstring). ``scores``/``distances``: ``(runs, seeds)``; ``best``:
     the index of the pool's winner; ``joined``: the runs within sampling of it."""
@@ -133,6 +164,9 @@ class PoolResult:
     matched_floor: float
     objective: str
     notes: list[str] = field(default_factory=list)
+    #: the winners' policies on the real model (:func:`pool_transfer`); None without a goal
+    #: the real robot reached
+    transfer: PoolTransfer | None = None
 
     @property
     def limit(self) -> float:
@@ -282,12 +316,7 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
         arena, states: the lab's arena and states.
         seeds: walk seeds per winner (>= 2: the walk-to-walk spread is measured here).
     """
-    from tqdm.auto import tqdm
-
-    from simlab.calibration.objective import Reference
-    from simlab.calibration.search import make_candidate
     from simlab.calibration.stages import prepare_calibration
-    from simlab.calibration.walks import WalkJob, WalkRunner
 
     space = check_runs(runs)
     if int(seeds) < 2:
@@ -296,7 +325,7 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
     walk_seeds = pool_seeds(runs, int(seeds), int(first_seed))
     known = {f.name for f in fields(CalibrationConfig)}
     cfg = CalibrationConfig(**{k: v for k, v in runs[0].report["config"].items()
-                               if k in known and k not in ("goal_states", "address")})
+                               if k in known and k != "address"})
     cfg = replace(cfg, seed=int(first_seed), workers=int(workers), progress=progress)
     setup = prepare_calibration(real, arena, states, space, runs[0].params, cfg)
     recorded = int(runs[0].report["real"]["transitions"])
@@ -306,7 +335,47 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
                           path=real.source or None, key="real",
                           fix="give the real table the runs were calibrated against")
     sizes = sorted({int(r.report["budgets"]["confirm_transitions"]) for r in runs})
-    rows = sizes[-1]
+    scores, dists, walks = _walk_winners(runs, setup, cfg, walk_seeds, sizes[-1], address)
+    sigma = float(np.sqrt(np.mean(np.var(scores, axis=1, ddof=1))))
+    mean = scores.mean(axis=1)
+    best = int(np.argmin(mean))
+    limit = TOLD_BAND * sigma / math.sqrt(len(walk_seeds))
+    joined = [i for i in range(len(runs)) if mean[i] - mean[best] <= limit]
+    joined.sort(key=lambda i: (mean[i], i))
+    notes = []
+    if len(sizes) > 1:
+        notes.append(f"the runs confirmed at {', '.join(f'{s:,}' for s in sizes)} transitions; "
+                     f"the pool walks {sizes[-1]:,}")
+    missing = [str(runs[i].path) for i in joined if runs[i].profile is None]
+    if missing:
+        notes.append("no profile in " + ", ".join(missing) + " (calibrate --profile-step "
+                     "0.25 measures one): its allowed values are not in the union")
+    differ = [str(r.path) for r in runs[1:]
+              if any(r.report["config"].get(k) != runs[0].report["config"].get(k)
+                     for k in ("goal_states", "untried"))]
+    if differ:
+        notes.append(f"the transfer scores the goals and untried rule of {runs[0].path}; "
+                     + ", ".join(differ) + " chose others")
+    rng = np.random.default_rng(np.random.SeedSequence(int(first_seed), spawn_key=(11,)))
+    matched = float(runs[best].report["matched_floor"]["median"])
+    return PoolResult(tuple(runs), walk_seeds, sizes[-1], scores, dists, sigma, best,
+                      tuple(joined), pooled_fields(space, runs, joined), space, matched,
+                      cfg.objective, notes,
+                      pool_transfer(setup, walks, best, joined, cfg.untried, rng))
+
+
+def _walk_winners(runs: list[Run], setup: Any, cfg: CalibrationConfig,
+                  walk_seeds: tuple[int, ...], rows: int, address: str | None
+                  ) -> tuple[np.ndarray, np.ndarray, list[list[np.ndarray]]]:
+    """Every run's winner walked ``rows`` transitions on each seed, scored as the runs
+    scored theirs: the ``(runs, seeds)`` scores and distances, and each walk's counts."""
+    from tqdm.auto import tqdm
+
+    from simlab.calibration.objective import Reference
+    from simlab.calibration.search import make_candidate
+    from simlab.calibration.walks import WalkJob, WalkRunner
+
+    space = setup.space
     reference = Reference.build(setup.real.counts, setup.regions, setup.disc.centres,
                                 setup.real.action_set.headings())
     ctx = {"space": space, "config": cfg, "arena": setup.arena, "states": setup.disc,
@@ -318,41 +387,61 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
                     pose_source=cfg.pose_source, action_set=setup.real.action_set,
                     start_states=cfg.start_states, n_states=int(setup.disc.n_states))
             for i, run in enumerate(runs) for s in walk_seeds]
-    runner = WalkRunner(int(workers), address)
+    workers = max(1, int(cfg.workers))
+    runner = WalkRunner(workers, address)
     scores = np.zeros((len(runs), len(walk_seeds)))
     dists = np.zeros_like(scores)
+    walks: list[list[Any]] = [[None] * len(walk_seeds) for _ in runs]
     bar = tqdm(total=len(jobs), desc=f"calibrate-pool: {len(runs)} winners on "
                f"{len(walk_seeds)} fresh seeds ({rows:,} transitions a walk)", unit="walk",
-               disable=not progress)
+               disable=not cfg.progress)
     try:
-        for k in range(0, len(jobs), max(1, int(workers))):
-            chunk = jobs[k:k + max(1, int(workers))]
+        for k in range(0, len(jobs), workers):
+            chunk = jobs[k:k + workers]
             for job, sim in zip(chunk, runner.map(chunk), strict=True):
                 c = make_candidate(job.index, "pool", np.zeros(len(space.names)), sim,
                                    job.seed, ctx)
                 j = walk_seeds.index(job.seed)
                 scores[job.index, j], dists[job.index, j] = c.score, c.distance
+                walks[job.index][j] = sim.counts
             bar.update(len(chunk))
     finally:
         bar.close()
         runner.close()
-    sigma = float(np.sqrt(np.mean(np.var(scores, axis=1, ddof=1))))
-    mean = scores.mean(axis=1)
-    best = int(np.argmin(mean))
-    limit = TOLD_BAND * sigma / math.sqrt(len(walk_seeds))
-    joined = [i for i in range(len(runs)) if mean[i] - mean[best] <= limit]
-    joined.sort(key=lambda i: (mean[i], i))
-    notes = []
-    if len(sizes) > 1:
-        notes.append(f"the runs confirmed at {', '.join(f'{s:,}' for s in sizes)} transitions; "
-                     f"the pool walks {rows:,}")
-    missing = [str(runs[i].path) for i in joined if runs[i].profile is None]
-    if missing:
-        notes.append("no profile in " + ", ".join(missing) + " (calibrate --profile-step "
-                     "0.25 measures one): its allowed values are not in the union")
-    matched = float(runs[best].report["matched_floor"]["median"])
-    return PoolResult(tuple(runs), walk_seeds, rows, scores, dists, sigma, best, tuple(joined),
-                      pooled_fields(space, runs, joined), space, matched, cfg.objective, notes)
+    return scores, dists, walks
+
+
+def pool_transfer(setup: Any, walks: list[list[np.ndarray]], best: int, joined: list[int],
+                  untried: str, rng: np.random.Generator) -> PoolTransfer | None:
+    """The winners' policies on the real model (:class:`PoolTransfer`), on the goals of the
+    runs' transfer reports that the real robot reached; None when it reached none."""
+    from simlab.calibration.policies import LINE_BOOT, reached_goals, real_transfer_counts
+    from simlab.calibration.transfer import TransferModel, transfer_report
+    from simlab.calibration.transfer.score import perfect_twin_line
+
+    flat = [w for run in walks for w in run]
+    real_counts = real_transfer_counts(setup.real, flat)
+    kept, left_out = reached_goals(real_counts, list(setup.goals))
+    if not kept:
+        return None
+    aset, centres = setup.real.action_set, setup.disc.centres
+
+    def model(counts: np.ndarray, name: str) -> Any:
+        return TransferModel.from_counts(counts, name=name, action_set=aset, centres=centres)
+
+    twins = [model(sum(run), f"run {i}") for i, run in enumerate(walks)]
+    members: tuple[int, ...] = ()
+    if len(joined) >= 2:
+        members = tuple(joined[j % len(joined)] for j in range(len(walks[best])))
+        twins.append(model(sum(walks[i][j] for j, i in enumerate(members)), "ensemble"))
+    real_model = model(real_counts, setup.real.source or "real")
+    rep = transfer_report(real_model, twins, {f"s{g}": [g] for g in kept}, untried=untried)
+    ratios = [float(r) for r in rep.overall_ratios()]
+    line = perfect_twin_line(real_model, rep, sum(walks[best]).sum(axis=2),
+                             n_boot=LINE_BOOT, rng=rng)
+    return PoolTransfer(tuple(kept), tuple(left_out), int(sum(walks[best]).sum()),
+                        tuple(ratios[:len(walks)]), line, members,
+                        ratios[-1] if members else None)
 
 
 # -- outputs ----------------------------------------------------------------------------
@@ -385,7 +474,9 @@ def pool_json(res: PoolResult) -> dict[str, Any]:
                       "profile": r.profile is not None,
                       "params": {n: r.report["params"][n] for n in res.space.names}}
                      for i, r in enumerate(res.runs)],
-            "fields": [f.to_json() for f in res.fields], "notes": res.notes}
+            "fields": [f.to_json() for f in res.fields],
+            "transfer": None if res.transfer is None else res.transfer.to_json(),
+            "notes": res.notes}
 
 
 def pool_markdown(res: PoolResult) -> str:
@@ -421,9 +512,45 @@ def pool_markdown(res: PoolResult) -> str:
                      + " | " + "; ".join(f"{k} {_span(s, f.categorical)}"
                                          for k, s in zip(runs, f.spans, strict=True))
                      + f" | {union} |")
+    lines += _transfer_markdown(res)
     if res.notes:
         lines += [""] + [f"- {n}" for n in res.notes]
     return "\n".join(lines) + "\n"
+
+
+def _ratio(x: float) -> str:
+    return f"{x:.3f}" if math.isfinite(x) else "never arrives"
+
+
+def _transfer_markdown(res: PoolResult) -> list[str]:
+    t = res.transfer
+    if t is None:
+        return ["", "## Policies on the real model", "",
+                "None: the real robot reached none of the transfer's goals."]
+    line = t.perfect.to_json()
+    lo, hi = line["ratio_low_2.5"], line["ratio_high_97.5"]
+    spread = "" if lo is None or hi is None else f" (95 % of resamples {lo:.3f}-{hi:.3f})"
+    out = ["", "## Policies on the real model", "",
+           f"Each winner's {len(res.seeds)} pool walks ({t.transitions:,} transitions) estimated "
+           f"into one twin; its shortest-path policy for each of {len(t.goals)} goals scored on "
+           "the real model: expected steps summed over the goals, over the real optimum's. A "
+           f"perfect twin with the same data scores {_ratio(t.perfect.median)}{spread}.", "",
+           "| # | run | steps over the real optimum |", "|---|---|---|"]
+    out += [f"| {i} | {r.path} | {_ratio(x)} |" for i, (r, x) in
+            enumerate(zip(res.runs, t.ratios, strict=True))]
+    if t.ensemble_ratio is not None:
+        drawn = ", ".join(f"#{i}" for i in t.ensemble)
+        w = t.ratios[res.best]
+        verdict = ("as the pool's winner's, which" if not (math.isfinite(w)
+                                                           or math.isfinite(t.ensemble_ratio))
+                   else "lower than" if t.ensemble_ratio < w else
+                   "equal to" if t.ensemble_ratio == w else "higher than")
+        out += ["", f"The ensemble across basins (the same number of walks, walk j from "
+                f"{drawn} in turn, on the same seeds): {_ratio(t.ensemble_ratio)}, "
+                f"{verdict} the pool's winner's {_ratio(w)}."]
+    if t.left_out:
+        out += ["", f"Goals left out (the real robot never reached them): {list(t.left_out)}."]
+    return out
 
 
 def pool_primitives_toml(res: PoolResult) -> str:

@@ -23,12 +23,19 @@ def run(args: argparse.Namespace) -> int:
     done = pool_command(PoolConfig.from_args(args))
     res = done.result
     mean = res.distances.mean(axis=1)
+    t = res.transfer
     for i, r in enumerate(res.runs):
         mark = "winner" if i == res.best else ("joined" if i in res.joined else "left out")
+        steps = "" if t is None else f", policies {t.ratios[i]:.3f}x the real optimum's steps"
         print(f"{r.path} (seed {r.seed}): distance {mean[i]:.4f} "
               f"({mean[i] / res.matched_floor:.2f}x the matched floor), score "
-              f"{res.gaps[i]:+.4f} against the best: {mark}")
+              f"{res.gaps[i]:+.4f} against the best{steps}: {mark}")
     print(f"{len(res.joined)} of {len(res.runs)} runs within sampling of the best (band "
           f"{res.limit:.4f}); pool.md: what the data allow across them, field by field")
+    if t is not None:
+        ens = "" if t.ensemble_ratio is None else \
+            f"; the ensemble across the joined runs {t.ensemble_ratio:.3f}x"
+        print(f"policies on the real model at {t.transitions:,} transitions: a perfect twin "
+              f"{t.perfect.median:.3f}x the real optimum's steps{ens}")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0

@@ -3,21 +3,25 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 import shutil
 import tomllib
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
-from simlab.calibration.pool import PooledField, _merge, pool_command
+from simlab.calibration.config import RealTable
+from simlab.calibration.pool import PooledField, _merge, pool_command, pool_transfer
 from simlab.calibration.profile import TOLD_BAND
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
 from tests.calibration.conftest import hidden_walk, write_counts_csv
+from tests.calibration.test_transfer import lattice, lattice_counts
 
 CCW8 = parse_action_set(8, "ccw-east")
 
@@ -35,6 +39,39 @@ def test_merge_keeps_disjoint_spans_and_the_open_ends_of_the_spans_that_hold_the
     g = PooledField("m", True, ("a",), (("a",), ("b",)), ("a", "b"))
     assert g.admits("b") and not g.admits("c")
     assert PooledField("y", False, (), (None,), None).admits(0.0) is None
+
+
+def test_the_pool_transfer_scores_each_winner_and_draws_the_ensemble_walk_by_walk() -> None:
+    """Run 0 walks as the robot (the truth sampled), run 1 always stays; run 2's walks are
+    run 0's first and run 1's second: what the ensemble of runs 0 and 1 draws on two seeds."""
+    rng = np.random.default_rng(5)
+    truth = lattice_counts(CCW8, n=1000, success=0.6) / 1000.0
+    setup = SimpleNamespace(real=RealTable(rng.multinomial(12, truth), CCW8),
+                            goals=list(range(9)), disc=lattice())
+    w1, w2 = rng.multinomial(24, truth), rng.multinomial(24, truth)
+    stays = np.zeros_like(w1)
+    stays[np.arange(9), :, np.arange(9)] = 24
+    walks = [[w1, w2], [stays, stays], [w1, stays]]
+    t = pool_transfer(setup, walks, 0, [0, 1], "stay", np.random.default_rng(1))
+    assert t is not None and t.goals == tuple(range(9)) and t.left_out == ()
+    assert t.transitions == int((w1 + w2).sum()) == t.perfect.transitions
+    # the truth sampled scores as a perfect twin with its data, within the line's resamples
+    line = t.perfect.overall[np.isfinite(t.perfect.overall)]
+    assert line.size >= 15 and line.min() - 0.02 <= t.ratios[0] <= line.max() + 0.02
+    assert math.isinf(t.ratios[1])                     # planned on stays: never arrives
+    assert t.ensemble == (0, 1) and t.ensemble_ratio == t.ratios[2]
+    json.dumps(t.to_json(), allow_nan=False)           # inf is written as null
+    assert t.to_json()["ratios"][1] is None
+    alone = pool_transfer(setup, walks, 0, [0], "stay", np.random.default_rng(1))
+    assert alone is not None and alone.ensemble == () and alone.ensemble_ratio is None
+    # a goal no real transition ends in is left out; none reached: no transfer
+    never = setup.real.counts.copy()
+    never[:, :, 4] = 0
+    cut = SimpleNamespace(real=RealTable(never, CCW8), goals=[4, 8], disc=lattice())
+    t = pool_transfer(cut, walks, 0, [0], "stay", np.random.default_rng(1))
+    assert t is not None and t.goals == (8,) and t.left_out == (4,)
+    cut = SimpleNamespace(real=RealTable(never, CCW8), goals=[4], disc=lattice())
+    assert pool_transfer(cut, walks, 0, [0], "stay", np.random.default_rng(1)) is None
 
 
 @pytest.fixture(scope="module")
@@ -111,6 +148,12 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     members = toml["ensemble"]
     assert len(members) == len(rep["joined"]) and members[0] == winner
     assert (out / "pool.md").read_text().startswith("# Pool of 5 calibrations")
+    # the copies' policies score as their originals'; the ensemble draws the joined in turn
+    t = rep["transfer"]
+    assert t["ratios"][:2] == t["ratios"][2:4] and len(t["ratios"]) == 5
+    m = len(rep["joined"])
+    assert t["ensemble_runs"] == [rep["joined"][j % m] for j in range(2)]
+    assert "## Policies on the real model" in (out / "pool.md").read_text()
     # the same pool again: the same walks, bit for bit
     again = _pool(lab, [*runs, *copies, bad], tmp_path / "again").result
     assert np.array_equal(again.scores, scores)
