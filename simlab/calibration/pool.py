@@ -26,10 +26,23 @@ reach. The joined winners form a twin ensemble across basins (``[[ensemble]]`` o
 pool's ``primitives.toml``, each member with its own fitted latency), which ``collect`` and
 ``online --arena`` draw from with ``--ensemble``.
 
+The pool's walks also say what each basin's policies are worth on the robot: each winner's
+walks pooled into one twin, its shortest-path policy per goal scored on the real model beside
+a perfect twin with the same data (:mod:`~simlab.calibration.policies`), and, with two
+joined runs or more, the same number of walks drawn across the joined winners in turn (walk
+``j`` from joined run ``j mod m``, on the winner's seed ``j``): whether the ensemble across
+basins transfers better than the pool's winner alone. No walk is added for it. Measured
+(synthetic seeds 0-2 and 0-5; ISIR seeds 1-2 on three sets of pool seeds): the ensemble took
+1.066x, 1.075x, 1.080x and 1.102x the real optimum's steps against its winner's 1.064x, 1.073x,
+1.098x and 1.101x, a perfect twin with the same data 1.040x-1.069x: better once in four, so the
+recommended twin stays the single winner and the ensemble is there for domain randomisation.
+
 Measured on that synthetic lab (seeds 0 to 2, three pool seeds): seeds 0 and 2 joined
 (+0.003 against a band of 0.008), seed 1 did not (+0.017), and the union of seeds 0 and 2
 held the hidden value of every field, which neither run's profile did alone; on seeds 3 to 5
-only seed 3 joined, and its statement excluded the hidden 2 Hz (once in two triples).
+only seed 3 joined, and its statement excluded the hidden 2 Hz (once in two triples). Read
+for every subset of six seeds from one pool's walks, every hidden value was inside on 1 of 6
+single seeds, 7 of 20 triples, 9 of 15 fours and 6 of 6 fives: pool five seeds.
 
 Outputs in ``--out``: ``primitives.toml`` (the pool's winner, and the ensemble), ``pool.json``
 and ``pool.md``.
