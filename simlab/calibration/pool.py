@@ -553,14 +553,12 @@ def _transfer_markdown(res: PoolResult) -> list[str]:
             enumerate(zip(res.runs, t.ratios, strict=True))]
     if t.ensemble_ratio is not None:
         drawn = ", ".join(f"#{i}" for i in t.ensemble)
-        w = t.ratios[res.best]
-        verdict = ("as the pool's winner's, which" if not (math.isfinite(w)
-                                                           or math.isfinite(t.ensemble_ratio))
-                   else "lower than" if t.ensemble_ratio < w else
-                   "equal to" if t.ensemble_ratio == w else "higher than")
+        w, e = t.ratios[res.best], t.ensemble_ratio
+        verdict = ("as the pool's winner's" if not (math.isfinite(w) or math.isfinite(e))
+                   else f"{'lower than' if e < w else 'equal to' if e == w else 'higher than'}"
+                   f" the pool's winner's {_ratio(w)}")
         out += ["", f"The ensemble across basins (the same number of walks, walk j from "
-                f"{drawn} in turn, on the same seeds): {_ratio(t.ensemble_ratio)}, "
-                f"{verdict} the pool's winner's {_ratio(w)}."]
+                f"{drawn} in turn, on the same seeds): {_ratio(e)}, {verdict}."]
     if t.left_out:
         out += ["", f"Goals left out (the real robot never reached them): {list(t.left_out)}."]
     return out

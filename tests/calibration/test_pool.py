@@ -7,6 +7,7 @@ import math
 import re
 import shutil
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -16,7 +17,13 @@ import pytest
 from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.calibration.config import RealTable
-from simlab.calibration.pool import PooledField, _merge, pool_command, pool_transfer
+from simlab.calibration.pool import (
+    PooledField,
+    _merge,
+    _transfer_markdown,
+    pool_command,
+    pool_transfer,
+)
 from simlab.calibration.profile import TOLD_BAND
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
@@ -62,6 +69,15 @@ def test_the_pool_transfer_scores_each_winner_and_draws_the_ensemble_walk_by_wal
     assert t.ensemble == (0, 1) and t.ensemble_ratio == t.ratios[2]
     json.dumps(t.to_json(), allow_nan=False)           # inf is written as null
     assert t.to_json()["ratios"][1] is None
+    # pool.md reads the ensemble against the pool's winner, "never arrives" for inf
+    res = SimpleNamespace(transfer=t, seeds=(1, 2), best=0,
+                          runs=[SimpleNamespace(path=Path(f"run{i}")) for i in range(3)])
+    md = "\n".join(_transfer_markdown(res))
+    assert "| 1 | run1 | never arrives |" in md and "#0, #1 in turn" in md
+    res.transfer = replace(t, ratios=(1.2, math.inf, 1.3), ensemble_ratio=1.1)
+    assert ": 1.100, lower than the pool's winner's 1.200." in "\n".join(_transfer_markdown(res))
+    res.transfer = replace(t, ratios=(math.inf,) * 3, ensemble_ratio=math.inf)
+    assert ": never arrives, as the pool's winner's." in "\n".join(_transfer_markdown(res))
     alone = pool_transfer(setup, walks, 0, [0], "stay", np.random.default_rng(1))
     assert alone is not None and alone.ensemble == () and alone.ensemble_ratio is None
     # a goal no real transition ends in is left out; none reached: no transfer
