@@ -6,6 +6,7 @@ The options are the fields of :class:`simlab.calibration.pool.PoolConfig`.
 from __future__ import annotations
 
 import argparse
+import math
 
 HELP = ("pool calibrations of one lab made with different seeds: their winners on common "
         "fresh walks, the basins within sampling of the best, what the data allow across them")
@@ -26,15 +27,22 @@ def run(args: argparse.Namespace) -> int:
     t = res.transfer
     for i, r in enumerate(res.runs):
         mark = "winner" if i == res.best else ("joined" if i in res.joined else "left out")
-        steps = "" if t is None else f", policies {t.ratios[i]:.3f}x the real optimum's steps"
+        steps = "" if t is None else (f", policies {t.ratios[i]:.3f}x the real optimum's steps"
+                                      if math.isfinite(t.ratios[i]) else
+                                      ", a policy never arrives on the real model")
         print(f"{r.path} (seed {r.seed}): distance {mean[i]:.4f} "
               f"({mean[i] / res.matched_floor:.2f}x the matched floor), score "
               f"{res.gaps[i]:+.4f} against the best{steps}: {mark}")
     print(f"{len(res.joined)} of {len(res.runs)} runs within sampling of the best (band "
           f"{res.limit:.4f}); pool.md: what the data allow across them, field by field")
+    if res.left_open:
+        print("left open across them (the data do not tell these fields): "
+              + ", ".join(res.left_open))
     if t is not None:
         ens = "" if t.ensemble_ratio is None else \
             f"; the ensemble across the joined runs {t.ensemble_ratio:.3f}x"
+        if t.ensemble_ratio is not None and not math.isfinite(t.ensemble_ratio):
+            ens = "; the ensemble across the joined runs never arrives"
         print(f"policies on the real model at {t.transitions:,} transitions: a perfect twin "
               f"{t.perfect.median:.3f}x the real optimum's steps{ens}")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))

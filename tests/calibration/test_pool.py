@@ -18,13 +18,16 @@ from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.calibration.config import RealTable
 from simlab.calibration.pool import (
+    OPEN_SHARE,
     PooledField,
     _merge,
     _transfer_markdown,
     pool_command,
     pool_transfer,
+    range_share,
 )
 from simlab.calibration.profile import TOLD_BAND
+from simlab.calibration.space import ParamSpec
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
 from tests.calibration.conftest import hidden_walk, write_counts_csv
@@ -46,6 +49,20 @@ def test_merge_keeps_disjoint_spans_and_the_open_ends_of_the_spans_that_hold_the
     g = PooledField("m", True, ("a",), (("a",), ("b",)), ("a", "b"))
     assert g.admits("b") and not g.admits("c")
     assert PooledField("y", False, (), (None,), None).admits(0.0) is None
+
+
+def test_range_share_measures_the_union_in_the_units_the_search_samples() -> None:
+    lin = ParamSpec("x", 0.0, 2.0)
+    assert range_share(lin, ((0.0, 0.4, False, False), (1.0, 1.8, False, False))) == (
+        pytest.approx(0.6))
+    # an open end reaches the range's edge, a value past the range counts to its edge only
+    assert range_share(lin, ((1.0, 1.5, False, True),)) == pytest.approx(0.5)
+    assert range_share(lin, ((-3.0, 0.5, False, False),)) == pytest.approx(0.25)
+    log = ParamSpec("hz", 1.0, 100.0, "log")
+    assert range_share(log, ((1.0, 10.0, True, False),)) == pytest.approx(0.5)
+    cat = ParamSpec("m", choices=("a", "b", "c", "d"))
+    assert range_share(cat, ("a", "c")) == 0.5
+    assert range_share(lin, None) is None
 
 
 def test_the_pool_transfer_scores_each_winner_and_draws_the_ensemble_walk_by_walk() -> None:
@@ -173,6 +190,16 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     # the same pool again: the same walks, bit for bit
     again = _pool(lab, [*runs, *copies, bad], tmp_path / "again").result
     assert np.array_equal(again.scores, scores)
+    # the union covers at least the widest joined span's share of the range; pool.md names
+    # the fields it leaves open, and only those
+    line = next((x for x in (out / "pool.md").read_text().splitlines()
+                 if x.startswith("Left open")), "")
+    named = line.split(": ", 1)[1].split(". ")[0].split(", ") if line else []
+    for f, spec in zip(rep["fields"], again.space.specs, strict=True):
+        if not spec.categorical:
+            widest = max(range_share(spec, (tuple(sp),)) for sp in f["spans"])
+            assert widest - 1e-12 <= f["share"] <= 1.0 + 1e-12
+        assert (f["field"] in named) == (f["share"] >= OPEN_SHARE)
 
 
 def test_pool_refuses_before_any_walk(lab, tmp_path) -> None:
