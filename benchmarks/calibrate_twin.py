@@ -579,7 +579,7 @@ def run_pool(root: Path, runs: list[Path], real: Path, states: Path, arena: Path
 
 def print_pool_recovery(rep: dict) -> None:
     """The hidden robot against the pool's union of the joined seeds' allowed values."""
-    from simlab.calibration.pool import PooledField
+    from simlab.calibration.pool import OPEN_SHARE, PooledField
     from simlab.physics.motion import PrimitiveParams
 
     robot = PrimitiveParams(**HIDDEN)
@@ -593,8 +593,8 @@ def print_pool_recovery(rep: dict) -> None:
     print("hidden robot against the pool's union (target: every field inside): " + ", ".join(
         f"{n} {'in' if ok else 'OUT' if ok is False else 'n/a'}" for n, ok in marks)
         + f"; every field inside: {all(ok for _, ok in marks)}")
-    print("the union's share of each field's searched range (a field at 0.9 or more is left "
-          "open: the statement holds it by saying little): " + ", ".join(
+    print(f"the union's share of each field's searched range (a field at {OPEN_SHARE} or more "
+          "is left open: the statement holds it by saying little): " + ", ".join(
               f"{f['field']} {'n/a' if f.get('share') is None else format(f['share'], '.2f')}"
               for f in rep["fields"]))
 

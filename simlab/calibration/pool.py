@@ -69,7 +69,7 @@ from simlab.base.options import command, option
 from simlab.calibration.command import CalibrateConfig
 from simlab.calibration.config import CalibrationConfig
 from simlab.calibration.profile import TOLD_BAND, FieldProfile, Profile
-from simlab.calibration.space import ParameterSpace, space_from_mapping
+from simlab.calibration.space import ParameterSpace, ParamSpec, space_from_mapping
 
 #: ``kind`` of ``pool.json``: what ``--overwrite`` recognises as the pool's own.
 KIND = "simlab-calibrate-pool"
@@ -139,13 +139,13 @@ class PooledField:
 OPEN_SHARE = 0.9
 
 
-def range_share(spec: Any, allowed: tuple[Any, ...] | None) -> float | None:
+def range_share(spec: ParamSpec, allowed: tuple[Any, ...] | None) -> float | None:
     """The share of ``spec``'s searched range that ``allowed`` covers, in the search's own
     scale (log fields in log units: the unit cube the search samples); a named field's
     choices as a share of its choices. An open end reaches the range's edge."""
     if allowed is None:
         return None
-    if spec.categorical:
+    if spec.choices is not None:
         return len(allowed) / len(spec.choices)
     return float(sum((1.0 if hi_open else spec.unit(hi)) - (0.0 if lo_open else spec.unit(lo))
                      for lo, hi, lo_open, hi_open in allowed))
@@ -470,17 +470,19 @@ def pool_transfer(setup: Any, walks: list[list[np.ndarray]], best: int, joined: 
     def model(counts: np.ndarray, name: str) -> Any:
         return TransferModel.from_counts(counts, name=name, action_set=aset, centres=centres)
 
-    twins = [model(sum(run), f"run {i}") for i, run in enumerate(walks)]
+    pooled = [np.sum(run, axis=0) for run in walks]
+    twins = [model(counts, f"run {i}") for i, counts in enumerate(pooled)]
     members: tuple[int, ...] = ()
     if len(joined) >= 2:
         members = tuple(joined[j % len(joined)] for j in range(len(walks[best])))
-        twins.append(model(sum(walks[i][j] for j, i in enumerate(members)), "ensemble"))
+        twins.append(model(np.sum([walks[i][j] for j, i in enumerate(members)], axis=0),
+                           "ensemble"))
     real_model = model(real_counts, setup.real.source or "real")
     rep = transfer_report(real_model, twins, {f"s{g}": [g] for g in kept}, untried=untried)
     ratios = [float(r) for r in rep.overall_ratios()]
-    line = perfect_twin_line(real_model, rep, sum(walks[best]).sum(axis=2),
-                             n_boot=LINE_BOOT, rng=rng)
-    return PoolTransfer(tuple(kept), tuple(left_out), int(sum(walks[best]).sum()),
+    line = perfect_twin_line(real_model, rep, pooled[best].sum(axis=2), n_boot=LINE_BOOT,
+                             rng=rng)
+    return PoolTransfer(tuple(kept), tuple(left_out), int(pooled[best].sum()),
                         tuple(ratios[:len(walks)]), line, members,
                         ratios[-1] if members else None)
 

@@ -39,10 +39,9 @@ def run(args: argparse.Namespace) -> int:
         print("left open across them (the data do not tell these fields): "
               + ", ".join(res.left_open))
     if t is not None:
-        ens = "" if t.ensemble_ratio is None else \
-            f"; the ensemble across the joined runs {t.ensemble_ratio:.3f}x"
-        if t.ensemble_ratio is not None and not math.isfinite(t.ensemble_ratio):
-            ens = "; the ensemble across the joined runs never arrives"
+        e = t.ensemble_ratio
+        ens = "" if e is None else "; the ensemble across the joined runs " + (
+            f"{e:.3f}x" if math.isfinite(e) else "never arrives")
         print(f"policies on the real model at {t.transitions:,} transitions: a perfect twin "
               f"{t.perfect.median:.3f}x the real optimum's steps{ens}")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
