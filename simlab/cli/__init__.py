@@ -39,6 +39,10 @@ from simlab.base.errors import (
 #: own ``MEMORY_FIX`` naming its options.
 MEMORY_FIX = "fewer hours, trials, states or a coarser grid"
 
+#: Set by the program's SIGINT handler (:func:`console_main`) when Ctrl-C arrives: from then
+#: on an unexpected exception is the interrupt's doing, not a bug (see :func:`_run`).
+_sigint_received = False
+
 #: Subcommand name -> module under simlab.cli. Order is the order of --help.
 SUBCOMMANDS: dict[str, str] = {
     "drive": "drive",
@@ -199,11 +203,14 @@ def console_main() -> int:
     their handlers and hooks."""
     import signal
 
+    global _sigint_received
     interrupted = False
+    _sigint_received = False
 
     def on_sigint(signum: int, frame: object) -> None:
+        global _sigint_received
         nonlocal interrupted
-        interrupted = True
+        interrupted = _sigint_received = True
         raise KeyboardInterrupt
 
     report_unraisable = sys.unraisablehook
@@ -282,7 +289,10 @@ def _run(args: argparse.Namespace, verbosity: int) -> int:
               file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: one line (exit 1), the traceback with -vv
-        if _caused_by_interrupt(exc):
+        # After Ctrl-C, whatever the interrupt cut off is reported as the interrupt: a
+        # KeyboardInterrupt raised inside numba's compiler can come back as a RuntimeError
+        # ("no compiled object yet for <Library ...>") with nothing linking it to the signal
+        if _sigint_received or _caused_by_interrupt(exc):
             print(f"simlab {args.command}: interrupted", file=sys.stderr)
             return 130
         if verbosity >= 2:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 import simlab.commands as commands
 from simlab.cli import SUBCOMMANDS, build_parser
 
@@ -108,3 +110,31 @@ def test_interrupt_inside_compiled_code_is_exit_130(monkeypatch, capsys):
     monkeypatch.setattr(cli, "build_parser", parser)
     assert cli.main(["drive"]) == 130
     assert capsys.readouterr().err == "simlab drive: interrupted\n"
+
+
+@pytest.mark.parametrize("received", [True, False])
+def test_an_error_after_ctrl_c_is_the_interrupt(monkeypatch, capsys, received):
+    """A KeyboardInterrupt raised inside numba's compiler can come back as an unrelated
+    RuntimeError with no cause chain ("no compiled object yet for <Library ...>"): once the
+    program's SIGINT handler has run, that is exit 130; with no SIGINT it stays a bug (1)."""
+    import simlab.cli as cli
+
+    def cut_off_compile(args):
+        raise RuntimeError("no compiled object yet for <Library 'social_reset'>")
+
+    real = cli.build_parser
+
+    def parser():
+        p = real()
+        sub = next(a for a in p._actions if a.dest == "command")
+        sub.choices["drive"].set_defaults(_run=cut_off_compile)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+    monkeypatch.setattr(cli, "_sigint_received", received)
+    err_code = cli.main(["drive"])
+    err = capsys.readouterr().err
+    if received:
+        assert (err_code, err) == (130, "simlab drive: interrupted\n")
+    else:
+        assert err_code == 1 and "internal error: RuntimeError" in err, err
