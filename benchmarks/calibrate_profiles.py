@@ -55,7 +55,7 @@ def main() -> None:
     from simlab.base.actions import parse_action_set
     from simlab.calibration.config import CalibrationConfig, RealTable
     from simlab.calibration.objective import Reference
-    from simlab.calibration.profile import TOLD_BAND, moves, profile_stage
+    from simlab.calibration.profile import moves, profile_stage
     from simlab.calibration.report import _allowed
     from simlab.calibration.search import evaluate_points, walk_context
     from simlab.calibration.stages import prepare_calibration
@@ -96,7 +96,7 @@ def main() -> None:
     print(f"the twin: TV {prof.distance:.4f}, score {prof.score:.4f} on seed {prof.seed}; "
           f"on {args.seeds} other seeds " + ", ".join(f"{w.score:.4f}" for w in walks[1:])
           + f" (score's spread from walk to walk {prof.sigma:.4f}; told beyond "
-          f"{TOLD_BAND:.2f} x that)")
+          f"{prof.band:.2f} x that)")
     print(f"field | calibrated | moved to: TV change / score change | told at "
           f"{args.transitions:,}?")
     for f in prof.fields:

@@ -12,11 +12,11 @@ Every run's winner (its ``primitives.toml``, fitted decision latency included) w
 same fresh seeds at the confirming size (common random numbers across the winners), and
 each walk is scored as the runs scored theirs, one objective for all. The best mean score
 is the pool's winner. A run *joins* the pool when its mean score is within sampling of the
-best's: by at most :data:`~simlab.calibration.profile.TOLD_BAND` ``sigma / sqrt(n)``, the
+best's: by at most :func:`~simlab.calibration.profile.told_band` ``sigma / sqrt(n)``, the
 95 % half-width of a difference of two means of ``n`` independent walks, ``sigma`` the
-walk-to-walk standard deviation of the score pooled over the runs' own walks here (walks
-on common seeds differ less, so this errs towards joining, as the profile errs towards
-"not told").
+walk-to-walk standard deviation of the score pooled over the runs' own walks here (Student's
+t for its ``runs * (n - 1)`` degrees of freedom; walks on common seeds differ less, so this
+errs towards joining, as the profile errs towards "not told").
 
 What the data allow, field by field, is then the union of the joined runs' allowed values:
 a value is allowed when it is within the profile's band of a winner that is itself within
@@ -37,14 +37,15 @@ basins transfers better than the pool's winner alone. No walk is added for it. M
 1.098x and 1.101x, a perfect twin with the same data 1.040x-1.069x: better once in four, so the
 recommended twin stays the single winner and the ensemble is there for domain randomisation.
 
-Measured on that synthetic lab (seeds 0 to 2, three pool seeds): seeds 0 and 2 joined
-(+0.003 against a band of 0.008), seed 1 did not (+0.017), and the union of seeds 0 and 2
-held the hidden value of every field, which neither run's profile did alone; on seeds 3 to 5
-only seed 3 joined, and its statement excluded the hidden 2 Hz (once in two triples). Read
-for every subset of eleven seeds from one pool's walks, every hidden value was inside on 18 %
-of single seeds, 34 % of triples, 66 % of fives, 98 % of eights and every nine or more; the one
-independent five (seeds 6-10) failed. The union is wider with more seeds (0.64 of each field's
-range for one seed, 0.76 for five, 0.83 for eleven); the fields it allows over
+Measured on that synthetic lab (seeds 0 to 2, three pool seeds, the normal bands of 2.77):
+seeds 0 and 2 joined (+0.003 against a band of 0.008), seed 1 did not (+0.017), and the union
+of seeds 0 and 2 held the hidden value of every field, which neither run's profile did alone;
+on seeds 3 to 5 only seed 3 joined, and its statement excluded the hidden 2 Hz (with
+Student's bands both triples hold every hidden value). Read, with Student's bands,
+for every subset of eleven seeds from one pool's walks, every hidden value was inside on 45 %
+of single seeds, 73 % of triples, 88 % of fives, 99 % of eights and every nine or more; the one
+independent five (seeds 6-10) failed. The union is wider with more seeds (0.72 of each field's
+range for one seed, 0.80 for five, 0.83 for eleven); the fields it allows over
 :data:`OPEN_SHARE` of their range or more are named as left open.
 
 Outputs in ``--out``: ``primitives.toml`` (the pool's winner, and the ensemble), ``pool.json``
@@ -68,7 +69,7 @@ from simlab.base.io import atomic_write_json, atomic_write_text, ensure_new, out
 from simlab.base.options import command, option
 from simlab.calibration.command import CalibrateConfig
 from simlab.calibration.config import CalibrationConfig
-from simlab.calibration.profile import TOLD_BAND, FieldProfile, Profile
+from simlab.calibration.profile import FieldProfile, Profile, told_band
 from simlab.calibration.space import ParameterSpace, ParamSpec, space_from_mapping
 
 #: ``kind`` of ``pool.json``: what ``--overwrite`` recognises as the pool's own.
@@ -178,6 +179,11 @@ class PoolTransfer:
                 else _finite(self.ensemble_ratio)}
 
 
+def join_dof(runs: int, seeds: int) -> int:
+    """The degrees of freedom of the pool's spread: ``seeds`` walks of each of ``runs``."""
+    return runs * (seeds - 1)
+
+
 def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
@@ -210,9 +216,19 @@ class PoolResult:
         return [f.name for f in self.fields if f.share is not None and f.share >= OPEN_SHARE]
 
     @property
+    def dof(self) -> int:
+        """The degrees of freedom of :attr:`sigma`: each run's walks less one, summed."""
+        return join_dof(len(self.runs), len(self.seeds))
+
+    @property
+    def band(self) -> float:
+        """:func:`~simlab.calibration.profile.told_band` for :attr:`dof`."""
+        return told_band(self.dof)
+
+    @property
     def limit(self) -> float:
         """How far above the best mean score a run joins."""
-        return TOLD_BAND * self.sigma / math.sqrt(len(self.seeds))
+        return self.band * self.sigma / math.sqrt(len(self.seeds))
 
     @property
     def gaps(self) -> np.ndarray:
@@ -380,7 +396,7 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
     sigma = float(np.sqrt(np.mean(np.var(scores, axis=1, ddof=1))))
     mean = scores.mean(axis=1)
     best = int(np.argmin(mean))
-    limit = TOLD_BAND * sigma / math.sqrt(len(walk_seeds))
+    limit = told_band(join_dof(len(runs), len(walk_seeds))) * sigma / math.sqrt(len(walk_seeds))
     joined = [i for i in range(len(runs)) if mean[i] - mean[best] <= limit]
     joined.sort(key=lambda i: (mean[i], i))
     notes = []
@@ -507,7 +523,7 @@ def pool_json(res: PoolResult) -> dict[str, Any]:
     mean_s, mean_d = res.scores.mean(axis=1), res.distances.mean(axis=1)
     return {"kind": KIND, "seeds": list(res.seeds), "transitions": res.transitions,
             "objective": res.objective, "sigma": res.sigma, "limit": res.limit,
-            "band": TOLD_BAND, "matched_floor": res.matched_floor,
+            "dof": res.dof, "band": res.band, "matched_floor": res.matched_floor,
             "best": res.best, "joined": list(res.joined),
             "runs": [{"path": str(r.path), "seed": r.seed,
                       "own_distance": r.report["distance"]["distance"],
@@ -531,7 +547,8 @@ def pool_markdown(res: PoolResult) -> str:
              f"({', '.join(map(str, res.seeds))}) at {res.transitions:,} transitions, scored "
              f"by the `{res.objective}` objective. Walk-to-walk spread of the score "
              f"{res.sigma:.4f}; a run joins within {res.limit:.4f} of the best mean score "
-             f"({TOLD_BAND:.2f} sigma / sqrt({len(res.seeds)})). Matched floor {mf:.4f}.", "",
+             f"({res.band:.2f} sigma / sqrt({len(res.seeds)}), Student's t for the spread's "
+             f"{res.dof} degrees of freedom). Matched floor {mf:.4f}.", "",
              "| # | run | calibrate seed | own distance | pool distance (x matched floor) | "
              "score | above the best | joined |", "|---|---|---|---|---|---|---|---|"]
     for i, r in enumerate(res.runs):

@@ -13,9 +13,10 @@ a named field takes each other choice), and each point walks the confirming size
 winner's first confirming seed (common random numbers with the winner's own walk there). A
 move's change of score is read against the score's spread from walk to walk (the winner's
 confirming and twin walks on their seeds, ``sigma``): a field is *told* by the table when a
-move changes the score by more than :data:`TOLD_BAND` ``sigma``, the 95 % half-width of the
-difference of two independent walks (``1.96 * sqrt(2)``; walks on one seed differ less, so
-this errs towards "not told"). Each point costs one confirming walk: ``2 d`` more walks for
+move changes the score by more than :func:`told_band` ``sigma``, the 95 % half-width of the
+difference of two independent walks with the spread estimated from the winner's walks
+(Student's t for their degrees of freedom, times ``sqrt(2)``: 6.09 from three walks); walks
+on one seed differ less, so this errs towards "not told". Each point costs one confirming walk: ``2 d`` more walks for
 ``d`` fields (an option of calibrate, ``--profile-step``).
 
 The profile also says which values the data allow (:attr:`FieldProfile.allowed`): a move
@@ -48,7 +49,8 @@ value is truly no worse, the value is excluded only if that point's own noise pa
 (at most 2.5 % of walks, less on one seed), however many other points sit there; more points
 only free a truly worse value more often (one of them dips below the band), so the pairs widen
 the allowed values and never lose the robot's value more often than the slice. Measured on
-the synthetic lab (a hidden robot, three calibration seeds, nine searched fields): six fields
+the synthetic lab (a hidden robot, three calibration seeds, nine searched fields; the normal
+band of 2.77, before :func:`told_band`): six fields
 held the hidden value on every seed. One winner sat at 10 Hz of localization with little
 persistence of its error (0.16) against the hidden 2 Hz and 0.8, and its slice excluded 2 Hz
 and the hidden wall back-off; another winner's slice excluded the hidden persistence (allowed
@@ -73,9 +75,30 @@ from simlab.calibration.search import Candidate, evaluate_points, walk_size
 from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.calibration.walks import WalkRunner
 
-#: A move changes the score beyond sampling when by more than this many walk-to-walk
-#: standard deviations: 1.96 * sqrt(2), the 95 % half-width of a difference of two walks.
-TOLD_BAND = 1.96 * math.sqrt(2.0)
+
+def told_band(dof: float | None = None) -> float:
+    """How many walk-to-walk standard deviations a difference of two walks must pass to be
+    beyond sampling: ``sqrt(2)`` times the 97.5 % quantile of Student's t with ``dof``, the
+    degrees of freedom of the standard deviation's estimate (Student 1908; the 95 %
+    half-width of a difference of two walks, the spread measured, not known). ``None``: the
+    spread known (the normal quantile, 1.96 * sqrt(2) = 2.77); NaN with no degree of freedom.
+
+    The degrees of freedom matter: calibrate's profile estimates the spread from the winner's
+    three twin walks (2 degrees of freedom), where a move that changes nothing passes the
+    normal band 2.77 with probability 0.16-0.19 (0.16 as the profile reads it, against one of
+    those walks; 0.19 against an independent one), and this band, 6.09, with 0.036-0.05. Measured on
+    the synthetic lab of ``benchmarks/calibrate_twin.py`` (eleven calibrate seeds, the same
+    walks re-read): the profile's spreads ranged 0.0016-0.0143 around the 0.0054 the pool's
+    33 walks measured, and with 2.77 a single run's allowed values held every hidden value
+    on 2 seeds of 11, with 6.09 on 5 of 11 (each field's allowed share of its range 0.64
+    and 0.72 on average)."""
+    from scipy.stats import t as student_t
+
+    if dof is None or math.isinf(dof):
+        return float(1.959963984540054 * math.sqrt(2.0))
+    if not dof >= 1:
+        return math.nan
+    return float(student_t.ppf(0.975, dof) * math.sqrt(2.0))
 
 
 @dataclass(frozen=True)
@@ -235,6 +258,9 @@ class Profile:
             of the winner's walks).
         fields: per searched field, in the space's order.
         pairs: whether the told fields were also moved in pairs (:func:`pair_moves`).
+        dof: the degrees of freedom of ``sigma`` (the winner's walks less one), which set
+            the band (:func:`told_band`); None in a report written before they were kept:
+            that report's band was the normal one.
     """
 
     step: float
@@ -245,16 +271,22 @@ class Profile:
     sigma: float
     fields: tuple[FieldProfile, ...]
     pairs: bool = False
+    dof: int | None = None
 
     def verdicts(self) -> dict[str, bool | None]:
         """``{field: told}``."""
         return {f.name: f.told for f in self.fields}
 
     @property
+    def band(self) -> float:
+        """How many ``sigma`` a score change must pass to tell a field (:func:`told_band`)."""
+        return told_band(self.dof)
+
+    @property
     def limit(self) -> float:
         """The band a score change must pass to tell a field (NaN when the spread is
         unknown)."""
-        return TOLD_BAND * self.sigma
+        return self.band * self.sigma
 
     @property
     def pair_walks(self) -> int:
@@ -300,7 +332,8 @@ class Profile:
                    transitions=int(doc["transitions"]), distance=num(doc["distance"]),
                    score=num(doc["score"]), sigma=num(doc["sigma"]),
                    fields=tuple(field(f) for f in doc["fields"]),
-                   pairs=bool(doc.get("pairs", False)))
+                   pairs=bool(doc.get("pairs", False)),
+                   dof=None if doc.get("dof") is None else int(doc["dof"]))
 
     def to_json(self) -> dict[str, Any]:
         def num(x: float) -> float | None:
@@ -308,7 +341,8 @@ class Profile:
 
         return {"step": self.step, "seed": self.seed, "transitions": self.transitions,
                 "distance": num(self.distance), "score": num(self.score),
-                "sigma": num(self.sigma), "band": TOLD_BAND, "pairs": self.pairs,
+                "sigma": num(self.sigma), "dof": self.dof, "band": self.band,
+                "pairs": self.pairs,
                 "ties": [list(t) for t in self.ties()],
                 "fields": [{"field": f.name, "value": f.value, "told": f.told,
                             "allowed": None if f.allowed is None else list(f.allowed),
@@ -403,7 +437,8 @@ def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
     done = _walk_points(runner, [u for _k, u in points], "profile", base.seed, ctx, budget)
     scores = [w.score for w in walks]
     sigma = float(np.std(scores, ddof=1)) if len(scores) >= 2 else math.nan
-    limit = TOLD_BAND * sigma
+    dof = len(scores) - 1
+    limit = told_band(dof) * sigma
     mine: list[list[FieldMove]] = [[] for _ in space.specs]
     for (k, _u), c in zip(points, done, strict=True):
         mine[k].append(FieldMove(c.values[space.specs[k].name], c.distance - base.distance,
@@ -432,4 +467,4 @@ def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
                                    open_sides(spec, value, mine[k], limit)))
     return Profile(step=float(step), seed=int(base.seed), transitions=int(base.sim.rows),
                    distance=base.distance, score=base.score, sigma=sigma,
-                   fields=tuple(fields), pairs=bool(pairs))
+                   fields=tuple(fields), pairs=bool(pairs), dof=dof)

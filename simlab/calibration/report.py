@@ -51,7 +51,6 @@ from simlab.base.io import (
     output_transaction,
 )
 from simlab.calibration.policies import policy_need
-from simlab.calibration.profile import TOLD_BAND
 from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
 
@@ -633,8 +632,9 @@ def profile_section(result: CalibrationResult) -> str:
               f"{prof.transitions:,} transitions on the winner's seed {prof.seed} (its "
               f"distance there {prof.distance:.4f}, score {prof.score:.4f}): the change of "
               f"distance and of score, against the score's spread from walk to walk "
-              f"({sigma}). A field is told when a move changes the score by more than "
-              f"{TOLD_BAND:.2f} times that spread. A move that raised the score by more "
+              f"({sigma}{_dof_text(prof)}). A field is told when a move changes the score by "
+              f"more than {prof.band:.2f} times that spread (the 95 % half-width of a "
+              f"difference of two walks, the spread estimated: Student's t). A move that raised the score by more "
               "excludes the values past it, unless another confirmed candidate within the "
               "band on this seed lies past it; the last column is what is left, the spread the "
               "data allow (a side no move bounds is open: nothing was measured past the "
@@ -688,6 +688,11 @@ def profile_section(result: CalibrationResult) -> str:
     return out.getvalue()
 
 
+def _dof_text(prof: Any) -> str:
+    """``, from N walks`` when the profile kept how many walks its spread came from."""
+    return "" if prof.dof is None else f", from {prof.dof + 1} walks of the winner"
+
+
 def _refuted(prof: Any, space: Any) -> list[str]:
     """``field below/above V (a confirmed candidate at X: +score)`` for each move whose bound
     a confirmed candidate refutes (:func:`~simlab.calibration.profile.bounding`)."""
@@ -739,7 +744,7 @@ def told_space_toml(result: CalibrationResult) -> str | None:
     out = io.StringIO()
     out.write(f"{TOLD_TITLE} (simlab calibrate --profile-step {prof.step:g}): a move of\n"
               f"# {prof.step:g} of its range from the winner changed the score by more than "
-              f"{TOLD_BAND:.2f} times its\n# walk-to-walk spread ({prof.sigma:.4f}). Not told, "
+              f"{prof.band:.2f} times its\n# walk-to-walk spread ({prof.sigma:.4f}). Not told, "
               f"and held by a calibration that reads\n# this file: {', '.join(untold)}.\n"
               "#   simlab calibrate ... --primitives primitives.toml --space told_space.toml\n"
               "# starts from this twin and searches only the fields below.\n")

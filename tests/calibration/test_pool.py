@@ -26,7 +26,7 @@ from simlab.calibration.pool import (
     pool_transfer,
     range_share,
 )
-from simlab.calibration.profile import TOLD_BAND
+from simlab.calibration.profile import told_band
 from simlab.calibration.space import ParamSpec
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
@@ -162,7 +162,9 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     assert np.array_equal(scores[:2], scores[2:4])            # the copies: the same walks
     mean = scores.mean(axis=1)
     assert rep["best"] == int(np.argmin(mean))
-    assert rep["limit"] == pytest.approx(TOLD_BAND * rep["sigma"] / np.sqrt(2))
+    # five runs of two walks each: five degrees of freedom behind the spread (Student's t)
+    assert rep["dof"] == 5 and rep["band"] == pytest.approx(told_band(5))
+    assert rep["limit"] == pytest.approx(told_band(5) * rep["sigma"] / np.sqrt(2))
     joined = [i for i in range(5) if mean[i] - mean[rep["best"]] <= rep["limit"]]
     assert rep["joined"] == sorted(joined, key=lambda i: (mean[i], i))
     assert {rep["best"], rep["best"] + 2} <= set(rep["joined"]) and 4 not in rep["joined"]

@@ -3,6 +3,7 @@ spread (kinematic simulator on the 3 x 3 lattice: seconds)."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -13,13 +14,13 @@ from simlab.base.actions import parse_action_set
 from simlab.base.errors import ConfigError
 from simlab.calibration.config import CalibrationConfig
 from simlab.calibration.profile import (
-    TOLD_BAND,
     FieldMove,
     FieldProfile,
     Profile,
     allowed_values,
     moves,
     open_sides,
+    told_band,
 )
 from simlab.calibration.report import _allowed, profile_section, report_json, write_outputs
 from simlab.calibration.space import ParameterSpace, ParamSpec
@@ -28,6 +29,41 @@ from simlab.data.walkers import KinematicParams
 from tests.calibration.conftest import hidden_walk, real_table
 
 CCW8 = parse_action_set(8, "ccw-east")
+
+
+def test_the_band_is_students_for_the_spreads_degrees_of_freedom() -> None:
+    """The 97.5 % quantiles of Student's t from their closed forms (1 degree of freedom: the
+    Cauchy quantile tan(pi (p - 1/2)); 2: (2p - 1) / sqrt(2 p (1 - p)), 4.303), times
+    sqrt(2); the normal band with the spread known; none without a degree of freedom."""
+    p = 0.975
+    assert told_band(2) == pytest.approx(math.sqrt(2.0) * (2 * p - 1) / math.sqrt(2 * p * (1 - p)))
+    assert told_band(1) == pytest.approx(math.sqrt(2.0) * math.tan(math.pi * (p - 0.5)))
+    assert told_band(None) == pytest.approx(1.959964 * math.sqrt(2.0))
+    assert told_band(math.inf) == told_band(None)
+    assert math.isnan(told_band(0))
+    bands = [told_band(d) for d in (1, 2, 3, 5, 10, 30, 1000)]
+    assert all(a > b for a, b in itertools.pairwise(bands)) and bands[-1] > told_band(None)
+
+
+@pytest.mark.parametrize("walks", [3, 5])
+def test_a_move_that_changes_nothing_is_told_one_time_in_twenty(walks: int) -> None:
+    """What the band is for: a move whose true change is zero, read against a spread estimated
+    from ``walks`` walks of the winner, passes the band 5 % of the time when the move and the
+    walk it is read against are independent of that estimate, and less (about 3.6 % with three
+    walks) when, as in the profile, that walk is one of them. The normal band with the same
+    estimate passes far more often (0.16-0.19 with three walks): it told fields, and excluded
+    values, that the walks could not tell."""
+    rng = np.random.default_rng(11)
+    n = 200_000
+    winner = rng.normal(0.0, 1.0, (n, walks))          # the winner's walks, sigma 1
+    sigma = winner.std(axis=1, ddof=1)
+    band = told_band(walks - 1) * sigma
+    apart = rng.normal(0.0, 1.0, n) - rng.normal(0.0, 1.0, n)
+    assert np.mean(np.abs(apart) > band) == pytest.approx(0.05, abs=0.004)
+    profile = rng.normal(0.0, 1.0, n) - winner[:, 0]   # a null move minus the base walk
+    assert 0.02 < np.mean(np.abs(profile) > band) <= 0.05
+    assert np.mean(np.abs(profile) > told_band(None) * sigma) > 0.09
+    assert np.mean(np.abs(apart) > told_band(None) * sigma) > 0.1
 
 
 def test_moves_go_a_step_each_way_clipped_and_to_every_other_choice() -> None:
@@ -62,13 +98,16 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
     base = res.twins[0]                       # the winner's confirming walk
     assert (prof.seed, prof.distance, prof.score) == (base.seed, base.distance, base.score)
     assert prof.sigma == pytest.approx(np.std([t.score for t in res.twins], ddof=1))
+    # the band is Student's for the spread's degrees of freedom: three walks, two
+    assert prof.dof == len(res.twins) - 1 == 2
+    assert prof.limit == pytest.approx(told_band(2) * prof.sigma)
     winner = res.candidates[res.best]
     for k, f in enumerate(prof.fields):
         assert f.value == winner.values[f.name]
         for m in f.alone:  # each a quarter of the range away in the unit cube (or a bound)
             moved = space.specs[k].unit(m.value)
             assert abs(moved - winner.unit[k]) == pytest.approx(0.25) or moved in (0.0, 1.0)
-        assert f.told == any(abs(m.score_change) > TOLD_BAND * prof.sigma for m in f.alone)
+        assert f.told == any(abs(m.score_change) > prof.limit for m in f.alone)
         # the other confirmed candidates' walks on the same seed join as confirmed points
         others = [c for c in res.confirmed if c.seed == prof.seed and c.index != res.best]
         assert others and sorted((m.value, m.score_change) for m in f.moves if m.confirmed) \
@@ -250,9 +289,9 @@ def test_a_confirmed_candidate_as_good_as_the_winner_past_a_move_frees_that_side
     assert allowed_values(named, "a", [*moves_, FieldMove("c", 0.0, 0.0, confirmed=True)],
                           0.01) == ("a", "c")
     # report.json keeps the flag
-    prof = Profile(step=0.25, seed=1, transitions=10, distance=0.1, score=0.1, sigma=0.01 / TOLD_BAND,
+    prof = Profile(step=0.25, seed=1, transitions=10, distance=0.1, score=0.1, sigma=0.01 / told_band(2),
                    fields=(FieldProfile("x", 0.5, tuple(out_there), True, (0.0, 0.75),
-                                        (True, False)),))
+                                        (True, False)),), dof=2)
     assert Profile.from_json(json.loads(json.dumps(prof.to_json()))) == prof
     from types import SimpleNamespace
     text = profile_section(SimpleNamespace(profile=prof, space=ParameterSpace((spec,))))
@@ -277,7 +316,7 @@ def test_pairs_free_two_fields_that_trade_off_exactly(lattice9) -> None:
         runs[pairs] = calibrate(real, "table", lattice9, space=space, config=cfg).profile
     alone, both = runs[False], runs[True]
     assert both.pairs and not alone.pairs
-    limit = TOLD_BAND * both.sigma
+    limit = both.limit
     for f, g in zip(alone.fields, both.fields, strict=True):
         # the slice's walks are the same walks with or without the pairs
         assert [m for m in g.moves if m.partner is None] == list(f.moves)
@@ -331,7 +370,7 @@ def test_more_points_at_a_value_never_exclude_the_robots_value_more_often() -> N
     values widen (the test loses power), they never lose the robot's value more often."""
     rng = np.random.default_rng(7)
     n = 20_000
-    limit = TOLD_BAND * 1.0  # sigma 1: a difference of two walks has sd sqrt(2)
+    limit = told_band(None) * 1.0  # sigma 1, known: a difference of two walks has sd sqrt(2)
     spec = ParamSpec("x", 0.0, 1.0)
 
     def excluded(truth: list[float]) -> float:
