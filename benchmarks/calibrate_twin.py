@@ -444,14 +444,15 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
     """Per searched field: the hidden robot's value (its :data:`HIDDEN` setting, else the
     primitives' default it walked with), the twin's, and whether the hidden value lies in
     the spread calibrate's report states for it (the profile's allowed values)."""
-    from simlab.calibration.profile import FieldProfile, Profile
+    from simlab.calibration.pool import report_profile
+    from simlab.calibration.profile import FieldProfile
     from simlab.calibration.space import space_from_mapping
     from simlab.physics.motion import PrimitiveParams
 
     robot = PrimitiveParams(**HIDDEN)
     space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
                                 for x in rep["space"]})
-    prof = Profile.from_json(rep["profile"]) if rep.get("profile") else None
+    prof, _ = report_profile(rep)  # a kept report of an older calibrate: today's band
     found = {} if prof is None else {f.name: f for f in prof.fields}
     out = []
     for spec in space.specs:

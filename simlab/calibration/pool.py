@@ -93,6 +93,9 @@ class Run:
     report: dict[str, Any]
     params: Any
     profile: Profile | None
+    #: the walks behind the profile's spread, when the report did not keep its degrees of
+    #: freedom and the profile was re-read with Student's band for them (:func:`read_run`)
+    restated: int | None = None
 
     @property
     def seed(self) -> int:
@@ -266,8 +269,36 @@ def read_run(path: str | os.PathLike[str]) -> Run:
         raise ConfigError("this calibration was not confirmed (--no-confirm)", path=rep_path,
                           key="confirmed", fix="pool confirmed calibrations only")
     params = load_base(folder / "primitives.toml", str(rep["config"]["simulator"]))
-    prof = Profile.from_json(rep["profile"]) if rep.get("profile") else None
-    return Run(folder, rep, params, prof)
+    prof, walks = report_profile(rep)
+    return Run(folder, rep, params, prof, walks)
+
+
+def report_profile(rep: dict[str, Any]) -> tuple[Profile | None, int | None]:
+    """A calibrate ``report.json``'s profile (None without one), and the walks behind its
+    spread when the report did not keep their degrees of freedom (written before they were):
+    such a profile is re-read with Student's band for them (:meth:`Profile.restated`), the
+    band the current calibrate uses."""
+    if not rep.get("profile"):
+        return None, None
+    prof = Profile.from_json(rep["profile"])
+    walks = _profile_walks(rep) if prof.dof is None else None
+    if walks is None or walks < 2:
+        return prof, None
+    space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
+                                for x in rep["space"]})
+    return prof.restated(space, walks - 1), walks
+
+
+def _profile_walks(rep: dict[str, Any]) -> int | None:
+    """How many walks of the winner a report's profile read its spread from: its twin walks
+    (the transfer report's twins), else the winner's confirming walks."""
+    transfer = rep.get("transfer")
+    if isinstance(transfer, dict) and isinstance(transfer.get("twins"), list) \
+            and transfer["twins"]:
+        return len(transfer["twins"])
+    best = rep.get("best_candidate")
+    count = sum(1 for c in rep["confirmed"] if isinstance(c, dict) and c.get("index") == best)
+    return count or None
 
 
 def check_runs(runs: list[Run]) -> ParameterSpace:
@@ -405,6 +436,10 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
     if len(sizes) > 1:
         notes.append(f"the runs confirmed at {', '.join(f'{s:,}' for s in sizes)} transitions; "
                      f"the pool walks {sizes[-1]:,}")
+    old = [f"{r.path} ({r.restated} walks)" for r in runs if r.restated is not None]
+    if old:
+        notes.append("profiles written before their spread's degrees of freedom were kept, "
+                     "re-read with Student's band for the walks behind it: " + ", ".join(old))
     missing = [str(runs[i].path) for i in joined if runs[i].profile is None]
     if missing:
         notes.append("no profile in " + ", ".join(missing) + " (calibrate --profile-step "

@@ -65,7 +65,7 @@ fields away at once, so a value the profile excludes is worse near its winner, n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -291,6 +291,22 @@ class Profile:
         """The band a score change must pass to tell a field (NaN when the spread is
         unknown)."""
         return self.band * self.sigma
+
+    def restated(self, space: ParameterSpace, dof: int | None) -> Profile:
+        """The same moves read with the band of ``dof`` degrees of freedom (None: the normal
+        band): each field's told, allowed values and open sides again (a report written
+        before the degrees of freedom were kept read its spread with the normal band)."""
+        prof = replace(self, dof=None if dof is None else int(dof))
+        limit = prof.limit
+        fields = []
+        for spec, f in zip(space.specs, self.fields, strict=True):
+            mine = list(f.moves)
+            told = None if not math.isfinite(limit) else any(
+                abs(m.score_change) > limit for m in f.alone)
+            fields.append(replace(f, told=told,
+                                  allowed=allowed_values(spec, f.value, mine, limit),
+                                  open=open_sides(spec, f.value, mine, limit)))
+        return replace(prof, fields=tuple(fields))
 
     @property
     def pair_walks(self) -> int:

@@ -25,9 +25,10 @@ from simlab.calibration.pool import (
     pool_command,
     pool_transfer,
     range_share,
+    read_run,
 )
-from simlab.calibration.profile import told_band
-from simlab.calibration.space import ParamSpec
+from simlab.calibration.profile import Profile, told_band
+from simlab.calibration.space import ParamSpec, space_from_mapping
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
 from tests.calibration.conftest import hidden_walk, write_counts_csv
@@ -142,6 +143,7 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     copies = [tmp_path / "copy0", tmp_path / "copy7"]
     for run, copy in zip(runs, copies, strict=True):
         shutil.copytree(run, copy)
+    _as_an_old_report(copies[1])  # its profile read with the normal band, no dof kept
     # a run whose winner is moved far from the data: worse than sampling, left out
     bad = tmp_path / "bad"
     shutil.copytree(lab["run7"], bad)
@@ -170,6 +172,9 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     assert {rep["best"], rep["best"] + 2} <= set(rep["joined"]) and 4 not in rep["joined"]
     assert (0 in rep["joined"]) == (2 in rep["joined"])      # a copy as its original
     assert mean[4] > mean[rep["best"]] + rep["limit"]
+    # the old report's profile was re-read with Student's band for its two twin walks
+    assert any("re-read with Student's band" in n and f"{copies[1]} (2 walks)" in n
+               for n in rep["notes"])
     # every joined run's allowed values lie in the union, field by field
     for f in rep["fields"]:
         assert len(f["spans"]) == len(rep["joined"]) and f["allowed"]
@@ -202,6 +207,38 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
             widest = max(range_share(spec, (tuple(sp),)) for sp in f["spans"])
             assert widest - 1e-12 <= f["share"] <= 1.0 + 1e-12
         assert (f["field"] in named) == (f["share"] >= OPEN_SHARE)
+
+
+def _as_an_old_report(run: Path) -> None:
+    """Rewrite ``run``'s report as calibrate wrote it before the profile kept its spread's
+    degrees of freedom: no ``dof``, each field told and bounded with the normal band."""
+    rep = json.loads((run / "report.json").read_text())
+    space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
+                                for x in rep["space"]})
+    old = Profile.from_json(rep["profile"]).restated(space, None).to_json()
+    del old["dof"]
+    rep["profile"] = old
+    (run / "report.json").write_text(json.dumps(rep))
+
+
+def test_an_old_report_is_read_with_students_band_for_its_walks(lab, tmp_path) -> None:
+    """A profile written before the degrees of freedom were kept (read with the normal band)
+    is re-read as calibrate now writes it: the same moves, Student's band for the walks its
+    spread came from (the two twin walks), so every field's verdict, allowed values and open
+    sides equal the current report's."""
+    new = read_run(lab["run7"])
+    assert new.restated is None and new.profile is not None and new.profile.dof == 1
+    old = tmp_path / "old"
+    shutil.copytree(lab["run7"], old)
+    _as_an_old_report(old)
+    stored = Profile.from_json(json.loads((old / "report.json").read_text())["profile"])
+    assert stored.dof is None and stored.band == pytest.approx(told_band(None))
+    back = read_run(old)
+    assert back.restated == 2 and back.profile == new.profile
+    # the normal band is narrower: the old statement allowed no more than the new one
+    for f, g in zip(stored.fields, new.profile.fields, strict=True):
+        if f.allowed is not None and not isinstance(f.value, str):
+            assert g.allowed[0] <= f.allowed[0] + 1e-12 and f.allowed[1] <= g.allowed[1] + 1e-12
 
 
 def test_pool_refuses_before_any_walk(lab, tmp_path) -> None:
