@@ -16,8 +16,8 @@ confirming and twin walks on their seeds, ``sigma``): a field is *told* by the t
 move changes the score by more than :func:`told_band` ``sigma``, the 95 % half-width of the
 difference of two independent walks with the spread estimated from the winner's walks
 (Student's t for their degrees of freedom, times ``sqrt(2)``: 6.09 from three walks); walks
-on one seed differ less, so this errs towards "not told". Each point costs one confirming walk: ``2 d`` more walks for
-``d`` fields (an option of calibrate, ``--profile-step``).
+on one seed differ less, so this errs towards "not told". Each point costs one confirming
+walk: ``2 d`` more walks for ``d`` fields (an option of calibrate, ``--profile-step``).
 
 The profile also says which values the data allow (:attr:`FieldProfile.allowed`): a move
 that raised the score beyond the band excludes the values past it (the score worsens
@@ -87,15 +87,16 @@ def told_band(dof: float | None = None) -> float:
     three twin walks (2 degrees of freedom), where a move that changes nothing passes the
     normal band 2.77 with probability 0.16-0.19 (0.16 as the profile reads it, against one of
     those walks; 0.19 against an independent one), and this band, 6.09, with 0.036-0.05.
-    Measured on the synthetic lab of ``benchmarks/calibrate_twin.py`` (eleven calibrate seeds, the same
-    walks re-read): the profile's spreads ranged 0.0016-0.0143 around the 0.0054 the pool's
-    33 walks measured, and with 2.77 a single run's allowed values held every hidden value
-    on 2 seeds of 11, with 6.09 on 5 of 11 (each field's allowed share of its range 0.64
-    and 0.72 on average). That gain is the wider band's, not a truer statement: with the
-    spread pooled from the twin walks and the pool's walks of the same winners (four degrees
-    of freedom, 3.93) the profiles hold every hidden value on 2 of 11, with the pool's 33
-    walks' spread (2.93 times 0.0054) on none. What a profile excludes is mostly worse near
-    its winner beyond sampling: the hidden robot sits in another basin (module docstring)."""
+    Measured on the synthetic lab of ``benchmarks/calibrate_twin.py`` (eleven calibrate
+    seeds, the same walks re-read): the profile's spreads ranged 0.0016-0.0143 around the
+    0.0054 the pool's 33 walks measured, and with 2.77 a single run's allowed values held
+    every hidden value on 2 seeds of 11, with 6.09 on 5 of 11 (each field's allowed share of
+    its range 0.64 and 0.72 on average). That gain is the wider band's, not a truer
+    statement: with the spread pooled from the twin walks and the pool's walks of the same
+    winners (four degrees of freedom, 3.93) the profiles hold every hidden value on 2 of 11,
+    with the pool's 33 walks' spread (2.93 times 0.0054) on none. What a profile excludes is
+    mostly worse near its winner beyond sampling: the hidden robot sits in another basin
+    (module docstring)."""
     from scipy.stats import t as student_t
 
     if dof is None or math.isinf(dof):
@@ -361,7 +362,7 @@ class Profile:
 
         return {"step": self.step, "seed": self.seed, "transitions": self.transitions,
                 "distance": num(self.distance), "score": num(self.score),
-                "sigma": num(self.sigma), "dof": self.dof, "band": self.band,
+                "sigma": num(self.sigma), "dof": self.dof, "band": num(self.band),
                 "pairs": self.pairs,
                 "ties": [list(t) for t in self.ties()],
                 "fields": [{"field": f.name, "value": f.value, "told": f.told,

@@ -634,9 +634,9 @@ def profile_section(result: CalibrationResult) -> str:
               f"distance and of score, against the score's spread from walk to walk "
               f"({sigma}{_dof_text(prof)}). A field is told when a move changes the score by "
               f"more than {prof.band:.2f} times that spread (the 95 % half-width of a "
-              f"difference of two walks, the spread estimated: Student's t). A move that raised the score by more "
-              "excludes the values past it, unless another confirmed candidate within the "
-              "band on this seed lies past it; the last column is what is left, the spread the "
+              "difference of two walks, the spread estimated: Student's t). A move that "
+              "raised the score by more excludes the values past it, unless another "
+              "confirmed candidate within the band on this seed lies past it; the last column is what is left, the spread the "
               "data allow (a side no move bounds is open: nothing was measured past the "
               "searched range). " + (
                   "The told fields were then moved in pairs too (both diagonals, the same "

@@ -289,7 +289,8 @@ def test_a_confirmed_candidate_as_good_as_the_winner_past_a_move_frees_that_side
     assert allowed_values(named, "a", [*moves_, FieldMove("c", 0.0, 0.0, confirmed=True)],
                           0.01) == ("a", "c")
     # report.json keeps the flag
-    prof = Profile(step=0.25, seed=1, transitions=10, distance=0.1, score=0.1, sigma=0.01 / told_band(2),
+    prof = Profile(step=0.25, seed=1, transitions=10, distance=0.1, score=0.1,
+                   sigma=0.01 / told_band(2),
                    fields=(FieldProfile("x", 0.5, tuple(out_there), True, (0.0, 0.75),
                                         (True, False)),), dof=2)
     assert Profile.from_json(json.loads(json.dumps(prof.to_json()))) == prof
