@@ -294,6 +294,11 @@ def test_a_confirmed_candidate_as_good_as_the_winner_past_a_move_frees_that_side
                    fields=(FieldProfile("x", 0.5, tuple(out_there), True, (0.0, 0.75),
                                         (True, False)),), dof=2)
     assert Profile.from_json(json.loads(json.dumps(prof.to_json()))) == prof
+    # one walk of the winner: no spread, no band; report.json stays strict JSON
+    alone = Profile(step=0.25, seed=1, transitions=10, distance=0.1, score=0.1,
+                    sigma=math.nan, fields=(), dof=0)
+    doc = json.loads(json.dumps(alone.to_json(), allow_nan=False))
+    assert doc["band"] is None and doc["sigma"] is None and math.isnan(alone.limit)
     from types import SimpleNamespace
     text = profile_section(SimpleNamespace(profile=prof, space=ParameterSpace((spec,))))
     assert "Freed by a confirmed candidate" in text
