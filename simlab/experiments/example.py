@@ -36,8 +36,9 @@ def flip_coins(p: float, flips: int, seed: np.random.SeedSequence) -> float:
 def coin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> RunResult:
     """Estimate ``params["p"]`` from ``budget["seeds"]`` runs of ``budget["flips"]`` tosses.
 
-    Metrics: ``p_hat`` (mean over seeds), ``ci95`` (half-width of its normal 95 %
-    confidence interval over seeds), ``p_true``, ``seeds``.
+    Metrics: ``p_hat`` (mean over seeds), ``ci95`` (half-width of its 95 % confidence
+    interval over seeds: Student's t for ``seeds - 1`` degrees of freedom, since the spread
+    is estimated from those few seeds), ``p_true``, ``seeds``.
     """
     p = validation.probability(params.get("p"), "params.p")
     flips = validation.whole(budget.get("flips"), "budget.flips", minimum=1)
@@ -45,7 +46,11 @@ def coin(params: dict[str, Any], budget: dict[str, Any], ctx: RunContext) -> Run
     estimates = np.array(ctx.map(flip_coins, [{"p": float(p), "flips": flips, "seed": s}
                                               for s in ctx.seeds(n)], desc="coin seeds"))
     p_hat = float(estimates.mean())
-    ci95 = 1.96 * float(estimates.std(ddof=1)) / math.sqrt(n) if n > 1 else float("nan")
+    ci95 = float("nan")
+    if n > 1:
+        from scipy.stats import t as student_t
+
+        ci95 = float(student_t.ppf(0.975, n - 1) * estimates.std(ddof=1) / math.sqrt(n))
     ctx.log(f"p_hat = {p_hat:.4f} over {n} seeds")
 
     from matplotlib.figure import Figure

@@ -114,6 +114,9 @@ def test_example_reproduce_is_deterministic_and_independent_of_workers(tmp_path)
     saved = json.loads((tmp_path / "a" / "example_coin" / "result.json").read_text())
     assert saved["metrics"] == ea["metrics"] and len(saved["details"]["estimates"]) == 4
     assert np.mean(saved["details"]["estimates"]) == pytest.approx(ea["metrics"]["p_hat"])
+    # the interval of a mean of 4 seeds: Student's t for 3 degrees of freedom (3.182)
+    est = np.asarray(saved["details"]["estimates"])
+    assert ea["metrics"]["ci95"] == pytest.approx(3.182446 * est.std(ddof=1) / 2.0)
     md = (tmp_path / "a" / "results.md").read_text()
     assert "| **PASS** |" in md and "example_coin/estimates.png" in md
     assert (tmp_path / "a" / "example_coin" / "estimates.png").read_bytes()[:4] == b"\x89PNG"
