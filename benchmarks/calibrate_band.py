@@ -2,7 +2,7 @@
 
 The profile (``simlab.calibration.profile``) tells a field, and excludes values, when a move
 changes the score by more than a band times the winner's walk-to-walk spread. That spread is
-estimated from the winner's three twin walks, so its band is Student's (6.09 for two degrees
+estimated from the winner's three twin walks, so its band is Student's (6.08 for two degrees
 of freedom) rather than the normal 2.77. This script re-reads the synthetic lab's kept
 calibrations (``benchmarks/calibrate_twin.py --lab synthetic --keep DIR``) and a
 ``simlab calibrate-pool`` over them, whose walks of every winner on common fresh seeds give a

@@ -15,7 +15,7 @@ move's change of score is read against the score's spread from walk to walk (the
 confirming and twin walks on their seeds, ``sigma``): a field is *told* by the table when a
 move changes the score by more than :func:`told_band` ``sigma``, the 95 % half-width of the
 difference of two independent walks with the spread estimated from the winner's walks
-(Student's t for their degrees of freedom, times ``sqrt(2)``: 6.09 from three walks); walks
+(Student's t for their degrees of freedom, times ``sqrt(2)``: 6.08 from three walks); walks
 on one seed differ less, so this errs towards "not told". Each point costs one confirming
 walk: ``2 d`` more walks for ``d`` fields (an option of calibrate, ``--profile-step``).
 
@@ -86,11 +86,11 @@ def told_band(dof: float | None = None) -> float:
     The degrees of freedom matter: calibrate's profile estimates the spread from the winner's
     three twin walks (2 degrees of freedom), where a move that changes nothing passes the
     normal band 2.77 with probability 0.16-0.19 (0.16 as the profile reads it, against one of
-    those walks; 0.19 against an independent one), and this band, 6.09, with 0.036-0.05.
+    those walks; 0.19 against an independent one), and this band, 6.08, with 0.036-0.05.
     Measured on the synthetic lab of ``benchmarks/calibrate_twin.py`` (eleven calibrate
     seeds, the same walks re-read): the profile's spreads ranged 0.0016-0.0143 around the
     0.0054 the pool's 33 walks measured, and with 2.77 a single run's allowed values held
-    every hidden value on 2 seeds of 11, with 6.09 on 5 of 11 (each field's allowed share of
+    every hidden value on 2 seeds of 11, with 6.08 on 5 of 11 (each field's allowed share of
     its range 0.64 and 0.72 on average). That gain is the wider band's, not a truer
     statement: with the spread pooled from the twin walks and the pool's walks of the same
     winners (four degrees of freedom, 3.93) the profiles hold every hidden value on 2 of 11,
