@@ -228,6 +228,7 @@ def console_main() -> int:
         print("simlab: interrupted", file=sys.stderr)
         code = 130
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _sigint_received = False  # a later in-process main() reports its own errors again
     _forget_unhandled_interrupt()
     return code
 
