@@ -684,6 +684,13 @@ def profile_section(result: CalibrationResult) -> str:
                   "`told_space.toml` holds the space of the told ones, so `simlab calibrate "
                   "... --primitives primitives.toml --space told_space.toml` searches only "
                   "those, the others held here.\n")
+    out.write("\nThis statement reads the basin of this winner: a value it excludes is worse "
+              "near the winner, not everywhere, and another `--seed` can land in another basin "
+              "as good (on a lab whose robot is known, `benchmarks/calibrate_twin.py --lab "
+              "synthetic`, most single seeds exclude one of the robot's values). Calibrate "
+              "with several seeds and read them together: `simlab calibrate-pool --runs DIR "
+              "DIR ...` states what the data allow across the basins within sampling of the "
+              "best.\n")
     out.write("\n")
     return out.getvalue()
 

@@ -122,6 +122,7 @@ def test_the_profile_reads_each_move_against_the_winner_on_its_own_seed(lattice9
     # the report says it, and records it
     text = profile_section(res)
     assert "What the real table can tell" in text and "| drive_time |" in text
+    assert "basin of this winner" in text and "simlab calibrate-pool --runs" in text
     doc = json.loads(json.dumps(report_json(res)))
     assert doc["profile"]["fields"][0]["field"] == "drive_time"
     assert doc["profile"]["fields"][0]["allowed"] == list(prof.fields[0].allowed)
