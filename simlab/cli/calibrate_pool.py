@@ -19,7 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from simlab.calibration.pool import PoolConfig, pool_command
+    from simlab.calibration.pool import ONE_BASIN, PoolConfig, pool_command
 
     done = pool_command(PoolConfig.from_args(args))
     res = done.result
@@ -35,6 +35,8 @@ def run(args: argparse.Namespace) -> int:
               f"{res.gaps[i]:+.4f} against the best{steps}: {mark}")
     print(f"{len(res.joined)} of {len(res.runs)} runs within sampling of the best (band "
           f"{res.limit:.4f}); pool.md: what the data allow across them, field by field")
+    if len(res.joined) == 1:
+        print(ONE_BASIN.strip())
     if res.left_open:
         print("left open across them (the data do not tell these fields): "
               + ", ".join(res.left_open))

@@ -194,6 +194,8 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     m = len(rep["joined"])
     assert t["ensemble_runs"] == [rep["joined"][j % m] for j in range(2)]
     assert "## Policies on the real model" in (out / "pool.md").read_text()
+    # several joined runs: no "one basin" sentence, in pool.md or on the terminal
+    assert "one basin" not in (out / "pool.md").read_text() and "one basin" not in printed
     # the same pool again: the same walks, bit for bit
     again = _pool(lab, [*runs, *copies, bad], tmp_path / "again").result
     assert np.array_equal(again.scores, scores)
@@ -207,6 +209,25 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
             widest = max(range_share(spec, (tuple(sp),)) for sp in f["spans"])
             assert widest - 1e-12 <= f["share"] <= 1.0 + 1e-12
         assert (f["field"] in named) == (f["share"] >= OPEN_SHARE)
+
+
+def test_a_pool_that_joins_only_its_winner_says_it_is_one_basin(lab, tmp_path,
+                                                                 capsys) -> None:
+    """A run moved far from the data is left out: the union is the winner's profile alone,
+    and pool.md and the command say so."""
+    bad = tmp_path / "bad"
+    shutil.copytree(lab["run7"], bad)
+    doc = (bad / "primitives.toml").read_text()
+    (bad / "primitives.toml").write_text(
+        re.sub(r"(?m)^drive_time = .*$", "drive_time = 0.05", doc, count=1))
+    out = tmp_path / "pool"
+    assert main(["calibrate-pool", "--runs", str(lab["run0"]), str(bad), "--real",
+                 str(lab["real"]), "--states", str(lab["states"]), "--out", str(out),
+                 "--seeds", "2", "--workers", "1", "--no-progress"]) == 0
+    rep = json.loads((out / "pool.json").read_text())
+    assert rep["joined"] == [0]
+    assert "its profile alone, one basin" in (out / "pool.md").read_text()
+    assert "its profile alone, one basin" in capsys.readouterr().out
 
 
 def _as_an_old_report(run: Path) -> None:
