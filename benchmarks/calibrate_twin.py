@@ -37,7 +37,12 @@ Two labs (``--lab``):
   one of two seeds either way, 60-112 pair walks, 2,005-3,074 s a seed). Lost on seed 0: a
   CMA-ES search of the other fields at each value still excluded (8 walks a value, 120 walks)
   and a quadratic surface of the profile's walks freed no hidden value (the hidden values are
-  another basin; docs/pages/calibration.md, "Fields that trade off").
+  another basin; docs/pages/calibration.md, "Fields that trade off"). These recovery figures
+  were read with the profile's normal band (2.77); with Student's for its three walks (6.08,
+  ``benchmarks/calibrate_band.py``) seeds 11-13 (2026-12-07, load 1.9-2.0, 872-1,198 s):
+  1.26/1.31/1.26x, at the recommended data 1.029/1.041/1.023x a perfect twin, every field
+  inside on none of the three (one to three fields out each), the winners 1.26/1.35/1.27x on
+  the truth seeds against the hidden values' 1.16x.
 
 With ``--seeds`` 2 or more, ``simlab calibrate-pool`` then reads the seeds' calibrations
 together (each winner on the same fresh seeds, those within sampling of the best joined, the
