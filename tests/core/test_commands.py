@@ -44,6 +44,21 @@ def _failing_run(exc):
     return run
 
 
+def _drive_runs(monkeypatch, run) -> None:
+    """``simlab drive`` runs ``run`` instead (the CLI's error boundary under test)."""
+    import simlab.cli as cli
+
+    real = cli.build_parser
+
+    def parser():
+        p = real()
+        sub = next(a for a in p._actions if a.dest == "command")
+        sub.choices["drive"].set_defaults(_run=run)
+        return p
+
+    monkeypatch.setattr(cli, "build_parser", parser)
+
+
 def test_os_errors_become_one_line_and_exit_2(monkeypatch, capsys):
     import errno
 
@@ -57,15 +72,7 @@ def test_os_errors_become_one_line_and_exit_2(monkeypatch, capsys):
         (MemoryError(), "out of memory"),
     ]
     for exc, expected in cases:
-        real = cli.build_parser
-
-        def parser_with_failing_drive(real=real, exc=exc):
-            p = real()
-            sub = next(a for a in p._actions if a.dest == "command")
-            sub.choices["drive"].set_defaults(_run=_failing_run(exc))
-            return p
-
-        monkeypatch.setattr(cli, "build_parser", parser_with_failing_drive)
+        _drive_runs(monkeypatch, _failing_run(exc))
         assert cli.main(["drive"]) == 2
         err = capsys.readouterr().err
         assert err.startswith("simlab drive: error: ") and expected in err, err
@@ -75,15 +82,7 @@ def test_os_errors_become_one_line_and_exit_2(monkeypatch, capsys):
 def test_interrupt_is_exit_130(monkeypatch, capsys):
     import simlab.cli as cli
 
-    real = cli.build_parser
-
-    def parser():
-        p = real()
-        sub = next(a for a in p._actions if a.dest == "command")
-        sub.choices["drive"].set_defaults(_run=_failing_run(KeyboardInterrupt()))
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    _drive_runs(monkeypatch, _failing_run(KeyboardInterrupt()))
     assert cli.main(["drive"]) == 130
     assert capsys.readouterr().err == "simlab drive: interrupted\n"
 
@@ -99,15 +98,7 @@ def test_interrupt_inside_compiled_code_is_exit_130(monkeypatch, capsys):
         except KeyboardInterrupt as k:
             raise SystemError("<numba function> returned a result with an exception set") from k
 
-    real = cli.build_parser
-
-    def parser():
-        p = real()
-        sub = next(a for a in p._actions if a.dest == "command")
-        sub.choices["drive"].set_defaults(_run=interrupted_in_numba)
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    _drive_runs(monkeypatch, interrupted_in_numba)
     assert cli.main(["drive"]) == 130
     assert capsys.readouterr().err == "simlab drive: interrupted\n"
 
@@ -122,15 +113,7 @@ def test_an_error_after_ctrl_c_is_the_interrupt(monkeypatch, capsys, received):
     def cut_off_compile(args):
         raise RuntimeError("no compiled object yet for <Library 'social_reset'>")
 
-    real = cli.build_parser
-
-    def parser():
-        p = real()
-        sub = next(a for a in p._actions if a.dest == "command")
-        sub.choices["drive"].set_defaults(_run=cut_off_compile)
-        return p
-
-    monkeypatch.setattr(cli, "build_parser", parser)
+    _drive_runs(monkeypatch, cut_off_compile)
     monkeypatch.setattr(cli, "_sigint_received", received)
     err_code = cli.main(["drive"])
     err = capsys.readouterr().err
