@@ -451,12 +451,11 @@ def recovery(rep: dict) -> list[dict[str, Any]]:
     the spread calibrate's report states for it (the profile's allowed values)."""
     from simlab.calibration.pool import report_profile
     from simlab.calibration.profile import FieldProfile
-    from simlab.calibration.space import space_from_mapping
+    from simlab.calibration.space import ParameterSpace
     from simlab.physics.motion import PrimitiveParams
 
     robot = PrimitiveParams(**HIDDEN)
-    space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
-                                for x in rep["space"]})
+    space = ParameterSpace.from_json(rep["space"])
     prof, _ = report_profile(rep)  # a kept report of an older calibrate: today's band
     found = {} if prof is None else {f.name: f for f in prof.fields}
     out = []

@@ -73,7 +73,7 @@ from simlab.base.options import command, option
 from simlab.calibration.command import CalibrateConfig
 from simlab.calibration.config import CalibrationConfig
 from simlab.calibration.profile import FieldProfile, Profile, told_band
-from simlab.calibration.space import ParameterSpace, ParamSpec, space_from_mapping
+from simlab.calibration.space import ParameterSpace, ParamSpec
 
 #: ``kind`` of ``pool.json``: what ``--overwrite`` recognises as the pool's own.
 KIND = "simlab-calibrate-pool"
@@ -197,6 +197,11 @@ def join_dof(runs: int, seeds: int) -> int:
     return runs * (seeds - 1)
 
 
+def join_limit(sigma: float, runs: int, seeds: int) -> float:
+    """How far above the best mean score of ``seeds`` walks a run joins (module docstring)."""
+    return told_band(join_dof(runs, seeds)) * sigma / math.sqrt(seeds)
+
+
 def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
@@ -241,7 +246,7 @@ class PoolResult:
     @property
     def limit(self) -> float:
         """How far above the best mean score a run joins."""
-        return self.band * self.sigma / math.sqrt(len(self.seeds))
+        return join_limit(self.sigma, len(self.runs), len(self.seeds))
 
     @property
     def gaps(self) -> np.ndarray:
@@ -292,9 +297,7 @@ def report_profile(rep: dict[str, Any]) -> tuple[Profile | None, int | None]:
     walks = _profile_walks(rep) if prof.dof is None else None
     if walks is None or walks < 2:
         return prof, None
-    space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
-                                for x in rep["space"]})
-    return prof.restated(space, walks - 1), walks
+    return prof.restated(ParameterSpace.from_json(rep["space"]), walks - 1), walks
 
 
 def _profile_walks(rep: dict[str, Any]) -> int | None:
@@ -340,8 +343,7 @@ def check_runs(runs: list[Run]) -> ParameterSpace:
                                   f"{first['config'].get(key)!r}", path=where,
                                   key=f"config.{key}",
                                   fix="pool calibrations made with the same options")
-    return space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
-                               for x in first["space"]})
+    return ParameterSpace.from_json(first["space"])
 
 
 def pool_seeds(runs: list[Run], n: int, first: int) -> tuple[int, ...]:
@@ -437,7 +439,7 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
     sigma = float(np.sqrt(np.mean(np.var(scores, axis=1, ddof=1))))
     mean = scores.mean(axis=1)
     best = int(np.argmin(mean))
-    limit = told_band(join_dof(len(runs), len(walk_seeds))) * sigma / math.sqrt(len(walk_seeds))
+    limit = join_limit(sigma, len(runs), len(walk_seeds))
     joined = [i for i in range(len(runs)) if mean[i] - mean[best] <= limit]
     joined.sort(key=lambda i: (mean[i], i))
     notes = []

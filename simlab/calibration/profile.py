@@ -480,12 +480,9 @@ def profile_stage(runner: WalkRunner, winner: Candidate, walks: list[Candidate],
             for k, spec in enumerate(space.specs):
                 mine[k].append(FieldMove(c.values[spec.name], c.distance - base.distance,
                                          c.score - base.score, confirmed=True))
-    fields = []
-    for k, spec in enumerate(space.specs):
-        value = winner.values[spec.name]
-        fields.append(FieldProfile(spec.name, value, tuple(mine[k]), told[k],
-                                   allowed_values(spec, value, mine[k], limit),
-                                   open_sides(spec, value, mine[k], limit)))
+    # every field's verdict, allowed values and open sides from its moves, as a report is read
+    fields = tuple(FieldProfile(spec.name, winner.values[spec.name], tuple(mine[k]), None)
+                   for k, spec in enumerate(space.specs))
     return Profile(step=float(step), seed=int(base.seed), transitions=int(base.sim.rows),
                    distance=base.distance, score=base.score, sigma=sigma,
-                   fields=tuple(fields), pairs=bool(pairs), dof=dof)
+                   fields=fields, pairs=bool(pairs)).restated(space, dof)

@@ -176,6 +176,12 @@ class ParameterSpace:
                 else {"name": p.name, "low": p.low, "high": p.high, "scale": p.scale}
                 for p in self.specs]
 
+    @classmethod
+    def from_json(cls, records: Any, *, where: str = "space") -> ParameterSpace:
+        """The space :meth:`to_json` wrote (``report.json``'s ``space``)."""
+        return space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
+                                   for x in records}, where=where)
+
 
 def space_from_mapping(table: Mapping[str, Any], *, where: str = "parameters") -> ParameterSpace:
     """A space from ``{name: {low, high, scale}}`` (the ``[parameters]`` TOML table)."""

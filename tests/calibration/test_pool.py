@@ -28,7 +28,7 @@ from simlab.calibration.pool import (
     read_run,
 )
 from simlab.calibration.profile import Profile, told_band
-from simlab.calibration.space import ParamSpec, space_from_mapping
+from simlab.calibration.space import ParameterSpace, ParamSpec
 from simlab.cli import main
 from simlab.data.walkers import KinematicParams
 from tests.calibration.conftest import hidden_walk, write_counts_csv
@@ -234,8 +234,7 @@ def _as_an_old_report(run: Path) -> None:
     """Rewrite ``run``'s report as calibrate wrote it before the profile kept its spread's
     degrees of freedom: no ``dof``, each field told and bounded with the normal band."""
     rep = json.loads((run / "report.json").read_text())
-    space = space_from_mapping({x["name"]: {k: v for k, v in x.items() if k != "name"}
-                                for x in rep["space"]})
+    space = ParameterSpace.from_json(rep["space"])
     old = Profile.from_json(rep["profile"]).restated(space, None).to_json()
     del old["dof"]
     rep["profile"] = old
