@@ -22,6 +22,11 @@ TPE 1.331 [1.107, 1.379], CMA-ES 1.170 [1.080, 1.312], QMC 1.227 [1.177, 1.330],
 on this 4-field lab TPE does not beat the others. On the ISIR lab (11 fields) CMA-ES at the same
 budget lost to TPE (1.87x and 1.74x against 1.61x and 1.65x, seeds 0-1): TPE stays calibrate's
 default.
+
+This lab can mislead: the signature penalty weighed by the walk's share of the confirming
+walk (2026-12-07, 20 seeds, an arm since removed with the option) gave TPE 1.18x against
+1.22x here (14 seeds better, 4 worse, Wilcoxon p 0.025) and lost on the synthetic physics lab
+(``calibrate_screen_noise.py``'s notes): a search change is decided on a physics lab.
 """
 
 from __future__ import annotations

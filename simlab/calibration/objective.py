@@ -64,7 +64,10 @@ TOLERANCES = {"self_share": 0.03, "entropy": 0.05, "regions": 0.05}
 #: Default weight of the signature penalty: a gap at its tolerance costs 0.02 of distance,
 #: about a sixth of the matched floor of the ISIR table at the confirming size. Measured on the
 #: ISIR lab, seed 0: 0.01 and 0.02 land on the same winner (its entropy per action 0.06 bits
-#: above the robot's either way); 0.02 is what the five-seed benchmark ran.
+#: above the robot's either way); 0.02 is what the five-seed benchmark ran. It is charged in
+#: full at every walk size: weighed by the walk's share of the confirming walk, the screening
+#: ranking is less noisy but its winners stay more and are more certain than the robot, and
+#: transfer worse (synthetic lab, three seeds; ``benchmarks/calibrate_screen_noise.py``).
 SIGNATURE_WEIGHT = 0.02
 
 #: Draws of the matched-size entropy (each a subsample of both rows to the smaller size).
