@@ -43,6 +43,18 @@ Two labs (``--lab``):
   1.26/1.31/1.26x, at the recommended data 1.029/1.041/1.023x a perfect twin, every field
   inside on none of the three (one to three fields out each), the winners 1.26/1.35/1.27x on
   the truth seeds against the hidden values' 1.16x.
+  Twice the proposals at half the screening walk (``--calibrate-args="--profile-step 0
+  --candidates 96 --screen-share 0.125"``, the same walk budget; 2026-12-07, seeds 11-13,
+  605-761 s at load 1.7-1.9): 1.34/1.25/1.20x, the winners 1.30/1.24/1.22x on the truth seeds,
+  at the recommended data 0.999/1.028/1.008x a perfect twin (the defaults' 1.029/1.041/1.023x),
+  self share at the robot's visits 0.204/0.216/0.208 against 0.203: on each seed's own
+  screening walk the hidden values would rank 3rd-11th of 49 (``calibrate_screen_noise.py``),
+  so the search loses them in its proposals, and more proposals help. Not yet the default:
+  on the ISIR lab, seed 1, the same arm gave 1.60x (the default's 1.57x), self share 0.298 and
+  entropy 1.06 bits against the robot's 0.278 and 1.03, its twins 1.124x the optimum at 8,012
+  transitions against a perfect twin's 1.096 (+2.5 %; the default's +5.7 %), but in 1,011 s
+  against 568 s: a screening walk of 668 transitions costs 7.2 s where one of 1,335 costs 8.5 s
+  (each walk starts once from every state), so more proposals need cheaper walks first.
 
 With ``--seeds`` 2 or more, ``simlab calibrate-pool`` then reads the seeds' calibrations
 together (each winner on the same fresh seeds, those within sampling of the best joined, the
