@@ -54,7 +54,6 @@ def main() -> None:
 
     from simlab.base.actions import parse_action_set
     from simlab.calibration.config import CalibrationConfig, RealTable
-    from simlab.calibration.objective import Reference
     from simlab.calibration.profile import moves, profile_stage
     from simlab.calibration.report import _allowed
     from simlab.calibration.search import evaluate_points, walk_context
@@ -74,7 +73,7 @@ def main() -> None:
         setup = prepare_calibration(RealTable(counts, aset, hours=13.0), arena, states, None,
                                     None, config)
         real = setup.real
-        ref = Reference.build(real.counts, setup.regions, setup.disc.centres, aset.headings())
+        ref = setup.reference()
         space = setup.space
         ctx = walk_context(real, setup.arena, setup.disc, space, twin, config, args.seed,
                            reference=ref)

@@ -475,17 +475,12 @@ def _walk_winners(runs: list[Run], setup: Any, cfg: CalibrationConfig,
     scored theirs: the ``(runs, seeds)`` scores and distances, and each walk's counts."""
     from tqdm.auto import tqdm
 
-    from simlab.calibration.objective import Reference
-    from simlab.calibration.search import make_candidate
+    from simlab.calibration.search import make_candidate, walk_context
     from simlab.calibration.walks import WalkJob, WalkRunner
 
     space = setup.space
-    reference = Reference.build(setup.real.counts, setup.regions, setup.disc.centres,
-                                setup.real.action_set.headings())
-    ctx = {"space": space, "config": cfg, "arena": setup.arena, "states": setup.disc,
-           "base": runs[0].params, "walk_seed": walk_seeds[0], "real": setup.real,
-           "n_states": int(setup.disc.n_states), "screen": (None, rows),
-           "reference": reference}
+    ctx = walk_context(setup.real, setup.arena, setup.disc, space, runs[0].params, cfg,
+                       walk_seeds[0], (None, rows), setup.reference())
     jobs = [WalkJob(index=i, arena=setup.arena, states=setup.disc, params=run.params,
                     hours=None, transitions=rows, seed=s, simulator=cfg.simulator,
                     pose_source=cfg.pose_source, action_set=setup.real.action_set,

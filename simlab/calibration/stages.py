@@ -246,8 +246,7 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     floor = bootstrap_floor(real.counts, rng, n_boot=config.n_boot)
     budgets = size_budgets(real, config, floor, rng)
     screen = (budgets.screen_hours, budgets.screen_transitions)
-    reference = Reference.build(real.counts, setup.regions, setup.disc.centres,
-                                real.action_set.headings())
+    reference = setup.reference()
     runner = WalkRunner(int(config.workers), config.address)
     try:
         found = search(real, setup.arena, setup.disc, space=setup.space, base=setup.base,
@@ -382,6 +381,11 @@ class CalibrationSetup:
     warnings: list[str]
     real: RealTable
     regions: NDArray[np.int64] | None = None
+
+    def reference(self) -> Reference:
+        """The robot's signature every candidate's score is measured against."""
+        return Reference.build(self.real.counts, self.regions, self.disc.centres,
+                               self.real.action_set.headings())
 
 
 
