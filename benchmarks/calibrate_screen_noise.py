@@ -66,15 +66,10 @@ OTHERS = 3
 
 def points(rep: dict, space, others: int) -> dict[str, np.ndarray]:
     """The walked points in the unit cube, by name."""
-    from calibrate_twin import HIDDEN
+    from calibrate_twin import hidden_in_space
 
-    from simlab.physics.motion import PrimitiveParams
-
-    default = PrimitiveParams()
-    hidden = {x["name"]: HIDDEN.get(x["name"], getattr(default, x["name"]))
-              for x in rep["space"]}
     cands = rep["candidates"]
-    out = {"hidden values": space.unit(hidden),
+    out = {"hidden values": space.unit(hidden_in_space(rep)),
            f"winner #{rep['best_candidate']}": space.unit(cands[rep["best_candidate"]]
                                                           ["values"])}
     taken = {rep["best_candidate"]}
@@ -101,7 +96,7 @@ def main() -> None:
     from simlab.base.actions import parse_action_set
     from simlab.calibration.command import read_real_table
     from simlab.calibration.config import CalibrationConfig
-    from simlab.calibration.objective import TOLERANCES, Reference
+    from simlab.calibration.objective import TOLERANCES
     from simlab.calibration.search import evaluate_points, walk_context
     from simlab.calibration.space import ParameterSpace
     from simlab.calibration.stages import prepare_calibration
@@ -111,17 +106,16 @@ def main() -> None:
     rep = json.loads((args.run / "report.json").read_text())
     lab = args.run.parent
     cfg = CalibrationConfig(**{**rep["config"], "workers": args.workers, "progress": False})
-    size = args.size or int(rep["budgets"]["screen_transitions"])
+    screen = int(rep["budgets"]["screen_transitions"])
+    size = args.size or screen
     aset = parse_action_set(8, "ccw-east", "fast")
     real = read_real_table(lab / "real.csv", 38, aset, None)
     space = ParameterSpace.from_json(rep["space"])
     known = {f.name for f in fields(PrimitiveParams)}
     base = PrimitiveParams(**{n: v for n, v in rep["base_params"].items() if n in known})
     setup = prepare_calibration(real, lab / "lab.toml", lab / "states.json", space, base, cfg)
-    ref = Reference.build(setup.real.counts, setup.regions, setup.disc.centres,
-                          aset.headings())
     ctx = walk_context(setup.real, setup.arena, setup.disc, setup.space, setup.base, cfg,
-                       cfg.seed, (None, size), ref)
+                       cfg.seed, (None, size), setup.reference())
     pts = points(rep, space, args.others)
     names = list(pts)
     seeds = [cfg.seed] + [cfg.seed + 500 + k for k in range(args.walks - 1)]
@@ -159,7 +153,7 @@ def main() -> None:
             t = d.mean() / sd(d) * np.sqrt(len(d))
             cells.append(f"{d.mean():+.4f} (sd {sd(d):.4f}, t {t:.1f})")
         print(f"{n} | " + " | ".join(cells))
-    if size == int(rep["budgets"]["screen_transitions"]):
+    if size == screen:
         # the first walk seed is the run's own screening seed: its candidates' scores are
         # on the same walks, so the hidden values can be ranked among them
         own = h[0, 4]

@@ -631,6 +631,16 @@ def _truth_walk(job: tuple[str, Path, Path, Any, int, int]) -> tuple[str, int, A
     return name, seed, t.counts
 
 
+def hidden_in_space(rep: dict) -> dict[str, Any]:
+    """The hidden robot's value of each field a calibration searched (``rep``: its
+    report.json); a field the hidden robot leaves at its default, the default."""
+    from simlab.physics.motion import PrimitiveParams
+
+    default = PrimitiveParams()
+    return {x["name"]: HIDDEN.get(x["name"], getattr(default, x["name"]))
+            for x in rep["space"]}
+
+
 def truth_check(reps: list[dict], seeds: list[int], arena: Path, states: Path,
                 counts: np.ndarray, workers: int) -> None:
     """Where the search stopped against the truth, on common walk seeds: each seed's winner,
@@ -648,9 +658,7 @@ def truth_check(reps: list[dict], seeds: list[int], arena: Path, states: Path,
     jobs = []
     for k, rep in enumerate(reps):
         twin = PrimitiveParams(**{n: v for n, v in rep["params"].items() if n in known})
-        default = PrimitiveParams()
-        truth = replace(twin, **{x["name"]: HIDDEN.get(x["name"], getattr(default, x["name"]))
-                                 for x in rep["space"]})
+        truth = replace(twin, **hidden_in_space(rep))
         rows = int(rep["confirmed"][0]["rows"]) if rep.get("confirmed") else 8037
         jobs += [(f"winner {k}", arena, states, twin, rows, s) for s in TRUTH_SEEDS]
         jobs += [(f"in space {k}", arena, states, truth, rows, s) for s in TRUTH_SEEDS]
