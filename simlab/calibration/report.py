@@ -360,7 +360,9 @@ def transfer_headline(result: CalibrationResult) -> str:
             f"{_gap(fin.mean() if fin.size == ratios.size else math.inf, twin.line)}")
     if twin.need is not None:
         fit = twin.need["limit"] + twin.need["c"] / twin.need["transitions"]
-        how = "measured (more data do not help)" if twin.need["flat"] else "the fit gives"
+        how = ("measured (more data do not help)" if twin.need["flat"] else
+               "(the smallest size measured: the fit asks fewer) the fit gives"
+               if twin.need["below_measured"] else "the fit gives")
         text += (f"; at the recommended {twin.need['transitions']:,.0f} transitions {how} "
                  f"{fit:.3f}, a perfect twin {_ratio(twin.line_at_need)}"
                  f"{_gap(fit, twin.line_at_need)}")
@@ -902,6 +904,14 @@ def _curve_table(out: io.StringIO, result: CalibrationResult) -> None:
                   f"by the twin, not its data (about {need['limit']:.3f}); **"
                   f"{need['transitions']:,.0f} twin transitions**{hours}, the largest pool, "
                   "are the policy data recommended")
+    elif need["below_measured"]:
+        out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
+                  f"transitions: a twin of unlimited data would score about "
+                  f"{need['limit']:.3f}, and the smallest size measured, **"
+                  f"{need['transitions']:,.0f} twin transitions**{hours}, is already within "
+                  f"{need['tolerance']} of it (the fit's {need['fit_transitions']:,.0f} lie "
+                  "below every size measured, where neither the fit nor the perfect twin's "
+                  "line was seen)")
     else:
         out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
                   f"transitions: a twin of unlimited data would score about "

@@ -53,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
         if need is not None:
             hours = "" if need["hours"] is None else f" ({need['hours']:.0f} h)"
             gain = ("more data do not improve the twins' policies" if need["flat"] else
+                    f"the smallest size measured, already within {need['tolerance']} of "
+                    "unlimited twin data" if need["below_measured"] else
                     f"bring a twin policy within {need['tolerance']} of unlimited twin data")
             print(f"policy data: {need['transitions']:,} twin transitions{hours} ({gain}; "
                   f"{need['limit']:.3f} x the optimum)")

@@ -245,15 +245,18 @@ def test_the_policy_data_collect_line_walks_in_the_real_actions(aset, need, expe
     assert line.startswith("simlab collect ") and expected in line
 
 
+@pytest.mark.parametrize("below", [False, True])
 def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_path, capsys,
-                                                                  monkeypatch) -> None:
-    """With a fitted need of 50,000 transitions (stubbed: the tiny walk's curve need not
-    fall), the summary line and report.md say it, with the robot hours at the real rate and
-    the collect command of that data."""
+                                                                  monkeypatch, below) -> None:
+    """With a need of 50,000 transitions (stubbed: the tiny walk's curve need not fall),
+    the summary line and report.md say it, with the robot hours at the real rate and the
+    collect command of that data; when it is the smallest size measured because the fit
+    asked fewer, both say so and report.md gives the fit's own figure."""
     import simlab.calibration.report as report_mod
 
-    need = {"limit": 1.06, "c": 500.0, "tolerance": 0.01, "transitions": 50_000.0,
-            "flat": False}
+    need = {"limit": 1.06, "c": 50.0 if below else 500.0, "tolerance": 0.01,
+            "transitions": 50_000.0, "flat": False, "below_measured": below,
+            "fit_transitions": 5_000.0 if below else 50_000.0}
     monkeypatch.setattr(report_mod, "policy_need", lambda curve: dict(need))
     real, states, hours = inputs
     out = tmp_path / "cal"
@@ -264,6 +267,8 @@ def test_the_policy_data_need_reaches_the_summary_and_the_report(inputs, tmp_pat
     assert f"policy data: 50,000 twin transitions ({h:.0f} h)" in printed
     md = (out / "report.md").read_text()
     assert "**50,000 twin transitions**" in md and f"--hours {math.ceil(h)} " in md
+    said = ("the smallest size measured" in printed, "the fit's 5,000 lie below" in md)
+    assert said == (below, below)
     report = json.loads((out / "report.json").read_text())
     assert report["transfer"]["data_need"]["hours"] == pytest.approx(h)
 

@@ -179,6 +179,24 @@ def test_a_flat_curve_recommends_its_largest_pool_and_says_the_twin_is_the_limit
     assert policy_need(curve[:1]) is None
 
 
+def test_a_nearly_flat_curve_recommends_no_fewer_transitions_than_it_measured() -> None:
+    """A slope of 13 fitted at 8,000-24,000 transitions would ask 1,300 (13 / 0.01), below
+    every size measured: the recommendation is the smallest size, where the fit's excess
+    over its limit is already within the tolerance; a steep curve keeps the fit's figure."""
+    nearly_flat = [{"transitions": n, "mean_ratio": 1.12 + 13 / n + e}
+                   for n, e in ((8000, 0.0004), (16000, -0.0003), (24000, 0.0001))]
+    fit = data_need(nearly_flat)
+    assert fit is not None and fit["transitions"] < 8000
+    need = policy_need(nearly_flat)
+    assert need["below_measured"] and not need["flat"]
+    assert need["transitions"] == 8000 and need["fit_transitions"] == fit["transitions"]
+    assert need["c"] / need["transitions"] <= need["tolerance"]
+    steep = [{"transitions": n, "mean_ratio": 1.05 + 500 / n} for n in (8000, 16000, 24000)]
+    kept = policy_need(steep)
+    assert not kept["below_measured"]
+    assert kept["transitions"] == pytest.approx(50_000) == kept["fit_transitions"]
+
+
 def test_an_ensemble_is_scored_against_as_many_of_the_winner_s_walks() -> None:
     """Members that move as the robot does against winner walks that always stay: planned on
     the stays, the policy never arrives; on the members, it does. One member is no
