@@ -46,15 +46,25 @@ Two labs (``--lab``):
   Twice the proposals at half the screening walk (``--calibrate-args="--profile-step 0
   --candidates 96 --screen-share 0.125"``, the same walk budget; 2026-12-07, seeds 11-13,
   605-761 s at load 1.7-1.9): 1.34/1.25/1.20x, the winners 1.30/1.24/1.22x on the truth seeds,
-  at the recommended data 0.999/1.028/1.008x a perfect twin (the defaults' 1.029/1.041/1.023x),
+  at the recommended data 0.999/1.028/1.008x a perfect twin (the defaults' 1.029/1.041/1.023x;
+  read before the recommendation was kept at the smallest size measured),
   self share at the robot's visits 0.204/0.216/0.208 against 0.203: on each seed's own
   screening walk the hidden values would rank 3rd-11th of 49 (``calibrate_screen_noise.py``),
-  so the search loses them in its proposals, and more proposals help. Not yet the default:
-  on the ISIR lab, seed 1, the same arm gave 1.60x (the default's 1.57x), self share 0.298 and
-  entropy 1.06 bits against the robot's 0.278 and 1.03, its twins 1.124x the optimum at 8,012
-  transitions against a perfect twin's 1.096 (+2.5 %; the default's +5.7 %), but in 1,011 s
-  against 568 s: a screening walk of 668 transitions costs 7.2 s where one of 1,335 costs 8.5 s
-  (each walk starts once from every state), so more proposals need cheaper walks first.
+  so the search loses them in its proposals, and more proposals help there. **Lost on the
+  ISIR lab** (the same arm, seeds 0-4, 2026-12-07, load 1.2-1.9; the defaults rerun the same
+  evening): 1.57/1.60/1.67/1.59/1.67x the matched floor against the defaults'
+  1.60/1.57/1.57/1.59/1.64x (mean 1.62 against 1.59, spread 0.10 against 0.07), at the
+  recommended data 1.053/1.025/1.094/1.017/1.048x a perfect twin against 1.043/1.040/none/
+  1.017/1.039x (seeds 1 and 3 at the 8,012 measured, where the fit had asked 1,321 and 4,459;
+  seed 3 the same winner, the 5th candidate, both ways; seed 2 with a twin seed that never
+  arrives both ways), seed 2's entropy 0.99 bits against the robot's 1.04, and
+  575-836 s against 555-682 s. Likely: where the twin's model cannot reach the robot, a
+  screening walk half as long gives its noise more chances to promote a lucky candidate. The walks did
+  not get dearer per transition with more starts, as first read from one run: a walk of 668
+  transitions at calibrate's start costs 4.4 s in one process, one of 1,335 8.1 s, the 38
+  starts (a world reset each) 0.43 s of it; what makes a calibration slower is where its
+  candidates drive (the screening walked 6.3 ms a transition on seed 0, 9.2-9.9 on seeds
+  1, 3 and 4, correlated with ``max_drive_time`` at r 0.46-0.82 over the candidates).
 
 With ``--seeds`` 2 or more, ``simlab calibrate-pool`` then reads the seeds' calibrations
 together (each winner on the same fresh seeds, those within sampling of the best joined, the
