@@ -11,7 +11,8 @@ robot scores with the same data. The stage gives
 * the twin seeds' scores and the perfect twin at one seed's data (the headline), per goal;
 * the **data curve**: the twin walks pooled 1, 2, 4, ... at a time (disjoint pools), each
   pool's policies scored, beside the perfect twin at the pool's data;
-* the **policy data** a policy needs (:func:`data_need`), and the perfect twin there;
+* the **policy data** a policy needs (:func:`data_need`; never fewer than the curve's
+  smallest pool, :func:`policy_need`), and the perfect twin there;
 * with ``policy_data``, that data collected with the calibrated primitives and the policy
   planned on it scored against the perfect twin at the same data;
 * a warning for every figure that cannot be computed, saying why.
