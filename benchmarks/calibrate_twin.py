@@ -58,7 +58,8 @@ Two labs (``--lab``):
   1.017/1.039x (seeds 1 and 3 at the 8,012 measured, where the fit had asked 1,321 and 4,459;
   seed 3 the same winner, the 5th candidate, both ways; seed 2 with a twin seed that never
   arrives both ways), seed 2's entropy 0.99 bits against the robot's 1.04, and
-  575-836 s against 577-679 s (the defaults' seed 4: 1,023 s beside the test suite). Likely: where the twin's model cannot reach the robot, a
+  572-833 s against 577-679 s (calibrate's own wall time; the defaults' seed 4: 1,023 s beside
+  the test suite). Likely: where the twin's model cannot reach the robot, a
   screening walk half as long gives its noise more chances to promote a lucky candidate. The walks did
   not get dearer per transition with more starts, as first read from one run: a walk of 668
   transitions at calibrate's start costs 4.4 s in one process, one of 1,335 8.1 s, the 38
