@@ -71,6 +71,11 @@ class TwinTransfer:
     ensemble: dict[str, Any] | None = None
 
 
+def finite_rows(curve: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows of a data curve with a finite mean ratio (a size whose pools all arrive)."""
+    return [r for r in curve if r["mean_ratio"] is not None and math.isfinite(r["mean_ratio"])]
+
+
 def data_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANCE
               ) -> dict[str, float] | None:
     """How many twin transitions a policy needs, from the transfer's data curve.
@@ -83,7 +88,7 @@ def data_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERANC
     ``c / tolerance`` (the data at which the excess is ``tolerance``); None with fewer than
     two finite sizes or a curve that does not fall with more data (``c <= 0``).
     """
-    rows = [r for r in curve if r["mean_ratio"] is not None and math.isfinite(r["mean_ratio"])]
+    rows = finite_rows(curve)
     if len(rows) < 2:
         return None
     x = np.array([1.0 / r["transitions"] for r in rows])
@@ -110,7 +115,7 @@ def policy_need(curve: list[dict[str, Any]], tolerance: float = DATA_NEED_TOLERA
     the optimum's steps against 1.10x at 8,012). There the recommendation is the smallest
     size, already within ``tolerance`` of the limit by the fit (``below_measured``; the
     fit's own figure is ``fit_transitions``)."""
-    rows = [r for r in curve if r["mean_ratio"] is not None and math.isfinite(r["mean_ratio"])]
+    rows = finite_rows(curve)
     need = data_need(curve, tolerance)
     if need is not None:
         smallest = float(min(r["transitions"] for r in rows))

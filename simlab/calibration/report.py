@@ -904,19 +904,18 @@ def _curve_table(out: io.StringIO, result: CalibrationResult) -> None:
                   f"by the twin, not its data (about {need['limit']:.3f}); **"
                   f"{need['transitions']:,.0f} twin transitions**{hours}, the largest pool, "
                   "are the policy data recommended")
-    elif need["below_measured"]:
-        out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
-                  f"transitions: a twin of unlimited data would score about "
-                  f"{need['limit']:.3f}, and the smallest size measured, **"
-                  f"{need['transitions']:,.0f} twin transitions**{hours}, is already within "
-                  f"{need['tolerance']} of it (the fit's {need['fit_transitions']:,.0f} lie "
-                  "below every size measured, where neither the fit nor the perfect twin's "
-                  "line was seen)")
     else:
         out.write(f"\nFitted to these rows, ratio = {need['limit']:.3f} + {need['c']:.0f} / "
                   f"transitions: a twin of unlimited data would score about "
-                  f"{need['limit']:.3f}, and **{need['transitions']:,.0f} twin transitions**"
-                  f"{hours} bring a policy within {need['tolerance']} of it")
+                  f"{need['limit']:.3f}, and ")
+        if need["below_measured"]:
+            out.write(f"the smallest size measured, **{need['transitions']:,.0f} twin "
+                      f"transitions**{hours}, is already within {need['tolerance']} of it (the "
+                      f"fit's {need['fit_transitions']:,.0f} lie below every size measured, "
+                      "where neither the fit nor the perfect twin's line was seen)")
+        else:
+            out.write(f"**{need['transitions']:,.0f} twin transitions**{hours} bring a policy "
+                      f"within {need['tolerance']} of it")
     out.write(". Collect that much with the calibrated primitives before training the "
               f"policy you take to the robot: `{collect_line(result.real.action_set, need)}` "
               "(or `simlab calibrate --policy-data` collects and scores it).\n\n")
