@@ -242,6 +242,10 @@ def print_calibration(rep: dict, wall: float, load: float) -> None:
               f"{row['tv']:.3f}; stay {r['stay']:.2f}/{t['stay']:.2f}, ahead "
               f"{r['ahead']:.2f}/{t['ahead']:.2f}, side {r['side']:.2f}/{t['side']:.2f}, "
               f"behind {r['behind']:.2f}/{t['behind']:.2f} (real/twin)")
+    if rep.get("contradictions"):
+        from simlab.calibration.contradictions import Contradictions
+
+        print(Contradictions.from_json(rep["contradictions"]).summary())
     tr = rep.get("transfer")
     if tr:
         print(f"transfer ({tr['overview']['goals']} goals), as calibrate's report says: "
@@ -280,6 +284,7 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
             "at_need_over_perfect": fit / perfect if fit and perfect else None,
             "ensemble": len((rep.get("ensemble") or {}).get("members", [])),
             "ensemble_vs_winner": tr.get("ensemble_against_winner"),
+            "contradictions": rep.get("contradictions"),
             "wall": wall, "load": load, "params": {x["name"]: rep["params"][x["name"]]
                                                    for x in rep["space"]}}
 
@@ -313,6 +318,15 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
                   f"{_f(e['winner_ratio'])} x the real optimum")
     if len(rows) < 2:
         return
+    listed = [r["contradictions"] for r in rows if r["contradictions"]]
+    if len(listed) == len(rows):
+        from simlab.calibration.contradictions import Contradictions, common_pairs
+
+        runs = [Contradictions.from_json(c) for c in listed]
+        print(f"\npairs the twin contradicts beyond sampling (FDR {100 * runs[0].alpha:.0f} %): "
+              + ", ".join(f"seed {r['seed']} {len(c.pairs)}" for r, c in zip(rows, runs,
+                                                                              strict=True))
+              + f"; listed by every seed: {common_pairs(runs) or 'none'}")
     print("\nspread across seeds (min - max, max - min):")
     for key, label in (("tv_over_matched", "TV / matched floor"),
                        ("self_twin", "self share, own walk"),

@@ -51,6 +51,12 @@ on 98-100 % whichever. The union is wider with more seeds (0.72 of each field's
 range for one seed, 0.80 for five, 0.83 for eleven); the fields it allows over
 :data:`OPEN_SHARE` of their range or more are named as left open.
 
+Each winner's pool walks are also tested against the real table pair by pair
+(:mod:`~simlab.calibration.contradictions`), and the pairs **every** winner contradicts beyond
+sampling are named: winners at different points of the searched space that all differ from
+the robot at a pair point at the map or the arena there, not at a field (ISIR seeds 0-4: five
+such pairs, four at the lab's two ends).
+
 Outputs in ``--out``: ``primitives.toml`` (the pool's winner, and the ensemble), ``pool.json``
 and ``pool.md``.
 """
@@ -72,6 +78,7 @@ from simlab.base.io import atomic_write_json, atomic_write_text, ensure_new, out
 from simlab.base.options import command, option
 from simlab.calibration.command import CalibrateConfig
 from simlab.calibration.config import CalibrationConfig
+from simlab.calibration.contradictions import Contradictions, common_pairs, contradicted_pairs
 from simlab.calibration.profile import FieldProfile, Profile, told_band
 from simlab.calibration.space import ParameterSpace, ParamSpec
 
@@ -227,6 +234,14 @@ class PoolResult:
     #: the winners' policies on the real model (:func:`pool_transfer`); None without a goal
     #: the real robot reached
     transfer: PoolTransfer | None = None
+    #: per run, the real pairs its pool walks contradict beyond sampling
+    #: (:mod:`~simlab.calibration.contradictions`)
+    contradictions: tuple[Contradictions, ...] = ()
+
+    @property
+    def common_contradictions(self) -> list[tuple[int, int]]:
+        """The pairs every run's winner contradicts: wrong whatever the fields."""
+        return common_pairs(list(self.contradictions))
 
     @property
     def left_open(self) -> list[str]:
@@ -465,7 +480,14 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
     return PoolResult(tuple(runs), walk_seeds, sizes[-1], scores, dists, sigma, best,
                       tuple(joined), pooled_fields(space, runs, joined), space, matched,
                       cfg.objective, notes,
-                      pool_transfer(setup, walks, best, joined, cfg.untried, rng))
+                      pool_transfer(setup, walks, best, joined, cfg.untried, rng),
+                      tuple(contradicted_pairs(
+                          setup.real.counts, np.sum(w, axis=0),
+                          # the same relabellings for every run: equal walks, equal listing
+                          np.random.default_rng(np.random.SeedSequence(
+                              int(first_seed), spawn_key=(17,))),
+                          skip_states=list(setup.real.reset_states or ()),
+                          regions=setup.regions) for w in walks))
 
 
 def _walk_winners(runs: list[Run], setup: Any, cfg: CalibrationConfig,
@@ -577,6 +599,8 @@ def pool_json(res: PoolResult) -> dict[str, Any]:
                      for i, r in enumerate(res.runs)],
             "fields": [f.to_json() for f in res.fields],
             "transfer": None if res.transfer is None else res.transfer.to_json(),
+            "contradictions": {"runs": [c.to_json() for c in res.contradictions],
+                               "common": [list(p) for p in res.common_contradictions]},
             "notes": res.notes}
 
 
@@ -622,6 +646,7 @@ def pool_markdown(res: PoolResult) -> str:
                   "these fields; a twin's value for them is one of many the robot's table "
                   "allows."]
     lines += _transfer_markdown(res)
+    lines += _contradictions_markdown(res)
     if res.notes:
         lines += [""] + [f"- {n}" for n in res.notes]
     return "\n".join(lines) + "\n"
@@ -657,6 +682,40 @@ def _transfer_markdown(res: PoolResult) -> list[str]:
                 f"{drawn} in turn, on the same seeds): {_ratio(e)}, {verdict}."]
     if t.left_out:
         out += ["", f"Goals left out (the real robot never reached them): {list(t.left_out)}."]
+    return out
+
+
+def _contradictions_markdown(res: PoolResult) -> list[str]:
+    """The pairs every winner contradicts, from the pool's own walks."""
+    if not res.contradictions:
+        return []
+    from simlab.calibration.contradictions import direction
+
+    cs = res.contradictions
+    out = ["", "## Where every winner contradicts the robot", "",
+           f"Each winner's pool walks against the real table, pair by pair (a permutation "
+           f"test per (s, a), Benjamini-Hochberg at {100 * cs[0].alpha:.0f} % across pairs; "
+           "calibrate's report.md says how): listed pairs per run "
+           + ", ".join(f"#{i} {len(c.pairs)} of {c.tested}" for i, c in enumerate(cs))
+           + f"; {len({(r['state'], r['action']) for c in cs for r in c.pairs})} pairs listed "
+           "by some run."]
+    common = res.common_contradictions
+    if not common:
+        return [*out, "", "No pair is listed by every run: what one winner gets wrong, "
+                "another gets right."]
+    out += ["", f"**{len(common)} pairs are listed by every run**: the winners sit at "
+            "different points of the searched space and still differ from the robot there, "
+            "so what is wrong there is no searched field; check the map and the arena at "
+            "these pairs first.", "",
+            "| state | action | real transitions | stays, real | stays, each winner | "
+            "most likely next, real | each winner |", "|---|---|---|---|---|---|---|"]
+    for s, a in common:
+        rows = [next(r for r in c.pairs if (r["state"], r["action"]) == (s, a)) for c in cs]
+        r0 = rows[0]
+        out.append(f"| {s} | {a} | {r0['real']} | {r0['stay_real']:.2f} | "
+                   + ", ".join(f"{r['stay_twin']:.2f}" for r in rows)
+                   + f" ({direction(r0)}) | {r0['next_real']} ({r0['share_real']:.2f}) | "
+                   + ", ".join(str(r["next_twin"]) for r in rows) + " |")
     return out
 
 

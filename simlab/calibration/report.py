@@ -19,6 +19,8 @@ temporary sibling and renamed):
   and the mean next-state entropy per action, sim vs real;
 * ``transfer.png`` — with twin seeds: the transfer of twin policies to the real model
   (:mod:`simlab.calibration.transfer`) for the goal where the twins do worst;
+* ``pairs.png`` — when the twin contradicts the robot beyond sampling somewhere
+  (:mod:`simlab.calibration.contradictions`): those (s, a) pairs drawn on the arena;
 * ``told_space.toml`` — with a profile (``--profile-step``) that finds a field the real
   table does not tell: the space of the told fields alone (the ``--space`` format of
   :mod:`simlab.calibration.space`). ``calibrate --primitives primitives.toml --space
@@ -55,7 +57,7 @@ from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
 
 FILES = ("primitives.toml", "report.json", "report.md", "calibration.png", "transfer.png",
-         "told_space.toml")
+         "pairs.png", "told_space.toml")
 
 #: First line of ``told_space.toml``: what ``--overwrite`` recognises as calibrate's own.
 TOLD_TITLE = "# The fields the real table tells"
@@ -240,6 +242,8 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "reset_states": {"states": list(result.real.reset_states),
                          "transitions_left_out": result.real.reset_counts},
         "regions": result.regions,
+        "contradictions": None if result.contradictions is None
+        else result.contradictions.to_json(),
         "transfer": None if result.transfer is None else {
             "overview": transfer_overview(result.transfer),
             "headline": transfer_headline(result),
@@ -440,6 +444,7 @@ def report_markdown(result: CalibrationResult) -> str:
     _distance(out, result)
     out.write(signature_section(result))
     out.write(region_table(result.regions))
+    out.write(contradictions_section(result))
     out.write(_budget_section(result))
     out.write(_transfer_section(result))
     _parameters(out, result)
@@ -540,6 +545,107 @@ def region_table(regions: list[dict[str, Any]]) -> str:
                   f"{_cell(row['tv'])} | {cells} |\n")
     out.write("\n")
     return out.getvalue()
+
+
+#: Listed pairs shown in report.md (all of them are in report.json).
+PAIRS_SHOWN = 25
+
+
+def contradictions_section(result: CalibrationResult) -> str:
+    """The real pairs the twin contradicts beyond sampling
+    (:mod:`~simlab.calibration.contradictions`), most certain first, and the map figure."""
+    from simlab.calibration.contradictions import direction
+
+    c = result.contradictions
+    if c is None:
+        return ""
+    walks = len(result.twins) or 1
+    out = io.StringIO()
+    out.write("## Where the twin contradicts the robot\n\n"
+              f"Each real (s, a) pair tested on its own: are the robot's next states and the "
+              f"twin's ({walks} walk{'s' if walks > 1 else ''} pooled) two samples of one "
+              "distribution (a permutation test of their total-variation distance, "
+              f"{c.resamples:,} relabellings)? Read across pairs at a false-discovery rate of "
+              f"{100 * c.alpha:.0f} % (Benjamini-Hochberg). **In this run {c.summary()}.** "
+              f"{c.untested} real pairs have fewer than two transitions "
+              "on a side and are not tested")
+    out.write(f" ({c.twin_untried} of them never tried by the twin).\n\n" if c.twin_untried
+              else ".\n\n")
+    if c.raw > 2 * c.expected and len(c.pairs) < c.raw / 2:
+        out.write(f"Far more pairs pass the raw test ({c.raw}) than chance gives "
+                  f"({c.expected:.0f}), and fewer than half of them are listed: the twin "
+                  "differs from the robot a little almost everywhere, beside the places "
+                  "listed.\n\n")
+    if not c.pairs:
+        return out.getvalue()
+    heads = result.real.action_set.headings()
+    out.write("A pair listed in every seed's report (`simlab calibrate-pool` reads them "
+              "together) is wrong whatever the fields: check the map and the arena there "
+              "first.\n\n| state | action (heading) | region | real / twin transitions | "
+              "stays, real / twin | most likely next, real | twin | TV | q |\n"
+              "|---|---|---|---|---|---|---|---|---|\n")
+    for r in c.pairs[:PAIRS_SHOWN]:
+        deg = math.degrees(heads[r["action"]]) % 360
+        out.write(f"| {r['state']} | {r['action']} ({deg:.0f} deg) | {r['region'] or '-'} | "
+                  f"{r['real']} / {r['twin']} | {r['stay_real']:.2f} / {r['stay_twin']:.2f} "
+                  f"({direction(r)}) | {r['next_real']} ({r['share_real']:.2f}) | "
+                  f"{r['next_twin']} ({r['share_twin']:.2f}) | {r['tv']:.2f} | "
+                  f"{r['q']:.3g} |\n")
+    if len(c.pairs) > PAIRS_SHOWN:
+        out.write(f"\n{len(c.pairs) - PAIRS_SHOWN} more in report.json "
+                  "(`contradictions.pairs`).\n")
+    out.write("\n![pairs](pairs.png)\n\n")
+    return out.getvalue()
+
+
+def plot_contradictions(result: CalibrationResult, path: Path) -> None:
+    """The listed pairs on the arena: an arrow along each pair's heading from its state's
+    centre, coloured by how the twin differs (stays more, stays less, moves elsewhere)."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    from simlab.calibration.contradictions import direction
+
+    c = result.contradictions
+    centres = np.asarray(result.centres, dtype=float)
+    x0, y0, x1, y1 = (result.arena.bounds if result.arena is not None else
+                      (*centres.min(axis=0) - 0.5, *centres.max(axis=0) + 0.5))
+    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
+    fig = Figure(figsize=(9.0, max(3.0, 9.0 * aspect + 0.8)), layout="constrained")
+    ax = fig.subplots()
+    if result.arena is not None:
+        res = 0.02 if max(x1 - x0, y1 - y0) < 4 else 0.05
+        shape = (int(np.ceil((y1 - y0) / res)), int(np.ceil((x1 - x0) / res)))
+        occ = result.arena.rasterize(res, (x0, y0), shape)
+        ax.imshow(occ, cmap="Greys", extent=(x0, x0 + shape[1] * res, y0, y0 + shape[0] * res),
+                  vmin=0, vmax=1.6, interpolation="nearest")
+    ax.plot(*centres.T, "o", ms=3, color="0.45")
+    for i, (x, y) in enumerate(centres):
+        ax.annotate(str(i), (x, y), xytext=(2, 2), textcoords="offset points", fontsize=6,
+                    color="0.3")
+    colours = {"stays more": "tab:red", "stays less": "tab:blue",
+               "moves elsewhere": "tab:purple"}
+    heads = result.real.action_set.headings()
+    cell = result.signature.cell_size if result.signature is not None else float("nan")
+    length = 0.45 * cell if math.isfinite(cell) else 0.05 * max(x1 - x0, y1 - y0)
+    for r in c.pairs:
+        h = heads[r["action"]]
+        x, y = centres[r["state"]]
+        ax.annotate("", (x + length * math.cos(h), y + length * math.sin(h)), (x, y),
+                    arrowprops={"arrowstyle": "-|>", "color": colours[direction(r)],
+                                "lw": 1.2 + 2.0 * min(1.0, r["real"] / 40)})
+    ax.legend(handles=[Line2D([], [], color=v, lw=2, label=f"the twin {k}")
+                       for k, v in colours.items()], fontsize=7, loc="upper right",
+              framealpha=0.85)
+    ax.set_title(f"{len(c.pairs)} (s, a) pairs where the twin contradicts the robot (FDR "
+                 f"{100 * c.alpha:.0f} %; arrow width: real transitions)", fontsize=9)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=100)
 
 
 def _parameters(out: io.StringIO, result: CalibrationResult) -> None:
@@ -1000,6 +1106,8 @@ def write_outputs(result: CalibrationResult, out: str | os.PathLike[str], *,
         del paths["calibration.png"]
     if result.transfer is None or not plot:
         del paths["transfer.png"]
+    if result.contradictions is None or not result.contradictions.pairs or not plot:
+        del paths["pairs.png"]
     told = told_space_toml(result)
     if told is None:
         del paths["told_space.toml"]
@@ -1012,6 +1120,8 @@ def write_outputs(result: CalibrationResult, out: str | os.PathLike[str], *,
             atomic_write_text(txn.path(paths["told_space.toml"]), told)
         if "calibration.png" in paths:
             plot_calibration(result, txn.path(paths["calibration.png"]))
+        if "pairs.png" in paths:
+            plot_contradictions(result, txn.path(paths["pairs.png"]))
         if "transfer.png" in paths:
             from simlab.calibration.transfer import plot_transfer
 

@@ -50,6 +50,7 @@ from numpy.typing import NDArray
 from simlab.base.errors import ConfigError
 from simlab.calibration.budget import Budgets, size_budgets
 from simlab.calibration.config import CalibrationConfig, RealTable
+from simlab.calibration.contradictions import Contradictions, contradicted_pairs
 from simlab.calibration.metrics import (
     Floor,
     argmax_agreement,
@@ -154,6 +155,12 @@ class CalibrationResult:
     ensemble: list[Candidate] = field(default_factory=list)
     #: each searched field moved alone from the winner (``profile_step``), or None
     profile: Any = None
+    #: the real pairs where the twin's walks contradict the robot beyond sampling
+    #: (:mod:`~simlab.calibration.contradictions`)
+    contradictions: Contradictions | None = None
+    #: the arena the twin walked and the state centres (the contradictions' figure)
+    arena: Any = None
+    centres: Any = None
 
 
 
@@ -301,7 +308,19 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         screen_best=screen_best, twin_transfer=twin, search=found,
         ensemble=ensemble, profile=profile,
         regions=_region_rows(setup, real, final),
+        contradictions=_contradictions(real, done, config, setup.regions),
+        arena=setup.arena, centres=setup.disc.centres,
     )
+
+
+def _contradictions(real: RealTable, done: _Confirmed, config: CalibrationConfig,
+                    regions: NDArray[np.int64] | None) -> Contradictions:
+    """The real pairs the winner's walks contradict: its twin walks pooled (its confirming
+    walks pooled when there are none), reset rows left out."""
+    walks = [t.sim.counts for t in done.twins] or [done.final.sim.counts]
+    rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(17,)))
+    return contradicted_pairs(real.counts, sum(walks), rng,
+                              skip_states=list(real.reset_states or ()), regions=regions)
 
 
 def _twin_stage(runner: WalkRunner, real: RealTable, done: _Confirmed, setup: CalibrationSetup,

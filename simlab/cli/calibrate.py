@@ -38,6 +38,9 @@ def run(args: argparse.Namespace) -> int:
               f"{_num(gap.self_share_real)}, entropy per action {_num(gap.entropy, '{:.2f}')} / "
               f"{_num(gap.entropy_real, '{:.2f}')} bits, outcomes per region TV "
               f"{_num(gap.regions)}")
+    if r.contradictions is not None:
+        print(r.contradictions.summary() + (" (report.md lists them, pairs.png draws them)"
+                                            if r.contradictions.pairs else ""))
     if len(r.ensemble) > 1:
         print(f"twin ensemble: {len(r.ensemble)} confirmed candidates within sampling of the "
               "winner (report.md: how sure the twin is, field by field)")

@@ -293,3 +293,35 @@ def test_policy_data_is_collected_and_scored_against_the_perfect_twin(lattice9, 
     assert policy["line"]["transitions"] == policy["transitions"]
     assert "the policy of" in printed and "collected transitions" in printed
     assert "| policy data | gap |" in (out / "report.md").read_text()
+
+
+def test_a_pair_the_twin_cannot_reproduce_is_reported_and_drawn(inputs, tmp_path,
+                                                                capsys) -> None:
+    # The robot's busiest pair doctored: where this robot (0.9 s drives in 0.5 m cells)
+    # mostly stays, it now always moves, which no kinematic twin of it does at that pair
+    # alone. The report lists that pair, says how the twin differs, and draws it.
+    real, states, hours = inputs
+    counts = np.zeros((9, 8, 9), dtype=np.int64)
+    for s, a, s2, n in np.loadtxt(real, delimiter=",", skiprows=1, dtype=np.int64):
+        counts[s, a, s2] = n
+    n = counts.sum(axis=2)
+    s, a = np.unravel_index(np.argmax(n), n.shape)
+    assert n[s, a] >= 10 and counts[s, a, s] >= n[s, a] / 2
+    counts[s, a] = 0
+    counts[s, a, (s + 1) % 9] = n[s, a]
+    doctored = write_counts_csv(tmp_path / "doctored.csv", counts)
+    out = tmp_path / "cal"
+    assert main(argv(doctored, states, out, "--real-hours", f"{hours}")) == 0
+    printed = capsys.readouterr().out
+    c = json.loads((out / "report.json").read_text())["contradictions"]
+    listed = {(r["state"], r["action"]): r for r in c["pairs"]}
+    assert (s, a) in listed
+    row = listed[(s, a)]
+    assert row["stay_real"] == 0.0 and row["stay_twin"] > 0.5 and row["q"] < c["alpha"]
+    assert row["real"] == n[s, a] and row["next_real"] == (s + 1) % 9
+    assert c["tested"] + c["untested"] == int((counts.sum(axis=2) > 0).sum())
+    assert f"at {len(listed)} of {c['tested']} real (s, a) pairs" in printed
+    md = (out / "report.md").read_text()
+    assert "## Where the twin contradicts the robot" in md and "![pairs](pairs.png)" in md
+    assert f"| {s} | {a} (" in md and "(stays more)" in md
+    assert (out / "pairs.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

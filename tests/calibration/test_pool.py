@@ -194,6 +194,13 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     m = len(rep["joined"])
     assert t["ensemble_runs"] == [rep["joined"][j % m] for j in range(2)]
     assert "## Policies on the real model" in (out / "pool.md").read_text()
+    # each winner's pool walks tested pair by pair: a copy lists what its original lists,
+    # and the pairs every run lists are those in each run's list
+    c = rep["contradictions"]
+    assert len(c["runs"]) == 5 and c["runs"][:2] == c["runs"][2:4]
+    each = [{(r["state"], r["action"]) for r in run["pairs"]} for run in c["runs"]]
+    assert {tuple(p) for p in c["common"]} == set.intersection(*each)
+    assert "## Where every winner contradicts the robot" in (out / "pool.md").read_text()
     # several joined runs: no "one basin" sentence, in pool.md or on the terminal
     assert "one basin" not in (out / "pool.md").read_text() and "one basin" not in printed
     # the same pool again: the same walks, bit for bit
@@ -209,6 +216,29 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
             widest = max(range_share(spec, (tuple(sp),)) for sp in f["spans"])
             assert widest - 1e-12 <= f["share"] <= 1.0 + 1e-12
         assert (f["field"] in named) == (f["share"] >= OPEN_SHARE)
+
+
+def test_a_pair_no_winner_reproduces_is_listed_by_every_run(lab, tmp_path) -> None:
+    # The real table given to the pool doctored at its busiest pair (the same transitions
+    # in all: where the robot mostly stayed it now always moves to another state): both
+    # winners stay there as the robot did when they were calibrated, so both list it, and
+    # pool.md names it among the pairs every run lists.
+    counts = np.zeros((9, 8, 9), dtype=np.int64)
+    for s, a, s2, n in np.loadtxt(lab["real"], delimiter=",", skiprows=1, dtype=np.int64):
+        counts[s, a, s2] = n
+    n = counts.sum(axis=2)
+    s, a = np.unravel_index(np.argmax(n), n.shape)
+    assert counts[s, a, s] >= n[s, a] / 2
+    counts[s, a] = 0
+    counts[s, a, (s + 1) % 9] = n[s, a]
+    doctored = write_counts_csv(tmp_path / "doctored.csv", counts)
+    res = _pool(lab, [lab["run0"], lab["run7"]], tmp_path / "pool", real=doctored).result
+    assert (s, a) in res.common_contradictions
+    for c in res.contradictions:
+        row = next(r for r in c.pairs if (r["state"], r["action"]) == (s, a))
+        assert row["stay_real"] == 0.0 and row["stay_twin"] > 0.5
+    md = (tmp_path / "pool" / "pool.md").read_text()
+    assert "pairs are listed by every run" in md and f"| {s} | {a} | {n[s, a]} | 0.00 |" in md
 
 
 def test_a_pool_that_joins_only_its_winner_says_it_is_one_basin(lab, tmp_path,
