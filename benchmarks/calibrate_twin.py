@@ -67,6 +67,15 @@ Two labs (``--lab``):
   candidates drive (the screening walked 6.3 ms a transition on seed 0, 9.2-9.9 on seeds
   1, 3 and 4, correlated with ``max_drive_time`` at r 0.46-0.82 over the candidates).
 
+Each seed's line also gives the (s, a) pairs where its twin contradicts the robot beyond
+sampling (calibrate's report, ``simlab.calibration.contradictions``), and with several seeds
+the pairs every seed lists. Measured on the ISIR lab (seeds 0-4 of the defaults, each winner's
+three twin walks of 8,012 transitions pooled; 2026-12-08): 20/21/22/24/24 of 294 pairs
+listed (8-10 % of the real transitions, 16-20 % of the distance), 66-76 passing the raw 5 %
+test where chance gives 15; listed by every seed: (0, 4), (12, 5), (14, 7), (32, 5), (35, 2),
+four of them at the lab's two ends (seed 0 recalibrated with the test in place listed the
+same 20, deterministic by seed).
+
 With ``--seeds`` 2 or more, ``simlab calibrate-pool`` then reads the seeds' calibrations
 together (each winner on the same fresh seeds, those within sampling of the best joined, the
 union of what they allow; on the synthetic lab the hidden robot against that union).

@@ -579,9 +579,9 @@ def contradictions_section(result: CalibrationResult) -> str:
     if not c.pairs:
         return out.getvalue()
     heads = result.real.action_set.headings()
-    out.write("A pair listed in every seed's report (`simlab calibrate-pool` reads them "
-              "together) is wrong whatever the fields: check the map and the arena there "
-              "first.\n\n| state | action (heading) | region | real / twin transitions | "
+    out.write("A pair that the winners of several calibrate seeds all contradict "
+              "(`simlab calibrate-pool` tests each winner's walks and names them) is wrong "
+              "whatever the fields: check the map and the arena there first.\n\n| state | action (heading) | region | real / twin transitions | "
               "stays, real / twin | most likely next, real | twin | TV | q |\n"
               "|---|---|---|---|---|---|---|---|---|\n")
     for r in c.pairs[:PAIRS_SHOWN]:
