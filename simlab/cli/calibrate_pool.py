@@ -46,5 +46,10 @@ def run(args: argparse.Namespace) -> int:
             f"{e:.3f}x" if math.isfinite(e) else "never arrives")
         print(f"policies on the real model at {t.transitions:,} transitions: a perfect twin "
               f"{t.perfect.median:.3f}x the real optimum's steps{ens}")
+    if res.contradictions:
+        common = res.common_contradictions
+        print("(s, a) pairs every winner contradicts beyond sampling (check the map there): "
+              + (", ".join(f"{s} a{a}" for s, a in common) if common else "none")
+              + " (pool.md: each run's)")
     print("wrote " + ", ".join(str(p) for p in done.files.values()))
     return 0

@@ -218,7 +218,8 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
         assert (f["field"] in named) == (f["share"] >= OPEN_SHARE)
 
 
-def test_a_pair_no_winner_reproduces_is_listed_by_every_run(lab, tmp_path) -> None:
+def test_a_pair_no_winner_reproduces_is_listed_by_every_run(lab, tmp_path,
+                                                             capsys) -> None:
     # The real table given to the pool doctored at its busiest pair (the same transitions
     # in all: where the robot mostly stayed it now always moves to another state): both
     # winners stay there as the robot did when they were calibrated, so both list it, and
@@ -232,7 +233,12 @@ def test_a_pair_no_winner_reproduces_is_listed_by_every_run(lab, tmp_path) -> No
     counts[s, a] = 0
     counts[s, a, (s + 1) % 9] = n[s, a]
     doctored = write_counts_csv(tmp_path / "doctored.csv", counts)
-    res = _pool(lab, [lab["run0"], lab["run7"]], tmp_path / "pool", real=doctored).result
+    out = tmp_path / "pool"
+    assert main(["calibrate-pool", "--runs", str(lab["run0"]), str(lab["run7"]), "--real",
+                 str(doctored), "--states", str(lab["states"]), "--out", str(out),
+                 "--seeds", "2", "--workers", "1", "--no-progress"]) == 0
+    assert f" {s} a{a}" in capsys.readouterr().out.split("contradicts beyond sampling")[1]
+    res = _pool(lab, [lab["run0"], lab["run7"]], tmp_path / "again", real=doctored).result
     assert (s, a) in res.common_contradictions
     for c in res.contradictions:
         row = next(r for r in c.pairs if (r["state"], r["action"]) == (s, a))
