@@ -145,21 +145,8 @@ def calibrate_files(
             raise ConfigError(exc.problem, path=space, key=exc.key, fix=exc.fix) from None
     arena_cfg = load_arena_config(arena)
     result = calibrate(rt, arena_cfg, disc, space=sp, base=base, config=config)
-    files = write_outputs(result, out, overwrite=overwrite, grid=_map_of(arena_cfg), disc=disc)
+    files = write_outputs(result, out, overwrite=overwrite)
     return CalibrateFiles(result=result, files=files)
-
-
-def _map_of(arena_cfg: Any) -> Any:
-    """The occupancy map of a map-built arena (drawn under the transfer figure), else None."""
-    path = getattr(arena_cfg, "map_yaml", None)
-    if path is None:
-        return None
-    from discretize.mapio import read_map
-
-    try:
-        return read_map(path)
-    except (OSError, ValueError, ConfigError):
-        return None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -614,11 +614,9 @@ def plot_contradictions(result: CalibrationResult, path: Path) -> None:
     fig = Figure(figsize=(9.0, max(3.0, 9.0 * aspect + 0.8)), layout="constrained")
     ax = fig.subplots()
     if result.arena is not None:
-        res = 0.02 if max(x1 - x0, y1 - y0) < 4 else 0.05
-        shape = (int(np.ceil((y1 - y0) / res)), int(np.ceil((x1 - x0) / res)))
-        occ = result.arena.rasterize(res, (x0, y0), shape)
-        ax.imshow(occ, cmap="Greys", extent=(x0, x0 + shape[1] * res, y0, y0 + shape[0] * res),
-                  vmin=0, vmax=1.6, interpolation="nearest")
+        from simlab.physics.render import draw_arena_on
+
+        draw_arena_on(ax, result.arena)
     ax.plot(*centres.T, "o", ms=3, color="0.45")
     for i, (x, y) in enumerate(centres):
         ax.annotate(str(i), (x, y), xytext=(2, 2), textcoords="offset points", fontsize=6,
@@ -1096,11 +1094,10 @@ def plot_calibration(result: CalibrationResult, path: Path) -> None:
 
 
 def write_outputs(result: CalibrationResult, out: str | os.PathLike[str], *,
-                  overwrite: bool = False, plot: bool = True, grid: Any = None,
-                  disc: Any = None) -> dict[str, Path]:
+                  overwrite: bool = False, plot: bool = True) -> dict[str, Path]:
     """Write the files of the module docstring into ``out`` in one output transaction;
-    returns them by name. ``grid``/``disc``: the map and states drawn under the transfer
-    figure (optional)."""
+    returns them by name. The figures draw the arena the twin walked (``result.arena``)
+    under the states."""
     paths = check_outputs(out, overwrite=overwrite)
     if not plot:
         del paths["calibration.png"]
@@ -1126,5 +1123,5 @@ def write_outputs(result: CalibrationResult, out: str | os.PathLike[str], *,
             from simlab.calibration.transfer import plot_transfer
 
             plot_transfer(worst_goal(result.transfer), txn.path(paths["transfer.png"]),
-                          grid=grid, disc=disc)
+                          arena=result.arena)
     return paths

@@ -61,10 +61,9 @@ def visits_figure(logs: Logs, lab: Any, task: Any) -> Any:
     from matplotlib.patches import Patch, Rectangle
     from matplotlib.transforms import Affine2D
 
+    from simlab.physics.render import draw_arena_on
+
     x0, y0, x1, y1 = lab.arena.bounds
-    res = 0.02 if max(x1 - x0, y1 - y0) < 4 else 0.05
-    shape = (int(np.ceil((y1 - y0) / res)), int(np.ceil((x1 - x0) / res)))
-    occ = lab.arena.rasterize(res, (x0, y0), shape)
     n = len(logs)
     aspect = (y1 - y0) / max(x1 - x0, 1e-9)
     if aspect > 1:  # a tall lab: panels side by side
@@ -79,8 +78,7 @@ def visits_figure(logs: Logs, lab: Any, task: Any) -> Any:
     new_goals = [c for c in task.changes if c.kind == "goal"]
     bins = None
     for ax, (name, runs) in zip(axes, logs.items(), strict=True):
-        ax.imshow(occ, cmap="Greys", extent=(x0, x0 + shape[1] * res, y0, y0 + shape[0] * res),
-                  vmin=0, vmax=1.6, interpolation="nearest")
+        draw_arena_on(ax, lab.arena)
         xs = np.concatenate([r["x"] for r in runs])
         ys = np.concatenate([r["y"] for r in runs])
         bins = ax.hexbin(xs, ys, gridsize=int(max(8, (x1 - x0) / 0.15)), mincnt=1,

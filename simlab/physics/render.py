@@ -140,3 +140,17 @@ def render_topdown(
         canvas.draw_points(scan_points)
     canvas.draw_robot(pose, spec)
     return canvas.image
+
+
+def draw_arena_on(ax: object, arena: ArenaConfig) -> tuple[float, float, float, float]:
+    """Draw ``arena``'s occupied floor (walls, map walls, obstacles) in grey on matplotlib
+    axes ``ax``, in the arena's own frame (metres, y up), and return its bounds
+    ``(x0, y0, x1, y1)``: the background of the figures that draw states and moves on the
+    lab (2 cm pixels on a small arena, 5 cm on a larger one)."""
+    x0, y0, x1, y1 = arena.bounds
+    res = 0.02 if max(x1 - x0, y1 - y0) < 4 else 0.05
+    shape = (int(np.ceil((y1 - y0) / res)), int(np.ceil((x1 - x0) / res)))
+    occ = arena.rasterize(res, (x0, y0), shape)  # row 0 the top: imshow's default origin
+    ax.imshow(occ, cmap="Greys", extent=(x0, x0 + shape[1] * res, y0, y0 + shape[0] * res),
+              vmin=0, vmax=1.6, interpolation="nearest")
+    return x0, y0, x1, y1

@@ -550,3 +550,37 @@ def test_an_mdp_whose_t_and_counts_disagree_is_refused(files, tmp_path, capsys) 
     assert main(["transfer", "--real", str(files["real"]), "--sim", str(files["twin0"]),
                  "--goal-states", "8", "--out", str(tmp_path / "ok"), "--no-plot",
                  "--n-boot", "5"]) == 0
+
+
+def test_the_transfer_figure_draws_the_arena_in_the_frame_of_the_centres() -> None:
+    # The arena under the map panels is drawn in its own frame, the frame the state centres
+    # are in: its image spans the arena's bounds, its occupied pixels are the arena's, and
+    # the figure with it differs from the figure without it.
+    from matplotlib.figure import Figure
+
+    from simlab.calibration.transfer import render_transfer_png
+    from simlab.physics.arena import load_arena
+    from simlab.physics.render import draw_arena_on
+
+    arena = load_arena("table_obstacles")
+    ax = Figure().subplots()
+    bounds = draw_arena_on(ax, arena)
+    assert bounds == arena.bounds
+    img = ax.images[0]
+    x0, x1, y0, y1 = img.get_extent()
+    assert x0 == pytest.approx(bounds[0]) and y0 == pytest.approx(bounds[1])
+    occ = np.asarray(img.get_array())
+    h, w = occ.shape
+    res = (x1 - x0) / w
+    rows, cols = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    centres = np.stack([x0 + (cols + 0.5) * res, y1 - (rows + 0.5) * res], axis=-1)
+    np.testing.assert_array_equal(occ.astype(bool), arena.occupied(centres))
+    assert 0 < occ.astype(bool).mean() < 0.5           # its obstacles, on a free table
+    lattice9 = lattice()
+    counts = lattice_counts(CCW8)
+    real = TransferModel.from_counts(counts, action_set=CCW8, centres=lattice9.centres)
+    twin = TransferModel.from_counts(counts, action_set=CCW8, name="same",
+                                     centres=lattice9.centres)
+    res_t = transfer_report(real, [twin], {"g": [4]})
+    assert render_transfer_png(res_t, arena=arena) != render_transfer_png(res_t)
+

@@ -109,9 +109,10 @@ def _panels(g: GoalTransfer) -> list[TwinScore]:
 
 
 def _draw_map(ax: Any, g: GoalTransfer, t: TwinScore, centres: NDArray[np.float64] | None,
-              vmax: float, grid: Any = None, disc: Any = None) -> Any:
+              vmax: float, grid: Any = None, disc: Any = None, arena: Any = None) -> Any:
     """One map panel: states coloured by excess steps, ``x`` never arrives, a black ring a
-    disagreement with the real optimum, a gold star the goal, hollow the non-start states."""
+    disagreement with the real optimum, a gold star the goal, hollow the non-start states;
+    under them the arena (its own frame, as the centres) or else the occupancy ``grid``."""
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
 
@@ -122,7 +123,11 @@ def _draw_map(ax: Any, g: GoalTransfer, t: TwinScore, centres: NDArray[np.float6
         ax.set_yticks([])
     else:
         xy = np.asarray(centres, dtype=np.float64)
-        if grid is not None and disc is not None:
+        if arena is not None:
+            from simlab.physics.render import draw_arena_on
+
+            draw_arena_on(ax, arena)
+        elif grid is not None and disc is not None:
             from discretize.plot import draw_states
 
             draw_states(ax, grid, disc, numbers=False, robot_radius=None)
@@ -201,10 +206,12 @@ def _short(name: str) -> str:
 
 
 def render_transfer_png(result: TransferResult, *, grid: Any = None, disc: Any = None,
-                        dpi: int = 110) -> bytes:
+                        arena: Any = None, dpi: int = 110) -> bytes:
     """The figure as PNG bytes: per goal (a row), the worst and best twins' policies on the
     map (states coloured by excess steps over the real optimum, disagreements ringed), then
-    a bar per twin seed of its mean steps against the optimum (dashed)."""
+    a bar per twin seed of its mean steps against the optimum (dashed). Under the states:
+    ``arena`` (an :class:`~simlab.physics.arena.ArenaConfig`, drawn in its own frame), else
+    the occupancy ``grid`` with ``disc``'s cells."""
     from matplotlib.figure import Figure
 
     centres = result.centres if disc is None else np.asarray(disc.centres)
@@ -230,7 +237,7 @@ def render_transfer_png(result: TransferResult, *, grid: Any = None, disc: Any =
         ex = np.concatenate([t.excess[np.isfinite(t.excess)] for t in g.twins])
         vmax = max(1.0, float(ex.max()) if ex.size else 1.0)
         for ax, t in zip(map_axes, panels, strict=False):
-            mappable = _draw_map(ax, g, t, centres, vmax, grid, disc)
+            mappable = _draw_map(ax, g, t, centres, vmax, grid, disc, arena)
             cbar = fig.colorbar(mappable, ax=ax, fraction=0.04)
             cbar.set_label("excess steps", fontsize=7)
             ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(0.0, -0.18 if wide
@@ -244,9 +251,9 @@ def render_transfer_png(result: TransferResult, *, grid: Any = None, disc: Any =
 
 
 def plot_transfer(result: TransferResult, path: str | os.PathLike[str], *, grid: Any = None,
-                  disc: Any = None) -> Path:
+                  disc: Any = None, arena: Any = None) -> Path:
     """Write :func:`render_transfer_png` to ``path`` atomically."""
     from simlab.base.io import atomic_write_bytes
 
-    atomic_write_bytes(path, render_transfer_png(result, grid=grid, disc=disc))
+    atomic_write_bytes(path, render_transfer_png(result, grid=grid, disc=disc, arena=arena))
     return Path(path)
