@@ -289,6 +289,7 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
             "h_matched_real": gap.get("entropy_bits_real"), "regions_tv": gap.get("regions_tv"),
             "blocked": rep["sim"]["blocked_rate"],
             "twin_ratios": twins, "never": sum(x is None for x in twins),
+            "masked": tr.get("masked_ratios"),
             "fit_at_need": fit, "perfect_at_need": perfect,
             "at_need_over_perfect": fit / perfect if fit and perfect else None,
             "ensemble": len((rep.get("ensemble") or {}).get("members", [])),
@@ -312,6 +313,9 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
           "at need / perfect | ensemble | wall s (load)")
     for r in rows:
         ratios = ", ".join(_f(x) if x is not None else "never" for x in r["twin_ratios"])
+        if r.get("masked"):
+            ratios += " (planned among the pairs the robot moved in: " + ", ".join(
+                _f(x) if x is not None else "never" for x in r["masked"]) + ")"
         print(f"{r['seed']} | {r['tv_over_matched']:.2f} | {_f(r['self_twin'])}/"
               f"{_f(r['self_real'])}; {_f(r['self_visits_twin'])}/{_f(r['self_visits_real'])}"
               f" | {_f(r['h_twin'], '{:.2f}')}/{_f(r['h_real'], '{:.2f}')}; "

@@ -69,6 +69,9 @@ class TwinTransfer:
     #: the twin ensemble's pooled walks against as many of the winner's, each planned on
     #: and scored on the real model (:func:`ensemble_transfer`); None without an ensemble
     ensemble: dict[str, Any] | None = None
+    #: when some twin seed never arrives under ``stay``: every twin seed's ratio with its
+    #: policy chosen among the pairs the real robot tried (``mask``), else None
+    masked: list[float] | None = None
 
 
 def finite_rows(curve: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -186,9 +189,12 @@ def transfer_stage(real: Any, twin_counts: list[NDArray[np.int64]], twin_names: 
     if not kept:
         return out
     named = {f"s{g}": [g] for g in kept}
-    out.report = transfer_report(out.real_model, [model(c, n) for c, n in
-                                                  zip(twin_counts, twin_names, strict=True)],
-                                 named, n_boot=TRANSFER_BOOT, rng=rng, untried=untried)
+    twins = [model(c, n) for c, n in zip(twin_counts, twin_names, strict=True)]
+    out.report = transfer_report(out.real_model, twins, named, n_boot=TRANSFER_BOOT, rng=rng,
+                                 untried=untried)
+    if untried == "stay" and not np.isfinite(out.report.overall_ratios()).all():
+        out.masked = [float(r) for r in transfer_report(out.real_model, twins, named,
+                                                        untried="mask").overall_ratios()]
     out.line = perfect_twin_line(out.real_model, out.report, twin_counts[0].sum(axis=2),
                                  n_boot=LINE_BOOT, rng=rng)
     out.curve = _curve(out, twin_counts, model, named, rng)
@@ -244,10 +250,14 @@ def transfer_warnings(out: TwinTransfer) -> list[str]:
         n = real.counts.sum(axis=2) if real.counts is not None else None
         seen = ("" if n is None or not trapped else
                 f", seen {min(n[p] for p in trapped)}-{max(n[p] for p in trapped)} times each")
+        masked = ("" if out.masked is None else
+                  "; so planned, the twin seeds take " + ", ".join(
+                      f"{r:.3f}" if math.isfinite(r) else "never" for r in out.masked)
+                  + " x the real optimum's steps")
         cause = (f"their policies choose {len(trapped)} (s, a) the real robot only stayed in "
                  f"or never tried{seen}: the real data are too thin there to say it moves "
                  "(`--untried mask`, on calibrate and transfer, plans among the pairs the "
-                 "real robot tried)" if trapped else
+                 f"real robot tried{masked})" if trapped else
                  "their policies loop between states on the real model (the twin's data are "
                  "too few to plan there: see the pooled rows of the data curve)")
         warned.append(f"{len(never)} of {len(rep.twin_names)} twin seeds never arrive at some "

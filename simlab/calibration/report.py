@@ -337,7 +337,8 @@ def _lines_json(twin: Any) -> dict[str, Any]:
             "perfect_twin_line": None if twin.line is None else twin.line.to_json(),
             "perfect_twin_at_need": None if twin.line_at_need is None
             else twin.line_at_need.to_json(),
-            "policy_data": policy, "goals_left_out": twin.left_out}
+            "policy_data": policy, "goals_left_out": twin.left_out,
+            "masked_ratios": None if twin.masked is None else [_fin(r) for r in twin.masked]}
 
 
 def transfer_headline(result: CalibrationResult) -> str:

@@ -126,6 +126,18 @@ def test_twins_trapped_by_pairs_the_real_robot_only_stayed_in_are_warned() -> No
     text = " ".join(out.warnings)
     assert "1 of 1 twin seeds never arrive" in text and "only stayed in" in text
     assert "seen 3-3 times each" in text and "--untried mask" in text
+    # planned among the pairs the robot moved in, the twin goes round by the south and
+    # arrives: the warning gives that figure, the one `--untried mask` would report
+    masked = transfer_stage(RealTable(real, CCW8), twins, ["t"], [8], lattice().centres,
+                            np.random.default_rng(0), untried="mask")
+    assert out.masked is not None and masked.masked is None
+    assert math.isfinite(out.masked[0])
+    assert out.masked == pytest.approx(list(masked.report.overall_ratios()))
+    assert f"so planned, the twin seeds take {out.masked[0]:.3f} x" in text
+    # twins that all arrive need no masked figure
+    fine = transfer_stage(RealTable(moves, CCW8), twins, ["t"], [8], lattice().centres,
+                          np.random.default_rng(0))
+    assert fine.masked is None
 
 
 def test_data_need_fits_the_finite_rows() -> None:
