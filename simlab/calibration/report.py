@@ -560,12 +560,12 @@ def contradictions_section(result: CalibrationResult) -> str:
     c = result.contradictions
     if c is None:
         return ""
-    walks = len(result.twins) or 1
+    walks = (f"the winner's {len(result.twins)} twin walks pooled" if result.twins else
+             "the winner's confirming walks pooled")
     out = io.StringIO()
     out.write("## Where the twin contradicts the robot\n\n"
               f"Each real (s, a) pair tested on its own: are the robot's next states and the "
-              f"twin's ({walks} walk{'s' if walks > 1 else ''} pooled) two samples of one "
-              "distribution (a permutation test of their total-variation distance, "
+              f"twin's ({walks}) two samples of one distribution (a permutation test of their total-variation distance, "
               f"{c.resamples:,} relabellings)? Read across pairs at a false-discovery rate of "
               f"{100 * c.alpha:.0f} % (Benjamini-Hochberg). **In this run {c.summary()}.** "
               f"{c.untested} real pairs have fewer than two transitions "
@@ -582,7 +582,8 @@ def contradictions_section(result: CalibrationResult) -> str:
     heads = result.real.action_set.headings()
     out.write("A pair that the winners of several calibrate seeds all contradict "
               "(`simlab calibrate-pool` tests each winner's walks and names them) is wrong "
-              "whatever the fields: check the map and the arena there first.\n\n| state | action (heading) | region | real / twin transitions | "
+              "whatever the fields: check the map and the arena there first.\n\n"
+              "| state | action (heading) | region | real / twin transitions | "
               "stays, real / twin | most likely next, real | twin | TV | q |\n"
               "|---|---|---|---|---|---|---|---|---|\n")
     for r in c.pairs[:PAIRS_SHOWN]:
