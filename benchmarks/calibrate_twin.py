@@ -73,7 +73,7 @@ the pairs every seed lists. Measured on the ISIR lab (seeds 0-4 of the defaults,
 three twin walks of 8,012 transitions pooled; 2026-12-08): 20/21/22/24/24 of 294 pairs
 listed (8-10 % of the real transitions, 16-20 % of the distance), 66-76 passing the raw 5 %
 test where chance gives 15; listed by every seed: (0, 4), (12, 5), (14, 7), (32, 5), (35, 2),
-four of them at the lab's two ends (seed 0 recalibrated with the test in place listed the
+all at the lab's two ends (seed 0 recalibrated with the test in place listed the
 same 20, deterministic by seed).
 
 With ``--seeds`` 2 or more, ``simlab calibrate-pool`` then reads the seeds' calibrations

@@ -55,7 +55,7 @@ Each winner's pool walks are also tested against the real table pair by pair
 (:mod:`~simlab.calibration.contradictions`), and the pairs **every** winner contradicts beyond
 sampling are named: winners at different points of the searched space that all differ from
 the robot at a pair point at the map or the arena there, not at a field (ISIR seeds 0-4: five
-such pairs, four at the lab's two ends).
+such pairs, all at the lab's two ends).
 
 Outputs in ``--out``: ``primitives.toml`` (the pool's winner, and the ensemble), ``pool.json``
 and ``pool.md``.
