@@ -53,8 +53,9 @@ class Contradictions:
     of ``state``, ``action``, ``real`` and ``twin`` transitions, ``stay_real``,
     ``stay_twin``, the most likely next state and its share on each side (``next_real``,
     ``share_real``, ``next_twin``, ``share_twin``), ``tv`` (between the pair's two rows),
-    ``p``, ``q`` and the pair's ``region`` (None without regions); ``visit_share``: the listed pairs' share of the real transitions tested;
-    ``distance_share``: their share of the visit-weighted TV distance over the tested pairs.
+    ``p``, ``q`` and the pair's ``region`` (None without regions); ``visit_share``: the
+    listed pairs' share of the real transitions tested; ``distance_share``: their share of
+    the visit-weighted TV distance over the tested pairs.
     """
 
     alpha: float
@@ -144,6 +145,7 @@ def contradicted_pairs(real: ArrayLike, twin: ArrayLike, rng: np.random.Generato
     listed pair as ``region``. ``rng`` draws the relabellings."""
     from scipy import stats
 
+    from simlab.calibration.metrics import tv_distance
     from simlab.calibration.regions import REGIONS
 
     if not 0 < alpha < 1:
@@ -161,8 +163,7 @@ def contradicted_pairs(real: ArrayLike, twin: ArrayLike, rng: np.random.Generato
     p = np.array([pair_pvalue(R[s, a], T[s, a], rng, resamples) for s, a in where])
     q = stats.false_discovery_control(p) if p.size else p
     w = nr[testable].astype(float)
-    tv = np.array([0.5 * np.abs(R[s, a] / nr[s, a] - T[s, a] / nt[s, a]).sum()
-                   for s, a in where])
+    tv = tv_distance(T, R).per_pair[testable]   # argwhere's order, as ``where``
     listed = np.flatnonzero(q < alpha) if p.size else np.zeros(0, dtype=np.int64)
     rows = []
     for i in listed:
