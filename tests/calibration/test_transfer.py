@@ -374,6 +374,41 @@ def test_cli_end_to_end(files, tmp_path, capsys) -> None:
     assert again["goals"] == report["goals"]
 
 
+def test_a_map_stored_bottom_row_first_lies_under_the_states_with_flip_y(files, tmp_path,
+                                                                       capsys) -> None:
+    """The map figure's image is drawn in the states' frame: a map_server image stored
+    bottom row first, read with ``--flip-y``, draws the figure the upright image draws; read
+    without it, the obstacle lands in the other half of the figure."""
+    from matplotlib.image import imread
+
+    from discretize.mapio import OccupancyMap, write_map
+    from simlab.cli import main
+
+    occ = np.zeros((30, 30), dtype=np.int8)  # 1.5 m square at 5 cm, row 0 the top
+    occ[2:12, 2:12] = 100                     # an obstacle at the top left only
+    upright = OccupancyMap(occupancy=occ, resolution=0.05, origin=(-0.75, -0.75, 0.0))
+    stored_flipped = OccupancyMap(occupancy=occ[::-1].copy(), resolution=0.05,
+                                  origin=(-0.75, -0.75, 0.0))
+    write_map(tmp_path / "up" / "map.yaml", upright)
+    write_map(tmp_path / "down" / "map.yaml", stored_flipped)
+    base = ["transfer", "--real", str(files["real"]), "--sim", str(files["twin0"]),
+            "--goal-states", "8", "--states", str(files["states"]), "--n-boot", "0"]
+    figures = {}
+    for name, extra in (("up", ["--map", str(tmp_path / "up" / "map.yaml")]),
+                        ("down", ["--map", str(tmp_path / "down" / "map.yaml")]),
+                        ("flipped", ["--map", str(tmp_path / "down" / "map.yaml"), "--flip-y"])):
+        assert main([*base, *extra, "--out", str(tmp_path / name)]) == 0
+        figures[name] = imread(tmp_path / name / "transfer.png")
+    np.testing.assert_array_equal(figures["flipped"], figures["up"])
+    assert not np.array_equal(figures["down"], figures["up"])
+    # a flip with no map to flip is refused before any work
+    capsys.readouterr()
+    assert main([*base, "--flip-y", "--out", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err
+    assert "flip_y" in err and "--map" in err
+    assert not (tmp_path / "none").exists()
+
+
 def test_cli_count_file_and_the_q_tables_goal(files, tmp_path, capsys) -> None:
     from simlab.cli import main
 

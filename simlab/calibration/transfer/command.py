@@ -49,6 +49,8 @@ class TransferConfig(ActionSetOptions):
         None, "states file of the real data (S and centres of a count file; the map figure)")
     occupancy_map: Path | None = option(
         None, "map.yaml drawn under the states (needs --states)", flag="map")
+    flip_y: bool = option(False, "flip the --map image vertically (stored bottom row first, "
+                          "as some GMapping exports), so that it lies under the states")
     goal_states: Any | None = option(
         None, "one goal made of these state ids, e.g. 18,34 (default: the goals recorded in "
         "the real mdp.npz, else those of the twins' Q-tables)", parse=str)
@@ -79,6 +81,9 @@ class TransferConfig(ActionSetOptions):
         if self.occupancy_map is not None and self.states is None:
             raise ConfigError("the map figure needs the states file", key="map",
                               fix="add --states STATES.json")
+        if self.flip_y and self.occupancy_map is None:
+            raise ConfigError("--flip-y flips the --map image, and no map is given",
+                              key="flip_y", fix="add --map MAP.yaml, or drop --flip-y")
         if self.action_set_given and Path(self.real).suffix == ".npz":
             raise ConfigError("--n-actions/--convention/--speed describe a count file; an "
                               "mdp.npz records its own action set", key="n_actions",
@@ -225,7 +230,7 @@ def transfer_command(cfg: TransferConfig) -> TransferFiles:
     if cfg.occupancy_map is not None:
         from discretize.mapio import read_map
 
-        grid = read_map(cfg.occupancy_map)
+        grid = read_map(cfg.occupancy_map, flip_y=cfg.flip_y)
     twins = [load_twin(p) for p in cfg.sim]
     n_states = disc.n_states if disc is not None else twins[0].n_states
     real = _real_model(cfg, n_states, disc)
