@@ -565,9 +565,9 @@ def contradictions_section(result: CalibrationResult) -> str:
     out = io.StringIO()
     out.write("## Where the twin contradicts the robot\n\n"
               f"Each real (s, a) pair tested on its own: are the robot's next states and the "
-              f"twin's ({walks}) two samples of one distribution (a permutation test of their total-variation distance, "
-              f"{c.resamples:,} relabellings)? Read across pairs at a false-discovery rate of "
-              f"{100 * c.alpha:.0f} % (Benjamini-Hochberg). **In this run {c.summary()}.** "
+              f"twin's ({walks}) two samples of one distribution (a permutation test of "
+              f"their total-variation distance, {c.resamples:,} relabellings)? The pairs are "
+              f"read together by Benjamini-Hochberg. **In this run {c.summary()}.** "
               f"{c.untested} real pairs have fewer than two transitions "
               "on a side and are not tested")
     out.write(f" ({c.twin_untried} of them never tried by the twin).\n\n" if c.twin_untried
