@@ -236,7 +236,10 @@ def print_calibration(rep: dict, wall: float, load: float) -> None:
     d = rep["distance"]["distance"]
     fl, mf = rep["floor"]["median"], rep["matched_floor"]["median"]
     cov = rep["coverage"]
-    print(f"\nTV distance {d:.3f}: {d / mf:.2f} x the matched floor {mf:.3f} (target <= 1.5), "
+    pf = (rep.get("perfect_twin_floor") or {}).get("median")
+    against = (f"{d / pf:.2f} x the distance of a twin equal to the robot {pf:.3f} (the "
+               "perfect-twin floor; target <= 1.5), " if pf else "")
+    print(f"\nTV distance {d:.3f}: {against}{d / mf:.2f} x the plug-in matched floor {mf:.3f}, "
           f"{d / fl:.2f} x the bootstrap floor {fl:.3f}")
     print(f"coverage: the twin tried {cov['real_pairs_tried']} of {cov['real_pairs']} real "
           f"pairs ({100 * cov['real_weight_tried']:.1f} % of the real transitions), reached "
@@ -280,7 +283,9 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
     at_need = tr.get("perfect_twin_at_need") or {}
     fit = (need["limit"] + need["c"] / need["transitions"]) if need else None
     perfect = at_need.get("ratio_median")
-    return {"seed": seed, "tv_over_matched": d / mf, "self_twin": rep["sim"][
+    pf = (rep.get("perfect_twin_floor") or {}).get("median")
+    return {"seed": seed, "tv_over_matched": d / mf,
+            "tv_over_perfect": d / pf if pf else None, "self_twin": rep["sim"][
                 "self_transition_share"], "self_real": rep["real"]["self_transition_share"],
             "self_visits_twin": gap.get("self_share"), "self_visits_real":
                 gap.get("self_share_real"),
@@ -305,10 +310,11 @@ def _f(x: Any, fmt: str = "{:.3f}") -> str:
 
 def print_seeds(rows: list[dict[str, Any]]) -> None:
     """The per-seed table, then the spread across seeds of every figure that moves."""
-    print("\nper seed (targets: TV <= 1.5x the matched floor, spread <= 0.1x; self share "
+    print("\nper seed (targets: TV <= 1.5x the distance of a twin equal to the robot, the "
+          "perfect-twin floor, spread <= 0.1x; self share "
           "within +-0.03 and entropy within +-0.05 bits of the robot's; at the recommended "
           "data <= 1.03x the perfect twin; every twin arrives; <= 900 s quiet):")
-    print("seed | TV/matched | self twin/robot (own walk; at robot's visits) | entropy "
+    print("seed | TV/perfect twin | TV/matched (plug-in) | self twin/robot (own walk; at robot's visits) | entropy "
           "twin/robot (plug-in; matched draws) | regions TV | blocked | twin ratios | "
           "at need / perfect | ensemble | wall s (load)")
     for r in rows:
@@ -316,7 +322,8 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
         if r.get("masked"):
             ratios += " (planned among the pairs the robot moved in: " + ", ".join(
                 _f(x) if x is not None else "never" for x in r["masked"]) + ")"
-        print(f"{r['seed']} | {r['tv_over_matched']:.2f} | {_f(r['self_twin'])}/"
+        print(f"{r['seed']} | {_f(r['tv_over_perfect'], '{:.2f}')} | "
+              f"{r['tv_over_matched']:.2f} | {_f(r['self_twin'])}/"
               f"{_f(r['self_real'])}; {_f(r['self_visits_twin'])}/{_f(r['self_visits_real'])}"
               f" | {_f(r['h_twin'], '{:.2f}')}/{_f(r['h_real'], '{:.2f}')}; "
               f"{_f(r['h_matched_twin'], '{:.2f}')}/{_f(r['h_matched_real'], '{:.2f}')} | "
@@ -341,7 +348,8 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
                                                                               strict=True))
               + f"; listed by every seed: {common_pairs(runs) or 'none'}")
     print("\nspread across seeds (min - max, max - min):")
-    for key, label in (("tv_over_matched", "TV / matched floor"),
+    for key, label in (("tv_over_perfect", "TV / perfect-twin floor"),
+                       ("tv_over_matched", "TV / plug-in matched floor"),
                        ("self_twin", "self share, own walk"),
                        ("self_visits_twin", "self share at the robot's visits"),
                        ("h_twin", "entropy per action, plug-in (bits)"),
@@ -708,13 +716,17 @@ def truth_check(reps: list[dict], seeds: list[int], arena: Path, states: Path,
         for name, _seed, c in pool.map(_truth_walk, jobs):
             tv.setdefault(name, []).append(tv_distance(c, counts, unvisited="max").distance)
     matched = float(reps[0]["matched_floor"]["median"])
+    perfect = (reps[0].get("perfect_twin_floor") or {}).get("median")
 
     def cell(name: str) -> str:
         d = float(np.mean(tv[name]))
-        return f"{d:.4f} ({d / matched:.2f}x)"
+        return (f"{d:.4f} ({d / matched:.2f}x" + (f"; {d / perfect:.2f}x)" if perfect else ")"))
 
-    print(f"\nthe search against the truth (TV, mean of walk seeds {TRUTH_SEEDS}, / matched "
-          f"floor {matched:.4f}; the same seeds for every robot): the hidden robot itself "
+    print(f"\nthe search against the truth (TV, mean of walk seeds {TRUTH_SEEDS}, / plug-in "
+          f"matched floor {matched:.4f}" + (f"; / perfect-twin floor {perfect:.4f}, which the "
+                                             "hidden robot itself should read about 1.00x"
+                                             if perfect else "")
+          + f"; the same seeds for every robot): the hidden robot itself "
           f"{cell('hidden robot')}")
     print("calibrate seed | winner | the hidden values in the twin's space")
     for k, seed in enumerate(seeds):

@@ -79,6 +79,7 @@ from simlab.base.options import command, option
 from simlab.calibration.command import CalibrateConfig
 from simlab.calibration.config import CalibrationConfig
 from simlab.calibration.contradictions import Contradictions, common_pairs, contradicted_pairs
+from simlab.calibration.metrics import perfect_twin_floor
 from simlab.calibration.profile import FieldProfile, Profile, told_band
 from simlab.calibration.space import ParameterSpace, ParamSpec
 
@@ -237,6 +238,9 @@ class PoolResult:
     #: per run, the real pairs its pool walks contradict beyond sampling
     #: (:mod:`~simlab.calibration.contradictions`)
     contradictions: tuple[Contradictions, ...] = ()
+    #: the distance a twin equal to the robot would show at one pool walk
+    #: (:func:`~simlab.calibration.metrics.perfect_twin_floor`)
+    perfect_floor: float = math.nan
 
     @property
     def common_contradictions(self) -> list[tuple[int, int]]:
@@ -477,6 +481,10 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
                      + ", ".join(differ) + " chose others")
     rng = np.random.default_rng(np.random.SeedSequence(int(first_seed), spawn_key=(11,)))
     matched = float(runs[best].report["matched_floor"]["median"])
+    # at the pool's own walks, on its own stream (nothing drawn after it moves)
+    perfect = perfect_twin_floor(setup.real.counts, np.random.default_rng(
+        np.random.SeedSequence(int(first_seed), spawn_key=(19,))),
+        np.sum(walks[best], axis=0).sum(axis=2) // len(walk_seeds), n_boot=cfg.n_boot).median
     return PoolResult(tuple(runs), walk_seeds, sizes[-1], scores, dists, sigma, best,
                       tuple(joined), pooled_fields(space, runs, joined), space, matched,
                       cfg.objective, notes,
@@ -487,7 +495,8 @@ def pool(runs: list[Run], real: Any, arena: Any, states: Any, *, seeds: int = 3,
                           np.random.default_rng(np.random.SeedSequence(
                               int(first_seed), spawn_key=(17,))),
                           skip_states=list(setup.real.reset_states or ()),
-                          regions=setup.regions) for w in walks))
+                          regions=setup.regions) for w in walks),
+                      perfect)
 
 
 def _walk_winners(runs: list[Run], setup: Any, cfg: CalibrationConfig,
@@ -588,6 +597,8 @@ def pool_json(res: PoolResult) -> dict[str, Any]:
     return {"kind": KIND, "seeds": list(res.seeds), "transitions": res.transitions,
             "objective": res.objective, "sigma": res.sigma, "limit": res.limit,
             "dof": res.dof, "band": res.band, "matched_floor": res.matched_floor,
+            "perfect_twin_floor": res.perfect_floor if math.isfinite(res.perfect_floor)
+            else None,
             "best": res.best, "joined": list(res.joined),
             "runs": [{"path": str(r.path), "seed": r.seed,
                       "own_distance": r.report["distance"]["distance"],
@@ -614,14 +625,19 @@ def pool_markdown(res: PoolResult) -> str:
              f"by the `{res.objective}` objective. Walk-to-walk spread of the score "
              f"{res.sigma:.4f}; a run joins within {res.limit:.4f} of the best mean score "
              f"({res.band:.2f} sigma / sqrt({len(res.seeds)}), Student's t for the spread's "
-             f"{res.dof} degrees of freedom). Matched floor {mf:.4f}.", "",
-             "| # | run | calibrate seed | own distance | pool distance (x matched floor) | "
-             "score | above the best | joined |", "|---|---|---|---|---|---|---|---|"]
+             f"{res.dof} degrees of freedom). Matched floor {mf:.4f}; a twin equal to the "
+             f"robot would lie {res.perfect_floor:.4f} from the real table at one of these "
+             "walks (the perfect-twin floor: the matched floor without the plug-in's low "
+             "bias).", "",
+             "| # | run | calibrate seed | own distance | pool distance (x matched floor; x a "
+             "twin equal to the robot) | score | above the best | joined |",
+             "|---|---|---|---|---|---|---|---|"]
     for i, r in enumerate(res.runs):
         own = float(r.report["distance"]["distance"])
         mark = " (the pool's winner)" if i == res.best else ""
         lines.append(f"| {i} | {r.path} | {r.seed} | {own:.4f} | {mean_d[i]:.4f} "
-                     f"({mean_d[i] / mf:.2f}x) | {mean_s[i]:.4f} | {res.gaps[i]:+.4f} | "
+                     f"({mean_d[i] / mf:.2f}x; {mean_d[i] / res.perfect_floor:.2f}x) | "
+                     f"{mean_s[i]:.4f} | {res.gaps[i]:+.4f} | "
                      f"{'yes' if i in res.joined else 'no'}{mark} |")
     lines += ["", "## What the data allow, field by field", "",
               "Each joined run's winner and the values its profile allows (#: the run's row "
@@ -730,6 +746,7 @@ def pool_primitives_toml(res: PoolResult) -> str:
              f"winner is {best.path}", "[primitives]", *record_lines(best.params)]
     lines += ["", "[calibration]", f"distance = {toml_value(d)}",
               f"matched_floor_median = {toml_value(res.matched_floor)}",
+              f"perfect_twin_floor_median = {toml_value(res.perfect_floor)}",
               f"searched = [{', '.join(toml_value(n) for n in res.space.names)}]",
               f"simulator = {toml_value(best.report['config']['simulator'])}"]
     if len(res.joined) >= 2:

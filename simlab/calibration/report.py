@@ -52,6 +52,7 @@ from simlab.base.io import (
     ensure_new,
     output_transaction,
 )
+from simlab.calibration.metrics import Floor
 from simlab.calibration.policies import policy_need
 from simlab.calibration.stages import CalibrationResult
 from simlab.calibration.walks import action_set_options
@@ -172,6 +173,9 @@ def primitives_toml(result: CalibrationResult) -> str:
               f"distance = {toml_value(_num(result.final.distance))}",
               f"floor_median = {toml_value(_num(result.floor.median))}",
               f"matched_floor_median = {toml_value(_num(result.matched_floor.median))}",
+              *([] if result.perfect_floor is None else [
+                  "perfect_twin_floor_median = "
+                  f"{toml_value(_num(result.perfect_floor.median))}"]),
               f"searched = [{', '.join(toml_value(n) for n in result.space.names)}]",
               f"simulator = {toml_value(result.config.simulator)}"]
     # An ensemble of the winner alone adds nothing to [primitives]: written only with two
@@ -202,6 +206,18 @@ def _fin(x: Any) -> Any:
     return x
 
 
+def level_json(result: CalibrationResult) -> dict[str, float | None]:
+    """The winner's distance as a multiple of the distance a twin equal to the robot would
+    show (``perfect_twin``, the perfect-twin floor) and of the plug-in matched floor
+    (``matched``, which reads low: the same twin reads higher against it)."""
+    d = result.final.distance
+
+    def over(f: Floor | None) -> float | None:
+        return None if f is None or not f.median > 0 else _fin(d / f.median)
+
+    return {"perfect_twin": over(result.perfect_floor), "matched": over(result.matched_floor)}
+
+
 def report_json(result: CalibrationResult) -> dict[str, Any]:
     """The JSON report (plain types)."""
     cfg = dataclasses.asdict(result.config)
@@ -213,6 +229,9 @@ def report_json(result: CalibrationResult) -> dict[str, Any]:
         "distance": result.final.tv.to_json(),
         "floor": result.floor.to_json(),
         "matched_floor": result.matched_floor.to_json(),
+        "perfect_twin_floor": None if result.perfect_floor is None
+        else result.perfect_floor.to_json(),
+        "level": level_json(result),
         "argmax_agreement": _fin(result.agreement),
         "params": param_record(result.params),
         "base_params": param_record(result.base),
@@ -516,12 +535,24 @@ def _distance(out: io.StringIO, result: CalibrationResult) -> None:
         f"\n**Visit-weighted TV distance** {_cell(tv.distance)} against a bootstrap sampling "
         f"floor of {_cell(fl.median)} (95 %: {_cell(fl.low)}-{_cell(fl.high)}); matched floor "
         f"for this simulated budget {_cell(mf.median)} (95 %: {_cell(mf.low)}-"
-        f"{_cell(mf.high)}).\n\n"
+        f"{_cell(mf.high)}).{_level_sentence(result)}\n\n"
         f"Most likely next state agrees in {_cell(100 * result.agreement, '{:.0f}')} % of the "
         f"{tv.common} (s, a) pairs visited in both; {tv.real_only} real pairs never tried in "
         f"the simulation ({_cell(100 * tv.real_weight_uncovered, '{:.1f}')} % of the real "
         f"visits, rule `{tv.unvisited}`), {tv.sim_only} simulated pairs absent from the real "
         "table.\n\n")
+
+
+def _level_sentence(result: CalibrationResult) -> str:
+    pf, lv = result.perfect_floor, level_json(result)
+    if pf is None or lv["perfect_twin"] is None:
+        return ""
+    return (f" A twin equal to the robot, walked as long, would lie {_cell(pf.median)} from "
+            f"the real table (95 %: {_cell(pf.low)}-{_cell(pf.high)}; the matched floor "
+            "drawn from coverage-adjusted shares, since the real rows' own shares lack the "
+            "rare next states a few visits miss): **this twin is "
+            f"{lv['perfect_twin']:.2f}x that distance** ({_cell(lv['matched'], '{:.2f}')}x "
+            "the plug-in matched floor).")
 
 
 def region_table(regions: list[dict[str, Any]]) -> str:
@@ -1072,6 +1103,9 @@ def plot_calibration(result: CalibrationResult, path: Path) -> None:
     conf = result.confirmed
     ax1.axhspan(result.floor.low, result.floor.high, color="0.85", label="floor (95 %)")
     ax1.axhline(result.matched_floor.median, color="0.4", ls="--", label="matched floor")
+    if result.perfect_floor is not None:
+        ax1.axhline(result.perfect_floor.median, color="tab:green", ls=":",
+                    label="a twin equal to the robot")
     ax1.plot(idx, dist, "o", ms=4, label="rung 1 (every candidate)")
     for k, rung in enumerate(result.search.rungs if result.search is not None else []):
         ax1.plot([c.index for c in rung], [c.distance for c in rung], "s", mfc="none",

@@ -56,6 +56,7 @@ from simlab.calibration.metrics import (
     argmax_agreement,
     bootstrap_floor,
     entropy_per_action,
+    perfect_twin_floor,
     table_summary,
 )
 from simlab.calibration.objective import Reference
@@ -105,7 +106,10 @@ class CalibrationResult:
     ``params`` is the calibrated record (the confirmed winner, latency fitted when
     possible); ``final`` the winner's confirming walks pooled (or its screening walk
     without confirm). ``floor``: bootstrap floor of the real counts; ``matched_floor``: the
-    same for a perfect simulator with ``final``'s visit counts. ``confirmed``: every
+    same for a perfect simulator with ``final``'s visit counts (the plug-in, which reads
+    low); ``perfect_floor``: that distance without the plug-in's bias
+    (:func:`~simlab.calibration.metrics.perfect_twin_floor`), the reference of the level
+    the reports state. ``confirmed``: every
     confirming walk; ``twins``: the twin walks of the transfer report (the winner's
     confirming walks first); ``transfer``: that report (None without twins).
     """
@@ -161,6 +165,9 @@ class CalibrationResult:
     #: the arena the twin walked and the state centres (the contradictions' figure)
     arena: Any = None
     centres: Any = None
+    #: the distance a twin equal to the robot would show at ``final``'s visits
+    #: (:func:`~simlab.calibration.metrics.perfect_twin_floor`)
+    perfect_floor: Floor | None = None
 
 
 
@@ -281,6 +288,10 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
     final = done.final
     matched = bootstrap_floor(real.counts, rng, n_boot=config.n_boot,
                               other_n=final.sim.counts.sum(axis=2))
+    # its own stream: the level's reference adds no draw to the ones after it
+    perfect = perfect_twin_floor(
+        real.counts, np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(19,))),
+        final.sim.counts.sum(axis=2), n_boot=config.n_boot)
     ensemble = _ensemble(done, matched, twin, real.action_set, setup.disc.centres)
     sim_hours = final.sim.hours
     if fitted:
@@ -294,7 +305,8 @@ def calibrate(real: RealTable, arena: Any, states: Any, *, space: ParameterSpace
         warn_all(twin.warnings, setup.warnings)
     return CalibrationResult(
         config=config, space=setup.space, base=setup.base, params=params, candidates=cands,
-        best=done.best, final=final, floor=floor, matched_floor=matched, real=real,
+        best=done.best, final=final, floor=floor, matched_floor=matched,
+        perfect_floor=perfect, real=real,
         real_summary=table_summary(real.counts, hours=real.hours, blocked=real.blocked),
         sim_summary=sim_summary,
         agreement=argmax_agreement(sim_counts, real.counts),

@@ -28,8 +28,11 @@ def run(args: argparse.Namespace) -> int:
            else "screening only")
     print(f"winner: candidate #{r.best} of {len(r.candidates)} ({how}): {values}")
     tv = r.final.tv
+    level = ("" if r.perfect_floor is None else
+             f", a twin equal to the robot {_num(r.perfect_floor.median)}: "
+             f"{_num(r.final.distance / r.perfect_floor.median, '{:.2f}')}x")
     print(f"TV distance {r.final.distance:.3f} (floor {_num(r.floor.median)}, matched "
-          f"{_num(r.matched_floor.median)}); the twin tried {tv.common} of "
+          f"{_num(r.matched_floor.median)}{level}); the twin tried {tv.common} of "
           f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement "
           f"{_num(100 * r.agreement, '{:.0f}')} %")
     gap = r.final.gap

@@ -77,6 +77,14 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
                                                            skiprows=1)[:, 3].sum())
     assert 0.0 <= report["distance"]["distance"] <= 1.0
     assert report["floor"]["low_2.5"] <= report["floor"]["median"] <= report["floor"]["high_97.5"]
+    # the level against a twin equal to the robot (the perfect-twin floor), and the plug-in's
+    perfect = report["perfect_twin_floor"]
+    assert perfect["low_2.5"] <= perfect["median"] <= perfect["high_97.5"]
+    d = report["distance"]["distance"]
+    assert report["level"] == pytest.approx(
+        {"perfect_twin": d / perfect["median"], "matched": d / report["matched_floor"]["median"]})
+    assert f"a twin equal to the robot {perfect['median']:.3f}: " \
+        f"{report['level']['perfect_twin']:.2f}x" in printed
     params = load_base(out / "primitives.toml", "kinematic")
     assert params.drive_time == pytest.approx(report["params"]["drive_time"])
     assert report["decision_latency_fitted"] is True
@@ -84,6 +92,8 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     assert doc["calibration"]["searched"] == ["drive_time", "distance_noise", "heading_noise"]
     md = (out / "report.md").read_text()
     assert "| transitions per hour |" in md and "bootstrap sampling floor" in md
+    assert f"this twin is {report['level']['perfect_twin']:.2f}x that distance" in md
+    assert doc["calibration"]["perfect_twin_floor_median"] == pytest.approx(perfect["median"])
     assert "## Transfer to the real robot" in md and "## Budgets" in md
     # the signature at the robot's visits, the search's rungs and the twin ensemble
     gap = report["signature_gap"]

@@ -37,6 +37,7 @@ def _result(units: list[list[float]]) -> SimpleNamespace:
         real=SimpleNamespace(source="real.csv"), params=winner, base=base, space=SPACE,
         final=SimpleNamespace(distance=members[0].distance),
         floor=SimpleNamespace(median=0.05), matched_floor=SimpleNamespace(median=0.06),
+        perfect_floor=SimpleNamespace(median=0.065),
         config=SimpleNamespace(simulator="physics"), ensemble=members, latency_fitted=True)
 
 

@@ -9,8 +9,10 @@ from simlab.base.errors import ConfigError
 from simlab.calibration.metrics import (
     argmax_agreement,
     bootstrap_floor,
+    coverage_adjusted,
     cross_entropy,
     entropy_per_action,
+    perfect_twin_floor,
     self_transition_share,
     table_summary,
     tv_distance,
@@ -88,6 +90,78 @@ def test_floor_is_seeded_and_matched_floor_grows_with_fewer_simulated_visits() -
     few = bootstrap_floor(real, np.random.default_rng(5), n_boot=300,
                           other_n=np.maximum(n // 8, 1))
     assert few.median > a.median
+
+
+def test_coverage_adjusted_shares_by_hand() -> None:
+    # (0, 0) saw 3 x state 1 and 1 x state 2, one singleton: coverage 1 - 1/4; the missing
+    # quarter goes to the states 0 and 3, which state 0's other move reached 1 and 2 times
+    real = table({(0, 0, 1): 3, (0, 0, 2): 1, (0, 1, 0): 1, (0, 1, 3): 2,
+                  (1, 0, 1): 4,                   # nothing seen once: the plug-in
+                  (2, 0, 0): 1, (2, 0, 1): 1},    # singletons only (f1 = n - 1), but
+                 S=4)                             # nothing unseen that state 2 reached
+    T = coverage_adjusted(real)
+    np.testing.assert_allclose(T[0, 0], [0.25 / 3, 0.75 * 3 / 4, 0.75 / 4, 0.25 * 2 / 3])
+    # (0, 1): 1 + 2, coverage 2/3; its third to states 1 and 2 as (0, 0) reached them, 3 : 1
+    np.testing.assert_allclose(T[0, 1], [2 / 9, 1 / 4, 1 / 12, 4 / 9])
+    np.testing.assert_allclose(T[1, 0], [0.0, 1.0, 0.0, 0.0])
+    np.testing.assert_allclose(T[2, 0], [0.5, 0.5, 0.0, 0.0])
+    assert T[1, 1].sum() == 0.0 and T[3].sum() == 0.0       # unvisited pairs stay 0
+    visited = real.sum(axis=2) > 0
+    np.testing.assert_allclose(T.sum(axis=2)[visited], 1.0)
+
+
+def _draw(P: np.ndarray, n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Counts of ``n(s, a)`` next states drawn from ``P(s, a, .)`` per pair."""
+    out = np.zeros(P.shape, dtype=np.int64)
+    for s, a in zip(*np.nonzero(n), strict=True):
+        out[s, a] = rng.multinomial(int(n[s, a]), P[s, a])
+    return out
+
+
+def _ring(S: int = 24, A: int = 4) -> np.ndarray:
+    """A robot on a ring of ``S`` states whose every action lands on one of five neighbours,
+    one of them mostly (each action another), with rare outcomes on both sides."""
+    P = np.zeros((S, A, S))
+    w = (0.03, 0.12, 0.55, 0.22, 0.08)
+    for s in range(S):
+        for a in range(A):
+            for k, off in enumerate(range(-2, 3)):
+                P[s, a, (s + off + a - 1) % S] += w[k]
+    return P
+
+
+def test_perfect_twin_floor_reads_what_a_twin_equal_to_the_robot_shows() -> None:
+    # a known robot, 12 real visits per pair (its rare outcomes mostly unseen), a twin walked
+    # for 18: the distance of a twin equal to the robot by Monte Carlo, against the plug-in
+    # matched floor (drawn from the 12 visits' shares) and the perfect-twin floor
+    P = _ring()
+    n, m = np.full(P.shape[:2], 12), np.full(P.shape[:2], 18)
+    rng = np.random.default_rng(0)
+    truth = np.mean([tv_distance(_draw(P, m, rng), _draw(P, n, rng)).distance
+                     for _ in range(400)])
+    plug, perfect = [], []
+    for k in range(4):
+        real = _draw(P, n, np.random.default_rng(100 + k))
+        plug.append(bootstrap_floor(real, np.random.default_rng(1), n_boot=200,
+                                    other_n=m).median / truth)
+        perfect.append(perfect_twin_floor(real, np.random.default_rng(1), m,
+                                          n_boot=200).median / truth)
+    assert max(plug) < 0.9                          # the plug-in reads low
+    assert abs(np.mean(perfect) - 1.0) < 0.1
+    assert all(abs(q - 1) < abs(p - 1) for p, q in zip(plug, perfect, strict=True))
+
+
+def test_perfect_twin_floor_is_seeded_and_refuses_bad_input() -> None:
+    real = _draw(_ring(), np.full((24, 4), 12), np.random.default_rng(7))
+    m = np.full((24, 4), 18)
+    a = perfect_twin_floor(real, np.random.default_rng(5), m, n_boot=50)
+    b = perfect_twin_floor(real, np.random.default_rng(5), m, n_boot=50)
+    np.testing.assert_array_equal(a.samples, b.samples)
+    assert a.low <= a.median <= a.high
+    with pytest.raises(ConfigError, match="other_n"):
+        perfect_twin_floor(real, np.random.default_rng(5), m[:3], n_boot=5)
+    with pytest.raises(ConfigError, match="n_boot"):
+        perfect_twin_floor(real, np.random.default_rng(5), m, n_boot=0)
 
 
 def test_argmax_agreement_with_ties() -> None:

@@ -188,6 +188,12 @@ def test_pool_walks_every_winner_on_the_same_fresh_seeds_and_unions_what_they_al
     members = toml["ensemble"]
     assert len(members) == len(rep["joined"]) and members[0] == winner
     assert (out / "pool.md").read_text().startswith("# Pool of 5 calibrations")
+    # the pool's distances also against a twin equal to the robot at one pool walk
+    pf = rep["perfect_twin_floor"]
+    assert pf > 0 and toml["calibration"]["perfect_twin_floor_median"] == pytest.approx(pf)
+    d_best = np.array([r["distances"] for r in rep["runs"]])[rep["best"]].mean()
+    assert f"{d_best / pf:.2f}x a twin equal to the robot" in printed
+    assert f"a twin equal to the robot would lie {pf:.4f}" in (out / "pool.md").read_text()
     # the copies' policies score as their originals'; the ensemble draws the joined in turn
     t = rep["transfer"]
     assert t["ratios"][:2] == t["ratios"][2:4] and len(t["ratios"]) == 5
