@@ -528,6 +528,39 @@ def test_the_perfect_twin_line_is_one_on_sure_moves_and_falls_with_more_data() -
     np.testing.assert_array_equal(again.overall, few.overall)  # by seed
 
 
+def test_the_perfect_twin_line_reads_what_twins_equal_to_the_robot_score() -> None:
+    """A known robot on a ring whose moves have rare outcomes; real models of 10 visits per
+    pair and twins equal to the robot walked 15 (20 per real model). Their mean score is
+    the perfect twin's; a line drawn from the real model's plug-in shares reads below it,
+    one drawn from its coverage-adjusted shares (the default) nearer."""
+    from simlab.calibration.transfer.score import perfect_twin_line
+
+    S, A = 16, 8
+    P = np.zeros((S, A, S))
+    w = (0.04, 0.1, 0.5, 0.26, 0.1)
+    for s, a in itertools.product(range(S), range(A)):
+        step = (1 if a < 4 else -1) * (1 + a % 2)
+        for k, off in enumerate(range(-2, 3)):
+            P[s, a, (s + step + off) % S] += w[k] if a % 2 == 0 else w[::-1][k]
+    rng = np.random.default_rng(0)
+
+    def walk(n: int) -> TransferModel:
+        return TransferModel.from_counts(rng.multinomial(n, P), action_set=CCW8)
+
+    truth, plug, adjusted = [], [], []
+    for _ in range(10):
+        real = walk(10)
+        res = transfer_report(real, [walk(15) for _ in range(20)], {"g": [0]})
+        truth.append(float(np.mean(res.overall_ratios())))
+        v = np.full((S, A), 15)
+        plug.append(perfect_twin_line(real, res, v, n_boot=40, rng=np.random.default_rng(1),
+                                      adjusted=False).median)
+        adjusted.append(perfect_twin_line(real, res, v, n_boot=40,
+                                          rng=np.random.default_rng(1)).median)
+    t, p, q = np.mean(truth), np.mean(plug), np.mean(adjusted)
+    assert p < t and abs(q - t) < abs(p - t) / 2
+
+
 def test_a_summary_of_twins_that_never_arrive_says_so_without_a_percentage() -> None:
     real = TransferModel(T=line(0.5), allowed=np.ones((4, 2), dtype=bool), name="real")
     bad = line(0.5)

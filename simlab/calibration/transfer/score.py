@@ -581,16 +581,23 @@ def _quantile(x: NDArray[np.float64], q: float) -> float:
 
 
 def perfect_twin_line(real: TransferModel, result: TransferResult, visits: ArrayLike, *,
-                      n_boot: int, rng: np.random.Generator) -> PerfectLine:
+                      n_boot: int, rng: np.random.Generator,
+                      adjusted: bool = True) -> PerfectLine:
     """The score of a perfect twin with the data ``visits`` (S, A) (transitions per pair),
     on the goals and starts of ``result``, by parametric bootstrap of the real counts.
 
     A twin equal to the true robot, walked for ``visits``, is still an estimate: its plan
     exploits the noise of its own sample, and it is scored on a real model that is itself an
     estimate (whose optimum is biased low, :func:`transfer_floor`). Each resample draws both
-    from the real model ``T`` (standing for the truth): the twin's counts
+    from shares ``T`` standing for the truth: the twin's counts
     ``Multinomial(visits(s, a), T(s, a, .))`` on the pairs the real robot tried (its other
-    pairs stay untried), and a real model at the real counts' sizes; the twin's shortest-path
+    pairs stay untried), and a real model at the real counts' sizes. ``T`` is the real
+    counts' coverage-adjusted shares (:func:`~simlab.calibration.metrics.coverage_adjusted`;
+    ``adjusted=False``: the plug-in shares of the real model), since a row of a few visits
+    lacks the rare outcomes the robot has, and a line drawn from its own shares reads low: on
+    a lab whose robot is a known physics walk, that robot's own walks of 8,012 transitions
+    score 1.078-1.099x the optimum over three real tables, a plug-in line 1.056-1.072x, the
+    coverage-adjusted one 1.079-1.102x. The twin's shortest-path
     policy is scored on that real model against its optimum, as :func:`transfer_report`
     scores a twin. A calibrated twin is read against this line at its own data: the gap is
     what the calibration leaves, the rest is data.
@@ -603,6 +610,10 @@ def perfect_twin_line(real: TransferModel, result: TransferResult, visits: Array
     v = np.where(real.allowed, np.asarray(visits, dtype=np.int64), 0)
     n_real = real.counts.sum(axis=2)
     P = real.T / real.T.sum(axis=2, keepdims=True)
+    if adjusted:
+        from simlab.calibration.metrics import coverage_adjusted
+
+        P = np.where((n_real > 0)[..., None], coverage_adjusted(real.counts), P)
     goals = result.goals
     per_goal = np.full((len(goals), int(n_boot)), math.nan)
     overall = np.full(int(n_boot), math.nan)
