@@ -294,6 +294,7 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
             "h_matched_real": gap.get("entropy_bits_real"), "regions_tv": gap.get("regions_tv"),
             "blocked": rep["sim"]["blocked_rate"],
             "twin_ratios": twins, "never": sum(x is None for x in twins),
+            "perfect_never": (tr.get("perfect_twin_line") or {}).get("never_share"),
             "masked": tr.get("masked_ratios"),
             "fit_at_need": fit, "perfect_at_need": perfect,
             "at_need_over_perfect": fit / perfect if fit and perfect else None,
@@ -347,6 +348,16 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
               + ", ".join(f"seed {r['seed']} {len(c.pairs)}" for r, c in zip(rows, runs,
                                                                               strict=True))
               + f"; listed by every seed: {common_pairs(runs) or 'none'}")
+    shares = [r["perfect_never"] for r in rows if r["perfect_never"] is not None]
+    if shares:  # the target "every twin seed arrives" against what a perfect twin does
+        n_twins = sum(len(r["twin_ratios"]) for r in rows)
+        expected = sum(r["perfect_never"] * len(r["twin_ratios"]) for r in rows
+                       if r["perfect_never"] is not None)
+        print(f"\ntwin seeds whose policy never arrives somewhere: "
+              f"{sum(r['never'] for r in rows)} of {n_twins}; a twin equal to the robot at the "
+              f"same data never arrives on {100 * min(shares):.0f}-{100 * max(shares):.0f} % of "
+              f"the real data's resamples (the perfect-twin line's), about {expected:.1f} of "
+              f"{n_twins} twin seeds by chance alone")
     print("\nspread across seeds (min - max, max - min):")
     for key, label in (("tv_over_perfect", "TV / perfect-twin floor"),
                        ("tv_over_matched", "TV / plug-in matched floor"),
