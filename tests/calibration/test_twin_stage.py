@@ -105,8 +105,12 @@ def test_a_twin_equal_to_the_real_robot_sits_on_the_perfect_twin_line() -> None:
     assert out is not None and not out.warnings
     assert [r["walks"] for r in out.curve] == [1, 2, 3]
     mean = float(np.mean(out.report.overall_ratios()))
-    # the twins are the truth sampled: their score is the perfect twin's, within its spread
-    lo, hi = np.quantile(out.line.overall, [0.025, 0.975])
+    # the twins are the truth sampled: their score is the perfect twin's, within the spread
+    # of its resamples that arrive (on a few, a pair of 12 real moves drawn all stays traps
+    # even a perfect twin's plan)
+    arrive = out.line.overall[np.isfinite(out.line.overall)]
+    assert arrive.size >= 0.8 * out.line.overall.size
+    lo, hi = np.quantile(arrive, [0.025, 0.975])
     assert lo - 0.02 <= mean <= hi + 0.02
     assert out.line.transitions == twins[0].sum()
 
