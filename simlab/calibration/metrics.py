@@ -24,16 +24,17 @@ cannot be expected to come closer to the real one than this. ``other_n`` gives a
 real sizes and one of the simulated sizes ``other_n(s, a)`` — the expected distance of a
 perfect simulator run for that budget, *as estimated by the plug-in*: drawn from the real
 table's own shares, which on sparse rows (a few visits each) lack the rare next states the
-robot has, so it reads low (the synthetic lab's hidden robot, walked afresh, lies 1.14-1.19x
-its matched floor).
+robot has, so it reads low (the synthetic lab's hidden robot, walked afresh, lies 1.14-1.20x
+its matched floor over three real tables).
 
 **Perfect-twin floor** (:func:`perfect_twin_floor`): the matched floor drawn instead from
 coverage-adjusted shares (:func:`coverage_adjusted`): each row's observed shares scaled by
-its sample coverage ``C = 1 - f1 / n`` (``f1`` next states seen once; Good 1953, the
-estimate Chao & Shen 2003 use against the plug-in entropy's bias), the missing ``1 - C``
+its sample coverage ``C = 1 - f1 / n`` (``f1`` next states seen once; Good 1953,
+Biometrika 40, the estimate Chao & Shen 2003, Environ. Ecol. Stat. 10, use against the
+plug-in entropy's bias), the missing ``1 - C``
 given to the next states the row has not seen in proportion to how often the state's other
 moves reached them. The distance a twin equal to the robot would show, estimated without
-that bias (the hidden robot reads 0.94-1.00x it).
+that bias (the hidden robot reads 0.98-1.02x it on the same three tables).
 """
 
 from __future__ import annotations
