@@ -298,7 +298,9 @@ def seed_row(seed: int, rep: dict, wall: float, load: float) -> dict[str, Any]:
     perfect = at_need.get("ratio_median")
     pf = (rep.get("perfect_twin_floor") or {}).get("median")
     return {"seed": seed, "tv_over_matched": d / mf,
-            "tv_over_perfect": d / pf if pf else None, "self_twin": rep["sim"][
+            "tv_over_perfect": d / pf if pf else None,
+            "fresh_over_perfect": ((rep.get("level") or {}).get("fresh") or {}).get(
+                "perfect_twin"), "self_twin": rep["sim"][
                 "self_transition_share"], "self_real": rep["real"]["self_transition_share"],
             "self_visits_twin": gap.get("self_share"), "self_visits_real":
                 gap.get("self_share_real"),
@@ -328,7 +330,8 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
           "perfect-twin floor, spread <= 0.1x; self share "
           "within +-0.03 and entropy within +-0.05 bits of the robot's; at the recommended "
           "data <= 1.03x the perfect twin; every twin arrives; <= 900 s quiet):")
-    print("seed | TV/perfect twin | TV/matched (plug-in) | self twin/robot (own walk; at robot's visits) | entropy "
+    print("seed | TV/perfect twin (confirming walk; fresh twin walks) | TV/matched (plug-in) | "
+          "self twin/robot (own walk; at robot's visits) | entropy "
           "twin/robot (plug-in; matched draws) | regions TV | blocked | twin ratios | "
           "at need / perfect | ensemble | wall s (load)")
     for r in rows:
@@ -336,7 +339,8 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
         if r.get("masked"):
             ratios += " (planned among the pairs the robot moved in: " + ", ".join(
                 _f(x) if x is not None else "never" for x in r["masked"]) + ")"
-        print(f"{r['seed']} | {_f(r['tv_over_perfect'], '{:.2f}')} | "
+        print(f"{r['seed']} | {_f(r['tv_over_perfect'], '{:.2f}')}; "
+              f"{_f(r['fresh_over_perfect'], '{:.2f}')} | "
               f"{r['tv_over_matched']:.2f} | {_f(r['self_twin'])}/"
               f"{_f(r['self_real'])}; {_f(r['self_visits_twin'])}/{_f(r['self_visits_real'])}"
               f" | {_f(r['h_twin'], '{:.2f}')}/{_f(r['h_real'], '{:.2f}')}; "
@@ -373,6 +377,7 @@ def print_seeds(rows: list[dict[str, Any]]) -> None:
               f"{n_twins} twin seeds by chance alone")
     print("\nspread across seeds (min - max, max - min):")
     for key, label in (("tv_over_perfect", "TV / perfect-twin floor"),
+                       ("fresh_over_perfect", "TV / perfect-twin floor, fresh twin walks"),
                        ("tv_over_matched", "TV / plug-in matched floor"),
                        ("self_twin", "self share, own walk"),
                        ("self_visits_twin", "self share at the robot's visits"),

@@ -206,16 +206,30 @@ def _fin(x: Any) -> Any:
     return x
 
 
-def level_json(result: CalibrationResult) -> dict[str, float | None]:
+def fresh_twins(result: CalibrationResult) -> list[Any]:
+    """The twin walks of the winner on seeds it was not chosen on (its confirming walks, the
+    best of the confirmed candidates there, read low by their luck)."""
+    chosen = {c.seed for c in result.confirmed if c.index == result.best}
+    return [t for t in result.twins if t.seed not in chosen]
+
+
+def level_json(result: CalibrationResult) -> dict[str, Any]:
     """The winner's distance as a multiple of the distance a twin equal to the robot would
     show (``perfect_twin``, the perfect-twin floor) and of the plug-in matched floor
-    (``matched``, which reads low: the same twin reads higher against it)."""
+    (``matched``, which reads low: the same twin reads higher against it); ``fresh``: the
+    mean distance of :func:`fresh_twins` and its multiple of the perfect-twin floor (None
+    without such walks)."""
     d = result.final.distance
+    pf = result.perfect_floor
 
-    def over(f: Floor | None) -> float | None:
-        return None if f is None or not f.median > 0 else _fin(d / f.median)
+    def over(x: float, f: Floor | None) -> float | None:
+        return None if f is None or not f.median > 0 else _fin(x / f.median)
 
-    return {"perfect_twin": over(result.perfect_floor), "matched": over(result.matched_floor)}
+    fresh = fresh_twins(result)
+    mean = float(np.mean([t.distance for t in fresh])) if fresh else math.nan
+    return {"perfect_twin": over(d, pf), "matched": over(d, result.matched_floor),
+            "fresh": None if not fresh else {"walks": len(fresh), "distance": _fin(mean),
+                                             "perfect_twin": over(mean, pf)}}
 
 
 def report_json(result: CalibrationResult) -> dict[str, Any]:
@@ -552,7 +566,16 @@ def _level_sentence(result: CalibrationResult) -> str:
             "drawn from coverage-adjusted shares, since the real rows' own shares lack the "
             "rare next states a few visits miss): **this twin is "
             f"{lv['perfect_twin']:.2f}x that distance** ({_cell(lv['matched'], '{:.2f}')}x "
-            "the plug-in matched floor).")
+            "the plug-in matched floor)." + _fresh_sentence(lv["fresh"]))
+
+
+def _fresh_sentence(fresh: dict[str, Any] | None) -> str:
+    if not fresh or fresh["perfect_twin"] is None:
+        return ""
+    walks = "walk" if fresh["walks"] == 1 else f"{fresh['walks']} walks"
+    return (f" On the winner's fresh twin {walks} (seeds it was not chosen on) the distance "
+            f"is {_cell(fresh['distance'])}, {fresh['perfect_twin']:.2f}x: the confirming "
+            "walk is the best of the confirmed candidates there, and reads low by its luck.")
 
 
 def region_table(regions: list[dict[str, Any]]) -> str:

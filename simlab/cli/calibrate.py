@@ -19,6 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from simlab.calibration.command import CalibrateConfig, calibrate_command
+    from simlab.calibration.report import level_json
 
     done = calibrate_command(CalibrateConfig.from_args(args))
     r = done.result
@@ -28,9 +29,12 @@ def run(args: argparse.Namespace) -> int:
            else "screening only")
     print(f"winner: candidate #{r.best} of {len(r.candidates)} ({how}): {values}")
     tv = r.final.tv
-    level = ("" if r.perfect_floor is None else
+    lv = level_json(r)
+    fresh = (lv["fresh"] or {}).get("perfect_twin")
+    level = ("" if lv["perfect_twin"] is None else
              f", a twin equal to the robot {_num(r.perfect_floor.median)}: "
-             f"{_num(r.final.distance / r.perfect_floor.median, '{:.2f}')}x")
+             f"{lv['perfect_twin']:.2f}x"
+             + ("" if fresh is None else f", {fresh:.2f}x on fresh twin walks"))
     print(f"TV distance {r.final.distance:.3f} (floor {_num(r.floor.median)}, matched "
           f"{_num(r.matched_floor.median)}{level}); the twin tried {tv.common} of "
           f"{tv.common + tv.real_only} real (s, a) pairs; argmax agreement "

@@ -81,10 +81,15 @@ def test_calibrate_writes_a_primitives_file_collect_can_read(inputs, tmp_path, c
     perfect = report["perfect_twin_floor"]
     assert perfect["low_2.5"] <= perfect["median"] <= perfect["high_97.5"]
     d = report["distance"]["distance"]
-    assert report["level"] == pytest.approx(
-        {"perfect_twin": d / perfect["median"], "matched": d / report["matched_floor"]["median"]})
+    level = report["level"]
+    assert (level["perfect_twin"], level["matched"]) == pytest.approx(
+        (d / perfect["median"], d / report["matched_floor"]["median"]))
+    # the level on the twin walks of seeds the winner was not chosen on
+    assert level["fresh"]["walks"] == 2              # three twin seeds, one confirming walk
+    assert level["fresh"]["perfect_twin"] == pytest.approx(
+        level["fresh"]["distance"] / perfect["median"])
     assert f"a twin equal to the robot {perfect['median']:.3f}: " \
-        f"{report['level']['perfect_twin']:.2f}x" in printed
+        f"{level['perfect_twin']:.2f}x, {level['fresh']['perfect_twin']:.2f}x on fresh" in printed
     params = load_base(out / "primitives.toml", "kinematic")
     assert params.drive_time == pytest.approx(report["params"]["drive_time"])
     assert report["decision_latency_fitted"] is True

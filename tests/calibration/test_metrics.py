@@ -222,3 +222,28 @@ def test_excess_distance_is_near_zero_for_the_truth_and_positive_for_a_wrong_mod
     assert tv_distance(truth_sim, real).distance > 0.15
     # seeded: same inputs and Generator seed, same value
     assert excess_distance(truth_sim, real, np.random.default_rng(0)) == e_truth
+
+
+def test_the_level_reads_the_winner_on_its_confirming_walk_and_on_fresh_twin_walks() -> None:
+    from types import SimpleNamespace
+
+    from simlab.calibration.report import fresh_twins, level_json
+
+    def walk(index: int, seed: int, distance: float) -> SimpleNamespace:
+        return SimpleNamespace(index=index, seed=seed, distance=distance)
+
+    # the winner (#7) was chosen on seed 2 among candidates confirmed there; its twin walks
+    # are that confirming walk and fresh seeds 3 and 4
+    result = SimpleNamespace(
+        best=7, final=walk(7, 2, 0.20), confirmed=[walk(7, 2, 0.20), walk(5, 2, 0.25)],
+        twins=[walk(7, 2, 0.20), walk(7, 3, 0.26), walk(7, 4, 0.30)],
+        perfect_floor=SimpleNamespace(median=0.1), matched_floor=SimpleNamespace(median=0.08))
+    assert [t.seed for t in fresh_twins(result)] == [3, 4]
+    level = level_json(result)
+    assert level["perfect_twin"] == pytest.approx(2.0) and level["matched"] == pytest.approx(2.5)
+    assert level["fresh"] == pytest.approx({"walks": 2, "distance": 0.28, "perfect_twin": 2.8})
+    # without fresh walks (every twin a confirming walk) or without the floor: no figure
+    assert level_json(SimpleNamespace(**{**vars(result), "twins": result.twins[:1]}))[
+        "fresh"] is None
+    none = level_json(SimpleNamespace(**{**vars(result), "perfect_floor": None}))
+    assert none["perfect_twin"] is None and none["fresh"]["perfect_twin"] is None
