@@ -82,6 +82,7 @@ matched floor, which reads low: on the synthetic lab the hidden robot walked afr
 walks of 8,012 on each of three real tables of 13 h) reads 1.20/1.14/1.17x the plug-in and
 1.02/0.98/1.00x the perfect-twin floor. Measured on the ISIR lab (seeds 0-4 of the defaults,
 2026-12-08, load 1.3-2.3, 507-785 s): 1.46/1.43/1.45/1.46/1.51x a twin equal to the robot
+on the winner's confirming walk, 1.52/1.46/1.55/1.55/1.54x on its two fresh twin walks
 (1.60/1.57/1.57/1.59/1.64x the plug-in; the same winners as before); at the recommended data,
 with the perfect-twin lines drawn from coverage-adjusted shares over 100 resamples,
 1.022/1.032/none/1.001/1.026x a perfect twin (from the plug-in over 20, as before:
