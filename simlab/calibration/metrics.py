@@ -31,9 +31,8 @@ its matched floor over three real tables).
 coverage-adjusted shares (:func:`coverage_adjusted`): each row's observed shares scaled by
 its sample coverage ``C = 1 - f1 / n`` (``f1`` next states seen once; Good 1953,
 Biometrika 40, the estimate Chao & Shen 2003, Environ. Ecol. Stat. 10, use against the
-plug-in entropy's bias), the missing ``1 - C``
-given to the next states the row has not seen in proportion to how often the state's other
-moves reached them. The distance a twin equal to the robot would show, estimated without
+plug-in entropy's bias), the missing ``1 - C`` given to the next states the row has not
+seen in proportion to how often the state's other moves reached them. The distance a twin equal to the robot would show, estimated without
 that bias (the hidden robot reads 0.98-1.02x it on the same three tables).
 """
 

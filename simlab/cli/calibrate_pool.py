@@ -31,8 +31,9 @@ def run(args: argparse.Namespace) -> int:
                                       if math.isfinite(t.ratios[i]) else
                                       ", a policy never arrives on the real model")
         print(f"{r.path} (seed {r.seed}): distance {mean[i]:.4f} "
-              f"({mean[i] / res.matched_floor:.2f}x the matched floor, "
-              f"{mean[i] / res.perfect_floor:.2f}x a twin equal to the robot), score "
+              f"({mean[i] / res.matched_floor:.2f}x the matched floor"
+              + (f", {mean[i] / res.perfect_floor:.2f}x a twin equal to the robot"
+                 if res.perfect_floor > 0 else "") + "), score "
               f"{res.gaps[i]:+.4f} against the best{steps}: {mark}")
     print(f"{len(res.joined)} of {len(res.runs)} runs within sampling of the best (band "
           f"{res.limit:.4f}); pool.md: what the data allow across them, field by field")
