@@ -667,10 +667,16 @@ def check_bag_target(path: str | os.PathLike[str], *, overwrite: bool = False) -
     return path
 
 
-def _remove_stale_staging(parent: Path, name: str) -> None:
-    """Staging directories of ``name`` left by a killed writer (the caller holds the lock
-    of ``parent``, so none of them is in use)."""
-    for stale in parent.glob(f".{name}{STAGING_PREFIX}*"):
+def _clear_staging(parent: Path, path: Path) -> None:
+    """Remove the staging directories of the bag ``path`` (the caller holds the lock of
+    ``parent``, so none of them is in use: a killed writer's, or this call's own). A writer
+    stopped between its two renames (the previous bag moved aside, the new one not yet in
+    place) left the only copy of the previous bag there as ``previous``: it goes back to
+    ``path`` first."""
+    for stale in sorted(parent.glob(f".{path.name}{STAGING_PREFIX}*")):
+        previous = stale / "previous"
+        if not os.path.lexists(path) and os.path.lexists(previous):
+            os.replace(previous, path)
         shutil.rmtree(stale, ignore_errors=True)
 
 
@@ -702,16 +708,20 @@ def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 
         with exclusive_directory(parent, what="folder (a bag is being written into it)",
                                  fix="wait for the other export to finish, or choose "
                                      "another --out"):
-            _remove_stale_staging(parent, path.name)
+            _clear_staging(parent, path)
             path = check_bag_target(path, overwrite=overwrite)  # the lock is ours now
-            staging = Path(tempfile.mkdtemp(prefix=f".{path.name}{STAGING_PREFIX}", dir=parent))
             try:
+                staging = Path(tempfile.mkdtemp(prefix=f".{path.name}{STAGING_PREFIX}",
+                                                dir=parent))
                 _write(rb, ts, plugin, staging / path.name, traj, t0)
                 if os.path.lexists(path):
                     os.replace(path, staging / "previous")  # a bag of ours or empty
                 os.replace(staging / path.name, path)
             finally:
-                shutil.rmtree(staging, ignore_errors=True)
+                # by the glob, not the name: an interrupt can land after mkdtemp made the
+                # folder and before its name was bound; and between the two renames it
+                # puts the previous bag back
+                _clear_staging(parent, path)
     except OSError as exc:
         for p in created:  # innermost first: only the directories this call made, if empty
             with contextlib.suppress(OSError):

@@ -281,6 +281,72 @@ def test_a_killed_export_leaves_staging_that_the_next_one_removes(wb: Path, caps
     assert (wb / "bag2" / "metadata.yaml").is_file()
 
 
+def test_an_interrupt_between_the_renames_puts_the_previous_bag_back(wb: Path, capsys,
+                                                                      monkeypatch) -> None:
+    """Ctrl-C after the previous bag was moved aside and before the new one took its place:
+    the previous bag is back, byte for byte, and no staging folder is left."""
+    import simlab.ros.bag as bagmod
+
+    real, calls = os.replace, []
+
+    def replace(src, dst):
+        calls.append(Path(dst).name)
+        real(src, dst)
+        if Path(dst).name == "previous":
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(bagmod.os, "replace", replace)
+    before = tree_hashes(wb)
+    res = run_cli(["export-bag", str(wb / "data"), "--out", str(wb / "bag"), "--no-scans",
+                   "--overwrite"], capsys)
+    assert res.code == 130 and "Traceback" not in res.stderr, res.stderr
+    assert "previous" in calls                       # the interrupt did land there
+    _unchanged(before, wb)
+    _no_staging(wb)
+
+
+def test_a_writer_killed_between_the_renames_loses_no_bag(wb: Path, capsys) -> None:
+    """What a kill at that moment leaves (the previous bag only inside a staging folder, no
+    bag at ``--out``): the next export puts it back before anything else, so without
+    ``--overwrite`` it is refused as any existing bag is, the bag whole."""
+    from simlab.ros.bag import STAGING_PREFIX
+
+    before = tree_hashes(wb)
+    stale = wb / f".bag{STAGING_PREFIX}dead"
+    stale.mkdir()
+    os.replace(wb / "bag", stale / "previous")
+    (stale / "bag").mkdir()                           # the new bag, half written
+    res = run_cli(["export-bag", str(wb / "data"), "--out", str(wb / "bag"), "--no-scans"],
+                  capsys)
+    assert_refused(res, "already exists", str(wb / "bag"))
+    _unchanged(before, wb)
+    _no_staging(wb)
+
+
+def test_an_interrupt_as_the_staging_folder_is_made_leaves_none(wb: Path, capsys,
+                                                                 monkeypatch) -> None:
+    """Ctrl-C the moment ``mkdtemp`` has made the staging folder, before the writer holds
+    its name: the folder is still removed."""
+    import simlab.ros.bag as bagmod
+
+    real, made = tempfile.mkdtemp, []
+
+    def mkdtemp(*args, **kwargs):
+        made.append(real(*args, **kwargs))
+        if bagmod.STAGING_PREFIX in kwargs.get("prefix", ""):   # the bag's staging folder
+            raise KeyboardInterrupt
+        return made[-1]
+
+    monkeypatch.setattr(bagmod.tempfile, "mkdtemp", mkdtemp)
+    before = tree_hashes(wb)
+    res = run_cli(["export-bag", str(wb / "data"), "--out", str(wb / "bag"), "--no-scans",
+                   "--overwrite"], capsys)
+    assert res.code == 130, res.stderr
+    assert any(bagmod.STAGING_PREFIX in Path(m).name for m in made)
+    _unchanged(before, wb)
+    _no_staging(wb)
+
+
 def test_a_killed_import_leaves_staging_that_the_next_one_removes(wb: Path, capsys) -> None:
     from simlab.base.io import STAGING_PREFIX
 
