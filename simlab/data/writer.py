@@ -239,9 +239,9 @@ def _killed_run_leftovers(out: Path, entries: list[Path]) -> bool:
         and (not parts_dir.exists() or parts_dir.is_dir())
 
 
-def _clear(out: Path, overwrite: bool, remove: bool = True) -> None:
+def _clear(out: Path, overwrite: bool) -> None:
     """Refuse a directory that is not empty (unless ``overwrite``) or that holds files that
-    are not a dataset's; then, if ``remove``, remove the old dataset (manifest first)."""
+    are not a dataset's (:func:`_set_aside` then moves the old dataset out of the way)."""
     entries = [p for p in out.iterdir() if not p.name.startswith(".")]
     if not entries:
         return
@@ -261,13 +261,50 @@ def _clear(out: Path, overwrite: bool, remove: bool = True) -> None:
     if not overwrite:  # only now: --overwrite is the fix only when it would work
         raise ConfigError("output directory is not empty: it holds a dataset", path=out,
                           fix="choose another --out or pass --overwrite")
-    if not remove:
+
+
+#: Where, inside a write's staging folder, the dataset it replaces waits until the new one
+#: is in place.
+PREVIOUS = "previous"
+
+
+def _dataset_entries(out: Path) -> list[Path]:
+    """The dataset files of ``out`` (hidden names are simlab's own: staging, lock)."""
+    return [p for p in out.iterdir() if not p.name.startswith(".")]
+
+
+def _set_aside(out: Path, overwrite: bool, dest: Path) -> None:
+    """Move the dataset of ``out`` (checked by :func:`_clear`) into ``dest``: its manifest
+    first (a dataset no more), then its parts."""
+    _clear(out, overwrite)
+    entries = _dataset_entries(out)
+    if not entries:
         return
-    manifest_path(out).unlink(missing_ok=True)
-    for p in inner + [p for p in entries if p != parts_dir]:
-        p.unlink(missing_ok=True)
-    if parts_dir.is_dir():
-        parts_dir.rmdir()
+    dest.mkdir()
+    manifest = manifest_path(out)
+    for p in sorted(entries, key=lambda q: q != manifest):
+        os.replace(p, dest / p.name)
+
+
+def _clear_staging(out: Path) -> None:
+    """Remove the staging folders in ``out`` (the caller holds its lock: a killed write's,
+    or this call's own). A write stopped after it set the previous dataset aside and before
+    the new one was whole in ``out`` (no manifest there) left the only copy of that dataset
+    in its staging folder: it goes back first (the new write's parts removed, its manifest
+    last)."""
+    for stale in sorted(out.glob(f"{STAGING_PREFIX}*")):
+        previous = stale / PREVIOUS
+        if previous.is_dir() and manifest_path(previous).exists() \
+                and not manifest_path(out).exists():
+            for p in _dataset_entries(out):  # the unfinished write's parts
+                if p.is_dir():
+                    shutil.rmtree(p)
+                else:
+                    p.unlink()
+            manifest = manifest_path(previous)
+            for p in sorted(previous.iterdir(), key=lambda q: q == manifest):
+                os.replace(p, out / p.name)
+        shutil.rmtree(stale, ignore_errors=True)
 
 
 def _jsonable(obj: Any) -> Any:
@@ -369,14 +406,15 @@ def write_dataset(
     created = not out.exists()
     try:
         with exclusive_directory(out, what="dataset directory"):
-            for stale in out.glob(f"{STAGING_PREFIX}*"):  # a killed write's; we hold the lock
-                shutil.rmtree(stale, ignore_errors=True)
-            _clear(out, overwrite, remove=False)  # refuse before any work
-            staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
+            _clear_staging(out)  # a killed write's; we hold the lock
+            _clear(out, overwrite)  # refuse before any work
             try:
+                staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
                 written = _write_walks(staging, walks, numbers, states, info, schema,
                                        manifest, part_size, disc)
-                _clear(out, overwrite)  # the old dataset goes only once the new one is whole
+                # the old dataset moves aside only once the new one is whole, and is
+                # deleted only once the new one is in place
+                _set_aside(out, overwrite, staging / PREVIOUS)
                 os.replace(staging / PARTS_DIR, out / PARTS_DIR)
                 os.replace(manifest_path(staging), manifest_path(out))  # last: a dataset now
             except OSError as exc:  # name the user's dataset, not the staging copy
@@ -384,7 +422,10 @@ def write_dataset(
                     raise
                 raise unstaged_error(exc, out) from exc
             finally:
-                shutil.rmtree(staging, ignore_errors=True)
+                # by the glob, not the name (an interrupt can land after mkdtemp made the
+                # folder, before its name was bound); an old dataset set aside and not
+                # replaced goes back
+                _clear_staging(out)
     except BaseException:  # a full disk, Ctrl-C: a first write leaves no directory behind
         if created:
             with contextlib.suppress(OSError):

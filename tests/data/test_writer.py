@@ -151,3 +151,84 @@ def test_manifest_without_action_set_is_simlab16_and_8_without_record_refused(
     path.write_text(json.dumps(doc))
     with pytest.raises((ConfigError, DataError), match="no action_set record"):
         open_dataset(tmp_path / "ds")
+
+
+def _hashes(root: Path) -> dict[str, str]:
+    import hashlib
+
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file() and ".simlab" not in str(p)}
+
+
+def _staging_left(root: Path) -> list[Path]:
+    from simlab.base.io import STAGING_PREFIX
+
+    return list(root.glob(f"{STAGING_PREFIX}*"))
+
+
+@pytest.fixture()
+def old_dataset(tmp_path: Path) -> tuple[Path, DatasetInfo, dict[str, str]]:
+    info = DatasetInfo(discretizer=Discretizer(centres=CENTRES), action_set=SIMLAB16)
+    write_dataset(tmp_path / "ds", _walk(7, np.random.default_rng(3)), info, part_size=3)
+    return tmp_path / "ds", info, _hashes(tmp_path / "ds")
+
+
+def test_an_interrupt_before_the_new_manifest_puts_the_old_dataset_back(
+        old_dataset, monkeypatch) -> None:
+    """Ctrl-C after the old dataset was set aside and the new parts moved in, before the new
+    manifest: the old dataset is back, byte for byte, with no staging folder."""
+    import simlab.data.writer as writer
+
+    out, info, before = old_dataset
+    real = writer.os.replace
+
+    def replace(src, dst):
+        if Path(dst) == manifest_path(out) and "previous" not in str(src):
+            raise KeyboardInterrupt  # the new manifest's rename, the write's last step
+        real(src, dst)
+
+    monkeypatch.setattr(writer.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        write_dataset(out, _walk(11, np.random.default_rng(4)), info, overwrite=True)
+    monkeypatch.undo()
+    assert _hashes(out) == before and not _staging_left(out)
+    assert open_dataset(out).column("a").size == 7
+
+
+def test_a_write_killed_after_setting_the_old_dataset_aside_loses_nothing(
+        old_dataset) -> None:
+    """What a kill there leaves (the old dataset only in a staging folder, the new write's
+    parts in ``out``): the next write puts the old one back first, so without ``overwrite``
+    it is refused as any dataset is, and the dataset is whole."""
+    import os
+
+    from simlab.base.io import STAGING_PREFIX
+    from simlab.data.schema import PARTS_DIR
+
+    out, info, before = old_dataset
+    stale = out / f"{STAGING_PREFIX}dead"
+    (stale / "previous").mkdir(parents=True)
+    os.replace(manifest_path(out), manifest_path(stale / "previous"))
+    os.replace(out / PARTS_DIR, stale / "previous" / PARTS_DIR)
+    (out / PARTS_DIR).mkdir()                           # the killed write's new parts
+    (out / PARTS_DIR / "w000-p00000.parquet").write_bytes(b"PAR1 half")
+    with pytest.raises(ConfigError, match="holds a dataset"):
+        write_dataset(out, _walk(5, np.random.default_rng(5)), info)
+    assert _hashes(out) == before and not _staging_left(out)
+
+
+def test_an_interrupt_as_the_staging_folder_is_made_leaves_none(old_dataset,
+                                                               monkeypatch) -> None:
+    import simlab.data.writer as writer
+
+    out, info, before = old_dataset
+    real, made = writer.tempfile.mkdtemp, []
+
+    def mkdtemp(*args, **kwargs):
+        made.append(real(*args, **kwargs))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(writer.tempfile, "mkdtemp", mkdtemp)
+    with pytest.raises(KeyboardInterrupt):
+        write_dataset(out, _walk(5, np.random.default_rng(6)), info, overwrite=True)
+    assert made and not _staging_left(out) and _hashes(out) == before
