@@ -326,20 +326,26 @@ def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str,
                 minari.create_dataset_from_buffers(dataset_id, episodes, **meta)
             except ValueError as exc:
                 raise ConfigError(str(exc), key="dataset_id") from None
-        if target.exists():  # overwrite: replaced only once the new one is complete
-            minari.delete_dataset(dataset_id)
         if namespace is not None and namespace not in list_local_namespaces():
             create_namespace(namespace)
         target.parent.mkdir(parents=True, exist_ok=True)
+        if target.exists():  # overwrite: set aside only once the new one is complete, and
+            aside = tmp_root / PREVIOUS / target.relative_to(root)  # deleted once it is in
+            aside.parent.mkdir(parents=True)
+            os.replace(target, aside)
         os.replace(tmp_root / dataset_id, target)
     finally:
         alive.release()
+        _restore_previous(tmp_root, root)
         shutil.rmtree(tmp_root, ignore_errors=True)
 
 
 #: Staging roots are ``.<datasets root name>.simlab-<pid>-XXXX`` beside Minari's datasets
 #: root: the owner's process id, then mkdtemp's random part.
 STAGING_INFIX = ".simlab-"
+#: Where, inside a staging root, the dataset an export replaces waits (under its id's path)
+#: until the new one is in place.
+PREVIOUS = "previous"
 #: The lock file inside a staging root that its export holds while it lives.
 OWNER_LOCK = ".owner.lock"
 #: Seconds a staging root whose owner's process id is in use (by the export, or by another
@@ -383,6 +389,20 @@ def _dead_owner(stale: Path, prefix: str) -> bool:
     return True
 
 
+def _restore_previous(staging: Path, root: Path) -> None:
+    """Put back the dataset an export set aside in ``staging`` (``previous/<id path>``) when
+    nothing took its place: stopped between its two renames, it is the only copy."""
+    previous = staging / PREVIOUS
+    if not previous.is_dir():
+        return
+    for meta in sorted(previous.rglob("metadata.json")):  # listed before anything moves
+        aside = meta.parent.parent  # <id>/data/metadata.json
+        target = root / aside.relative_to(previous)
+        if aside.is_dir() and not target.exists():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(aside, target)
+
+
 def remove_dead_staging(root: Path) -> list[Path]:
     """Remove the staging roots beside Minari's datasets ``root`` that killed exports left
     (SIGKILL, power cut): only simlab's (``.<root>.simlab-<pid>-*`` directories of this
@@ -397,6 +417,7 @@ def remove_dead_staging(root: Path) -> list[Path]:
                 continue
         except OSError:
             continue
+        _restore_previous(stale, root)
         shutil.rmtree(stale, ignore_errors=True)
         removed.append(stale)
     return removed

@@ -293,3 +293,41 @@ def test_ctrl_c_while_minari_builds_the_env_is_one_line_and_130(
     assert err == "simlab export-minari: interrupted\n"
     assert ignored == []
     assert not (minari_home / "simlab" / "cut-v0").exists()
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file()}
+
+
+def test_minari_overwrite_interrupted_between_its_renames_keeps_the_old_dataset(
+        kinematic_dataset: Path, minari_home: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Ctrl-C after the old dataset was set aside and before the new one took its place:
+    the old one is back, file for file, and no staging root is left; so is it when the
+    export is killed there (the next export's cleanup puts it back)."""
+    import simlab.envs.minari_export as mx
+
+    export = mx.export_minari
+    export(kinematic_dataset, "simlab/keep-v0", episode_length=128)
+    target = minari_home / "simlab" / "keep-v0"
+    before = _files(target)
+    assert any(name.endswith("metadata.json") for name in before)
+    real = mx.os.replace
+
+    def replace(src, dst):
+        real(src, dst)
+        if mx.PREVIOUS in Path(dst).parts:          # the old one just moved aside
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(mx.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        export(kinematic_dataset, "simlab/keep-v0", episode_length=64, overwrite=True)
+    monkeypatch.undo()
+    assert _files(target) == before
+    assert not list(minari_home.parent.glob(f".{minari_home.name}{mx.STAGING_INFIX}*"))
+    # killed there instead: the dataset sits only in a dead export's staging root
+    dead = minari_home.parent / f".{minari_home.name}{mx.STAGING_INFIX}999999999-dead"
+    (dead / mx.PREVIOUS / "simlab").mkdir(parents=True)
+    real(target, dead / mx.PREVIOUS / "simlab" / "keep-v0")
+    assert mx.remove_dead_staging(minari_home) == [dead]
+    assert _files(target) == before and not dead.exists()
