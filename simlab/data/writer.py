@@ -242,7 +242,7 @@ def _killed_run_leftovers(out: Path, entries: list[Path]) -> bool:
 def _clear(out: Path, overwrite: bool) -> None:
     """Refuse a directory that is not empty (unless ``overwrite``) or that holds files that
     are not a dataset's (:func:`_set_aside` then moves the old dataset out of the way)."""
-    entries = [p for p in out.iterdir() if not p.name.startswith(".")]
+    entries = _dataset_entries(out)
     if not entries:
         return
     if not overwrite and _killed_run_leftovers(out, entries):
@@ -296,7 +296,12 @@ def _clear_staging(out: Path) -> None:
         previous = stale / PREVIOUS
         if previous.is_dir() and manifest_path(previous).exists() \
                 and not manifest_path(out).exists():
-            for p in _dataset_entries(out):  # the unfinished write's parts
+            here = _dataset_entries(out)
+            parts = [p for p in here
+                     if p.name == PARTS_DIR or parse_part_name(p.name) is not None]
+            if len(parts) < len(here):  # something else is there now: leave the dataset
+                continue                # where it waits rather than remove what is not ours
+            for p in parts:  # the unfinished write's parts
                 if p.is_dir():
                     shutil.rmtree(p)
                 else:

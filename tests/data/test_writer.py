@@ -157,7 +157,8 @@ def _hashes(root: Path) -> dict[str, str]:
     import hashlib
 
     return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file() and ".simlab" not in str(p)}
+            for p in sorted(root.rglob("*"))
+            if p.is_file() and ".simlab" not in str(p.relative_to(root))}
 
 
 def _staging_left(root: Path) -> list[Path]:
@@ -232,3 +233,24 @@ def test_an_interrupt_as_the_staging_folder_is_made_leaves_none(old_dataset,
     with pytest.raises(KeyboardInterrupt):
         write_dataset(out, _walk(5, np.random.default_rng(6)), info, overwrite=True)
     assert made and not _staging_left(out) and _hashes(out) == before
+
+
+def test_a_set_aside_dataset_is_never_removed_to_make_room(old_dataset) -> None:
+    """A killed write's set-aside dataset, and a file of the user's in ``out`` since: the
+    next write refuses the folder (not a dataset's) and the set-aside dataset stays whole
+    where it waits, for the user to take back."""
+    import os
+
+    from simlab.base.io import STAGING_PREFIX
+    from simlab.data.schema import PARTS_DIR
+
+    out, info, before = old_dataset
+    stale = out / f"{STAGING_PREFIX}dead"
+    (stale / "previous").mkdir(parents=True)
+    os.replace(manifest_path(out), manifest_path(stale / "previous"))
+    os.replace(out / PARTS_DIR, stale / "previous" / PARTS_DIR)
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(ConfigError, match="not a dataset's"):
+        write_dataset(out, _walk(5, np.random.default_rng(7)), info, overwrite=True)
+    assert (out / "notes.txt").read_text() == "mine"
+    assert _hashes(stale / "previous") == before
