@@ -172,9 +172,16 @@ def bootstrap_floor(real: ArrayLike, rng: np.random.Generator, *, n_boot: int = 
             floor (distance of a sample of these sizes to a fresh sample of the real sizes).
     """
     real_c = _counts(real, "real")
+    return _floor(real_c, _probabilities(real_c)[0], rng, n_boot, other_n)
+
+
+def _floor(real_c: NDArray[np.int64], T: NDArray[np.float64], rng: np.random.Generator,
+           n_boot: int, other_n: ArrayLike | None) -> Floor:
+    """The floor of ``real_c`` with every resample drawn from the shares ``T``: against the
+    real table itself, or (``other_n``) two samples, of those sizes and of the real ones."""
     if int(n_boot) < 1:
         raise ConfigError(f"must be >= 1, got {n_boot}", key="n_boot")
-    T, n = _probabilities(real_c)
+    n = real_c.sum(axis=2)
     m = None if other_n is None else np.asarray(other_n, dtype=np.int64)
     if m is not None and m.shape != n.shape:
         raise ConfigError(f"expected shape {n.shape}, got {m.shape}", key="other_n")
@@ -184,10 +191,6 @@ def bootstrap_floor(real: ArrayLike, rng: np.random.Generator, *, n_boot: int = 
             d[b] = tv_distance(_resample(T, n, rng), real_c).distance
         else:
             d[b] = tv_distance(_resample(T, m, rng), _resample(T, n, rng)).distance
-    return _floor_of(d)
-
-
-def _floor_of(d: NDArray[np.float64]) -> Floor:
     finite = d[np.isfinite(d)]
     if finite.size == 0:  # no pair in both samples (e.g. a simulation that tried none)
         return Floor(median=math.nan, low=math.nan, high=math.nan, samples=d)
@@ -224,15 +227,7 @@ def perfect_twin_floor(real: ArrayLike, rng: np.random.Generator, other_n: Array
     95 % band over ``n_boot`` resamples of ``rng``. Reads what :func:`bootstrap_floor`'s
     matched floor estimates, without the plug-in's low bias."""
     real_c = _counts(real, "real")
-    if int(n_boot) < 1:
-        raise ConfigError(f"must be >= 1, got {n_boot}", key="n_boot")
-    T, n = coverage_adjusted(real_c), real_c.sum(axis=2)
-    m = np.asarray(other_n, dtype=np.int64)
-    if m.shape != n.shape:
-        raise ConfigError(f"expected shape {n.shape}, got {m.shape}", key="other_n")
-    d = np.array([tv_distance(_resample(T, m, rng), _resample(T, n, rng)).distance
-                  for _ in range(int(n_boot))])
-    return _floor_of(d)
+    return _floor(real_c, coverage_adjusted(real_c), rng, n_boot, other_n)
 
 
 def excess_distance(sim: ArrayLike, real: ArrayLike, rng: np.random.Generator, *,
