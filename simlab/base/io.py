@@ -245,6 +245,23 @@ def _is_inside(path: Path, directory: Path) -> bool:
     return True
 
 
+def set_aside(target: Path, aside: Path) -> None:
+    """Move the output ``target`` (a directory of the writer's own) to ``aside`` inside its
+    staging folder, so that the new one can be renamed into place; it is deleted with the
+    staging folder once the new one is there, and :func:`put_back` returns it if a Ctrl-C
+    or a kill came in between (then it is the only copy)."""
+    aside.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(target, aside)
+
+
+def put_back(aside: Path, target: Path) -> None:
+    """Return what :func:`set_aside` moved to ``aside`` when nothing took its place at
+    ``target``; call it before the staging folder holding ``aside`` is removed."""
+    if os.path.lexists(aside) and not os.path.lexists(target):
+        target.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(aside, target)
+
+
 #: Prefix of the staging directories of :func:`output_transaction` (left only by a kill;
 #: removed by the next transaction on the same directory, which holds the lock).
 STAGING_PREFIX = ".simlab-staging-"

@@ -50,7 +50,13 @@ import pyarrow as pa
 
 from simlab.base.actions import SIMLAB16, ActionSet
 from simlab.base.errors import ConfigError
-from simlab.base.io import STAGING_PREFIX, exclusive_directory, unstaged_error
+from simlab.base.io import (
+    STAGING_PREFIX,
+    exclusive_directory,
+    put_back,
+    set_aside,
+    unstaged_error,
+)
 from simlab.data.dataset import write_part
 from simlab.data.manifest import manifest_path, new_manifest, write_manifest
 from simlab.data.schema import (
@@ -280,10 +286,9 @@ def _set_aside(out: Path, overwrite: bool, dest: Path) -> None:
     entries = _dataset_entries(out)
     if not entries:
         return
-    dest.mkdir()
     manifest = manifest_path(out)
     for p in sorted(entries, key=lambda q: q != manifest):
-        os.replace(p, dest / p.name)
+        set_aside(p, dest / p.name)
 
 
 def _clear_staging(out: Path) -> None:
@@ -308,7 +313,7 @@ def _clear_staging(out: Path) -> None:
                     p.unlink()
             manifest = manifest_path(previous)
             for p in sorted(previous.iterdir(), key=lambda q: q == manifest):
-                os.replace(p, out / p.name)
+                put_back(p, out / p.name)
         shutil.rmtree(stale, ignore_errors=True)
 
 

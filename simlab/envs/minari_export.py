@@ -54,6 +54,7 @@ import numpy as np
 
 from simlab.base import validation
 from simlab.base.errors import ConfigError, warn
+from simlab.base.io import put_back, set_aside
 from simlab.base.options import CommandConfig, command, option
 
 
@@ -329,10 +330,8 @@ def _publish(dataset_id: str, target: Path, episodes: list[Any], meta: dict[str,
         if namespace is not None and namespace not in list_local_namespaces():
             create_namespace(namespace)
         target.parent.mkdir(parents=True, exist_ok=True)
-        if target.exists():  # overwrite: set aside only once the new one is complete, and
-            aside = tmp_root / PREVIOUS / target.relative_to(root)  # deleted once it is in
-            aside.parent.mkdir(parents=True)
-            os.replace(target, aside)
+        if target.exists():  # overwrite: set aside only once the new one is complete
+            set_aside(target, tmp_root / PREVIOUS / target.relative_to(root))
         os.replace(tmp_root / dataset_id, target)
     finally:
         alive.release()
@@ -397,10 +396,7 @@ def _restore_previous(staging: Path, root: Path) -> None:
         return
     for meta in sorted(previous.rglob("metadata.json")):  # listed before anything moves
         aside = meta.parent.parent  # <id>/data/metadata.json
-        target = root / aside.relative_to(previous)
-        if aside.is_dir() and not target.exists():
-            target.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(aside, target)
+        put_back(aside, root / aside.relative_to(previous))
 
 
 def remove_dead_staging(root: Path) -> list[Path]:

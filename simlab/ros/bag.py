@@ -89,7 +89,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from simlab.base.errors import ConfigError, DataError
-from simlab.base.io import NESTED_TOO_DEEPLY, exclusive_directory
+from simlab.base.io import NESTED_TOO_DEEPLY, exclusive_directory, put_back, set_aside
 from simlab.ros.frames import RobotFrames, wheel_angles
 from simlab.ros.markers import SceneMarkers, voronoi_cells
 
@@ -125,6 +125,9 @@ LATCHED = ("/tf_static", "/map", "/simlab/cells", "/simlab/goals", "/robot_descr
 WRITER_MARK = "simlab.ros.bag"
 #: Prefix of the staging directory of :func:`write_bag`, beside the bag.
 STAGING_PREFIX = ".simlab-bag-"
+#: Where, inside the staging folder, the bag an export replaces waits until the new one is
+#: in place.
+PREVIOUS = "previous"
 
 
 @dataclass(frozen=True)
@@ -674,9 +677,7 @@ def _clear_staging(parent: Path, path: Path) -> None:
     place) left the only copy of the previous bag there as ``previous``: it goes back to
     ``path`` first."""
     for stale in sorted(parent.glob(f".{path.name}{STAGING_PREFIX}*")):
-        previous = stale / "previous"
-        if not os.path.lexists(path) and os.path.lexists(previous):
-            os.replace(previous, path)
+        put_back(stale / PREVIOUS, path)
         shutil.rmtree(stale, ignore_errors=True)
 
 
@@ -715,7 +716,7 @@ def write_bag(path: str | os.PathLike[str], traj: BagTrajectory, *, t0: float = 
                                                 dir=parent))
                 _write(rb, ts, plugin, staging / path.name, traj, t0)
                 if os.path.lexists(path):
-                    os.replace(path, staging / "previous")  # a bag of ours or empty
+                    set_aside(path, staging / PREVIOUS)  # a bag of ours or empty
                 os.replace(staging / path.name, path)
             finally:
                 # by the glob, not the name: an interrupt can land after mkdtemp made the
